@@ -1,0 +1,71 @@
+# ---
+# jupyter:
+#   jupytext:
+#     formats: ipynb,py:percent
+#     text_representation:
+#       extension: .py
+#       format_name: percent
+#   kernelspec:
+#     display_name: Python 3 (vpr-landmarks)
+#     language: python
+#     name: python3
+# ---
+
+# %% [markdown]
+# # 05 · Dense sampling parameters (Section 5.1, Tables 2-4, Fig. 10-12)
+#
+# Exactly the paper's settings (about 100 landmarks per image): the number of scale levels
+# (Table 2), the number of landmarks per scale (Table 3) and the normalised scales (Table 4).
+# The paper ran these on Mapillary Berlin; here they run on the dataset chosen below.
+
+# %%
+from IPython.display import Image, display
+
+from vpr_core.study import open_study
+
+# %% tags=["parameters"]
+dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | folder
+root = None  # dataset folder for the real datasets
+backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
+quick = False  # small run (12 synthetic places / 20 images) used by the tests
+
+# %%
+study = open_study(dataset, root=root, backbone=backbone, quick=quick,
+                   notebook="05_dense_sampling_parameters")
+print(study.describe())
+
+# %% [markdown]
+# ## Table 2 / Fig. 10 — single vs multiple scale levels
+
+# %%
+study.dense_settings("table2")
+
+# %%
+study.dense_sweep("table2", figure="fig10_scale_levels")
+
+# %%
+display(Image(filename=study.figures_dir / "fig10_scale_levels.png"))
+
+# %% [markdown]
+# ## Table 3 / Fig. 11 — landmarks per scale at scales 0.16, 0.25, 0.36, 0.49
+
+# %%
+study.dense_settings("table3")
+
+# %%
+study.dense_sweep("table3", figure="fig11_landmarks_per_scale")
+
+# %%
+display(Image(filename=study.figures_dir / "fig11_landmarks_per_scale.png"))
+
+# %% [markdown]
+# ## Table 4 / Fig. 12 — normalised scales, 25 landmarks per scale
+
+# %%
+study.dense_settings("table4")
+
+# %%
+study.dense_sweep("table4", figure="fig12_normalized_scales")
+
+# %%
+display(Image(filename=study.figures_dir / "fig12_normalized_scales.png"))

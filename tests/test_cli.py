@@ -1,0 +1,37 @@
+"""The ``vpr-study`` command line."""
+
+import pytest
+
+from vpr_core import cli
+
+
+def test_eval_prints_table_and_writes_plot(tmp_path, capsys):
+    rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "dense",
+                   "--out", str(tmp_path)])
+    assert rc == 0
+    out = capsys.readouterr().out
+    for col in ("AUC(ratio)", "R@100P", "R@1", "R@5", "landmarks s/img", "features s/img",
+                "matching s/pair"):
+        assert col in out
+    assert (tmp_path / "eval_dense_efficientnet_lite0.png").stat().st_size > 0
+    assert (tmp_path / "eval_dense_efficientnet_lite0.csv").read_text().startswith("method,")
+
+
+def test_eval_unknown_method_lists_valid(capsys):
+    with pytest.raises(SystemExit):
+        cli.main(["eval", "--method", "edgebox"])
+    assert "valid: classical, dense" in capsys.readouterr().err
+
+
+def test_eval_unknown_dataset_is_a_clear_error(capsys):
+    rc = cli.main(["eval", "--dataset", "nowhere", "--method", "dense"])
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert "nowhere" in err and "synthetic" in err
+
+
+def test_eval_missing_root_is_a_clear_error(tmp_path, capsys):
+    rc = cli.main(["eval", "--dataset", "folder", "--root", str(tmp_path / "missing"),
+                   "--method", "dense"])
+    assert rc == 2
+    assert "missing" in capsys.readouterr().err

@@ -1,0 +1,86 @@
+"""End-to-end pipeline on a tiny synthetic set: caching, results, CLI."""
+
+import numpy as np
+import pytest
+
+from vpr_core import pipeline
+from vpr_core.datasets import load_dataset
+from vpr_core.matching import image_similarity
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    return load_dataset("synthetic", n_places=6)
+
+
+@pytest.fixture()
+def isolated_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("VPR_CACHE_DIR", str(tmp_path / "cache"))
+    return tmp_path / "cache"
+
+
+def test_dense_run_shapes_metrics_and_timings(tiny):
+    r = pipeline.run_method("dense", tiny, keep_descriptors=True)
+    assert r.similarity.shape == (6, 6)
+    assert all(b.shape == (100, 4) for b in r.boxes["query"])
+    assert all(d.shape == (100, 1024) for d in r.descriptors["reference"])
+    assert set(r.metrics) >= {"auc", "r_at_100p", "r_at_1", "r_at_5"}
+    assert 0.0 <= r.metrics["auc"] <= 1.0
+    assert r.timings["features_s_per_image"] > 0
+    # the matrix is Eq. (1) pair by pair
+    q, ref = 1, 2
+    s = image_similarity(r.descriptors["query"][q], r.boxes["query"][q],
+                         r.descriptors["reference"][ref], r.boxes["reference"][ref])
+    assert r.similarity[q, ref] == pytest.approx(s, abs=1e-5)
+
+
+def test_edge_box_schemes_share_candidates(tiny):
+    cl = pipeline.run_method("classical", tiny)
+    s1 = pipeline.run_method("selection_scheme1", tiny)
+    cands, _ = pipeline.edge_box_candidates(tiny, "query", 0)
+    np.testing.assert_array_equal(cl.boxes["query"][0], cands[:100])
+    # every scheme-1 landmark is a candidate of scale index >= 4
+    from vpr_core.landmarks import scale_index
+
+    idx = scale_index(s1.boxes["query"][0], tiny.image_size("query", 0))
+    assert (idx >= 4).all()
+
+
+def test_feature_cache_reads_second_time_and_recomputes_changed_config(tiny, isolated_cache,
+                                                                       monkeypatch):
+    calls = []
+    enc = pipeline.get_encoder()
+    orig = enc.encode
+
+    def counting(image, boxes):
+        calls.append(len(boxes))
+        return orig(image, boxes)
+
+    monkeypatch.setattr(enc, "encode", counting)
+    pipeline.run_method("dense", tiny, scales=(0.25,), per_scale=4)
+    first = sum(calls)
+    assert first == 12 * 4
+    pipeline.run_method("dense", tiny, scales=(0.25,), per_scale=4)
+    assert sum(calls) == first, "second run of the same config must read the cache"
+    pipeline.run_method("dense", tiny, scales=(0.25, 0.49), per_scale=4)
+    # only the new scale's boxes are computed (resume); the 0.25 boxes come from the store
+    assert sum(calls) == first + 12 * 4
+
+
+def test_soft_nms_changes_scores_not_landmarks(tiny):
+    a = pipeline.run_method("classical", tiny)
+    b = pipeline.run_method("overlap_scheme2", tiny, soft_nms_iou=0.3)
+    for x, y in zip(a.boxes["query"], b.boxes["query"]):
+        np.testing.assert_array_equal(x, y)
+    assert (b.similarity <= a.similarity + 1e-9).all()
+    assert not np.allclose(a.similarity, b.similarity)
+
+
+def test_run_is_deterministic(tiny, isolated_cache):
+    a = pipeline.run_method("dense", tiny, scales=(0.36,), per_scale=4).similarity
+    pipeline.get_encoder.cache_clear()
+    import shutil
+
+    shutil.rmtree(isolated_cache)
+    b = pipeline.run_method("dense", tiny, scales=(0.36,), per_scale=4).similarity
+    np.testing.assert_array_equal(a, b)

@@ -1,0 +1,95 @@
+"""Optional interactive helper to label landmark matches by hand (the paper's manual labels).
+
+Needs ``ipywidgets`` (not a dependency: ``pip install ipywidgets``) and a live Jupyter kernel;
+headless runs never call it. The CSV it writes is the ``file`` format read by
+:func:`vpr_core.statistics.label_matches` (``method="file", labels=path``):
+``query,reference,query_box_index,reference_box_index,correct``.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+LABEL_COLUMNS = ("query", "reference", "query_box_index", "reference_box_index", "correct")
+
+
+def append_labels(path: str | Path, q: int, r: int, matches: np.ndarray,
+                  correct: np.ndarray) -> Path:
+    """Append (or create) a labels CSV with one row per match of pair ``(q, r)``.
+
+    Args:
+        path: CSV file.
+        q, r: query and reference indices.
+        matches: ``(P, 2)`` landmark index pairs.
+        correct: ``(P,)`` bool labels.
+    """
+    matches = np.asarray(matches, dtype=np.int64).reshape(-1, 2)
+    correct = np.asarray(correct, dtype=bool).reshape(-1)
+    if len(matches) != len(correct):
+        raise ValueError(f"{len(matches)} matches but {len(correct)} labels: give one label "
+                         "per match.")
+    path = Path(path)
+    new = not path.exists()
+    with path.open("a", newline="") as f:
+        w = csv.writer(f)
+        if new:
+            w.writerow(LABEL_COLUMNS)
+        for (i, j), c in zip(matches, correct):
+            w.writerow([q, r, int(i), int(j), int(bool(c))])
+    return path
+
+
+def label_widget(dataset, q: int, r: int, boxes_q: np.ndarray, boxes_r: np.ndarray,
+                 matches: np.ndarray, out: str | Path = "labels.csv"):
+    """Step through the matches of one pair, answer correct / wrong, then save to ``out``.
+
+    Returns the ipywidgets container to display in a notebook.
+    """
+    try:
+        import ipywidgets as widgets
+    except ImportError as exc:  # pragma: no cover - optional dependency
+        raise ImportError("label_widget needs ipywidgets: pip install ipywidgets") from exc
+    import matplotlib.pyplot as plt
+
+    from .viz import draw_boxes
+
+    img_q, img_r = dataset.load_image("query", q), dataset.load_image("reference", r)
+    matches = np.asarray(matches, dtype=np.int64).reshape(-1, 2)
+    labels = np.zeros(len(matches), dtype=bool)
+    state = {"k": 0}
+    output = widgets.Output()
+    status = widgets.Label()
+
+    def show() -> None:
+        output.clear_output(wait=True)
+        k = state["k"]
+        with output:
+            if k >= len(matches):
+                append_labels(out, q, r, matches, labels)
+                print(f"saved {len(matches)} labels to {out}")
+                return
+            i, j = matches[k]
+            fig, axes = plt.subplots(1, 2, figsize=(10, 3))
+            for ax, img, box in ((axes[0], img_q, boxes_q[i]), (axes[1], img_r, boxes_r[j])):
+                ax.imshow(img)
+                draw_boxes(ax, box[None], color="yellow", lw=2)
+                ax.axis("off")
+            plt.show()
+        status.value = f"match {k + 1}/{len(matches)}"
+
+    def answer(value: bool):
+        def _cb(_):
+            if state["k"] < len(matches):
+                labels[state["k"]] = value
+                state["k"] += 1
+            show()
+        return _cb
+
+    yes, no = widgets.Button(description="correct"), widgets.Button(description="wrong")
+    yes.on_click(answer(True))
+    no.on_click(answer(False))
+    show()
+    return widgets.VBox([widgets.HBox([yes, no, status]), output])
