@@ -1,0 +1,475 @@
+"""Tests for vpr_core.datasets (loaders, PlaceDataset, synthetic generator, downloads) and
+viz.plot_examples."""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import http.server
+import io
+import json
+import threading
+import zipfile
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from vpr_core import datasets as D
+from vpr_core.datasets import DATASETS, PlaceDataset, download_dataset, load_dataset
+
+SMALL = (64, 112)  # (H, W) for fast generator tests
+
+
+# ----------------------------------------------------------------------------------------------
+# helpers
+# ----------------------------------------------------------------------------------------------
+
+
+def _write_images(folder: Path, names, size=(12, 16), seed=0) -> list[Path]:
+    folder.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(seed)
+    out = []
+    for n in names:
+        img = rng.integers(0, 256, (*size, 3), dtype=np.uint8)
+        p = folder / n
+        assert cv2.imwrite(str(p), img)
+        out.append(p)
+    return out
+
+
+def _grad(img: np.ndarray) -> np.ndarray:
+    """Illumination-robust structure map: gradient magnitude of a locally normalised grey image."""
+    g = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    g = g / (cv2.GaussianBlur(g, (0, 0), 8) + 5.0)
+    gx = cv2.Sobel(g, cv2.CV_32F, 1, 0)
+    gy = cv2.Sobel(g, cv2.CV_32F, 0, 1)
+    return cv2.GaussianBlur(np.hypot(gx, gy), (0, 0), 2)
+
+
+def _ncc(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
+    a, b = a[mask] - a[mask].mean(), b[mask] - b[mask].mean()
+    return float((a * b).sum() / np.sqrt((a * a).sum() * (b * b).sum()))
+
+
+# ----------------------------------------------------------------------------------------------
+# synthetic generator
+# ----------------------------------------------------------------------------------------------
+
+
+def test_generator_deterministic_and_seed_dependent():
+    r1, q1, h1 = D.render_synthetic_place(0, 3, SMALL)
+    r2, q2, h2 = D.render_synthetic_place(0, 3, SMALL)
+    r3, q3, _ = D.render_synthetic_place(1, 3, SMALL)
+    assert r1.shape == q1.shape == (*SMALL, 3) and r1.dtype == q1.dtype == np.uint8
+    assert np.array_equal(r1, r2) and np.array_equal(q1, q2) and np.array_equal(h1, h2)
+    assert not np.array_equal(r1, r3) and not np.array_equal(q1, q3)
+    assert h1.shape == (3, 3) and h1.dtype == np.float64 and h1[2, 2] == pytest.approx(1.0)
+    # night query is darker than the day reference
+    assert q1.mean() < 0.6 * r1.mean()
+
+
+def test_place_independent_of_n_places(tmp_path):
+    a = load_dataset("synthetic", root=tmp_path / "a", n_places=3, image_size=SMALL)
+    b = load_dataset("synthetic", root=tmp_path / "b", n_places=5, image_size=SMALL)
+    for i in range(3):
+        for side in ("query", "reference"):
+            assert np.array_equal(a.load_image(side, i), b.load_image(side, i))
+        np.testing.assert_array_equal(a.homographies[i], b.homographies[i])
+    # and distinct places differ
+    assert not np.array_equal(b.load_image("reference", 0), b.load_image("reference", 1))
+
+
+def test_synthetic_dataset_fields(tiny_synthetic):
+    ds = tiny_synthetic
+    assert ds.name == "synthetic" and len(ds) == 8 and ds.tolerance == 0
+    assert ds.ground_truth.dtype == bool and ds.ground_truth.shape == (8, 8)
+    assert np.array_equal(ds.ground_truth, np.eye(8, dtype=bool))
+    assert ds.gt_pairs() == [(i, i) for i in range(8)]
+    assert ds.homographies.shape == (8, 3, 3)
+    img = ds.load_image("query", 0)
+    assert img.shape == (360, 640, 3) and img.dtype == np.uint8
+    assert ds.image_size("reference", 7) == (360, 640)
+    assert (ds.root / "manifest.json").is_file()
+    man = json.loads((ds.root / "manifest.json").read_text())
+    assert man["seed"] == 0 and man["image_size"] == [360, 640]
+    assert "synthetic" in repr(ds) and "n_query=8" in repr(ds)
+
+
+def test_synthetic_homography_aligns_views(tiny_synthetic):
+    """Warping the night query into the reference frame with H lines up the structures."""
+    ds = tiny_synthetic
+    for i in range(4):
+        q, r = ds.load_image("query", i), ds.load_image("reference", i)
+        h, w = r.shape[:2]
+        hm = ds.homographies[i]
+        np.testing.assert_allclose(hm, D.synthetic_homography(0, i, (h, w)))
+        warped = cv2.warpPerspective(q, hm, (w, h))
+        valid = cv2.warpPerspective(np.ones((h, w), np.uint8), hm, (w, h)) > 0
+        aligned = _ncc(_grad(warped), _grad(r), valid)
+        identity = _ncc(_grad(q), _grad(r), np.ones((h, w), bool))
+        assert aligned > 0.3 and aligned > identity + 0.25, (i, aligned, identity)
+
+
+def test_synthetic_tolerance_and_options(tmp_path):
+    ds = load_dataset("synthetic", root=tmp_path, n_places=5, image_size=SMALL, tolerance=1)
+    q, r = np.indices((5, 5))
+    assert np.array_equal(ds.ground_truth, np.abs(q - r) <= 1)
+    assert ds.tolerance == 1
+    for bad in ({"n_places": 0}, {"seed": -1}, {"image_size": (10, 10)}, {"tolerance": -1},
+                {"image_size": "big"}):
+        with pytest.raises(ValueError):
+            load_dataset("synthetic", root=tmp_path, **bad)
+
+
+def test_synthetic_cache_reuse_and_regeneration(tmp_path, monkeypatch):
+    monkeypatch.setenv("VPR_CACHE_DIR", str(tmp_path / "cache"))
+    ds = load_dataset("synthetic", n_places=2, image_size=SMALL)
+    assert str(ds.root).startswith(str(tmp_path / "cache" / "datasets" / "synthetic-"))
+    before = ds.query_paths[1].read_bytes()
+    ds.query_paths[1].unlink()
+    calls = []
+    real = D.render_synthetic_place
+
+    def spy(seed, i, size):
+        calls.append(i)
+        return real(seed, i, size)
+
+    monkeypatch.setattr(D, "render_synthetic_place", spy)
+    ds2 = load_dataset("synthetic", n_places=2, image_size=SMALL)
+    assert calls == [1]  # only the missing place is regenerated
+    assert ds2.query_paths[1].read_bytes() == before  # byte-identical
+    load_dataset("synthetic", n_places=2, image_size=SMALL)
+    assert calls == [1]  # nothing missing: nothing generated
+    # a different seed gets another cache folder
+    assert load_dataset("synthetic", n_places=1, seed=5, image_size=SMALL).root != ds.root
+
+
+# ----------------------------------------------------------------------------------------------
+# PlaceDataset
+# ----------------------------------------------------------------------------------------------
+
+
+def test_place_dataset_access_and_errors(tmp_path):
+    qp = _write_images(tmp_path / "q", ["a.png", "b.png"])
+    rp = _write_images(tmp_path / "r", ["c.png", "d.png", "e.png"], seed=1)
+    gt = np.zeros((2, 3), bool)
+    gt[0, 1] = gt[1, 2] = True
+    ds = PlaceDataset("t", qp, rp, gt, None)
+    assert len(ds) == 2 and ds.gt_pairs() == [(0, 1), (1, 2)]
+    assert ds.image_size("query", 1) == (12, 16)
+    key = ds.image_key("reference", 0)
+    assert key == ds.image_key("reference", 0) and len(key) == 16
+    assert key != ds.image_key("reference", 1)
+    assert ds.load_image("reference", 2).shape == (12, 16, 3)
+    with pytest.raises(ValueError, match="side must be 'query' or 'reference'"):
+        ds.load_image("ref", 0)
+    with pytest.raises(IndexError, match="out of range"):
+        ds.load_image("query", 2)
+    with pytest.raises(IndexError, match="out of range"):
+        ds.load_image("reference", -1)
+    with pytest.raises(ValueError, match=r"must be \(2, 3\)"):
+        PlaceDataset("t", qp, rp, np.zeros((3, 2), bool), None)
+    with pytest.raises(TypeError, match="dtype bool"):
+        PlaceDataset("t", qp, rp, np.zeros((2, 3), int), None)
+    with pytest.raises(ValueError, match="homographies"):
+        PlaceDataset("t", qp, rp, gt, None, homographies=np.zeros((3, 3, 3)))
+
+
+def test_image_key_is_content_based(tmp_path):
+    (p,) = _write_images(tmp_path / "q", ["x.png"])
+    copy = tmp_path / "copy.png"
+    copy.write_bytes(p.read_bytes())
+    a = PlaceDataset("a", [p], [p], np.ones((1, 1), bool), 0)
+    b = PlaceDataset("b", [copy], [copy], np.ones((1, 1), bool), 0)
+    assert a.image_key("query", 0) == b.image_key("reference", 0)
+
+
+def test_unreadable_image_is_a_clear_error(tmp_path):
+    _write_images(tmp_path / "query", ["0.png"])
+    _write_images(tmp_path / "reference", ["0.png"])
+    bad = tmp_path / "query" / "1.jpg"
+    bad.write_bytes(b"this is not a jpeg at all \x00\x01\x02")
+    _write_images(tmp_path / "reference", ["1.png"])
+    ds = load_dataset("folder", root=tmp_path)
+    with pytest.raises(ValueError, match=r"1\.jpg is not a readable image"):
+        ds.load_image("query", 1)
+    ds.query_paths[0].unlink()
+    with pytest.raises(FileNotFoundError, match="not found"):
+        ds.load_image("query", 0)
+
+
+# ----------------------------------------------------------------------------------------------
+# load_dataset: names and options
+# ----------------------------------------------------------------------------------------------
+
+
+def test_registry_and_unknown_name():
+    assert set(DATASETS) == {"synthetic", "gardens_point", "mapillary_berlin",
+                             "freiburg_across_seasons", "folder"}
+    with pytest.raises(ValueError) as e:
+        load_dataset("nordland")
+    for n in DATASETS:
+        assert n in str(e.value)
+
+
+def test_unknown_option_lists_valid_ones(tmp_path):
+    with pytest.raises(TypeError, match="valid options: .*n_places"):
+        load_dataset("synthetic", n_place=3)
+
+
+@pytest.mark.parametrize("name", ["gardens_point", "mapillary_berlin", "freiburg_across_seasons",
+                                  "folder"])
+def test_missing_root(name, tmp_path):
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        load_dataset(name, root=tmp_path / "nowhere")
+    with pytest.raises(ValueError, match="needs root="):
+        load_dataset(name)
+
+
+# ----------------------------------------------------------------------------------------------
+# real-data loaders on small fake trees
+# ----------------------------------------------------------------------------------------------
+
+
+def test_gardens_point_layout(tmp_path):
+    names = [f"Image{i:03d}.jpg" for i in range(6)]
+    for t in ("day_left", "day_right", "night_right"):
+        _write_images(tmp_path / t, names)
+    ds = load_dataset("gardens_point", root=tmp_path)
+    assert ds.tolerance == 2 and ds.query_paths[0].parent.name == "day_left"
+    assert ds.reference_paths[5].name == "Image005.jpg"
+    assert ds.reference_paths[0].parent.name == "night_right"
+    q, r = np.indices((6, 6))
+    assert np.array_equal(ds.ground_truth, np.abs(q - r) <= 2)
+    ds0 = load_dataset("gardens_point", root=tmp_path, query="day_right", tolerance=0)
+    assert np.array_equal(ds0.ground_truth, np.eye(6, dtype=bool))
+    with pytest.raises(ValueError, match="valid: day_left"):
+        load_dataset("gardens_point", root=tmp_path, query="dusk")
+
+
+def test_gardens_point_archive_folder_and_errors(tmp_path):
+    base = tmp_path / "GardensPointWalking"
+    _write_images(base / "day_left", ["Image000.jpg", "Image001.jpg"])
+    _write_images(base / "night_right", ["Image000.jpg"])
+    with pytest.raises(ValueError, match="same count"):
+        load_dataset("gardens_point", root=tmp_path)
+    _write_images(base / "night_right", ["Image001.jpg"])
+    assert load_dataset("gardens_point", root=tmp_path).root == base
+    other = tmp_path / "other"
+    _write_images(other / "day_left", ["Image000.jpg"])
+    with pytest.raises(FileNotFoundError, match="night_right"):
+        load_dataset("gardens_point", root=other)
+
+
+def test_mapillary_berlin_layout(tmp_path):
+    _write_images(tmp_path / "query", [f"q{i}.jpg" for i in range(4)])
+    _write_images(tmp_path / "reference", [f"r{i}.jpg" for i in range(3)])
+    (tmp_path / "ground_truth.csv").write_text(
+        "query,reference\n# many-to-one correspondences\nq0.jpg,r0.jpg\nq1.jpg,r0.jpg\n2,1\n"
+        "q3,r2.jpg\n"
+    )
+    ds = load_dataset("mapillary_berlin", root=tmp_path)
+    assert ds.gt_pairs() == [(0, 0), (1, 0), (2, 1), (3, 2)]
+    assert ds.tolerance == 0 and ds.homographies is None
+    wide = load_dataset("mapillary_berlin", root=tmp_path, tolerance=1)
+    assert wide.ground_truth[2].tolist() == [True, True, True]
+    # one sequence in a sub-folder
+    seq = tmp_path / "Kudamm"
+    _write_images(seq / "query", ["a.jpg", "b.jpg"])
+    _write_images(seq / "reference", ["c.jpg"])
+    (seq / "ground_truth.csv").write_text("a.jpg,c.jpg\nb.jpg,c.jpg\n")
+    ds2 = load_dataset("mapillary_berlin", root=tmp_path, sequence="Kudamm")
+    assert ds2.ground_truth.tolist() == [[True], [True]]
+    (tmp_path / "ground_truth.csv").unlink()
+    with pytest.raises(FileNotFoundError, match="ground-truth file not found"):
+        load_dataset("mapillary_berlin", root=tmp_path)
+
+
+def test_freiburg_layout(tmp_path):
+    _write_images(tmp_path / "summer2015", ["s1.png", "s2.png", "s3.png"])
+    _write_images(tmp_path / "winter2012", ["w1.png", "w2.png", "w3.png"])
+    (tmp_path / "ground_truth.csv").write_text("s1.png,w1.png\ns2.png,w3.png\ns3.png,w2.png\n")
+    ds = load_dataset("freiburg_across_seasons", root=tmp_path)
+    assert ds.gt_pairs() == [(0, 0), (1, 2), (2, 1)]
+    assert ds.meta["layout_verified"] is False
+    assert "UNVERIFIED" in D.load_freiburg_across_seasons.__doc__
+
+
+def test_folder_frame_aligned_natural_sort_and_extensions(tmp_path):
+    _write_images(tmp_path / "query", ["10.png", "2.PNG", "1.JPEG", "3.bmp"])
+    (tmp_path / "query" / "notes.txt").write_text("not an image")
+    (tmp_path / "query" / ".hidden.png").write_bytes(b"x")
+    _write_images(tmp_path / "reference", ["r1.tif", "r2.png", "r3.ppm", "r10.jpg"])
+    ds = load_dataset("folder", root=tmp_path, tolerance=1)
+    assert [p.name for p in ds.query_paths] == ["1.JPEG", "2.PNG", "3.bmp", "10.png"]
+    assert [p.name for p in ds.reference_paths] == ["r1.tif", "r2.png", "r3.ppm", "r10.jpg"]
+    q, r = np.indices((4, 4))
+    assert np.array_equal(ds.ground_truth, np.abs(q - r) <= 1)
+    assert ds.load_image("reference", 0).shape == (12, 16, 3)
+
+
+def test_folder_ground_truth_files(tmp_path):
+    _write_images(tmp_path / "query", ["0.png", "1.png"])
+    _write_images(tmp_path / "reference", ["0.png", "1.png", "2.png"])
+    with pytest.raises(ValueError, match="supply a ground-\\s*truth file"):
+        load_dataset("folder", root=tmp_path)
+    gt = np.array([[0, 0, 1], [1, 0, 0]], np.uint8)
+    np.save(tmp_path / "ground_truth.npy", gt)
+    ds = load_dataset("folder", root=tmp_path)
+    assert np.array_equal(ds.ground_truth, gt.astype(bool))
+    (tmp_path / "ground_truth.csv").write_text("0,1\n")
+    with pytest.raises(ValueError, match="remove one"):
+        load_dataset("folder", root=tmp_path)
+    ds = load_dataset("folder", root=tmp_path, ground_truth="ground_truth.csv")
+    assert ds.gt_pairs() == [(0, 1)]
+    # explicit absolute path
+    other = tmp_path / "elsewhere.npy"
+    np.save(other, np.ones((2, 3), bool))
+    assert load_dataset("folder", root=tmp_path, ground_truth=other).ground_truth.all()
+
+
+def test_ground_truth_shape_mismatch_and_bad_files(tmp_path):
+    _write_images(tmp_path / "query", ["0.png", "1.png"])
+    _write_images(tmp_path / "reference", ["0.png", "1.png"])
+    bad = tmp_path / "bad.npy"
+    np.save(bad, np.ones((3, 2), bool))
+    with pytest.raises(ValueError, match=r"shape \(3, 2\).*must be \(2, 2\)"):
+        load_dataset("folder", root=tmp_path, ground_truth=bad)
+    np.save(bad, np.full((2, 2), 0.5))
+    with pytest.raises(ValueError, match="0/1"):
+        load_dataset("folder", root=tmp_path, ground_truth=bad)
+    bad.write_bytes(b"garbage")
+    with pytest.raises(ValueError, match="not a readable .npy"):
+        load_dataset("folder", root=tmp_path, ground_truth=bad)
+    csv_ = tmp_path / "gt.csv"
+    for text, msg in (("0,5\n", "reference index 5 out of range"),
+                      ("nope.png,0\n", "'nope.png' is not in the query folder"),
+                      ("0,1,2\n", "expected 2 columns"),
+                      ("query,reference\n", "no query,reference rows")):
+        csv_.write_text(text)
+        with pytest.raises(ValueError, match=msg):
+            load_dataset("folder", root=tmp_path, ground_truth=csv_)
+    txt = tmp_path / "gt.txt"
+    txt.write_text("0 0\n")
+    with pytest.raises(ValueError, match="unsupported ground-truth file"):
+        load_dataset("folder", root=tmp_path, ground_truth=txt)
+
+
+def test_empty_and_missing_traverse_folders(tmp_path):
+    (tmp_path / "query").mkdir()
+    _write_images(tmp_path / "reference", ["0.png"])
+    with pytest.raises(ValueError, match="contains no images"):
+        load_dataset("folder", root=tmp_path)
+    _write_images(tmp_path / "query", ["0.png"])
+    with pytest.raises(FileNotFoundError, match="traverse folder .* not found"):
+        load_dataset("folder", root=tmp_path, reference="refs")
+
+
+def test_folder_on_gardens_point_mini(gardens_point_mini_root):
+    ds = load_dataset("folder", root=gardens_point_mini_root)
+    assert len(ds) == 10 and len(ds.reference_paths) == 10
+    assert np.array_equal(ds.ground_truth, np.eye(10, dtype=bool))
+    assert [p.name for p in ds.query_paths][:3] == ["0.jpg", "1.jpg", "2.jpg"]
+    assert ds.load_image("query", 0).shape == (540, 960, 3)
+    assert ds.image_size("reference", 9) == (360, 640)
+
+
+# ----------------------------------------------------------------------------------------------
+# download_dataset against a local HTTP server
+# ----------------------------------------------------------------------------------------------
+
+
+@pytest.fixture()
+def local_server(tmp_path):
+    served = tmp_path / "served"
+    served.mkdir()
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as zf:
+        for t in ("day_left", "night_right"):
+            for i in range(2):
+                _, png = cv2.imencode(".png", np.full((8, 8, 3), 40 * i, np.uint8))
+                zf.writestr(f"GardensPointWalking/{t}/Image{i:03d}.png", png.tobytes())
+    (served / "gp.zip").write_bytes(buf.getvalue())
+    requests = []
+
+    class Handler(http.server.SimpleHTTPRequestHandler):
+        def log_message(self, *args):  # keep test output quiet
+            requests.append(self.path)
+
+    handler = functools.partial(Handler, directory=str(served))
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        url = f"http://127.0.0.1:{server.server_address[1]}/gp.zip"
+        yield url, hashlib.sha256(buf.getvalue()).hexdigest(), requests
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+def test_download_dataset_local_server(local_server, tmp_path):
+    url, sha, requests = local_server
+    dest = tmp_path / "data"
+    root = download_dataset("gardens_point", dest, url=url, sha256=sha)
+    assert root == dest / "GardensPointWalking"
+    assert not (dest / "gp.zip").exists() and not list(dest.glob("*.part"))
+    ds = load_dataset("gardens_point", root=root, tolerance=0)
+    assert len(ds) == 2 and ds.load_image("query", 1).shape == (8, 8, 3)
+    n = len(requests)
+    assert download_dataset("gardens_point", dest, url=url, sha256=sha) == root
+    assert len(requests) == n  # recorded as done: no second request
+    download_dataset("gardens_point", dest, url=url, sha256=sha.upper(), overwrite=True)
+    assert len(requests) == n + 1
+
+
+def test_download_dataset_wrong_sha(local_server, tmp_path):
+    url, _, _ = local_server
+    dest = tmp_path / "data"
+    with pytest.raises(ValueError, match="SHA-256 mismatch.*removed"):
+        download_dataset("gardens_point", dest, url=url, sha256="0" * 64)
+    assert list(dest.iterdir()) == []
+
+
+def test_download_dataset_unknown_and_registry():
+    with pytest.raises(ValueError, match="downloadable: gardens_point"):
+        download_dataset("mapillary_berlin", "/tmp/unused-vpr-download")
+    entry = D.DOWNLOADS["gardens_point"]
+    assert "4590133" in entry["url"]
+    assert entry["sha256"] is None or len(entry["sha256"]) == 64
+
+
+# ----------------------------------------------------------------------------------------------
+# viz
+# ----------------------------------------------------------------------------------------------
+
+
+def test_plot_examples(tiny_synthetic, tmp_path):
+    import matplotlib.pyplot as plt
+
+    from vpr_core.viz import plot_dataset_overview, plot_examples
+
+    seen = []
+
+    def boxes(side, i, size):
+        seen.append((side, i, size))
+        return np.array([[10.0, 10.0, 50.0, 40.0]])
+
+    fig = plot_examples(tiny_synthetic, indices=(0, 3), boxes=boxes, title="t")
+    assert len(fig.axes) == 4
+    assert [a.get_title() for a in fig.axes] == ["reference 0", "query 0", "reference 3", "query 3"]
+    assert ("query", 3, (360, 640)) in seen and len(fig.axes[0].patches) == 1
+    paths = []
+    for k in range(2):
+        p = tmp_path / f"ex{k}.png"
+        fig.savefig(p, dpi=40, metadata={"Software": None})
+        paths.append(p.read_bytes())
+    assert paths[0] == paths[1]
+    plt.close(fig)
+    fig2 = plot_dataset_overview(tiny_synthetic, n=3)
+    assert len(fig2.axes) == 6
+    plt.close(fig2)
+    with pytest.raises(IndexError):
+        plot_examples(tiny_synthetic, indices=(99,))

@@ -1,0 +1,522 @@
+"""Known-answer tests for vpr_core.landmarks (dense sampling, Table 1, Algorithms 1-3, IoU, Edge Boxes)."""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import pytest
+
+from vpr_core import landmarks as L
+
+H, W = 360, 640
+SIZE = (H, W)
+
+
+# ------------------------------------------------------------------------------------------
+# helpers / fixtures (kept local: tests/conftest.py belongs to another module owner)
+# ------------------------------------------------------------------------------------------
+
+
+def box_of_ratio(r: float, size=SIZE, x: float = 0.0, y: float = 0.0) -> list[float]:
+    """A box whose area / image area is exactly ``r`` (full image width, height r*H)."""
+    h_img, w_img = size
+    return [x, y, float(w_img), r * h_img]
+
+
+def boxes_of_ratios(ratios, size=SIZE) -> np.ndarray:
+    return np.array([box_of_ratio(r, size) for r in ratios], dtype=float)
+
+
+# Ratios chosen in the middle of each Table-1 bin.
+MID = {1: 0.01, 2: 0.03, 3: 0.07, 4: 0.12, 5: 0.2, 6: 0.3, 7: 0.4, 8: 0.6, 9: 0.8}
+
+
+@pytest.fixture(scope="module")
+def synthetic_image() -> np.ndarray:
+    """A 360x640 RGB image with a few filled / outlined rectangles on a grey background."""
+    cv2 = pytest.importorskip("cv2")
+    img = np.full((H, W, 3), 90, np.uint8)
+    cv2.rectangle(img, (40, 40), (200, 160), (230, 40, 40), -1)
+    cv2.rectangle(img, (260, 60), (420, 300), (20, 200, 60), -1)
+    cv2.rectangle(img, (470, 120), (600, 330), (250, 250, 250), 3)
+    cv2.rectangle(img, (80, 220), (220, 330), (10, 10, 120), -1)
+    cv2.circle(img, (520, 60), 35, (240, 220, 0), -1)
+    return img
+
+
+@pytest.fixture(scope="module")
+def eb_result(synthetic_image):
+    return L.edge_boxes(synthetic_image, max_boxes=300, model="gradient")
+
+
+def naive_iou(a, b):
+    out = np.zeros((len(a), len(b)))
+    for i, (x1, y1, w1, h1) in enumerate(a):
+        for j, (x2, y2, w2, h2) in enumerate(b):
+            iw = max(0.0, min(x1 + w1, x2 + w2) - max(x1, x2))
+            ih = max(0.0, min(y1 + h1, y2 + h2) - max(y1, y2))
+            inter = iw * ih
+            union = w1 * h1 + w2 * h2 - inter
+            out[i, j] = inter / union if union > 0 else 0.0
+    return out
+
+
+# ------------------------------------------------------------------------------------------
+# dense sampling
+# ------------------------------------------------------------------------------------------
+
+
+def test_dense_known_answer_016_25():
+    boxes = L.dense_sampling(SIZE, scales=(0.16,), per_scale=25)
+    assert boxes.shape == (25, 4) and boxes.dtype == np.float64
+    xs = [0, 96, 192, 288, 384]
+    ys = [0, 54, 108, 162, 216]
+    expected = np.array([[x, y, 256, 144] for y in ys for x in xs], dtype=float)
+    np.testing.assert_allclose(boxes, expected, atol=1e-9)
+
+
+def test_dense_default_paper_setting():
+    boxes = L.dense_sampling(SIZE)
+    assert boxes.shape == (100, 4)
+    ratios = L.normalized_scale(boxes, SIZE)
+    for k, a in enumerate((0.16, 0.25, 0.36, 0.49)):
+        np.testing.assert_allclose(ratios[25 * k : 25 * (k + 1)], a, rtol=1e-12)
+        blk = boxes[25 * k : 25 * (k + 1)]
+        # first box at top-left, last flush with the far edges
+        np.testing.assert_allclose(blk[0, :2], [0, 0], atol=1e-9)
+        np.testing.assert_allclose(blk[-1, 0] + blk[-1, 2], W, atol=1e-9)
+        np.testing.assert_allclose(blk[-1, 1] + blk[-1, 3], H, atol=1e-9)
+        # aspect ratio of the image kept
+        np.testing.assert_allclose(blk[:, 2] / blk[:, 3], W / H, rtol=1e-12)
+    # all inside the image
+    assert np.all(boxes[:, :2] >= -1e-9)
+    assert np.all(boxes[:, 0] + boxes[:, 2] <= W + 1e-9)
+    assert np.all(boxes[:, 1] + boxes[:, 3] <= H + 1e-9)
+
+
+def test_dense_order_scale_then_row_then_x():
+    boxes = L.dense_sampling(SIZE, scales=(0.25, 0.49), per_scale=9)
+    assert boxes.shape == (18, 4)
+    assert np.all(boxes[:9, 2] < boxes[9:, 2])  # scale by scale
+    for blk in (boxes[:9], boxes[9:]):
+        grid = blk.reshape(3, 3, 4)
+        # within a row: y constant, x increasing; rows: y increasing
+        assert np.all(np.diff(grid[:, :, 1], axis=1) == 0)
+        assert np.all(np.diff(grid[:, :, 0], axis=1) > 0)
+        assert np.all(np.diff(grid[:, 0, 1]) > 0)
+
+
+def test_dense_single_box_is_centred():
+    boxes = L.dense_sampling(SIZE, scales=(0.25,), per_scale=1)
+    np.testing.assert_allclose(boxes, [[160, 90, 320, 180]], atol=1e-9)
+
+
+def test_dense_per_scale_sequence_table3():
+    boxes = L.dense_sampling(SIZE, per_scale=(36, 25, 25, 16))
+    assert boxes.shape == (102, 4)
+    ratios = L.normalized_scale(boxes, SIZE)
+    np.testing.assert_allclose(ratios[:36], 0.16)
+    np.testing.assert_allclose(ratios[-16:], 0.49)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"per_scale": 24}, "perfect square"),
+        ({"per_scale": (25, 25, 20, 25)}, "perfect square"),
+        ({"per_scale": 0}, "perfect square"),
+        ({"per_scale": (25, 25)}, "one count per scale"),
+        ({"scales": (0.0, 0.5)}, r"\(0, 1\]"),
+        ({"scales": (1.2,)}, r"\(0, 1\]"),
+    ],
+)
+def test_dense_bad_arguments(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        L.dense_sampling(SIZE, **kwargs)
+
+
+@pytest.mark.parametrize("size", [(360,), (0, 640), (-1, 5), (360.5, 640), "ab"])
+def test_dense_bad_image_size(size):
+    with pytest.raises(ValueError, match="image_size"):
+        L.dense_sampling(size)
+
+
+def test_dense_accepts_image_shape():
+    img = np.zeros((H, W, 3), np.uint8)
+    np.testing.assert_array_equal(L.dense_sampling(img.shape), L.dense_sampling(SIZE))
+    with pytest.raises(ValueError, match=r"image.shape\[:2\]"):
+        L.dense_sampling(img)
+
+
+# ------------------------------------------------------------------------------------------
+# Table 1
+# ------------------------------------------------------------------------------------------
+
+
+def test_scale_edges_exported():
+    assert L.SCALE_EDGES == (0.02, 0.05, 0.09, 0.14, 0.23, 0.34, 0.5, 0.72)
+    assert len(L.SCALE_LABELS) == 9 and L.SCALE_LABELS[0] == "Scale 1"
+    assert L.SCALE_RANGES[0] == (0.0, 0.02) and L.SCALE_RANGES[-1] == (0.72, 1.0)
+
+
+def test_scale_index_edges_lower_inclusive():
+    edges = np.array(L.SCALE_EDGES)
+    np.testing.assert_array_equal(L.scale_index(edges), np.arange(2, 10))
+    np.testing.assert_array_equal(L.scale_index(np.nextafter(edges, 0)), np.arange(1, 9))
+    np.testing.assert_array_equal(L.scale_index(edges - 1e-9), np.arange(1, 9))
+    assert L.scale_index(0.0) == 1
+    assert L.scale_index(1.0) == 9
+    assert L.scale_index(0.72) == 9
+    assert L.scale_index(0.02) == 2
+    assert L.scale_index(0.0199) == 1
+    np.testing.assert_array_equal(L.scale_index(np.array(list(MID.values()))), list(MID))
+
+
+def test_scale_index_from_boxes():
+    # boxes with exact ratios: 0.5 * 0.5 = 0.25 -> scale 6; full image -> 9; 0.1 * 0.1 -> 1
+    boxes = np.array([[0, 0, W / 2, H / 2], [0, 0, W, H], [5, 5, W / 10, H / 10]])
+    np.testing.assert_array_equal(L.scale_index(boxes, SIZE), [6, 9, 1])
+    np.testing.assert_allclose(L.normalized_scale(boxes, SIZE), [0.25, 1.0, 0.01])
+    with pytest.raises(ValueError, match="image_size"):
+        L.scale_index(boxes)
+    with pytest.raises(ValueError, match=r"\(K, 4\)"):
+        L.normalized_scale(np.zeros((3, 3)), SIZE)
+    with pytest.raises(ValueError):
+        L.scale_index(np.array([-0.1]))
+
+
+def test_scale_histogram():
+    ratios = [0.01, 0.01, 0.03, 0.2, 0.8, 0.72]
+    hist = L.scale_histogram(boxes_of_ratios(ratios), SIZE)
+    assert hist.shape == (10,)
+    np.testing.assert_array_equal(hist, [0, 2, 1, 0, 0, 1, 0, 0, 0, 2])
+    np.testing.assert_array_equal(L.scale_histogram(np.array(ratios)), hist)
+    assert L.scale_histogram(np.zeros((0, 4)), SIZE).sum() == 0
+
+
+# ------------------------------------------------------------------------------------------
+# IoU
+# ------------------------------------------------------------------------------------------
+
+
+def test_box_iou_known_values():
+    a = np.array([[0, 0, 10, 10]], float)
+    b = np.array(
+        [
+            [0, 0, 10, 10],  # identical -> 1
+            [20, 20, 5, 5],  # disjoint -> 0
+            [5, 0, 10, 10],  # half overlap: inter 50, union 150 -> 1/3
+            [10, 0, 10, 10],  # touching edge -> 0
+            [0, 0, 5, 10],  # contained half -> 0.5
+        ],
+        float,
+    )
+    np.testing.assert_allclose(L.box_iou(a, b), [[1, 0, 1 / 3, 0, 0.5]], atol=1e-12)
+    assert L.box_iou(a, np.zeros((0, 4))).shape == (1, 0)
+    assert L.box_iou(np.zeros((0, 4)), b).shape == (0, 5)
+    # two empty boxes: union 0 -> IoU 0 (no NaN)
+    assert L.box_iou([[1, 1, 0, 0]], [[1, 1, 0, 0]])[0, 0] == 0.0
+
+
+def test_box_iou_matches_naive_loop():
+    rng = np.random.default_rng(0)
+
+    def rand_boxes(k):
+        xy = rng.uniform(0, 100, (k, 2))
+        wh = rng.uniform(0, 60, (k, 2))
+        return np.hstack([xy, wh])
+
+    a, b = rand_boxes(37), rand_boxes(23)
+    iou = L.box_iou(a, b)
+    assert iou.shape == (37, 23)
+    np.testing.assert_allclose(iou, naive_iou(a, b), atol=1e-12)
+    np.testing.assert_allclose(L.box_iou(a, a).diagonal(), 1.0)
+    np.testing.assert_allclose(L.box_iou(b, a), iou.T, atol=1e-12)
+
+
+def test_box_iou_bad_shapes():
+    with pytest.raises(ValueError, match=r"\(K, 4\)"):
+        L.box_iou(np.zeros((2, 5)), np.zeros((1, 4)))
+    with pytest.raises(ValueError, match="negative"):
+        L.box_iou([[0, 0, -1, 2]], [[0, 0, 1, 1]])
+
+
+# ------------------------------------------------------------------------------------------
+# Algorithm 1
+# ------------------------------------------------------------------------------------------
+
+# candidate scale indices in proposal order
+CAND_SCALES = [1, 5, 2, 4, 9, 3, 6, 1, 7, 4, 8, 5]
+
+
+def cand_boxes():
+    return boxes_of_ratios([MID[s] for s in CAND_SCALES])
+
+
+def test_select_min_scale_known_answer():
+    boxes = cand_boxes()
+    sel, idx = L.select_min_scale(boxes, SIZE, n=4, return_indices=True)
+    np.testing.assert_array_equal(idx, [1, 3, 4, 6])
+    np.testing.assert_array_equal(sel, boxes[idx])
+    assert sel.shape == (4, 4)
+    sel2 = L.select_min_scale(boxes, SIZE, n=3, min_index=6)
+    np.testing.assert_array_equal(sel2, boxes[[4, 6, 8]])
+
+
+def test_select_min_scale_undersupply(caplog, monkeypatch):
+    boxes = cand_boxes()
+    monkeypatch.setattr(L.logger, "propagate", True)  # the vpr_core logger does not propagate
+    with caplog.at_level(logging.WARNING, logger="vpr_core"):
+        sel, idx = L.select_min_scale(boxes, SIZE, n=100, return_indices=True)
+    np.testing.assert_array_equal(idx, [1, 3, 4, 6, 8, 9, 10, 11])
+    assert sel.shape == (8, 4)
+    assert any("only 8 of the requested 100" in r.getMessage() for r in caplog.records)
+
+
+def test_select_min_scale_edge_ratio_counts_as_scale4():
+    # exactly 0.09 is Scale 4 (lower edge inclusive) -> selected; just below is Scale 3
+    boxes = boxes_of_ratios([0.09 - 1e-6, 0.09, 0.14])
+    _, idx = L.select_min_scale(boxes, SIZE, n=5, return_indices=True)
+    np.testing.assert_array_equal(idx, [1, 2])
+
+
+# ------------------------------------------------------------------------------------------
+# Algorithm 2
+# ------------------------------------------------------------------------------------------
+
+
+def test_select_scale_priority_known_answer():
+    boxes = cand_boxes()
+    # order (5,6,7,8,9,4): scale 5 -> [1, 11], 6 -> [6], 7 -> [8], 8 -> [10], 9 -> [4], 4 -> [3, 9]
+    sel, idx = L.select_scale_priority(boxes, SIZE, n=7, return_indices=True)
+    np.testing.assert_array_equal(idx, [1, 11, 6, 8, 10, 4, 3])
+    np.testing.assert_array_equal(sel, boxes[idx])
+    # stops at n exactly, even in the middle of a scale
+    _, idx = L.select_scale_priority(boxes, SIZE, n=1, return_indices=True)
+    np.testing.assert_array_equal(idx, [1])
+    _, idx = L.select_scale_priority(boxes, SIZE, n=3, order=(4, 1), return_indices=True)
+    np.testing.assert_array_equal(idx, [3, 9, 0])
+
+
+def test_select_scale_priority_undersupply():
+    boxes = cand_boxes()
+    sel, idx = L.select_scale_priority(boxes, SIZE, n=50, return_indices=True)
+    np.testing.assert_array_equal(idx, [1, 11, 6, 8, 10, 4, 3, 9])  # scales 1-3 never taken
+    assert sel.shape == (8, 4)
+    with pytest.raises(ValueError, match="order"):
+        L.select_scale_priority(boxes, SIZE, order=(5, 10))
+
+
+# ------------------------------------------------------------------------------------------
+# Algorithm 3
+# ------------------------------------------------------------------------------------------
+
+
+def test_reduce_overlap_known_answer():
+    boxes = np.array(
+        [
+            [0, 0, 10, 10],  # 0 kept (first)
+            [0, 0, 10, 10],  # 1 IoU 1 with 0 -> dropped
+            [5, 0, 10, 10],  # 2 IoU 1/3 with 0 -> kept at t=0.5
+            [50, 50, 10, 10],  # 3 disjoint -> kept
+            [0, 0, 5, 10],  # 4 IoU 0.5 with 0 -> kept (<= t inclusive)
+            [51, 50, 10, 10],  # 5 IoU 0.818 with 3 -> dropped
+        ],
+        float,
+    )
+    sel, idx = L.reduce_overlap(boxes, n=10, iou_threshold=0.5, return_indices=True)
+    np.testing.assert_array_equal(idx, [0, 2, 3, 4])
+    np.testing.assert_array_equal(sel, boxes[idx])
+    _, idx = L.reduce_overlap(boxes, n=10, iou_threshold=0.3, return_indices=True)
+    np.testing.assert_array_equal(idx, [0, 3])
+    # stops at n
+    _, idx = L.reduce_overlap(boxes, n=2, iou_threshold=0.5, return_indices=True)
+    np.testing.assert_array_equal(idx, [0, 2])
+    # t = 1 keeps everything
+    _, idx = L.reduce_overlap(boxes, n=10, iou_threshold=1.0, return_indices=True)
+    np.testing.assert_array_equal(idx, np.arange(6))
+
+
+def test_reduce_overlap_matches_naive_greedy():
+    rng = np.random.default_rng(1)
+    boxes = np.hstack([rng.uniform(0, 200, (300, 2)), rng.uniform(5, 120, (300, 2))])
+    iou = naive_iou(boxes, boxes)
+    kept = []
+    for i in range(len(boxes)):
+        if len(kept) == 40:
+            break
+        if not kept or all(iou[i, j] <= 0.4 for j in kept):
+            kept.append(i)
+    _, idx = L.reduce_overlap(boxes, n=40, iou_threshold=0.4, return_indices=True)
+    np.testing.assert_array_equal(idx, kept)
+
+
+def test_reduce_overlap_empty_and_bad():
+    sel, idx = L.reduce_overlap(np.zeros((0, 4)), n=5, return_indices=True)
+    assert sel.shape == (0, 4) and idx.shape == (0,)
+    with pytest.raises(ValueError, match="iou_threshold"):
+        L.reduce_overlap(cand_boxes(), iou_threshold=1.5)
+    with pytest.raises(ValueError, match=r"\(K, 4\)"):
+        L.reduce_overlap(np.zeros(7))
+
+
+# ------------------------------------------------------------------------------------------
+# coverage
+# ------------------------------------------------------------------------------------------
+
+
+def test_landmark_coverage():
+    cov = L.landmark_coverage([[0, 0, 4, 2], [2, 1, 4, 3]], (5, 8))
+    expected = np.zeros((5, 8))
+    expected[0:2, 0:4] += 1
+    expected[1:4, 2:6] += 1
+    np.testing.assert_array_equal(cov, expected)
+    dense = L.landmark_coverage(L.dense_sampling(SIZE), SIZE)
+    assert dense.shape == SIZE
+    assert dense.min() >= 1  # dense sampling covers the whole image
+    # total coverage equals the sum of (integer) box areas
+    np.testing.assert_allclose(dense.sum(), (L.dense_sampling(SIZE)[:, 2:].prod(1)).sum(), rtol=0.02)
+
+
+# ------------------------------------------------------------------------------------------
+# Edge Boxes
+# ------------------------------------------------------------------------------------------
+
+
+def test_edge_boxes_synthetic(eb_result, synthetic_image):
+    res = eb_result
+    assert isinstance(res, L.EdgeBoxes)
+    assert res.edge_source == "gradient"
+    assert len(res) >= 20
+    assert res.boxes.shape == (len(res), 4) and res.boxes.dtype == np.float64
+    assert res.scores.shape == (len(res),)
+    assert np.all(np.diff(res.scores) <= 0)  # proposal order = descending score
+    b = np.asarray(res)
+    np.testing.assert_array_equal(b, res.boxes)
+    assert np.all(b[:, :2] >= 0)
+    assert np.all(b[:, 2:] > 0)
+    assert np.all(b[:, 0] + b[:, 2] <= W) and np.all(b[:, 1] + b[:, 3] <= H)
+    # one of the proposals should hug the big green rectangle (260..420, 60..300)
+    target = np.array([[260, 60, 161, 241]], float)
+    assert L.box_iou(target, b).max() > 0.7
+
+
+def test_edge_boxes_deterministic_and_prefix(eb_result, synthetic_image):
+    again = L.edge_boxes(synthetic_image, max_boxes=300, model="gradient")
+    np.testing.assert_array_equal(again.boxes, eb_result.boxes)
+    np.testing.assert_array_equal(again.scores, eb_result.scores)
+    top = L.edge_boxes(synthetic_image, max_boxes=20, model="gradient")
+    assert len(top) == 20
+    np.testing.assert_array_equal(top.boxes, eb_result.boxes[:20])
+
+
+def test_edge_boxes_grayscale_and_env(synthetic_image, monkeypatch):
+    monkeypatch.delenv("VPR_SED_MODEL", raising=False)
+    gray = synthetic_image.mean(axis=2).astype(np.uint8)
+    res = L.edge_boxes(gray, max_boxes=10)
+    assert res.edge_source == "gradient" and 0 < len(res) <= 10
+
+
+def test_edge_boxes_missing_model(synthetic_image, tmp_path, monkeypatch):
+    missing = tmp_path / "nope" / "model.yml.gz"
+    with pytest.raises(FileNotFoundError, match="model.yml.gz") as exc:
+        L.edge_boxes(synthetic_image, model=missing)
+    assert str(missing) in str(exc.value) and "opencv_extra" in str(exc.value)
+    monkeypatch.setenv("VPR_SED_MODEL", str(missing))
+    with pytest.raises(FileNotFoundError, match="VPR_SED_MODEL"):
+        L.edge_boxes(synthetic_image)
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        np.zeros((10, 10, 4), np.uint8),
+        np.zeros((10, 10, 3), np.float32),
+        np.zeros((10,), np.uint8),
+        np.zeros((2, 10, 10, 3), np.uint8),
+    ],
+)
+def test_edge_boxes_bad_image(bad):
+    with pytest.raises(ValueError, match="image"):
+        L.edge_boxes(bad)
+
+
+def test_edge_boxes_bad_params(synthetic_image):
+    with pytest.raises(ValueError, match="unknown edge_boxes parameter"):
+        L.edge_boxes(synthetic_image, alhpa=0.5)
+
+
+def test_edge_boxes_blank_image():
+    res = L.edge_boxes(np.full((60, 80, 3), 128, np.uint8), max_boxes=10)
+    assert len(res) == 0 and res.boxes.shape == (0, 4)
+
+
+# ------------------------------------------------------------------------------------------
+# scheme registry
+# ------------------------------------------------------------------------------------------
+
+
+def test_scheme_registry_names():
+    assert set(L.LANDMARK_SCHEMES) >= {
+        "edge_boxes",
+        "dense",
+        "selection_scheme1",
+        "selection_scheme2",
+        "overlap_scheme1",
+    }
+    with pytest.raises(ValueError, match="selection_scheme1"):
+        L.get_landmark_scheme("selection_scheme3")
+
+
+def test_scheme_dense_and_conf(synthetic_image):
+    b = L.generate_landmarks(synthetic_image, "dense")
+    np.testing.assert_array_equal(b, L.dense_sampling(SIZE))
+    b = L.get_landmark_scheme("dense")(synthetic_image, {"per_scale": 16})
+    assert b.shape == (64, 4)
+    with pytest.raises(ValueError, match="unknown option"):
+        L.generate_landmarks(synthetic_image, "dense", foo=1)
+
+
+def test_scheme_edge_box_family(synthetic_image):
+    cand = L.edge_boxes(synthetic_image, max_boxes=200).boxes
+    s1 = L.generate_landmarks(synthetic_image, "selection_scheme1", n_candidates=200, n=10)
+    np.testing.assert_array_equal(s1, L.select_min_scale(cand, SIZE, n=10))
+    s2 = L.generate_landmarks(synthetic_image, "selection_scheme2", n_candidates=200, n=10)
+    np.testing.assert_array_equal(s2, L.select_scale_priority(cand, SIZE, n=10))
+    o1 = L.get_landmark_scheme("overlap_scheme1")(
+        synthetic_image, {"n_candidates": 200, "n": 10, "iou_threshold": 0.4}
+    )
+    np.testing.assert_array_equal(o1, L.reduce_overlap(cand, n=10, iou_threshold=0.4))
+    eb = L.generate_landmarks(synthetic_image, "edge_boxes", max_boxes=15)
+    np.testing.assert_array_equal(eb, cand[:15])
+    with pytest.raises(ValueError, match="unknown option"):
+        L.generate_landmarks(synthetic_image, "selection_scheme1", iou_threshold=0.4)
+
+
+# ------------------------------------------------------------------------------------------
+# plots (vpr_core.viz, landmarks section)
+# ------------------------------------------------------------------------------------------
+
+
+def test_landmark_plots(synthetic_image, tmp_path):
+    viz = pytest.importorskip("vpr_core.viz")
+    import matplotlib.pyplot as plt
+
+    boxes = L.dense_sampling(SIZE)
+    figs = [
+        viz.plot_landmarks(synthetic_image, boxes[:10], title="ten"),
+        viz.plot_dense_scales(SIZE),
+        viz.plot_dense_scales(synthetic_image, scales=(0.25, 0.49), per_scale=(16, 9)),
+        viz.plot_coverage(synthetic_image, boxes),
+        viz.plot_scale_distribution(
+            {"query": L.scale_histogram(boxes, SIZE), "reference": np.arange(10)}, "dist"
+        ),
+    ]
+    assert len(figs[1].axes) == 4
+    a = viz.save_figure(viz.plot_dense_scales(SIZE), tmp_path / "a.png")
+    b = viz.save_figure(viz.plot_dense_scales(SIZE), tmp_path / "b.png")
+    assert a.read_bytes() == b.read_bytes()  # deterministic
+    with pytest.raises(ValueError):
+        viz.plot_scale_distribution({"q": np.ones(5)})
+    plt.close("all")
