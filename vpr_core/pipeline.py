@@ -142,16 +142,26 @@ def extract_landmarks(conf: dict[str, Any], dataset) -> dict[str, Any]:
 # --------------------------------------------------------------------------------------------
 # features
 # --------------------------------------------------------------------------------------------
-@lru_cache(maxsize=4)
 def get_encoder(backbone: str = "efficientnet_lite0", dim: int = 1024, seed: int = 0,
                 weights: str | None = None):
-    """A shared :class:`~vpr_core.features.LandmarkEncoder` (model loading is the slow part)."""
+    """A shared :class:`~vpr_core.features.LandmarkEncoder` (model loading is the slow part).
+
+    The same arguments return the same object, however they are passed.
+    """
+    return _cached_encoder(str(backbone), int(dim), int(seed), weights)
+
+
+@lru_cache(maxsize=4)
+def _cached_encoder(backbone: str, dim: int, seed: int, weights: str | None):
     from .features import LandmarkEncoder
 
     kwargs = {"backbone": backbone, "dim": dim, "seed": seed}
     if weights is not None:
         kwargs["weights"] = weights
     return LandmarkEncoder(**kwargs)
+
+
+get_encoder.cache_clear = _cached_encoder.cache_clear  # type: ignore[attr-defined]
 
 
 def _encoder_slug(encoder) -> str:

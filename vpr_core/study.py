@@ -304,9 +304,9 @@ class Study:
 
         idx = [i for i in indices if i < len(self.dataset.query_paths)]
         fig = plot_examples(self.dataset, indices=idx,
-                            boxes=lambda side, i, size: lm.dense_sampling(size),
-                            title=f"{self.dataset.name}: reference (left) / query (right), "
-                                  "dense landmarks")
+                            boxes=lambda side, i, size: lm.dense_sampling(size, scales=(0.16,)),
+                            title=f"{self.dataset.name}: reference (left) / query (right); dense "
+                                  "landmarks of scale 0.16 drawn (Fig. 9 shows all four scales)")
         return self.save(fig, figure)
 
     def pipeline_figure(self, method: str, pair: int = 0, figure: str = "fig03_pipeline"):

@@ -289,6 +289,74 @@ def plot_scale_distribution(hists: dict, title: str | None = None, ax=None,
 
 # --- plots: PR curves and metrics ----------------------------------------------------------
 
+
+def plot_pr_curves(curves: dict, title: str | None = None, ax=None,
+                   colors: dict | None = None) -> matplotlib.figure.Figure:
+    """Precision (y) against recall (x) for several methods; the legend gives each AUC.
+
+    Args:
+        curves: ``{label: PRCurve}`` (``vpr_core.evaluation.pr_curve`` results).
+        title: axes title.
+        ax: axes to draw on (default: a new 4.5 x 4 in figure).
+        colors: ``{label: colour}``; default :data:`METHOD_COLORS`, then the matplotlib cycle.
+
+    Returns:
+        The figure.
+    """
+    from .evaluation import auc_pr
+
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(4.5, 4.0))
+    else:
+        fig = ax.figure
+    colors = {**METHOD_COLORS, **(colors or {})}
+    for label, curve in curves.items():
+        ax.plot(curve.recall, curve.precision, lw=1.6, color=colors.get(label),
+                label=f"{label} (AUC {auc_pr(curve):.3f})")
+    ax.set_xlim(0.0, 1.0)
+    ax.set_ylim(0.0, 1.02)
+    ax.set_xlabel("recall")
+    ax.set_ylabel("precision")
+    if title:
+        ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower left", fontsize=8, frameon=False)
+    fig.tight_layout()
+    return fig
+
+
+def plot_metric_bars(table, metric: str = "auc", title: str | None = None, ax=None,
+                     colors: dict | None = None) -> matplotlib.figure.Figure:
+    """Bar chart of one metric column of ``evaluation.metrics_table`` (one bar per method).
+
+    Args:
+        table: ``pandas.DataFrame`` indexed by method, one column per metric.
+        metric: column to plot (``auc``, ``r_at_100p``, ``r_at_1``, ``r_at_5``).
+        title: axes title; ax: axes to draw on; colors: ``{method: colour}``.
+
+    Returns:
+        The figure.
+    """
+    if metric not in table.columns:
+        raise ValueError(f"unknown metric {metric!r}; valid: {', '.join(map(str, table.columns))}")
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(max(3.0, 0.8 * len(table) + 1.5), 3.2))
+    else:
+        fig = ax.figure
+    colors = {**METHOD_COLORS, **(colors or {})}
+    names = [str(i) for i in table.index]
+    vals = table[metric].to_numpy(dtype=float)
+    ax.bar(names, vals, color=[colors.get(n, "tab:gray") for n in names])
+    for x, v in enumerate(vals):
+        ax.text(x, v + 0.01, f"{v:.2f}", ha="center", va="bottom", fontsize=8)
+    ax.set_ylim(0.0, 1.08)
+    ax.set_ylabel(metric)
+    if title:
+        ax.set_title(title)
+    ax.tick_params(axis="x", labelrotation=30)
+    fig.tight_layout()
+    return fig
+
 # --- plots: scale statistics (Fig. 4) and labelled matches (Fig. 1-2) ------------------------
 
 _STATS_GT_COLOR = "tab:green"
