@@ -1,0 +1,301 @@
+"""Tests for vpr_core.features and vpr_core.backbones (landmark descriptors)."""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import pytest
+import torch
+import torch.nn.functional as F
+
+from vpr_core.backbones import alexnet as alexnet_mod
+from vpr_core.backbones.efficientnet_lite0 import (
+    IMAGENET_MEAN,
+    IMAGENET_STD,
+    Conv2dSame,
+    EfficientNetLite0Features,
+    efficientnet_lite0_classifier,
+)
+from vpr_core.features import LandmarkEncoder, available_backbones, random_projection
+
+torch.set_num_threads(min(2, torch.get_num_threads()))
+
+
+def _cos(a: np.ndarray, b: np.ndarray) -> float:
+    return float(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)))
+
+
+@pytest.fixture(scope="module")
+def classifier():
+    return efficientnet_lite0_classifier()
+
+
+@pytest.fixture(scope="module")
+def encoder():
+    return LandmarkEncoder()  # efficientnet_lite0, dim 1024, seed 0
+
+
+@pytest.fixture(scope="module")
+def image():
+    rng = np.random.default_rng(0)
+    img = rng.integers(0, 256, (120, 200, 3), dtype=np.uint8)
+    img[20:60, 30:90] = (200, 30, 30)
+    return img
+
+
+@pytest.fixture()
+def no_alexnet_env(monkeypatch, tmp_path):
+    """No env var and an empty torch hub dir, so no real weights are found by accident."""
+    monkeypatch.delenv(alexnet_mod.ALEXNET_ENV, raising=False)
+    monkeypatch.setattr(torch.hub, "get_dir", lambda: str(tmp_path / "hub"))
+    return tmp_path
+
+
+def _alexnet_state(seed: int = 0) -> dict[str, torch.Tensor]:
+    """A full torchvision-layout AlexNet state dict with random tensors (classifier included)."""
+    g = torch.Generator().manual_seed(seed)
+    sd = {k: torch.randn(shape, generator=g) * 0.01 for k, shape in alexnet_mod.CONV3_KEYS.items()}
+    sd.update({
+        "features.8.weight": torch.randn(256, 384, 3, 3, generator=g),
+        "features.8.bias": torch.zeros(256),
+        "features.10.weight": torch.randn(256, 256, 3, 3, generator=g),
+        "features.10.bias": torch.zeros(256),
+        "classifier.6.weight": torch.randn(1000, 16, generator=g),  # shapes irrelevant: ignored
+        "classifier.6.bias": torch.zeros(1000),
+    })
+    return sd
+
+
+# ----------------------------------------------------------------------------- EfficientNet-Lite0
+def test_chelsea_is_a_cat(classifier):
+    from skimage.data import chelsea
+
+    img = chelsea()
+    x = torch.from_numpy(img).permute(2, 0, 1)[None].float() / 255.0
+    x = F.interpolate(x, size=(224, 224), mode="bilinear", antialias=True, align_corners=False)
+    x = (x - torch.tensor(IMAGENET_MEAN)[:, None, None]) / torch.tensor(IMAGENET_STD)[:, None, None]
+    with torch.inference_mode():
+        prob = classifier(x).softmax(1)[0]
+    top = int(prob.argmax())
+    assert 281 <= top <= 285, f"chelsea classified as {top}"
+    assert float(prob[281:286].sum()) > 0.8
+
+
+def test_same_padding_shapes():
+    for size in (15, 16, 17, 160, 161):
+        for k, s in ((3, 2), (5, 2), (3, 1), (5, 1)):
+            conv = Conv2dSame(2, 2, k, stride=s, groups=2)
+            assert conv(torch.zeros(1, 2, size, size)).shape[-1] == -(-size // s)
+
+
+def test_truncated_fused_features_match_classifier_stage(classifier):
+    feats = EfficientNetLite0Features(input_size=96, stage=5)
+    assert feats.feature_shape == (112, 6, 6) and feats.raw_dim == 112 * 36
+    x = torch.randn(3, 3, 96, 96, generator=torch.Generator().manual_seed(0))
+    with torch.inference_mode():
+        ref = classifier.extract_stage(x, 5).flatten(1)
+        out = feats(x)
+    assert torch.allclose(out, ref, atol=1e-3, rtol=1e-3)
+
+
+def test_default_encoder_config(encoder):
+    c = encoder.describe()
+    assert c["backbone"] == "efficientnet_lite0"
+    assert c["input_size"] == 128 and c["stage"] == 5
+    assert c["raw_dim"] == encoder.raw_dim == 112 * 8 * 8
+    assert c["dim"] == encoder.dim == 1024
+    assert c["seed"] == 0
+    assert "efficientnet-lite0" in c["weights"]
+    assert c == encoder.config and c is not encoder.config
+
+
+# ----------------------------------------------------------------------------- encode
+def test_encode_shape_dtype(encoder, image):
+    boxes = np.array([[0, 0, 50, 40], [10, 20, 100, 90], [150, 80, 60, 60], [5, 5, 190, 110]])
+    d = encoder.encode(image, boxes)
+    assert d.shape == (4, 1024) and d.dtype == np.float32
+    assert np.isfinite(d).all()
+
+
+def test_empty_boxes(encoder, image):
+    for empty in (np.zeros((0, 4)), [], np.zeros((0,))):
+        d = encoder.encode(image, empty)
+        assert d.shape == (0, 1024) and d.dtype == np.float32
+
+
+def test_rows_independent_of_batching(image):
+    enc = LandmarkEncoder(input_size=64, batch_size=2)
+    boxes = np.array([[0, 0, 50, 40], [10, 20, 100, 90], [150, 80, 60, 60], [5, 5, 190, 110],
+                      [30, 30, 33, 33]], dtype=float)
+    together = enc.encode(image, boxes)
+    alone = np.concatenate([enc.encode(image, b[None]) for b in boxes])
+    np.testing.assert_allclose(together, alone, rtol=1e-4, atol=1e-4)
+
+
+def test_determinism_and_seed(image):
+    boxes = np.array([[0, 0, 64, 64], [40, 30, 120, 80]], dtype=float)
+    a = LandmarkEncoder(input_size=64, dim=256, seed=3)
+    b = LandmarkEncoder(input_size=64, dim=256, seed=3)
+    c = LandmarkEncoder(input_size=64, dim=256, seed=4)
+    da, db, dc = a.encode(image, boxes), b.encode(image, boxes), c.encode(image, boxes)
+    np.testing.assert_array_equal(da, db)
+    assert not np.allclose(da, dc)
+    p = random_projection(100, 20, seed=7)
+    assert p.shape == (100, 20) and p.dtype == torch.float32
+    np.testing.assert_array_equal(p.numpy(), np.random.default_rng(7).standard_normal(
+        (100, 20), dtype=np.float32) * np.float32(1 / np.sqrt(20)))
+    big = random_projection(2000, 500, seed=0).numpy()
+    assert abs(big.std() - 1 / np.sqrt(500)) < 0.002 and abs(big.mean()) < 0.001
+
+
+def test_no_projection_when_dim_none_or_large(image):
+    box = np.array([[0, 0, 64, 64]], dtype=float)
+    for dim in (None, 10**6):
+        enc = LandmarkEncoder(input_size=64, dim=dim)
+        assert enc.projection is None and enc.dim == enc.raw_dim == 112 * 4 * 4
+        assert enc.config["projection"] == "none"
+        d = enc.encode(image, box)
+        np.testing.assert_allclose(d, enc.encode_raw(image, box))
+        assert d.shape == (1, enc.raw_dim)
+
+
+# ----------------------------------------------------------------------------- crops
+def test_crop_of_exact_size_box_is_the_pixels(image):
+    enc = LandmarkEncoder("hog", dim=None)  # input 64, mean 0 / std 1: crops are RGB / 255
+    boxes = np.array([[17, 9, 64, 64]], dtype=float)
+    crop = enc.crops(image, boxes)[0].permute(1, 2, 0).numpy()
+    np.testing.assert_allclose(crop, image[9:73, 17:81] / 255.0, atol=1e-4)
+    # A box hanging over the border is clipped (to 50x50: level 0), not zero-padded.
+    crop = enc.crops(image, np.array([[-50, -50, 100, 100]], dtype=float))[0]
+    np.testing.assert_allclose(crop.permute(1, 2, 0).numpy()[0, 0], image[0, 0] / 255, atol=1e-4)
+
+
+def test_crop_clipping_and_pyramid(image):
+    enc = LandmarkEncoder("hog", dim=None, input_size=16)
+    # 40x60 red block; a box inside it is 4x larger than the input -> pyramid level 1 (2x avg).
+    assert enc._levels(np.array([[0, 0, 32, 32], [0, 0, 64, 64], [0, 0, 8, 8]])).tolist() == [
+        1, 2, 0]
+    crop = enc.crops(image, np.array([[32, 22, 56, 36]], dtype=float))[0]
+    np.testing.assert_allclose(crop[:, 0, 0].numpy(), np.array([200, 30, 30]) / 255, atol=1e-5)
+    assert enc._levels(np.array([[-50, -50, 100, 100]]), (120, 200)).tolist() == [1]
+    assert enc.crops(image, np.array([[300, 300, 10, 10]], dtype=float)).shape == (1, 3, 16, 16)
+
+
+def test_crop_correctness_descriptor(encoder):
+    from skimage.data import astronaut, chelsea, coffee
+
+    rng = np.random.default_rng(1)
+    cat = chelsea()[40:200, 120:280]  # 160x160 cat face
+    cup = coffee()[100:260, 200:360]  # 160x160 coffee cup
+    img1 = rng.integers(0, 256, (360, 640, 3), dtype=np.uint8)
+    img2 = (astronaut()[:360] // 2 + 60).astype(np.uint8)
+    img2 = np.concatenate([img2, img2[:, ::-1][:, :128]], axis=1)[:, :640]
+    img1[50:210, 60:220] = cat
+    img1[150:310, 400:560] = cup
+    img2[180:340, 440:600] = cat
+    d1 = encoder.encode(img1, np.array([[60, 50, 160, 160], [400, 150, 160, 160]], dtype=float))
+    d2 = encoder.encode(img2, np.array([[440, 180, 160, 160]], dtype=float))
+    assert _cos(d1[0], d2[0]) > _cos(d1[1], d2[0]) + 0.1
+
+
+# ----------------------------------------------------------------------------- errors
+def test_unknown_backbone_lists_names():
+    with pytest.raises(ValueError) as err:
+        LandmarkEncoder("resnet9000")
+    for name in available_backbones():
+        assert name in str(err.value)
+    assert {"efficientnet_lite0", "alexnet_conv3", "hog"} <= set(available_backbones())
+
+
+def test_bad_inputs(encoder, image):
+    box = np.array([[0, 0, 10, 10]], dtype=float)
+    with pytest.raises(ValueError, match=r"\(H, W, 3\)"):
+        encoder.encode(image[..., 0], box)
+    with pytest.raises(ValueError, match=r"\(H, W, 3\)"):
+        encoder.encode(np.zeros((10, 10, 4), np.uint8), box)
+    with pytest.raises(ValueError, match="uint8"):
+        encoder.encode(image.astype(np.float32), box)
+    with pytest.raises(TypeError):
+        encoder.encode(torch.zeros(10, 10, 3), box)
+    with pytest.raises(ValueError, match=r"\(K, 4\)"):
+        encoder.encode(image, np.zeros((3, 5)))
+    with pytest.raises(ValueError, match="positive"):
+        encoder.encode(image, np.array([[0, 0, 0, 10]], dtype=float))
+
+
+# ----------------------------------------------------------------------------- AlexNet conv3
+def test_alexnet_weights_from_file_and_env(tmp_path, monkeypatch, no_alexnet_env, image):
+    sd = _alexnet_state()
+    path = tmp_path / "my_alexnet.pth"
+    torch.save(sd, path)
+    enc = LandmarkEncoder("alexnet_conv3", dim=64, weights=str(path))
+    assert enc.raw_dim == 64_896 and enc.model.feature_shape == (384, 13, 13)
+    assert enc.input_size == 227 and enc.config["weights"] == "my_alexnet.pth"
+    assert torch.equal(enc.model.features[6].weight, sd["features.6.weight"])
+    d = enc.encode(image, np.array([[0, 0, 100, 100], [50, 20, 120, 90]], dtype=float))
+    assert d.shape == (2, 64) and d.dtype == np.float32
+
+    monkeypatch.setenv(alexnet_mod.ALEXNET_ENV, str(path))
+    enc2 = LandmarkEncoder("alexnet_conv3", dim=64)
+    assert enc2.config["weights"] == "my_alexnet.pth"
+    np.testing.assert_allclose(
+        enc2.encode(image, np.array([[0, 0, 100, 100]], dtype=float)), d[:1], atol=1e-4)
+
+
+def test_alexnet_hub_cache_is_used(no_alexnet_env):
+    hub = no_alexnet_env / "hub" / "checkpoints"
+    hub.mkdir(parents=True)
+    torch.save(_alexnet_state(), hub / alexnet_mod.ALEXNET_FILENAME)
+    enc = LandmarkEncoder("alexnet_conv3", dim=None)
+    assert enc.config["weights"] == alexnet_mod.ALEXNET_FILENAME and enc.dim == 64_896
+
+
+def test_alexnet_missing_weights_error(no_alexnet_env, monkeypatch):
+    with pytest.raises(FileNotFoundError) as err:
+        LandmarkEncoder("alexnet_conv3")
+    msg = str(err.value)
+    assert alexnet_mod.ALEXNET_URL in msg and alexnet_mod.ALEXNET_ENV in msg
+    assert str(no_alexnet_env / "hub" / "checkpoints" / alexnet_mod.ALEXNET_FILENAME) in msg
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        LandmarkEncoder("alexnet_conv3", weights=str(no_alexnet_env / "nope.pth"))
+    monkeypatch.setenv(alexnet_mod.ALEXNET_ENV, str(no_alexnet_env / "nope.pth"))
+    with pytest.raises(FileNotFoundError, match=alexnet_mod.ALEXNET_ENV):
+        LandmarkEncoder("alexnet_conv3")
+
+
+def test_alexnet_wrong_keys_error(tmp_path, no_alexnet_env):
+    bad = tmp_path / "bad.pth"
+    torch.save({"conv1.weight": torch.zeros(64, 3, 11, 11)}, bad)
+    with pytest.raises(ValueError, match="features.0.weight"):
+        LandmarkEncoder("alexnet_conv3", weights=str(bad))
+    sd = _alexnet_state()
+    sd["features.6.weight"] = torch.zeros(384, 192, 5, 5)
+    torch.save(sd, bad)
+    with pytest.raises(ValueError, match="shape"):
+        LandmarkEncoder("alexnet_conv3", weights=str(bad))
+
+
+def test_alexnet_random_is_flagged(no_alexnet_env, caplog, image):
+    vpr_logger = logging.getLogger("vpr_core")
+    vpr_logger.addHandler(caplog.handler)
+    try:
+        enc = LandmarkEncoder("alexnet_conv3", dim=32, weights="random", seed=1)
+    finally:
+        vpr_logger.removeHandler(caplog.handler)
+    assert any("RANDOM" in r.getMessage() and r.levelno == logging.WARNING for r in caplog.records)
+    assert enc.config["weights"] == "random (NOT pretrained)"
+    assert "random (NOT pretrained)" in enc.describe().values()
+    assert "NOT pretrained" in repr(enc)
+    assert enc.raw_dim == 64_896
+    enc2 = LandmarkEncoder("alexnet_conv3", dim=32, weights="random", seed=1)
+    box = np.array([[0, 0, 100, 100]], dtype=float)
+    np.testing.assert_array_equal(enc.encode(image, box), enc2.encode(image, box))
+
+
+# ----------------------------------------------------------------------------- HOG
+def test_hog_backbone(image):
+    enc = LandmarkEncoder("hog", dim=None)
+    assert enc.raw_dim == 1764 and enc.config["weights"] == "none (handcrafted)"
+    d = enc.encode(image, np.array([[0, 0, 64, 64], [10, 10, 150, 100]], dtype=float))
+    assert d.shape == (2, 1764) and d.dtype == np.float32 and (d >= 0).all()

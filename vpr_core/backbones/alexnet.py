@@ -1,0 +1,181 @@
+"""AlexNet conv1-conv3: the paper's landmark descriptor (64,896-d at 227x227 input).
+
+Layer layout of torchvision's ``alexnet`` (the "one weird trick" variant whose ImageNet weights
+are ``alexnet-owt-7be5be79.pth``), truncated after the third convolution + ReLU::
+
+    features.0  Conv2d(3, 64, 11, stride 4, padding 2)   227 -> 56
+    features.1  ReLU
+    features.2  MaxPool2d(3, 2)                           56 -> 27
+    features.3  Conv2d(64, 192, 5, padding 2)             27 -> 27
+    features.4  ReLU
+    features.5  MaxPool2d(3, 2)                           27 -> 13
+    features.6  Conv2d(192, 384, 3, padding 1)            13 -> 13
+    features.7  ReLU                                      -> 384 x 13 x 13 = 64,896
+
+Weights are never downloaded. Lookup order: ``weights=`` path, ``$VPR_ALEXNET_WEIGHTS``, the torch
+hub cache file ``<torch.hub.get_dir()>/checkpoints/alexnet-owt-7be5be79.pth``. ``weights="random"``
+gives a seeded random initialisation, flagged loudly (for speed tests and plumbing only).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import torch
+from torch import nn
+
+from ..utils import logger
+
+ALEXNET_URL = "https://download.pytorch.org/models/alexnet-owt-7be5be79.pth"
+ALEXNET_FILENAME = "alexnet-owt-7be5be79.pth"
+ALEXNET_ENV = "VPR_ALEXNET_WEIGHTS"
+RANDOM_WEIGHTS_LABEL = "random (NOT pretrained)"
+IMAGENET_MEAN = (0.485, 0.456, 0.406)
+IMAGENET_STD = (0.229, 0.224, 0.225)
+CONV3_KEYS: dict[str, tuple[int, ...]] = {
+    "features.0.weight": (64, 3, 11, 11),
+    "features.0.bias": (64,),
+    "features.3.weight": (192, 64, 5, 5),
+    "features.3.bias": (192,),
+    "features.6.weight": (384, 192, 3, 3),
+    "features.6.bias": (384,),
+}
+
+
+def hub_weights_path() -> Path:
+    """Where torch hub would cache the torchvision AlexNet weights (may not exist)."""
+    return Path(torch.hub.get_dir()) / "checkpoints" / ALEXNET_FILENAME
+
+
+def _missing_weights_message() -> str:
+    return (
+        "AlexNet ImageNet weights not found. The 'alexnet_conv3' backbone needs torchvision's "
+        f"AlexNet state dict ({ALEXNET_FILENAME}); nothing is downloaded at run time. Either:\n"
+        f"  * download {ALEXNET_URL}\n"
+        f"    and put it at {hub_weights_path()} (the torch hub cache), or\n"
+        f"  * set the environment variable {ALEXNET_ENV}=/path/to/{ALEXNET_FILENAME}, or\n"
+        "  * pass LandmarkEncoder('alexnet_conv3', weights='/path/to/file.pth').\n"
+        "For speed tests only, weights='random' builds an untrained network (flagged as such)."
+    )
+
+
+def resolve_weights(weights: str | os.PathLike | None) -> Path | str:
+    """Find the AlexNet weights file, or return ``"random"`` when explicitly requested.
+
+    Args:
+        weights: a path, ``"random"``, or None (then ``$VPR_ALEXNET_WEIGHTS``, then the hub cache).
+
+    Raises:
+        FileNotFoundError: no file found; the message says where to put it and the download URL.
+    """
+    if isinstance(weights, str) and weights == "random":
+        return "random"
+    if weights is not None:
+        p = Path(weights).expanduser()
+        if not p.is_file():
+            raise FileNotFoundError(f"AlexNet weights file {p} does not exist.\n"
+                                    + _missing_weights_message())
+        return p
+    env = os.environ.get(ALEXNET_ENV)
+    if env:
+        p = Path(env).expanduser()
+        if not p.is_file():
+            raise FileNotFoundError(f"{ALEXNET_ENV}={env} does not point to a file.\n"
+                                    + _missing_weights_message())
+        return p
+    p = hub_weights_path()
+    if p.is_file():
+        return p
+    raise FileNotFoundError(_missing_weights_message())
+
+
+def extract_conv3_state(state: dict[str, torch.Tensor], source: str = "") -> dict[str, torch.Tensor]:
+    """Pick the conv1-conv3 tensors out of a (full torchvision) AlexNet state dict.
+
+    Classifier and other extra keys are ignored; a ``module.`` prefix (DataParallel) is stripped.
+
+    Raises:
+        ValueError: a required key is missing or has the wrong shape.
+        TypeError: the file does not hold a dict.
+    """
+    if isinstance(state, dict) and "state_dict" in state and isinstance(state["state_dict"], dict):
+        state = state["state_dict"]
+    if not isinstance(state, dict):
+        raise TypeError(f"AlexNet weights {source}: expected a state dict, got {type(state)}")
+    state = {k.removeprefix("module."): v for k, v in state.items()}
+    out, problems = {}, []
+    for key, shape in CONV3_KEYS.items():
+        if key not in state:
+            problems.append(f"missing key {key!r} (expected shape {shape})")
+        elif tuple(state[key].shape) != shape:
+            problems.append(f"{key!r} has shape {tuple(state[key].shape)}, expected {shape}")
+        else:
+            out[key] = state[key].float()
+    if problems:
+        raise ValueError(
+            f"AlexNet weights {source} do not match torchvision's AlexNet layout: "
+            + "; ".join(problems)
+            + f". Found keys: {sorted(state)[:12]}{' ...' if len(state) > 12 else ''}"
+        )
+    return out
+
+
+class AlexNetConv3(nn.Module):
+    """AlexNet truncated after conv3 + ReLU (torchvision parameter names ``features.N``).
+
+    Attributes:
+        input_size: square crop side (227 in the paper).
+        raw_dim: ``384 * 13 * 13 = 64,896`` at 227.
+        weights_source: file name, or ``"random (NOT pretrained)"``.
+
+    ``forward``: ``(B, 3, s, s)`` ImageNet-normalised crops -> ``(B, raw_dim)`` float32.
+    """
+
+    mean = IMAGENET_MEAN
+    std = IMAGENET_STD
+
+    def __init__(
+        self,
+        input_size: int = 227,
+        weights: str | os.PathLike | None = None,
+        seed: int = 0,
+    ) -> None:
+        super().__init__()
+        self.features = nn.Sequential(
+            nn.Conv2d(3, 64, kernel_size=11, stride=4, padding=2),
+            nn.ReLU(inplace=True),
+            nn.MaxPool2d(kernel_size=3, stride=2),
+            nn.Conv2d(64, 192, kernel_size=5, padding=2),
+            nn.ReLU(inplace=True),
+            nn.MaxPool2d(kernel_size=3, stride=2),
+            nn.Conv2d(192, 384, kernel_size=3, padding=1),
+            nn.ReLU(inplace=True),
+        )
+        resolved = resolve_weights(weights)
+        if resolved == "random":
+            gen = torch.Generator().manual_seed(int(seed))
+            for m in self.features:
+                if isinstance(m, nn.Conv2d):
+                    nn.init.kaiming_normal_(
+                        m.weight, mode="fan_out", nonlinearity="relu", generator=gen
+                    )
+                    nn.init.zeros_(m.bias)
+            self.weights_source = RANDOM_WEIGHTS_LABEL
+            logger.warning(
+                "alexnet_conv3 uses RANDOM weights (weights='random'): descriptors are NOT the "
+                "paper's pretrained conv3 features; use only for speed/plumbing tests."
+            )
+        else:
+            state = torch.load(resolved, map_location="cpu", weights_only=True)
+            self.load_state_dict(extract_conv3_state(state, str(resolved)), strict=True)
+            self.weights_source = str(resolved.name)
+        self.input_size = int(input_size)
+        with torch.inference_mode():
+            shape = self.features(torch.zeros(1, 3, self.input_size, self.input_size)).shape[1:]
+        self.feature_shape = tuple(shape)
+        self.raw_dim = int(shape.numel())
+        self.eval()
+
+    def forward(self, batch: torch.Tensor) -> torch.Tensor:
+        return self.features(batch).flatten(1)
