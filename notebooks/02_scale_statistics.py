@@ -5,6 +5,8 @@
 #     text_representation:
 #       extension: .py
 #       format_name: percent
+#       format_version: '1.3'
+#       jupytext_version: 1.19.6
 #   kernelspec:
 #     display_name: Python 3 (vpr-landmarks)
 #     language: python
@@ -36,7 +38,7 @@ from vpr_core.study import open_study, table1
 dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | folder
 root = None  # dataset folder for the real datasets
 backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
-quick = False  # small run (12 synthetic places / 20 images) used by the tests
+quick = False  # small run (8 synthetic places / 20 images) used by the tests
 
 method = "classical"  # landmark method whose matches are studied
 n_irrelevant = 5  # query-irrelevant references sampled per query

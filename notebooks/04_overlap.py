@@ -5,6 +5,8 @@
 #     text_representation:
 #       extension: .py
 #       format_name: percent
+#       format_version: '1.3'
+#       jupytext_version: 1.19.6
 #   kernelspec:
 #     display_name: Python 3 (vpr-landmarks)
 #     language: python
@@ -30,7 +32,7 @@ from vpr_core.study import OVERLAP_NMS_THRESHOLDS, OVERLAP_SOFT_NMS_THRESHOLDS, 
 dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | folder
 root = None  # dataset folder for the real datasets
 backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
-quick = False  # small run (12 synthetic places / 20 images) used by the tests
+quick = False  # small run (8 synthetic places / 20 images) used by the tests
 
 # %%
 study = open_study(dataset, root=root, backbone=backbone, quick=quick, notebook="04_overlap")

@@ -54,7 +54,7 @@ TABLE4: dict[str, tuple[tuple[float, ...], int]] = {
 DENSE_TABLES = {"table2": TABLE2, "table3": TABLE3, "table4": TABLE4}
 OVERLAP_NMS_THRESHOLDS = (0.4, 0.5, 0.6, 0.7)
 OVERLAP_SOFT_NMS_THRESHOLDS = (0.3, 0.4, 0.5, 0.6, 0.7)
-QUICK_PLACES = 12
+QUICK_PLACES = 8
 
 RESULT_COLUMNS = ["figure", "method", "AUC(ratio)", "R@100P", "R@1", "R@5", "landmarks/img",
                   "landmarks s/img", "features s/img", "matching s/pair"]
@@ -253,27 +253,38 @@ class Study:
         shows a query-irrelevant pair, where every match is wrong (Fig. 2).
         """
         from .matching import match_landmarks
-        from .statistics import label_matches
+        from .statistics import LabelUnavailableError, label_matches
         from .viz import plot_labelled_matches
 
         res = run_method(method, self.dataset, backbone=self.backbone, seed=self.seed,
                          keep_descriptors=True)
         q = int(pair)
-        r = int(np.flatnonzero(self.dataset.ground_truth[q])[0]) if reference is None else reference
+        gt = np.asarray(self.dataset.ground_truth, dtype=bool)
+        if reference is None:
+            r = q if q < gt.shape[1] and gt[q, q] else int(np.flatnonzero(gt[q])[0])
+        else:
+            r = int(reference)
         m = match_landmarks(res.descriptors["query"][q], res.boxes["query"][q],
                             res.descriptors["reference"][r], res.boxes["reference"][r])
-        if bool(self.dataset.ground_truth[q, r]):
-            labels = label_matches(self.dataset, q, r, res.boxes["query"][q],
-                                   res.boxes["reference"][r], m.matches)
+        note = ""
+        if bool(gt[q, r]):
+            try:
+                labels = label_matches(self.dataset, q, r, res.boxes["query"][q],
+                                       res.boxes["reference"][r], m.matches)
+            except LabelUnavailableError as exc:
+                labels, note = None, f" (labels unavailable: {exc})"
+                logger.warning("pair (%d, %d) cannot be labelled: %s", q, r, exc)
         else:
             labels = np.zeros(len(m.matches), dtype=bool)
         fig = plot_labelled_matches(self.dataset.load_image("query", q),
                                     self.dataset.load_image("reference", r),
                                     res.boxes["query"][q], res.boxes["reference"][r],
                                     m.matches, labels)
+        counts = (f"{int(labels.sum())}/{len(labels)} matches correct" if labels is not None
+                  else f"{len(m.matches)} matches, unlabelled{note[:80]}")
         fig.suptitle(f"{res.label}: query {q} vs reference {r} "
-                     f"({'ground truth' if self.dataset.ground_truth[q, r] else 'irrelevant'}); "
-                     f"{int(labels.sum())}/{len(labels)} matches correct, S = {m.similarity:.3f}")
+                     f"({'ground truth' if gt[q, r] else 'irrelevant'}); {counts}; "
+                     f"S = {m.similarity:.3f}", fontsize=9)
         self.save(fig, figure)
         return fig
 
@@ -402,7 +413,7 @@ def open_study(dataset: str = "synthetic", root: str | None = None,
         dataset: dataset name (see :func:`vpr_core.datasets.load_dataset`).
         root: dataset folder for real datasets.
         backbone: landmark encoder backbone.
-        quick: small run (``synthetic`` with 12 places; first 20 images of real datasets);
+        quick: small run (``synthetic`` with 8 places; first 20 images of real datasets);
             outputs go to ``figures/<name>_quick`` and ``results/<name>_quick``.
         notebook: the calling notebook's stem (names the metrics CSV).
         label: output subfolder (default: dataset name, ``_quick`` appended in quick mode).

@@ -415,7 +415,7 @@ def _stats_grouped(ax, gt: np.ndarray, irr: np.ndarray) -> None:
            color=_STATS_GT_COLOR, label="ground-truth pairs")
     ax.bar(scales + w / 2, np.nan_to_num(np.asarray(irr, float)[1:10], nan=0.0), width=w,
            color=_STATS_IRR_COLOR, label="query-irrelevant pairs")
-    ax.legend(fontsize=7, loc="upper right", frameon=False)
+    ax.legend(fontsize=7, loc="best", frameon=True, framealpha=0.8)
 
 
 def plot_cls(stats, ax=None) -> matplotlib.figure.Figure:
