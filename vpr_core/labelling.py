@@ -72,7 +72,7 @@ def label_widget(dataset, q: int, r: int, boxes_q: np.ndarray, boxes_r: np.ndarr
                 print(f"saved {len(matches)} labels to {out}")
                 return
             i, j = matches[k]
-            fig, axes = plt.subplots(1, 2, figsize=(10, 3))
+            _fig, axes = plt.subplots(1, 2, figsize=(10, 3))
             for ax, img, box in ((axes[0], img_q, boxes_q[i]), (axes[1], img_r, boxes_r[j])):
                 ax.imshow(img)
                 draw_boxes(ax, box[None], color="yellow", lw=2)

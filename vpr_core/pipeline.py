@@ -20,10 +20,11 @@ from __future__ import annotations
 import os
 import tempfile
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -95,7 +96,7 @@ def landmarks_for_image(conf: dict[str, Any], dataset, side: str, i: int
         ``(boxes (K, 4), seconds)`` where seconds is the landmark-extraction cost of this image
         (Edge Box time for proposal schemes, the grid computation for ``dense``).
     """
-    lconf = conf["landmarks"] if "landmarks" in conf else conf
+    lconf = conf.get("landmarks", conf)
     scheme = lconf["scheme"]
     size = dataset.image_size(side, i)
     if scheme == "dense":

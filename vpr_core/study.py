@@ -15,9 +15,10 @@ from __future__ import annotations
 import dataclasses
 import os
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -186,7 +187,8 @@ class Study:
                 results.append(self.run(name, label=rest[0] if rest else None, **overrides))
         ttl = title or figure
         fig = plot_pr_curves({r.label: r.curve() for r in results},
-                             title=f"{ttl}\n{self.dataset.name}, tolerance {self.dataset.tolerance}")
+                             title=f"{ttl}\n{self.label} ({len(self.dataset.query_paths)} queries, "
+                                   f"tolerance {self.dataset.tolerance})")
         self.save(fig, figure)
         return self.record(figure, results)
 

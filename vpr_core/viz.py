@@ -12,10 +12,10 @@ import matplotlib
 
 if not os.environ.get("MPLBACKEND"):
     matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from .utils import REPO_DIR  # noqa: E402
+from .utils import REPO_DIR
 
 FIGURES_DIR = REPO_DIR / "figures"
 
@@ -38,7 +38,7 @@ def figures_dir(dataset: str | None = None) -> Path:
     return d
 
 
-def save_figure(fig: "matplotlib.figure.Figure", name: str, dataset: str | None = None,
+def save_figure(fig: matplotlib.figure.Figure, name: str, dataset: str | None = None,
                 dpi: int = 110) -> Path:
     """Save ``fig`` as ``figures/<dataset>/<name>.png`` byte-identically for identical inputs.
 
@@ -68,7 +68,7 @@ def draw_boxes(ax, boxes: np.ndarray, color="yellow", lw: float = 1.0, alpha: fl
 
 
 def plot_examples(dataset, indices=(0, 1, 2), boxes=None,
-                  title: str | None = None) -> "matplotlib.figure.Figure":
+                  title: str | None = None) -> matplotlib.figure.Figure:
     """Reference / query example pairs: one row per pair, columns ``reference | query``.
 
     Args:
@@ -113,7 +113,7 @@ def plot_examples(dataset, indices=(0, 1, 2), boxes=None,
     return fig
 
 
-def plot_dataset_overview(dataset, n: int = 6) -> "matplotlib.figure.Figure":
+def plot_dataset_overview(dataset, n: int = 6) -> matplotlib.figure.Figure:
     """Thumbnails of ``n`` evenly spaced places: reference row on top, query row below.
 
     Args:
@@ -297,7 +297,7 @@ def plot_pr_curves(curves: dict, title: str | None = None, ax=None,
     Args:
         curves: ``{label: PRCurve}`` (``vpr_core.evaluation.pr_curve`` results).
         title: axes title.
-        ax: axes to draw on (default: a new 4.5 x 4 in figure).
+        ax: axes to draw on (default: a new 6 x 4.6 in figure).
         colors: ``{label: colour}``; default :data:`METHOD_COLORS`, then the matplotlib cycle.
 
     Returns:
@@ -306,10 +306,16 @@ def plot_pr_curves(curves: dict, title: str | None = None, ax=None,
     from .evaluation import auc_pr
 
     if ax is None:
-        fig, ax = plt.subplots(figsize=(4.5, 4.0))
+        fig, ax = plt.subplots(figsize=(6.0, 4.6))
     else:
         fig = ax.figure
     colors = {**METHOD_COLORS, **(colors or {})}
+    from matplotlib.colors import to_hex
+
+    used = {to_hex(colors[k]) for k in curves if k in colors}
+    spare = iter([c for c in (f"C{i}" for i in range(10)) if to_hex(c) not in used]
+                 + [plt.cm.tab20(i) for i in range(20)])
+    colors.update({k: next(spare) for k in curves if k not in colors})
     for label, curve in curves.items():
         ax.plot(curve.recall, curve.precision, lw=1.6, color=colors.get(label),
                 label=f"{label} (AUC {auc_pr(curve):.3f})")
@@ -318,9 +324,9 @@ def plot_pr_curves(curves: dict, title: str | None = None, ax=None,
     ax.set_xlabel("recall")
     ax.set_ylabel("precision")
     if title:
-        ax.set_title(title)
+        ax.set_title(title, fontsize=10)
     ax.grid(alpha=0.3)
-    ax.legend(loc="lower left", fontsize=8, frameon=False)
+    ax.legend(loc="lower left", fontsize=7.5, frameon=True, framealpha=0.8)
     fig.tight_layout()
     return fig
 
