@@ -47,3 +47,10 @@ def test_quick_study_runs_headless_and_writes_every_figure(tmp_path, monkeypatch
         assert (tmp_path / "results" / "synthetic_quick" / f"{nb}.csv").exists()
     assert {"AUC(ratio)", "R@100P", "R@1"} <= set(table.columns)
     assert len(table) >= 3 + 5 + 6 + 15 + 3
+    # executed again (features now cached): byte-identical figures
+    before = {p.name: p.read_bytes()
+              for p in (tmp_path / "figures" / "synthetic_quick").glob("fig0[56]*.png")}
+    runner.run_study(dataset="synthetic", quick=True, notebooks=["03_landmark_selection"])
+    after = {p.name: p.read_bytes()
+             for p in (tmp_path / "figures" / "synthetic_quick").glob("fig0[56]*.png")}
+    assert before and before == after

@@ -89,3 +89,12 @@ def test_run_is_deterministic(tiny, isolated_cache):
     shutil.rmtree(isolated_cache)
     b = pipeline.run_method("dense", tiny, scales=(0.36,), per_scale=4).similarity
     np.testing.assert_array_equal(a, b)
+
+
+def test_dense_efficientnet_on_real_gardens_point_mini(gardens_point_mini_root):
+    """Issue 3: dense + efficientnet_lite0 on 10 real day/night pairs, exact ground truth:
+    R@1 >= 0.3 (three times chance, 0.1). Measured: see README."""
+    ds = load_dataset("folder", root=gardens_point_mini_root)
+    r = pipeline.run_method("dense", ds)
+    assert r.similarity.shape == (10, 10)
+    assert r.metrics["r_at_1"] >= 0.3, r.metrics
