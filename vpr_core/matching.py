@@ -505,7 +505,7 @@ def _resolve(vals: torch.Tensor, best: torch.Tensor, margin: float, sim64_fn):
     cand = vals >= (best - margin).unsqueeze(1)
     rows, cols = cand.nonzero(as_tuple=True)
     sims = torch.empty(rows.shape[0], dtype=torch.float64, device=vals.device)
-    step = 8192
+    step = 1024  # keeps the gathered float64 rows in cache
     for s in range(0, rows.shape[0], step):
         sims[s:s + step] = sim64_fn(rows[s:s + step], cols[s:s + step])
     sims = sims.clamp(-1.0, 1.0)
@@ -622,6 +622,7 @@ def similarity_matrix(query_desc: LandmarkSets, query_boxes: LandmarkSets,
     single = dev.type == "cpu" and threads > 1
 
     buf = None  # reused matmul output (avoids page faults from fresh 8 MB blocks)
+    work = None  # reused scratch of the same size for the reductions
     starts = range(0, q.n, bq)
     if show_progress:
         starts = progress(starts, desc="similarity", total=len(starts), unit="chunk")
@@ -637,6 +638,7 @@ def similarity_matrix(query_desc: LandmarkSets, query_boxes: LandmarkSets,
                 shape = (a.shape[0], b.shape[0])
                 if buf is None or buf.numel() < shape[0] * shape[1]:
                     buf = torch.empty(shape[0] * shape[1], dtype=mm_dtype, device=dev)
+                    work = torch.empty(q.k * shape[1], dtype=mm_dtype, device=dev)
                 s = torch.matmul(a, b.T, out=buf[: shape[0] * shape[1]].view(shape))
                 s64 = None
                 if nms is not None:
@@ -646,23 +648,56 @@ def similarity_matrix(query_desc: LandmarkSets, query_boxes: LandmarkSets,
                            @ r.unit_rows64(r0 * r.k, r1 * r.k).T).view(q1 - q0, q.k, r1 - r0, r.k)
                 if single:
                     torch.set_num_threads(1)
-                out[q0:q1, r0:r1] = _score_block(s, q, r, q0, q1, r0, r1, margin, nms, s64)
+                out[q0:q1, r0:r1] = _score_block(s, q, r, q0, q1, r0, r1, margin, nms, s64,
+                                                       work)
     finally:
         torch.set_num_threads(threads)
     return out.cpu().numpy()
 
 
+def _cos64(q: _Side, qrows: torch.Tensor, r: _Side, rrows: torch.Tensor) -> torch.Tensor:
+    """``(t,)`` float64 cosines of flat query rows ``qrows`` and reference rows ``rrows``.
+
+    ``dot(a, b) / (|a| |b|)`` with float64 norms computed once per side: equal to the pairwise
+    path's ``(a / |a|) . (b / |b|)`` to a few ulp (far inside :data:`TIE_TOL`); 0 for zero rows.
+    """
+    norms = q.norm64().index_select(0, qrows) * r.norm64().index_select(0, rrows)
+    if q.raw.device.type == "cpu":
+        # NumPy gathers the rows and casts chunk by chunk inside einsum (no big float64
+        # temporaries); float32 products are exact in float64
+        x = q.raw.numpy()[qrows.numpy()]
+        y = r.raw.numpy()[rrows.numpy()]
+        return torch.from_numpy(np.einsum("ij,ij->i", x, y, dtype=np.float64)) / norms
+    x = q.raw.index_select(0, qrows).to(torch.float64)
+    y = r.raw.index_select(0, rrows).to(torch.float64)
+    return torch.linalg.vecdot(x, y) / norms
+
+
+_INDEX_ONES: dict = {}
+
+
+def _index_ones(k: int, dtype: torch.dtype, device: torch.device) -> torch.Tensor:
+    """``(2, k)`` rows ``index`` and ``1`` (cached): times a 0/1 map, index sums and counts."""
+    key = (k, dtype, device)
+    if key not in _INDEX_ONES:
+        _INDEX_ONES[key] = torch.stack(
+            [torch.arange(k, dtype=dtype, device=device), torch.ones(k, dtype=dtype, device=device)])
+    return _INDEX_ONES[key]
+
+
 def _score_block(s: torch.Tensor, q: _Side, r: _Side, q0: int, q1: int, r0: int, r1: int,
-                 margin: float, nms: tuple | None, s64: torch.Tensor | None = None
-                 ) -> torch.Tensor:
+                 margin: float, nms: tuple | None, s64: torch.Tensor | None = None,
+                 work: torch.Tensor | None = None) -> torch.Tensor:
     """Eq. (1) for a block of image pairs from its landmark cosines.
 
     Args:
         s: ``(nq * Kq, nr * Kr)`` cosines (matmul dtype) of queries ``q0:q1`` x references
-            ``r0:r1``; modified in place (and restored).
+            ``r0:r1``; padded entries are overwritten in place.
         q, r: prepared sides; margin: float error bound of ``s``.
         nms: ``(iou_q, iou_r, t, sigma)`` or None.
         s64: ``(nq, Kq, nr, Kr)`` float64 cosines (soft-NMS only).
+        work: flat scratch buffer of ``s``'s dtype with at least ``Kq * nr * Kr`` entries
+            (reused across blocks), or None.
 
     Returns:
         ``(nq, nr)`` float64 similarities.
@@ -675,24 +710,44 @@ def _score_block(s: torch.Tensor, q: _Side, r: _Side, q0: int, q1: int, r0: int,
         s.masked_fill_(~qmask[:, :, None, None], _PAD)
     if r.padded:
         s.masked_fill_(~rmask[None, None], _PAD)
-    rv, ri = s.max(3)  # (nq, Kq, nr): best reference landmark of each query landmark
-    cv, ci = s.max(1)  # (nq, nr, Kr): best query landmark of each reference landmark
-    # second best of each row / column (max with the best knocked out), to find near-ties
-    s.scatter_(3, ri.unsqueeze(3), _PAD)
-    rv2 = s.amax(3)
-    s.scatter_(3, ri.unsqueeze(3), rv.unsqueeze(3))
-    s.scatter_(1, ci.unsqueeze(1), _PAD)
-    cv2 = s.amax(1)
-    s.scatter_(1, ci.unsqueeze(1), cv.unsqueeze(1))
+    # Row / column maxima (amax is a vectorised reduction, several times faster than max with
+    # indices). Each entry within `margin` of its row's (column's) max is a candidate; a 0/1
+    # candidate map times [index, 1] gives every row's (column's) candidate count and, where that
+    # count is 1, its argmax -- cheap streaming passes instead of an argmax and a second-best
+    # pass. Rows / columns with more than one candidate are the near-ties decided in float64
+    # below. The passes run one query image at a time, so that its slice of `s` (and of the
+    # scratch map) stays in the L2 cache from the first pass to the last.
+    dt, dev = s.dtype, s.device
+    rv = torch.empty((nq, q.k, nr), dtype=dt, device=dev)  # best cosine of each query landmark
+    cv = torch.empty((nq, nr, r.k), dtype=dt, device=dev)  # ... of each reference landmark
+    rsum = torch.empty((nq, 2, q.k * nr), dtype=dt, device=dev)  # [index sum, count] per row
+    csum = torch.empty((nq, 2, nr * r.k), dtype=dt, device=dev)  # ... per column
+    w = (torch.empty(s.shape[1:], dtype=dt, device=dev) if work is None
+         else work[: s[0].numel()].view(s.shape[1:]))
+    idx_r = _index_ones(r.k, dt, dev)  # (2, Kr)
+    idx_q = _index_ones(q.k, dt, dev)  # (2, Kq)
+    for g in range(nq):
+        sg = s[g]  # (Kq, nr, Kr)
+        torch.amax(sg, 2, out=rv[g])
+        torch.amax(sg, 0, out=cv[g])
+        torch.ge(sg, (rv[g] - margin).unsqueeze(2), out=w)
+        torch.mm(idx_r, w.view(q.k * nr, r.k).T, out=rsum[g])
+        torch.ge(sg, (cv[g] - margin).unsqueeze(0), out=w)
+        torch.mm(idx_q, w.view(q.k, nr * r.k), out=csum[g])
+    one_r = (rsum[:, 1] == 1).view(nq, q.k, nr)
+    one_c = (csum[:, 1] == 1).view(nq, nr, r.k)
+    ri = torch.where(one_r, rsum[:, 0].view(nq, q.k, nr), 0.0).long()  # (nq, Kq, nr)
+    ci = torch.where(one_c, csum[:, 0].view(nq, nr, r.k), 0.0).long()  # (nq, nr, Kr)
 
     has_r = (r.count[r0:r1] > 0).view(1, 1, nr)
     has_q = (q.count[q0:q1] > 0).view(nq, 1, 1)
-    amb_r = (rv2 >= rv - margin) & qmask[:, :, None] & has_r
-    amb_c = (cv2 >= cv - margin) & rmask[None] & has_q
+    amb_r = ~one_r & qmask[:, :, None] & has_r
+    amb_c = ~one_c & rmask[None] & has_q
     rv = rv.double()
     if bool(amb_r.any()):
         iq, ii, ir = amb_r.nonzero(as_tuple=True)
         vals = s[iq, ii, ir]  # (n, Kr)
+        ri[iq, ii, ir] = vals.argmax(1)  # a candidate; re-decided below where it matters
         best = rv[iq, ii, ir].to(s.dtype)
         # a near-tied row matters only if one of its candidates j could pick i back
         cand = (vals >= (best - margin)[:, None]) & (vals >= cv[iq, ir] - margin)
@@ -702,7 +757,7 @@ def _score_block(s: torch.Tensor, q: _Side, r: _Side, q0: int, q1: int, r0: int,
         rbase = (r0 + ir) * r.k
 
         def f_row(rows, cols):
-            return (q.unit64(qrow[rows]) * r.unit64(rbase[rows] + cols)).sum(-1)
+            return _cos64(q, qrow[rows], r, rbase[rows] + cols)
 
         if iq.numel():
             nn, sim = _resolve(vals, best, margin, f_row)
@@ -711,6 +766,7 @@ def _score_block(s: torch.Tensor, q: _Side, r: _Side, q0: int, q1: int, r0: int,
     if bool(amb_c.any()):
         iq, ir, ij = amb_c.nonzero(as_tuple=True)
         vals = s[iq, :, ir, ij]  # (n, Kq)
+        ci[iq, ir, ij] = vals.argmax(1)
         best = cv[iq, ir, ij]
         rv_c = rv[iq, :, ir].to(s.dtype)  # (n, Kq) row maxima (refined rows: float64 values)
         cand = (vals >= (best - margin)[:, None]) & (vals >= rv_c - margin)
@@ -720,7 +776,7 @@ def _score_block(s: torch.Tensor, q: _Side, r: _Side, q0: int, q1: int, r0: int,
         rrow = (r0 + ir) * r.k + ij
 
         def f_col(rows, cols):
-            return (q.unit64(qbase[rows] + cols) * r.unit64(rrow[rows])).sum(-1)
+            return _cos64(q, qbase[rows] + cols, r, rrow[rows])
 
         if iq.numel():
             nn, _ = _resolve(vals, best, margin, f_col)
@@ -728,22 +784,34 @@ def _score_block(s: torch.Tensor, q: _Side, r: _Side, q0: int, q1: int, r0: int,
 
     # per image pair layout (nq, nr, Kq)
     ri_p = ri.permute(0, 2, 1)
-    cos = rv.permute(0, 2, 1).clamp(-1.0, 1.0)
     recip = ci.gather(2, ri_p) == torch.arange(q.k, device=s.device)
-    recip &= qmask[:, None, :]
-    recip &= rmask.unsqueeze(0).expand(nq, -1, -1).gather(2, ri_p)
+    if q.padded:
+        recip &= qmask[:, None, :]
+    if r.padded or not bool(has_r.all()):
+        recip &= rmask.unsqueeze(0).expand(nq, -1, -1).gather(2, ri_p)
+    norm = torch.sqrt(q.count[q0:q1, None] * r.count[None, r0:r1])
+    norm = torch.where(norm > 0, norm, torch.full_like(norm, math.inf))  # no landmark: 0
+    if nms is None:
+        # Eq. (1) on the reciprocal pairs only (a fraction of all query landmarks)
+        g, rr, i = recip.nonzero(as_tuple=True)  # sorted: pair (g, rr), then landmark i
+        j = ri[g, i, rr]
+        cos = rv[g, i, rr].clamp(-1.0, 1.0)
+        wq = q.wh[q0 + g, i]  # (P, 2)
+        wr = r.wh[r0 + rr, j]
+        shp = _shape_terms(wq[:, 0], wr[:, 0], wq[:, 1], wr[:, 1], xp=torch)
+        total = torch.zeros(nq * nr, dtype=torch.float64, device=s.device)
+        total.index_add_(0, g * nr + rr, 1.0 - (1.0 - cos) * shp)
+        return total.view(nq, nr) / norm
+    cos = rv.permute(0, 2, 1).clamp(-1.0, 1.0)
     wh_q = q.wh[q0:q1].unsqueeze(1)  # (nq, 1, Kq, 2)
     wh_r = r.wh[r0:r1].unsqueeze(0).expand(nq, -1, -1, -1)  # (nq, nr, Kr, 2)
     wh_r = wh_r.gather(2, ri_p.unsqueeze(3).expand(-1, -1, -1, 2))  # (nq, nr, Kq, 2)
     shp = _shape_terms(wh_q[..., 0], wh_r[..., 0], wh_q[..., 1], wh_r[..., 1], xp=torch)
     score = 1.0 - (1.0 - cos) * shp
-    if nms is not None:
-        iou_q, iou_r, t, sigma = nms
-        score = _nms_block(score, shp, recip, ri_p, s64, iou_q[q0:q1], iou_r[r0:r1], t, sigma)
+    iou_q, iou_r, t, sigma = nms
+    score = _nms_block(score, shp, recip, ri_p, s64, iou_q[q0:q1], iou_r[r0:r1], t, sigma)
     total = torch.where(recip, score, torch.zeros_like(score)).sum(2)
-    norm = torch.sqrt(q.count[q0:q1, None] * r.count[None, r0:r1])
-    return torch.where(norm > 0, total / torch.where(norm > 0, norm, 1.0), torch.zeros_like(total))
-
+    return total / norm
 
 
 def _nms_block(score: torch.Tensor, shp: torch.Tensor, recip: torch.Tensor, ri_p: torch.Tensor,
