@@ -17,6 +17,7 @@ install: $(STAMP)
 
 study: $(STAMP)
 	MPLBACKEND=Agg $(VENV)/bin/vpr-study run --dataset synthetic
+	MPLBACKEND=Agg $(VENV)/bin/vpr-study eval --dataset synthetic --method dense classical
 
 test: $(STAMP)
 	MPLBACKEND=Agg $(PY) -m pytest -q
