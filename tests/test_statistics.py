@@ -518,3 +518,47 @@ def test_geometric_on_real_day_night_pairs():
         assert lab.dtype == bool and lab.shape == (1,)
     except LabelUnavailableError as e:
         assert "no two-view geometry" in str(e)
+
+
+def test_statistics_recomputed_independently_from_the_match_table(tiny_synthetic):
+    """CMR / CLS / ASL recomputed with pandas from ``matches_frame`` agree with ScaleStats."""
+    from vpr_core.pipeline import run_method
+    from vpr_core.statistics import scale_statistics
+
+    res = run_method("dense", tiny_synthetic, keep_descriptors=True, scales=(0.16, 0.36),
+                     per_scale=9)
+    st = scale_statistics(tiny_synthetic, res.boxes["query"], res.boxes["reference"],
+                          res.descriptors["query"], res.descriptors["reference"], n_irrelevant=3)
+    df = st.matches_frame()
+    assert len(df) == st.n_matches.sum() + st.n_matches_irrelevant.sum()
+    gt, irr = df[df.pair == "gt"], df[df.pair == "irrelevant"]
+    for k in range(1, 10):
+        g = gt[gt.scale == k]
+        if len(g):
+            assert st.cmr[k] == pytest.approx(g.correct.mean())
+            assert st.asl_gt[k] == pytest.approx(g.score.mean())
+            assert st.cls_gt[k] == pytest.approx(g.score.sum() / gt.score.sum())
+        else:
+            assert np.isnan(st.cmr[k])
+        i = irr[irr.scale == k]
+        if len(i):
+            assert st.asl_irrelevant[k] == pytest.approx(i.score.mean())
+    # box indices refer to the landmarks: the scale column is the query box's Table-1 index
+    from vpr_core.landmarks import scale_index
+
+    row = gt.iloc[0]
+    box = res.boxes["query"][int(row["query"])][int(row.query_box_index)]
+    assert scale_index(box[None], tiny_synthetic.image_size("query", 0))[0] == row.scale
+
+
+def test_labelling_helper_csv_round_trips_through_file_labels(tmp_path, tiny_synthetic):
+    from vpr_core.labelling import append_labels
+    from vpr_core.statistics import label_matches
+
+    boxes = np.array([[0, 0, 10, 10], [5, 5, 20, 20], [30, 30, 5, 5]], float)
+    matches = np.array([[0, 1], [2, 0]])
+    path = append_labels(tmp_path / "labels.csv", 0, 0, matches, [True, False])
+    got = label_matches(tiny_synthetic, 0, 0, boxes, boxes, matches, method="file", labels=path)
+    assert got.tolist() == [True, False]
+    with pytest.raises(ValueError, match="one label per match"):
+        append_labels(tmp_path / "x.csv", 0, 0, matches, [True])

@@ -695,6 +695,7 @@ class MatchRecord:
         is_gt_pair: True for a query-dependent ground-truth pair, False for query-irrelevant.
         q: query index (informative).
         r: reference index (informative).
+        matches: ``(P, 2)`` landmark indices (query box, reference box) or ``None``.
     """
 
     scales: np.ndarray
@@ -703,6 +704,7 @@ class MatchRecord:
     is_gt_pair: bool
     q: int = -1
     r: int = -1
+    matches: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.scales = np.asarray(self.scales, dtype=np.int64).reshape(-1)
@@ -746,6 +748,8 @@ class ScaleStats:
         n_irrelevant_pairs: number of query-irrelevant pairs.
         n_unlabelled_pairs: ground-truth pairs whose matches could not be labelled.
         meta: free-form description (dataset, label method, ...).
+        records: the per-pair :class:`MatchRecord` s the statistics were computed from, so that
+            they can be recomputed independently (:meth:`matches_frame`).
     """
 
     n_matches: np.ndarray = field(default_factory=_zeros10)
@@ -761,6 +765,7 @@ class ScaleStats:
     n_irrelevant_pairs: int = 0
     n_unlabelled_pairs: int = 0
     meta: dict = field(default_factory=dict)
+    records: list = field(default_factory=list, repr=False)
 
     @property
     def scales(self) -> np.ndarray:
@@ -787,6 +792,26 @@ class ScaleStats:
             "n_matches_irrelevant": self.n_matches_irrelevant[s],
         })
         return df.set_index("scale")
+
+    def matches_frame(self) -> Any:
+        """pandas DataFrame, one row per landmark match the statistics used: ``query``,
+        ``reference``, ``pair`` (``gt`` / ``irrelevant``), ``query_box_index``,
+        ``reference_box_index`` (-1 when unknown), ``scale`` (query-side Table-1 index),
+        ``score`` (``1 - d*s``) and ``correct`` (1 / 0, empty when unlabelled)."""
+        import pandas as pd
+
+        rows = []
+        for rec in self.records:
+            m = (np.asarray(rec.matches, dtype=np.int64).reshape(-1, 2) if rec.matches is not None
+                 else np.full((len(rec.scales), 2), -1, dtype=np.int64))
+            for k in range(len(rec.scales)):
+                rows.append({"query": rec.q, "reference": rec.r,
+                             "pair": "gt" if rec.is_gt_pair else "irrelevant",
+                             "query_box_index": int(m[k, 0]), "reference_box_index": int(m[k, 1]),
+                             "scale": int(rec.scales[k]), "score": float(rec.scores[k]),
+                             "correct": (None if rec.labels is None else int(rec.labels[k]))})
+        return pd.DataFrame(rows, columns=["query", "reference", "pair", "query_box_index",
+                                           "reference_box_index", "scale", "score", "correct"])
 
 
 def _cls_asl(scales: np.ndarray, scores: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -822,6 +847,7 @@ def scale_statistics_from_matches(records: Iterable[MatchRecord], meta: dict | N
     Returns:
         :class:`ScaleStats`.
     """
+    records = list(records)
     gt_sc, gt_s, irr_sc, irr_s, lab_sc, lab_v = [], [], [], [], [], []
     n_gt = n_irr = n_unl = 0
     for rec in records:
@@ -844,7 +870,7 @@ def scale_statistics_from_matches(records: Iterable[MatchRecord], meta: dict | N
     def cat(xs: list, dtype: Any) -> np.ndarray:
         return np.concatenate(xs).astype(dtype) if xs else np.zeros(0, dtype=dtype)
 
-    st = ScaleStats(meta=dict(meta or {}))
+    st = ScaleStats(meta=dict(meta or {}), records=list(records))
     st.n_gt_pairs, st.n_irrelevant_pairs, st.n_unlabelled_pairs = n_gt, n_irr, n_unl
     st.n_matches, st.cls_gt, st.asl_gt = _cls_asl(cat(gt_sc, np.int64), cat(gt_s, np.float64))
     st.n_matches_irrelevant, st.cls_irrelevant, st.asl_irrelevant = _cls_asl(
@@ -997,7 +1023,8 @@ def scale_statistics(dataset: Any, boxes_q: Sequence[np.ndarray], boxes_r: Seque
                                         **label_options)
                 except LabelUnavailableError as e:
                     logger.warning("scale_statistics: pair (%d, %d) unlabelled: %s", q, r, e)
-            records.append(MatchRecord(sc_q[mt[:, 0]], np.asarray(res.scores), lab, is_gt, q, r))
+            records.append(MatchRecord(sc_q[mt[:, 0]], np.asarray(res.scores), lab, is_gt, q, r,
+                                       matches=mt))
     meta = {"dataset": getattr(dataset, "name", None), "label_method": method,
             "n_irrelevant": n_irrelevant, "seed": seed, "gt_pairs": gt_pairs,
             "soft_nms_iou": soft_nms_iou, "iou_threshold": iou_threshold,

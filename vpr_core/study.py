@@ -230,6 +230,10 @@ class Study:
         frame = stats.to_frame()
         frame.to_csv(self.results_dir / f"{self.notebook}_scale_statistics_{method}.csv",
                      float_format="%.6f")
+        # every match with its scale, score and label: the statistics can be recomputed from it
+        stats.matches_frame().to_csv(
+            self.results_dir / f"{self.notebook}_scale_statistics_{method}_matches.csv",
+            index=False, float_format="%.8f")
         return stats
 
     def plot_scale_statistics(self, stats, prefix: str = "fig04") -> list[Path]:
