@@ -138,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"unknown method(s) {bad}; valid: {', '.join(available_methods())}")
     try:
         return args.func(args)
-    except (ValueError, FileNotFoundError, IndexError) as exc:
+    except (ValueError, FileNotFoundError, IndexError, RuntimeError) as exc:
         print(f"vpr-study: error: {exc}", file=sys.stderr)
         return 2
 

@@ -83,6 +83,11 @@ def run_study(dataset: str = "synthetic", root: str | None = None,
 
     from .viz import figures_dir
 
+    from .datasets import load_dataset
+
+    if root is not None:  # notebooks run with cwd notebooks/: pass an absolute path
+        root = str(Path(root).expanduser().resolve())
+    load_dataset(dataset, root=root)  # fail fast, with the loader's clear message
     label = output_label(dataset, quick)
     out_dir = REPO_DIR / "runs" / label
     out_dir.mkdir(parents=True, exist_ok=True)

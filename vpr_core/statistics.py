@@ -738,8 +738,9 @@ class ScaleStats:
         n_labelled: int, of those, matches with a label (enter CMR).
         n_correct: int, labelled correct matches on ground-truth pairs.
         cmr: correct / labelled matches on ground-truth pairs (Fig. 4a); NaN where none.
-        cls_gt: share of the summed pair scores ``1 - d*s`` of ground-truth-pair matches coming
-            from each scale (Fig. 4b); sums to 1 over 1..9 (all NaN when there is no mass).
+        cls_gt: share of the summed positive pair scores ``max(1 - d*s, 0)`` of ground-truth-pair
+            matches coming from each scale (Fig. 4b); sums to 1 over 1..9 (all NaN when there is
+            no positive mass). Negative pair scores lower Eq. (1) instead of contributing to it.
         cls_irrelevant: the same for query-irrelevant pairs.
         asl_gt: mean pair score per scale on ground-truth pairs (Fig. 4c); NaN where none.
         asl_irrelevant: the same on query-irrelevant pairs.
@@ -817,12 +818,17 @@ class ScaleStats:
 def _cls_asl(scales: np.ndarray, scores: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     n = np.bincount(scales, minlength=N_SCALES + 1)[: N_SCALES + 1].astype(np.int64)
     mass = np.bincount(scales, weights=scores, minlength=N_SCALES + 1)[: N_SCALES + 1]
+    # CLS shares the *positive* similarity mass: a pair score 1 - d*s below 0 (d*s > 1, common
+    # with weakly similar descriptors and the shape factor s <= e) lowers Eq. (1) rather than
+    # contributing to it, and signed sums near zero would give shares far outside [0, 1].
+    pos = np.bincount(scales, weights=np.clip(scores, 0.0, None),
+                      minlength=N_SCALES + 1)[: N_SCALES + 1]
     n[0] = 0
-    mass[0] = 0.0
-    total = mass[1:].sum()
+    mass[0] = pos[0] = 0.0
+    total = pos[1:].sum()
     cls = _nan10()
-    if len(scores) and total != 0:
-        cls[1:] = mass[1:] / total
+    if len(scores) and total > 0:
+        cls[1:] = pos[1:] / total
     asl = _nan10()
     nz = n > 0
     asl[nz] = mass[nz] / n[nz]
@@ -835,9 +841,10 @@ def scale_statistics_from_matches(records: Iterable[MatchRecord], meta: dict | N
 
     * ``cmr[s]`` = labelled-correct / labelled matches of ground-truth pairs whose query-side
       landmark has scale ``s`` (NaN where none);
-    * ``cls_gt[s]`` = sum of the pair scores of ground-truth-pair matches of scale ``s`` divided by
-      the sum over all scales, pooled over all pairs (so ``nansum(cls_gt[1:]) == 1``; all NaN when
-      there are no matches or the total is 0); ``cls_irrelevant`` likewise;
+    * ``cls_gt[s]`` = sum of the positive parts ``max(1 - d*s, 0)`` of the pair scores of
+      ground-truth-pair matches of scale ``s`` divided by the sum over all scales, pooled over all
+      pairs (so ``nansum(cls_gt[1:]) == 1``; all NaN when there are no matches or no positive
+      mass); ``cls_irrelevant`` likewise;
     * ``asl_gt[s]`` / ``asl_irrelevant[s]`` = mean pair score of those matches (NaN where none).
 
     Args:

@@ -410,6 +410,10 @@ def plot_cmr(stats, ax=None, color: str = "tab:blue") -> matplotlib.figure.Figur
         if np.isfinite(v):
             ax.text(s, v + 0.01, f"{int(k)}", ha="center", va="bottom", fontsize=7)
     ax.set_ylim(0, 1.08)
+    if not np.isfinite(cmr).any():
+        ax.text(5, 0.5, "no labelled matches:\nthe pairs could not be verified\n"
+                "(give manual labels: method='file')", ha="center", va="center", fontsize=8,
+                color="0.35")
     _stats_scale_axis(ax, stats, "(a) correct matching rate (CMR)", "CMR")
     return fig
 
