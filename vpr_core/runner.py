@@ -81,9 +81,8 @@ def run_study(dataset: str = "synthetic", root: str | None = None,
     """
     import papermill as pm
 
-    from .viz import figures_dir
-
     from .datasets import load_dataset
+    from .viz import figures_dir
 
     if root is not None:  # notebooks run with cwd notebooks/: pass an absolute path
         root = str(Path(root).expanduser().resolve())
