@@ -35,3 +35,9 @@ def test_eval_missing_root_is_a_clear_error(tmp_path, capsys):
                    "--method", "dense"])
     assert rc == 2
     assert "missing" in capsys.readouterr().err
+
+
+def test_run_with_missing_root_fails_fast_with_the_loaders_message(tmp_path, capsys):
+    rc = cli.main(["run", "--dataset", "folder", "--root", str(tmp_path / "missing")])
+    assert rc == 2
+    assert "does not exist" in capsys.readouterr().err

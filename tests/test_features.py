@@ -299,3 +299,21 @@ def test_hog_backbone(image):
     assert enc.raw_dim == 1764 and enc.config["weights"] == "none (handcrafted)"
     d = enc.encode(image, np.array([[0, 0, 64, 64], [10, 10, 150, 100]], dtype=float))
     assert d.shape == (2, 1764) and d.dtype == np.float32 and (d >= 0).all()
+
+
+def test_descriptors_do_not_depend_on_how_boxes_are_grouped():
+    """CPU kernels depend on batch shape; the encoder pads to a fixed batch so that cached
+    resumes (a few new boxes at a time) give bit-identical descriptors."""
+    import numpy as np
+
+    from vpr_core.features import LandmarkEncoder
+    from vpr_core.landmarks import dense_sampling
+
+    rng = np.random.default_rng(0)
+    img = rng.integers(0, 255, (120, 200, 3), dtype=np.uint8)
+    boxes = dense_sampling(img.shape[:2], scales=(0.25, 0.49), per_scale=9)
+    enc = LandmarkEncoder(batch_size=8)
+    whole = enc.encode(img, boxes)
+    for k in (1, 3, 5):
+        parts = np.concatenate([enc.encode(img, boxes[i:i + k]) for i in range(0, len(boxes), k)])
+        np.testing.assert_array_equal(whole, parts)

@@ -38,7 +38,7 @@ from .utils import logger
 __all__ = ["LandmarkEncoder", "available_backbones", "boxes_to_corners", "random_projection"]
 
 #: Bumped when the descriptor computation changes in a way that invalidates caches.
-DESCRIPTOR_VERSION = 1
+DESCRIPTOR_VERSION = 2  # 2: fixed batch shape (grouping-invariant descriptors)
 
 
 @lru_cache(maxsize=2)
@@ -299,11 +299,29 @@ class LandmarkEncoder:
         with torch.inference_mode():
             crops = self.crops(image, boxes)
             for start in range(0, len(boxes), self.batch_size):
-                feats = self.model(crops[start:start + self.batch_size]).float()
+                chunk = crops[start:start + self.batch_size]
+                feats = self._forward_fixed(chunk, keep_padding=True)
                 if self.projection is not None:
                     feats = feats @ self.projection
-                outs.append(feats.cpu())
+                outs.append(feats[:len(chunk)].cpu())
         return torch.cat(outs).numpy().astype(np.float32, copy=False)
+
+    def _forward_fixed(self, batch: torch.Tensor, keep_padding: bool = False) -> torch.Tensor:
+        """Backbone on a batch padded to ``batch_size`` rows (repeating the last crop).
+
+        CPU kernels (convolutions, and the projection matmul, which becomes a matrix-vector
+        product for one row) are chosen by shape, and some shapes give results that differ in
+        the 4th decimal; a fixed batch shape makes every descriptor independent of how the
+        boxes were grouped (cached resumes, subsets), so the same command gives the same
+        numbers. ``(B, C, S, S)`` -> ``(B, raw_dim)`` float32 (``(batch_size, raw_dim)`` with
+        ``keep_padding``, the padding rows last).
+        """
+        n = batch.shape[0]
+        if n < self.batch_size:
+            pad = batch[-1:].expand(self.batch_size - n, *batch.shape[1:])
+            batch = torch.cat([batch, pad])
+        out = self.model(batch).float()
+        return out if keep_padding else out[:n]
 
     def encode_raw(self, image: np.ndarray, boxes: np.ndarray) -> np.ndarray:
         """Backbone features before projection: ``(K, raw_dim)`` float32."""
@@ -313,7 +331,7 @@ class LandmarkEncoder:
             return np.zeros((0, self.raw_dim), dtype=np.float32)
         with torch.inference_mode():
             crops = self.crops(image, boxes)
-            feats = [self.model(crops[i:i + self.batch_size]).float().cpu()
+            feats = [self._forward_fixed(crops[i:i + self.batch_size]).cpu()
                      for i in range(0, len(boxes), self.batch_size)]
         return torch.cat(feats).numpy()
 
