@@ -520,3 +520,30 @@ def test_landmark_plots(synthetic_image, tmp_path):
     with pytest.raises(ValueError):
         viz.plot_scale_distribution({"q": np.ones(5)})
     plt.close("all")
+
+
+def test_select_from_candidates_dispatches_to_the_algorithms():
+    from vpr_core.landmarks import (
+        reduce_overlap,
+        select_from_candidates,
+        select_min_scale,
+        select_scale_priority,
+    )
+
+    rng = np.random.default_rng(3)
+    xy = rng.uniform(0, 300, (200, 2))
+    wh = rng.uniform(10, 300, (200, 2))
+    cands = np.concatenate([xy, wh], 1)
+    size = (360, 640)
+    np.testing.assert_array_equal(select_from_candidates(cands, size, "edge_boxes", n=7),
+                                  cands[:7])
+    np.testing.assert_array_equal(select_from_candidates(cands, size, "selection_scheme1", n=20),
+                                  select_min_scale(cands, size, n=20))
+    np.testing.assert_array_equal(
+        select_from_candidates(cands, size, "selection_scheme2", n=20, order=(6, 5)),
+        select_scale_priority(cands, size, n=20, order=(6, 5)))
+    np.testing.assert_array_equal(
+        select_from_candidates(cands, size, "overlap_scheme1", n=20, iou_threshold=0.3),
+        reduce_overlap(cands, n=20, iou_threshold=0.3))
+    with pytest.raises(ValueError, match="valid: edge_boxes"):
+        select_from_candidates(cands, size, "dense")

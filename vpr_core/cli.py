@@ -41,21 +41,6 @@ def format_table(rows: list[dict], columns: list[str] | None = None, floatfmt: s
     return "\n".join([line, sep, *body])
 
 
-def result_row(result) -> dict:
-    """One table row (metrics and costs) of a :class:`~vpr_core.pipeline.MethodResult`."""
-    t = result.timings
-    return {
-        "method": result.label,
-        "AUC(ratio)": float(result.metrics["auc"]),
-        "R@100P": float(result.metrics["r_at_100p"]),
-        "R@1": float(result.metrics["r_at_1"]),
-        "R@5": float(result.metrics["r_at_5"]),
-        "landmarks s/img": float(t["landmarks_s_per_image"]),
-        "features s/img": float(t["features_s_per_image"]),
-        "matching s/pair": float(t["matching_s_per_pair"]),
-    }
-
-
 def cmd_eval(args: argparse.Namespace) -> int:
     from .datasets import load_dataset
     from .pipeline import run_method
@@ -66,7 +51,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
           f"references={len(dataset.reference_paths)} tolerance={dataset.tolerance}")
     results = [run_method(m, dataset, backbone=args.backbone, dim=args.dim, seed=args.seed,
                           weights=args.weights) for m in args.method]
-    rows = [result_row(r) for r in results]
+    rows = [r.row() for r in results]
     table = format_table(rows, floatfmt=".4f")
     print(f"backbone: {results[0].encoder.get('backbone')} "
           f"(weights: {results[0].encoder.get('weights')})")

@@ -49,6 +49,7 @@ __all__ = [
     "reduce_overlap",
     "scale_histogram",
     "scale_index",
+    "select_from_candidates",
     "select_min_scale",
     "select_scale_priority",
 ]
@@ -751,6 +752,38 @@ def _split_conf(name: str, conf: Mapping[str, Any], own: Sequence[str]) -> tuple
     return mine, merged
 
 
+def select_from_candidates(candidates: np.ndarray, image_size: Any, scheme: str, n: int = 100,
+                           min_index: int = 4, order: Sequence[int] = (5, 6, 7, 8, 9, 4),
+                           iou_threshold: float = 0.5) -> np.ndarray:
+    """The landmarks an Edge Box scheme keeps from a list of proposals.
+
+    Args:
+        candidates: ``(M, 4)`` proposals in proposal order (e.g. 1,000 Edge Boxes).
+        image_size: ``(H, W)`` of the image.
+        scheme: ``edge_boxes`` (first ``n``), ``selection_scheme1`` (Algorithm 1,
+            ``min_index``), ``selection_scheme2`` (Algorithm 2, ``order``) or
+            ``overlap_scheme1`` (Algorithm 3, ``iou_threshold``).
+        n: landmarks to keep.
+
+    Returns:
+        ``(K, 4)`` float64 boxes, ``K <= n``.
+
+    Raises:
+        ValueError: unknown scheme (the message lists the valid ones).
+    """
+    cand = _check_boxes(candidates, "candidates")
+    if scheme == "edge_boxes":
+        return cand[: _check_n(n)].copy()
+    if scheme == "selection_scheme1":
+        return select_min_scale(cand, image_size, n=n, min_index=min_index)
+    if scheme == "selection_scheme2":
+        return select_scale_priority(cand, image_size, n=n, order=tuple(order))
+    if scheme == "overlap_scheme1":
+        return reduce_overlap(cand, n=n, iou_threshold=iou_threshold)
+    raise ValueError(f"unknown Edge Box scheme {scheme!r}; valid: edge_boxes, selection_scheme1, "
+                     "selection_scheme2, overlap_scheme1")
+
+
 def _scheme_edge_boxes(image: np.ndarray, conf: Mapping[str, Any]) -> np.ndarray:
     mine, eb = _split_conf("edge_boxes", conf, ("max_boxes",))
     return edge_boxes(image, max_boxes=mine["max_boxes"], **eb).boxes
@@ -770,20 +803,20 @@ def _scheme_dense(image: np.ndarray, conf: Mapping[str, Any]) -> np.ndarray:
 
 def _scheme_selection1(image: np.ndarray, conf: Mapping[str, Any]) -> np.ndarray:
     mine, eb = _split_conf("selection_scheme1", conf, ("n_candidates", "n", "min_index"))
-    cand = edge_boxes(image, max_boxes=mine["n_candidates"], **eb).boxes
-    return select_min_scale(cand, image.shape[:2], n=mine["n"], min_index=mine["min_index"])
+    cand = edge_boxes(image, max_boxes=mine.pop("n_candidates"), **eb).boxes
+    return select_from_candidates(cand, image.shape[:2], "selection_scheme1", **mine)
 
 
 def _scheme_selection2(image: np.ndarray, conf: Mapping[str, Any]) -> np.ndarray:
     mine, eb = _split_conf("selection_scheme2", conf, ("n_candidates", "n", "order"))
-    cand = edge_boxes(image, max_boxes=mine["n_candidates"], **eb).boxes
-    return select_scale_priority(cand, image.shape[:2], n=mine["n"], order=mine["order"])
+    cand = edge_boxes(image, max_boxes=mine.pop("n_candidates"), **eb).boxes
+    return select_from_candidates(cand, image.shape[:2], "selection_scheme2", **mine)
 
 
 def _scheme_overlap1(image: np.ndarray, conf: Mapping[str, Any]) -> np.ndarray:
     mine, eb = _split_conf("overlap_scheme1", conf, ("n_candidates", "n", "iou_threshold"))
-    cand = edge_boxes(image, max_boxes=mine["n_candidates"], **eb).boxes
-    return reduce_overlap(cand, n=mine["n"], iou_threshold=mine["iou_threshold"])
+    cand = edge_boxes(image, max_boxes=mine.pop("n_candidates"), **eb).boxes
+    return select_from_candidates(cand, image.shape[:2], "overlap_scheme1", **mine)
 
 
 #: Landmark schemes by name: ``fn(image (H, W, 3) uint8, conf: dict) -> boxes (K, 4)``.

@@ -107,17 +107,9 @@ def landmarks_for_image(conf: dict[str, Any], dataset, side: str, i: int
         raise ValueError(f"Unknown landmark scheme {scheme!r}; valid: "
                          f"{', '.join(EDGE_BOX_SCHEMES + ('dense',))}.")
     cands, seconds = edge_box_candidates(dataset, side, i, lconf.get("n_candidates", 1000))
-    n = int(lconf.get("n", 100))
+    options = {k: lconf[k] for k in ("n", "min_index", "order", "iou_threshold") if k in lconf}
     t0 = time.perf_counter()
-    if scheme == "edge_boxes":
-        boxes = cands[:n]
-    elif scheme == "selection_scheme1":
-        boxes = lm.select_min_scale(cands, size, n=n, min_index=lconf.get("min_index", 4))
-    elif scheme == "selection_scheme2":
-        boxes = lm.select_scale_priority(cands, size, n=n,
-                                         order=tuple(lconf.get("order", (5, 6, 7, 8, 9, 4))))
-    else:  # overlap_scheme1
-        boxes = lm.reduce_overlap(cands, n=n, iou_threshold=lconf["iou_threshold"])
+    boxes = lm.select_from_candidates(cands, size, scheme, **options)
     seconds += time.perf_counter() - t0
     return np.asarray(boxes, dtype=np.float64).reshape(-1, 4), seconds
 
@@ -264,6 +256,17 @@ class MethodResult:
     metrics: dict
     timings: dict
     descriptors: dict | None = field(default=None, repr=False)
+
+    def row(self) -> dict:
+        """One table row: label, metrics (ratio-protocol AUC, R@100P, R@1, R@5) and costs."""
+        t = self.timings
+        return {"method": self.label, "AUC(ratio)": float(self.metrics["auc"]),
+                "R@100P": float(self.metrics["r_at_100p"]), "R@1": float(self.metrics["r_at_1"]),
+                "R@5": float(self.metrics["r_at_5"]),
+                "landmarks/img": float(t["landmarks_per_image"]),
+                "landmarks s/img": float(t["landmarks_s_per_image"]),
+                "features s/img": float(t["features_s_per_image"]),
+                "matching s/pair": float(t["matching_s_per_pair"])}
 
     def curve(self, protocol: str = "ratio"):
         """PR curve of this result under ``protocol``."""

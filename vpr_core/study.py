@@ -88,15 +88,6 @@ def _subset(dataset, n: int):
         ground_truth=np.asarray(dataset.ground_truth)[:nq, :nr].copy())
 
 
-def _result_row(figure: str, r: MethodResult) -> dict:
-    t = r.timings
-    return {"figure": figure, "method": r.label, "AUC(ratio)": r.metrics["auc"],
-            "R@100P": r.metrics["r_at_100p"], "R@1": r.metrics["r_at_1"],
-            "R@5": r.metrics["r_at_5"], "landmarks/img": t["landmarks_per_image"],
-            "landmarks s/img": t["landmarks_s_per_image"],
-            "features s/img": t["features_s_per_image"], "matching s/pair": t["matching_s_per_pair"]}
-
-
 @dataclass
 class Study:
     """One notebook's view of the study: a dataset, a backbone and where outputs go.
@@ -138,17 +129,19 @@ class Study:
         plt.close(fig)
         return path
 
-    def run(self, method: str, label: str | None = None, **overrides: Any) -> MethodResult:
-        """Run (cached) one method on the study's dataset."""
-        key = (method, label, tuple(sorted(overrides.items())))
+    def run(self, method: str, label: str | None = None, keep_descriptors: bool = False,
+            **overrides: Any) -> MethodResult:
+        """Run (cached in this study) one method on the study's dataset."""
+        key = (method, label, keep_descriptors, tuple(sorted(overrides.items())))
         if key not in self._cache:
             self._cache[key] = run_method(method, self.dataset, backbone=self.backbone,
-                                          seed=self.seed, label=label, **overrides)
+                                          seed=self.seed, label=label,
+                                          keep_descriptors=keep_descriptors, **overrides)
         return self._cache[key]
 
     def record(self, figure: str, results: Sequence[MethodResult]) -> pd.DataFrame:
         """Append metrics rows for a figure and rewrite ``results/<label>/<notebook>.csv``."""
-        rows = [_result_row(figure, r) for r in results]
+        rows = [{"figure": figure, **r.row()} for r in results]
         self._rows = [r for r in self._rows if r["figure"] != figure] + rows
         table = pd.DataFrame(self._rows, columns=RESULT_COLUMNS)
         table.to_csv(self.results_dir / f"{self.notebook}.csv", index=False, float_format="%.6f")
@@ -222,8 +215,7 @@ class Study:
         """
         from .statistics import scale_statistics
 
-        res = run_method(method, self.dataset, backbone=self.backbone, seed=self.seed,
-                         keep_descriptors=True, **overrides)
+        res = self.run(method, keep_descriptors=True, **overrides)
         stats = scale_statistics(self.dataset, res.boxes["query"], res.boxes["reference"],
                                  res.descriptors["query"], res.descriptors["reference"],
                                  n_irrelevant=n_irrelevant, seed=self.seed)
@@ -262,8 +254,7 @@ class Study:
         from .statistics import LabelUnavailableError, label_matches
         from .viz import plot_labelled_matches
 
-        res = run_method(method, self.dataset, backbone=self.backbone, seed=self.seed,
-                         keep_descriptors=True)
+        res = self.run(method, keep_descriptors=True)
         q = int(pair)
         gt = np.asarray(self.dataset.ground_truth, dtype=bool)
         if reference is None:
