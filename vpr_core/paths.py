@@ -1,0 +1,77 @@
+"""Where the workbench writes: the output root (figures, results, runs) and the cache root.
+
+Nothing is ever written inside the installed package.
+
+- Output root: ``$VPR_OUTPUT_DIR`` if set, else the current working directory (so ``make study``
+  in a checkout writes ``figures/`` and ``results/`` there). The CLI's ``--out`` sets it.
+- Figures: ``<output root>/figures/<label>/``; results: ``<output root>/results/<label>/``;
+  executed notebooks: ``<output root>/runs/<label>/``.
+- Cache root: ``$VPR_CACHE_DIR`` if set, else ``<output root>/.cache``.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+__all__ = [
+    "OUTPUT_ENV",
+    "CACHE_ENV",
+    "cache_root",
+    "figures_dir",
+    "output_root",
+    "results_dir",
+    "runs_dir",
+    "set_output_root",
+]
+
+OUTPUT_ENV = "VPR_OUTPUT_DIR"
+CACHE_ENV = "VPR_CACHE_DIR"
+
+
+def output_root() -> Path:
+    """``$VPR_OUTPUT_DIR`` or the current working directory (absolute, not created)."""
+    env = os.environ.get(OUTPUT_ENV)
+    return (Path(env).expanduser() if env else Path.cwd()).resolve()
+
+
+def set_output_root(path: str | os.PathLike) -> Path:
+    """Point every later output (and a default cache) at ``path``; returns it, absolute.
+
+    It sets ``$VPR_OUTPUT_DIR`` so that notebooks executed by the runner inherit it.
+    """
+    p = Path(path).expanduser().resolve()
+    p.mkdir(parents=True, exist_ok=True)
+    os.environ[OUTPUT_ENV] = str(p)
+    return p
+
+
+def _sub(kind: str, label: str | None) -> Path:
+    d = output_root() / kind
+    if label:
+        d = d / label
+    d.mkdir(parents=True, exist_ok=True)
+    return d
+
+
+def figures_dir(label: str | None = None) -> Path:
+    """``<output root>/figures[/<label>]``, created."""
+    return _sub("figures", label)
+
+
+def results_dir(label: str | None = None) -> Path:
+    """``<output root>/results[/<label>]``, created."""
+    return _sub("results", label)
+
+
+def runs_dir(label: str | None = None) -> Path:
+    """``<output root>/runs[/<label>]`` (executed notebooks), created."""
+    return _sub("runs", label)
+
+
+def cache_root() -> Path:
+    """``$VPR_CACHE_DIR`` or ``<output root>/.cache``, created."""
+    env = os.environ.get(CACHE_ENV)
+    root = Path(env).expanduser().resolve() if env else output_root() / ".cache"
+    root.mkdir(parents=True, exist_ok=True)
+    return root
