@@ -26,7 +26,7 @@ SMALL = (64, 112)  # (H, W) for fast generator tests
 # ----------------------------------------------------------------------------------------------
 
 
-def _write_images(folder: Path, names, size=(12, 16), seed=0) -> list[Path]:
+def _write_images(folder: Path, names, size=(32, 40), seed=0) -> list[Path]:
     folder.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
     out = []
@@ -64,11 +64,11 @@ def test_place_dataset_access_and_errors(tmp_path):
     gt[0, 1] = gt[1, 2] = True
     ds = PlaceDataset("t", qp, rp, gt, None)
     assert len(ds) == 2 and ds.gt_pairs() == [(0, 1), (1, 2)]
-    assert ds.image_size("query", 1) == (12, 16)
+    assert ds.image_size("query", 1) == (32, 40)
     key = ds.image_key("reference", 0)
     assert key == ds.image_key("reference", 0) and len(key) == 16
     assert key != ds.image_key("reference", 1)
-    assert ds.load_image("reference", 2).shape == (12, 16, 3)
+    assert ds.load_image("reference", 2).shape == (32, 40, 3)
     with pytest.raises(ValueError, match="side must be 'query' or 'reference'"):
         ds.load_image("ref", 0)
     with pytest.raises(IndexError, match="out of range"):
@@ -113,9 +113,9 @@ def test_unreadable_image_is_a_clear_error(tmp_path):
 
 def test_registry_and_unknown_name():
     assert set(DATASETS) == {"synthetic", "gardens_point", "mapillary_berlin",
-                             "freiburg_across_seasons", "folder"}
+                             "freiburg_across_seasons", "folder", "nordland", "vpr_bench"}
     with pytest.raises(ValueError) as e:
-        load_dataset("nordland")
+        load_dataset("oxford")
     for n in DATASETS:
         assert n in str(e.value)
 
@@ -126,7 +126,7 @@ def test_unknown_option_lists_valid_ones(tmp_path):
 
 
 @pytest.mark.parametrize("name", ["gardens_point", "mapillary_berlin", "freiburg_across_seasons",
-                                  "folder"])
+                                  "folder", "nordland", "vpr_bench"])
 def test_missing_root(name, tmp_path):
     with pytest.raises(FileNotFoundError, match="does not exist"):
         load_dataset(name, root=tmp_path / "nowhere")
@@ -213,7 +213,7 @@ def test_folder_frame_aligned_natural_sort_and_extensions(tmp_path):
     assert [p.name for p in ds.reference_paths] == ["r1.tif", "r2.png", "r3.ppm", "r10.jpg"]
     q, r = np.indices((4, 4))
     assert np.array_equal(ds.ground_truth, np.abs(q - r) <= 1)
-    assert ds.load_image("reference", 0).shape == (12, 16, 3)
+    assert ds.load_image("reference", 0).shape == (32, 40, 3)
 
 
 def test_folder_ground_truth_files(tmp_path):
@@ -295,7 +295,7 @@ def local_server(tmp_path):
     with zipfile.ZipFile(buf, "w") as zf:
         for t in ("day_left", "night_right"):
             for i in range(2):
-                _, png = cv2.imencode(".png", np.full((8, 8, 3), 40 * i, np.uint8))
+                _, png = cv2.imencode(".png", np.full((32, 32, 3), 40 * i, np.uint8))
                 zf.writestr(f"GardensPointWalking/{t}/Image{i:03d}.png", png.tobytes())
     (served / "gp.zip").write_bytes(buf.getvalue())
     requests = []
@@ -323,7 +323,7 @@ def test_download_dataset_local_server(local_server, tmp_path):
     assert root == dest / "GardensPointWalking"
     assert not (dest / "gp.zip").exists() and not list(dest.glob("*.part"))
     ds = load_dataset("gardens_point", root=root, tolerance=0)
-    assert len(ds) == 2 and ds.load_image("query", 1).shape == (8, 8, 3)
+    assert len(ds) == 2 and ds.load_image("query", 1).shape == (32, 32, 3)
     n = len(requests)
     assert download_dataset("gardens_point", dest, url=url, sha256=sha) == root
     assert len(requests) == n  # recorded as done: no second request

@@ -1,7 +1,15 @@
 """Place-recognition datasets: one loader per dataset, a registry, and the synthetic generator.
 
-See :mod:`vpr_core.datasets.core` for the dataset model, ground-truth files and the real-data
-loaders, and :mod:`vpr_core.datasets.synthetic` for the embedded default.
+Where things live:
+
+* :mod:`.base`: :class:`PlaceDataset`, :func:`read_image` (refuses truncated and too-small
+  images), :func:`list_images`;
+* :mod:`.ground_truth`: ground-truth files, the frame-aligned rule, tolerance widening, coverage
+  checks (:func:`check_ground_truth`);
+* one module per loader: :mod:`.gardens_point`, :mod:`.mapillary_berlin`, :mod:`.freiburg`,
+  :mod:`.folder`, :mod:`.nordland`, :mod:`.vpr_bench`, and :mod:`.synthetic` (the embedded default);
+* :mod:`.download`: :func:`download_dataset`;
+* here: the registry :data:`DATASETS` and :func:`load_dataset`.
 """
 
 from __future__ import annotations
@@ -11,43 +19,41 @@ import os
 from collections.abc import Callable
 from typing import Any
 
-from .core import (
-    DOWNLOADS,
-    IMAGE_EXTENSIONS,
-    PlaceDataset,
-    download_dataset,
-    list_images,
-    load_folder,
-    load_freiburg_across_seasons,
-    load_gardens_point,
-    load_mapillary_berlin,
-    read_ground_truth,
-    read_image,
-)
+from .base import IMAGE_EXTENSIONS, MIN_IMAGE_SIDE, PlaceDataset, list_images, read_image
+from .download import DOWNLOADS, download_dataset
+from .folder import load_folder
+from .freiburg import load_freiburg_across_seasons
+from .gardens_point import load_gardens_point
+from .ground_truth import check_ground_truth, ground_truth_coverage, read_ground_truth
+from .mapillary_berlin import load_mapillary_berlin
+from .nordland import load_nordland
 from .synthetic import load_synthetic, render_synthetic_place, synthetic_homography
+from .vpr_bench import load_vpr_bench, read_vprbench_ground_truth
 
 __all__ = [
     "DATASETS",
     "DOWNLOADS",
     "IMAGE_EXTENSIONS",
+    "MIN_IMAGE_SIDE",
     "PlaceDataset",
+    "check_ground_truth",
     "download_dataset",
+    "ground_truth_coverage",
     "list_images",
     "load_dataset",
     "load_folder",
     "load_freiburg_across_seasons",
     "load_gardens_point",
     "load_mapillary_berlin",
+    "load_nordland",
     "load_synthetic",
+    "load_vpr_bench",
     "read_ground_truth",
     "read_image",
+    "read_vprbench_ground_truth",
     "render_synthetic_place",
     "synthetic_homography",
 ]
-
-# ----------------------------------------------------------------------------------------------
-# Registry and entry point
-# ----------------------------------------------------------------------------------------------
 
 DATASETS: dict[str, Callable[..., PlaceDataset]] = {
     "synthetic": load_synthetic,
@@ -55,6 +61,8 @@ DATASETS: dict[str, Callable[..., PlaceDataset]] = {
     "mapillary_berlin": load_mapillary_berlin,
     "freiburg_across_seasons": load_freiburg_across_seasons,
     "folder": load_folder,
+    "nordland": load_nordland,
+    "vpr_bench": load_vpr_bench,
 }
 
 
@@ -63,10 +71,10 @@ def load_dataset(name: str, root: str | os.PathLike | None = None, **options: An
 
     Args:
         name: One of :data:`DATASETS` (``synthetic``, ``gardens_point``, ``mapillary_berlin``,
-            ``freiburg_across_seasons``, ``folder``).
+            ``freiburg_across_seasons``, ``folder``, ``nordland``, ``vpr_bench``).
         root: Dataset folder (not needed for ``synthetic``).
         **options: Loader options, e.g. ``tolerance``; ``synthetic`` takes ``n_places``,
-            ``seed``, ``image_size``.
+            ``seed``, ``image_size``; ``nordland`` takes ``query``, ``reference``, ``step``.
 
     Returns:
         A :class:`PlaceDataset`.

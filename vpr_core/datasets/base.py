@@ -1,0 +1,318 @@
+"""The dataset model and image files: :class:`PlaceDataset`, :func:`read_image`, :func:`list_images`.
+
+Every dataset is a :class:`PlaceDataset`: two lists of image files (query and reference traverses)
+and a boolean ground-truth matrix ``(Nq, Nr)`` with the tolerance already applied.
+
+Images are refused by name when they cannot be trusted:
+
+* a file that does not decode, or that is **truncated** (a JPEG without its end-of-image marker
+  after the last scan, a PNG without its ``IEND`` chunk): OpenCV would decode such a JPEG as a
+  partly grey picture with only an anonymous libjpeg warning, silently changing the results;
+* an image whose short side is below :data:`MIN_IMAGE_SIDE` pixels (see there why).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..utils import file_fingerprint
+
+__all__ = [
+    "IMAGE_EXTENSIONS",
+    "MIN_IMAGE_SIDE",
+    "SIDES",
+    "PlaceDataset",
+    "check_image_file",
+    "list_images",
+    "natural_key",
+    "read_image",
+]
+
+SIDES = ("query", "reference")
+IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".ppm")
+
+#: Smallest accepted short side of an image, in pixels. Below it the landmark stages degenerate
+#: (Edge Boxes finds no boxes on 8x8 images; dense sampling makes 3-pixel boxes that blank images
+#: "match"), so such images are refused instead of scored. 32 keeps the standard 64x32 (W x H)
+#: SeqSLAM-style Nordland frames loadable: their smallest dense landmark (area ratio 0.16) is
+#: still about 26x13 pixels.
+MIN_IMAGE_SIDE = 32
+
+
+# ----------------------------------------------------------------------------------------------
+# Image files
+# ----------------------------------------------------------------------------------------------
+
+_JPEG_SOI, _JPEG_SOS, _JPEG_EOI = b"\xff\xd8", b"\xff\xda", b"\xff\xd9"
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def check_image_file(path: str | os.PathLike) -> None:
+    """Raise if a JPEG or PNG file is truncated (structural check of the bytes, no decoding).
+
+    A JPEG must hold a start-of-scan marker and, after the last one, the end-of-image marker
+    (inside entropy-coded data ``0xFF`` is always followed by ``0x00`` or a restart marker, so the
+    marker cannot appear by chance). A PNG must start with the PNG signature and hold an ``IEND``
+    chunk. Other formats are left to the decoder (OpenCV refuses truncated BMP, PPM and TIFF).
+
+    Args:
+        path: The image file.
+
+    Raises:
+        ValueError: the file is damaged; the message names it and the fix.
+    """
+    path = Path(path)
+    data = path.read_bytes()
+    problem = None
+    if data[:2] == _JPEG_SOI:
+        sos = data.rfind(_JPEG_SOS)
+        if sos < 0:
+            problem = "a JPEG without image data (no start-of-scan marker)"
+        elif data.rfind(_JPEG_EOI) < sos:
+            problem = "a truncated JPEG (no end-of-image marker after the image data)"
+    elif data[:8] == _PNG_SIGNATURE and data.rfind(b"IEND") < 0:
+        problem = "a truncated PNG (no IEND chunk)"
+    if problem is not None:
+        raise ValueError(
+            f"{path} is {problem}, {len(data)} bytes: it would decode partly grey and change the "
+            "results. Re-download the file or remove it from the dataset."
+        )
+
+
+def read_image(path: str | os.PathLike, min_side: int = MIN_IMAGE_SIDE) -> np.ndarray:
+    """Read an image file as ``uint8 (H, W, 3)`` RGB (grey images are expanded to 3 channels).
+
+    The pixels are OpenCV's (``cv2.imread``, BGR -> RGB); before decoding, JPEG and PNG files are
+    checked for truncation (:func:`check_image_file`).
+
+    Args:
+        path: The image file.
+        min_side: Smallest accepted ``min(H, W)`` in pixels (default :data:`MIN_IMAGE_SIDE`;
+            pass 1 to accept any size).
+
+    Returns:
+        ``uint8 (H, W, 3)`` RGB image.
+
+    Raises:
+        FileNotFoundError: the file does not exist.
+        ValueError: OpenCV cannot decode it, it is truncated, or it is smaller than ``min_side``.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"image file not found: {path}")
+    check_image_file(path)
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if img is None:
+        raise ValueError(
+            f"{path} is not a readable image (OpenCV could not decode it; the file may be "
+            "corrupt, truncated or in an unsupported format): replace or remove the file."
+        )
+    h, w = img.shape[:2]
+    if min(h, w) < min_side:
+        raise ValueError(
+            f"{path} is too small: {w}x{h} pixels (W x H), but images need at least {min_side} "
+            f"pixels on the short side (MIN_IMAGE_SIDE; landmarks degenerate below it). Use the "
+            "full-resolution images, or remove this one from the dataset."
+        )
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+
+def natural_key(name: str) -> list:
+    """Sort key that orders digit runs by value: ``2.jpg`` before ``10.jpg``."""
+    return [(0, int(t), t) if t.isdigit() else (1, 0, t.lower()) for t in re.split(r"(\d+)", name)]
+
+
+def list_images(folder: str | os.PathLike, what: str = "image folder") -> list[Path]:
+    """Image files directly inside ``folder``, naturally sorted (``2.jpg`` before ``10.jpg``).
+
+    Extensions (case-insensitive): jpg, jpeg, png, bmp, tif, tiff, ppm. Hidden files are skipped.
+
+    Args:
+        folder: The folder.
+        what: How to call the folder in error messages.
+
+    Returns:
+        The image files, naturally sorted by name.
+
+    Raises:
+        FileNotFoundError: ``folder`` does not exist or is not a folder.
+        ValueError: it holds no image file.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(
+            f"{what} not found: {folder} does not exist or is not a folder; create it and put "
+            "the images there, or point `root` at the folder that contains it."
+        )
+    files = [
+        p for p in folder.iterdir()
+        if p.is_file() and not p.name.startswith(".") and p.suffix.lower() in IMAGE_EXTENSIONS
+    ]
+    if not files:
+        raise ValueError(
+            f"{what} {folder} contains no images (looked for {', '.join(IMAGE_EXTENSIONS)}, "
+            "any case); copy the images there or point `root` at the right folder."
+        )
+    return sorted(files, key=lambda p: natural_key(p.name))
+
+
+# ----------------------------------------------------------------------------------------------
+# PlaceDataset
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass
+class PlaceDataset:
+    """Two traverses of image files and their ground truth.
+
+    Attributes:
+        name: Dataset name (``"synthetic"``, ``"gardens_point"``, ...).
+        query_paths: ``Nq`` query image files, in traverse order.
+        reference_paths: ``Nr`` reference image files, in traverse order.
+        ground_truth: ``bool (Nq, Nr)``; ``ground_truth[q, r]`` is True when reference ``r``
+            shows the place of query ``q`` (tolerance already applied).
+        tolerance: Frame tolerance used to build ``ground_truth`` (None when not applicable).
+        root: Folder the dataset was read from (or generated into).
+        homographies: ``float64 (Nq, 3, 3)`` or None. ``homographies[i]`` maps query-``i``
+            pixel coordinates ``(x, y, 1)`` to reference-``i`` pixel coordinates (known on
+            ``synthetic`` only; None on real data).
+        meta: Free-form details (layout, traverse names, generator parameters, ...).
+    """
+
+    name: str
+    query_paths: list[Path]
+    reference_paths: list[Path]
+    ground_truth: np.ndarray
+    tolerance: int | None
+    root: Path | None = None
+    homographies: np.ndarray | None = None
+    meta: dict = field(default_factory=dict)
+    _keys: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+    _sizes: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        self.query_paths = [Path(p) for p in self.query_paths]
+        self.reference_paths = [Path(p) for p in self.reference_paths]
+        if self.root is not None:
+            self.root = Path(self.root)
+        nq, nr = len(self.query_paths), len(self.reference_paths)
+        gt = self.ground_truth
+        if not isinstance(gt, np.ndarray):
+            raise TypeError(
+                f"PlaceDataset {self.name!r}: ground_truth must be a numpy bool array of shape "
+                f"({nq}, {nr}), got {type(gt).__name__}; pass np.asarray(gt, dtype=bool)."
+            )
+        if gt.dtype != np.bool_:
+            raise TypeError(
+                f"PlaceDataset {self.name!r}: ground_truth must have dtype bool, got {gt.dtype}; "
+                "convert it with `gt.astype(bool)` (after checking it only holds 0/1)."
+            )
+        if gt.shape != (nq, nr):
+            raise ValueError(
+                f"PlaceDataset {self.name!r}: ground_truth has shape {gt.shape} but there are "
+                f"{nq} query and {nr} reference images, so it must be ({nq}, {nr}); "
+                "fix the ground-truth file or the image folders so they agree."
+            )
+        if self.homographies is not None:
+            h = np.asarray(self.homographies, dtype=np.float64)
+            if h.shape != (nq, 3, 3):
+                raise ValueError(
+                    f"PlaceDataset {self.name!r}: homographies must have shape ({nq}, 3, 3), "
+                    f"got {h.shape}; give one 3x3 query->reference mapping per query or None."
+                )
+            self.homographies = h
+
+    # -- access ---------------------------------------------------------------------------------
+
+    def paths(self, side: str) -> list[Path]:
+        """The image files of one side (``"query"`` or ``"reference"``)."""
+        if side == "query":
+            return self.query_paths
+        if side == "reference":
+            return self.reference_paths
+        raise ValueError(f"side must be 'query' or 'reference', got {side!r}.")
+
+    def _path(self, side: str, i: int) -> Path:
+        paths = self.paths(side)
+        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
+            raise TypeError(f"image index must be an int, got {type(i).__name__} ({i!r}).")
+        if not 0 <= int(i) < len(paths):
+            raise IndexError(
+                f"{side} index {int(i)} out of range: dataset {self.name!r} has {len(paths)} "
+                f"{side} images (valid indices 0..{len(paths) - 1})."
+            )
+        return paths[int(i)]
+
+    def load_image(self, side: str, i: int) -> np.ndarray:
+        """Read one image.
+
+        Args:
+            side: ``"query"`` or ``"reference"``.
+            i: Index into that side's list, ``0 <= i < N``.
+
+        Returns:
+            ``uint8 (H, W, 3)`` RGB image.
+
+        Raises:
+            ValueError: bad side, or the file is not a readable image, is truncated, or is
+                smaller than :data:`MIN_IMAGE_SIDE`.
+            IndexError: ``i`` out of range.
+            FileNotFoundError: the file is gone.
+        """
+        path = self._path(side, i)
+        img = read_image(path)
+        self._sizes[(side, int(i))] = img.shape[:2]
+        return img
+
+    def image_size(self, side: str, i: int) -> tuple[int, int]:
+        """``(H, W)`` of one image (read once, then memoised)."""
+        key = (side, int(i)) if isinstance(i, (int, np.integer)) else None
+        if key is not None and key in self._sizes and side in SIDES:
+            return tuple(self._sizes[key])  # type: ignore[return-value]
+        h, w = self.load_image(side, i).shape[:2]
+        return int(h), int(w)
+
+    def image_key(self, side: str, i: int) -> str:
+        """Stable content key of one image for caches (sha1 of the file bytes, memoised)."""
+        path = self._path(side, i)
+        key = (side, int(i))
+        if key not in self._keys:
+            self._keys[key] = file_fingerprint(path)
+        return self._keys[key]
+
+    def gt_pairs(self) -> list[tuple[int, int]]:
+        """All ``(q, r)`` with ``ground_truth[q, r]`` True, row-major order."""
+        return [(int(q), int(r)) for q, r in np.argwhere(self.ground_truth)]
+
+    @property
+    def n_query(self) -> int:
+        """Number of query images ``Nq``."""
+        return len(self.query_paths)
+
+    @property
+    def n_reference(self) -> int:
+        """Number of reference images ``Nr``."""
+        return len(self.reference_paths)
+
+    @property
+    def queries_with_ground_truth(self) -> int:
+        """Number of queries with at least one true reference (the others are dropped from
+        every metric); print it as "queries with ground truth: N of M"."""
+        return int(self.ground_truth.any(axis=1).sum())
+
+    def __len__(self) -> int:
+        return len(self.query_paths)
+
+    def __repr__(self) -> str:
+        return (
+            f"PlaceDataset(name={self.name!r}, n_query={self.n_query}, "
+            f"n_reference={self.n_reference}, gt_pairs={int(self.ground_truth.sum())}, "
+            f"tolerance={self.tolerance}, root={str(self.root) if self.root else None!r}, "
+            f"homographies={'yes' if self.homographies is not None else 'no'})"
+        )

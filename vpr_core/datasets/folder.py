@@ -1,0 +1,84 @@
+"""Any ``query/`` + ``reference/`` folder pair, ground truth from a file or frame-aligned."""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+from .base import PlaceDataset, list_images
+from .ground_truth import (
+    check_ground_truth,
+    check_tolerance,
+    frame_aligned,
+    read_ground_truth,
+    widen,
+)
+from .layout import check_root, resolve_file, traverse_dir
+
+__all__ = ["FOLDER_LAYOUT", "load_folder"]
+
+
+FOLDER_LAYOUT = (
+    "<root>/query/*, <root>/reference/*, optional <root>/ground_truth.npy ((Nq, Nr) bool) or "
+    "<root>/ground_truth.csv (query,reference rows); without one, query i <-> reference i"
+)
+
+
+def load_folder(
+    root: str | os.PathLike | None = None,
+    ground_truth: str | os.PathLike | None = None,
+    tolerance: int = 0,
+    query: str = "query",
+    reference: str = "reference",
+) -> PlaceDataset:
+    """Any ``query/`` + ``reference/`` folder pair.
+
+    Layout::
+
+        <root>/query/*.jpg|png|...       # naturally sorted: 2.jpg before 10.jpg
+        <root>/reference/*.jpg|png|...
+        <root>/ground_truth.npy          # optional (Nq, Nr) bool / 0-1 matrix, or
+        <root>/ground_truth.csv          # optional rows "query,reference"
+
+    Ground truth: ``ground_truth=`` (a path) if given, else ``ground_truth.npy`` or
+    ``ground_truth.csv`` in root (not both), else frame-aligned ``|q - r| <= tolerance``, which
+    needs as many query as reference images. A file with no positive pair is refused; one that
+    covers only some queries gives a warning with the count (see :func:`check_ground_truth`).
+
+    Args:
+        root: Dataset folder.
+        ground_truth: Explicit ground-truth file (relative to root or absolute).
+        tolerance: Frames of slack (frame-aligned rule, or widening of a file's matches).
+        query: Query folder name.
+        reference: Reference folder name.
+    """
+    tolerance = check_tolerance(tolerance)
+    root = check_root(root, "folder", FOLDER_LAYOUT)
+    qp = list_images(traverse_dir(root, query, "folder", FOLDER_LAYOUT), "query folder")
+    rp = list_images(traverse_dir(root, reference, "folder", FOLDER_LAYOUT), "reference folder")
+    if ground_truth is None:
+        found = [root / f for f in ("ground_truth.npy", "ground_truth.csv") if (root / f).is_file()]
+        if len(found) > 1:
+            raise ValueError(
+                f"folder: both {found[0].name} and {found[1].name} exist in {root}; remove one "
+                "or choose with ground_truth=<path>."
+            )
+        gt_file = found[0] if found else None
+    else:
+        gt_file = resolve_file(root, ground_truth)
+    meta: dict[str, Any] = {"query_traverse": query, "reference_traverse": reference,
+                            "layout": FOLDER_LAYOUT}
+    if gt_file is not None:
+        gt = widen(read_ground_truth(gt_file, qp, rp), tolerance)
+        check_ground_truth(gt, str(gt_file))
+        meta.update(ground_truth_file=str(gt_file), ground_truth_rule="file")
+    else:
+        if len(qp) != len(rp):
+            raise ValueError(
+                f"folder: {len(qp)} query but {len(rp)} reference images in {root}, so the "
+                "frame-aligned rule (query i <-> reference i) does not apply; supply a ground-"
+                "truth file (ground_truth.npy or ground_truth.csv in root, or ground_truth=<path>)."
+            )
+        gt = frame_aligned(len(qp), len(rp), tolerance)
+        meta["ground_truth_rule"] = f"frame-aligned |q-r|<={tolerance}"
+    return PlaceDataset("folder", qp, rp, gt, tolerance, root=root, meta=meta)

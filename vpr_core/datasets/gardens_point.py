@@ -1,0 +1,75 @@
+"""Gardens Point Walking (Glover 2014): three frame-aligned traverses of one campus walk."""
+
+from __future__ import annotations
+
+import logging
+import os
+
+from .base import PlaceDataset, list_images
+from .ground_truth import check_tolerance, frame_aligned
+from .layout import check_root, traverse_dir
+
+__all__ = ["GARDENS_POINT_LAYOUT", "GARDENS_POINT_TRAVERSES", "load_gardens_point"]
+
+log = logging.getLogger("vpr_core")
+
+
+GARDENS_POINT_LAYOUT = (
+    "<root>/day_left/Image000.jpg..Image199.jpg, <root>/day_right/..., <root>/night_right/... "
+    "(frame i of one traverse is frame i of the others)"
+)
+GARDENS_POINT_TRAVERSES = ("day_left", "day_right", "night_right")
+
+
+def load_gardens_point(
+    root: str | os.PathLike | None = None,
+    query: str = "day_left",
+    reference: str = "night_right",
+    tolerance: int = 2,
+) -> PlaceDataset:
+    """Gardens Point Walking (Glover 2014; Zenodo doi 10.5281/zenodo.4590133).
+
+    Layout (the published one)::
+
+        <root>/day_left/Image000.jpg ... Image199.jpg
+        <root>/day_right/Image000.jpg ...
+        <root>/night_right/Image000.jpg ...
+
+    A root that holds a single ``GardensPointWalking/`` folder with that layout (as extracted
+    from the archive) is accepted too. The traverses are frame-aligned: ground truth is
+    ``|q - r| <= tolerance``. Tolerances in use differ (0, +-2 in VPR-Bench, +-3 in IROS-2015
+    reproductions): always report the tolerance beside a number.
+
+    Args:
+        root: Dataset folder.
+        query: Query traverse (``day_left``, ``day_right`` or ``night_right``).
+        reference: Reference traverse.
+        tolerance: Frames of slack in the frame-aligned ground truth.
+
+    Returns:
+        PlaceDataset with ``Nq = Nr = 200`` on the full dataset.
+    """
+    tolerance = check_tolerance(tolerance)
+    root = check_root(root, "gardens_point", GARDENS_POINT_LAYOUT)
+    for t in (query, reference):
+        if t not in GARDENS_POINT_TRAVERSES:
+            raise ValueError(
+                f"gardens_point: unknown traverse {t!r}; valid: {', '.join(GARDENS_POINT_TRAVERSES)}."
+            )
+    base = root
+    if not (root / query).is_dir() and (root / "GardensPointWalking" / query).is_dir():
+        base = root / "GardensPointWalking"
+        log.info("gardens_point: using %s (the archive's top folder)", base)
+    qp = list_images(traverse_dir(base, query, "gardens_point", GARDENS_POINT_LAYOUT),
+                     f"gardens_point {query} folder")
+    rp = list_images(traverse_dir(base, reference, "gardens_point", GARDENS_POINT_LAYOUT),
+                     f"gardens_point {reference} folder")
+    if len(qp) != len(rp):
+        raise ValueError(
+            f"gardens_point: {query} has {len(qp)} images but {reference} has {len(rp)}; the "
+            "traverses are frame-aligned and must have the same count (re-extract the dataset)."
+        )
+    gt = frame_aligned(len(qp), len(rp), tolerance)
+    meta = {"query_traverse": query, "reference_traverse": reference,
+            "ground_truth_rule": f"frame-aligned |q-r|<={tolerance}", "layout": GARDENS_POINT_LAYOUT}
+    return PlaceDataset("gardens_point", qp, rp, gt, tolerance, root=base, meta=meta)

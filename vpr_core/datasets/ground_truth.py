@@ -1,0 +1,268 @@
+"""Ground truth: files, the frame-aligned rule, tolerance widening and coverage checks.
+
+Ground-truth files accepted by the file-based loaders:
+
+* ``*.npy``: a ``(Nq, Nr)`` matrix of bools or 0/1 numbers.
+* ``*.csv``: rows ``query,reference`` (an optional header row ``query,reference``; ``#``
+  comments allowed). Each cell is a 0-based index into the naturally sorted image list
+  (when it is all digits) or an image file name (``12.jpg``), a stem (``12`` is read as an
+  index, so use the file name for numeric stems) or a path relative to the traverse folder.
+  Several rows per query (one-to-many) and several queries per reference (many-to-one) are
+  allowed; queries without a row have no ground truth (the evaluation drops them, and
+  :func:`check_ground_truth` warns with the count). When one side's numeric cells look 1-based
+  (at least two distinct values, no ``0`` among them, and the largest equals the number of
+  distinct values, i.e. ``1..k``) a warning says that they were read as 0-based indices.
+
+Tolerance: on frame-aligned traverses ``ground_truth[q, r] = |q - r| <= tolerance``
+(:func:`frame_aligned`); on a correspondence file the listed matches are widened along the
+reference sequence by ``tolerance`` frames (:func:`widen`; ``0``: exactly the listed pairs).
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "check_ground_truth",
+    "check_tolerance",
+    "frame_aligned",
+    "ground_truth_coverage",
+    "read_ground_truth",
+    "widen",
+]
+
+log = logging.getLogger("vpr_core")
+
+
+def check_tolerance(tolerance: Any) -> int:
+    """Return ``tolerance`` as an int >= 0 (frames); ValueError otherwise."""
+    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, np.integer)) or tolerance < 0:
+        raise ValueError(f"tolerance must be an int >= 0 (frames), got {tolerance!r}.")
+    return int(tolerance)
+
+
+def frame_aligned(nq: int, nr: int, tolerance: int) -> np.ndarray:
+    """Frame-aligned ground truth ``bool (nq, nr)``: ``|q - r| <= tolerance``."""
+    q = np.arange(nq)[:, None]
+    r = np.arange(nr)[None, :]
+    return np.abs(q - r) <= tolerance
+
+
+def widen(gt: np.ndarray, tolerance: int) -> np.ndarray:
+    """Widen a ``bool (Nq, Nr)`` match matrix by ``tolerance`` frames along the reference axis."""
+    out = gt.copy()
+    for t in range(1, min(int(tolerance), gt.shape[1]) + 1):
+        out[:, t:] |= gt[:, :-t]
+        out[:, :-t] |= gt[:, t:]
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# Coverage
+# ----------------------------------------------------------------------------------------------
+
+
+def ground_truth_coverage(gt: np.ndarray) -> tuple[int, int]:
+    """How many queries have ground truth.
+
+    Args:
+        gt: ``bool (Nq, Nr)`` ground truth.
+
+    Returns:
+        ``(n_queries_with_gt, n_queries)``: rows with at least one True, and ``Nq``.
+    """
+    gt = np.asarray(gt)
+    if gt.ndim != 2:
+        raise ValueError(f"ground truth must be a (Nq, Nr) matrix, got shape {gt.shape}.")
+    return int(gt.astype(bool).any(axis=1).sum()), int(gt.shape[0])
+
+
+def check_ground_truth(gt: np.ndarray, source: str) -> tuple[int, int]:
+    """Refuse ground truth that cannot support a metric; warn when it covers only some queries.
+
+    Args:
+        gt: ``bool (Nq, Nr)`` ground truth (tolerance applied).
+        source: Where it came from (a file path or a rule), named in the messages.
+
+    Returns:
+        ``(n_queries_with_gt, n_queries)`` as :func:`ground_truth_coverage`.
+
+    Raises:
+        ValueError: no positive pair at all (every metric would be 0 or undefined).
+    """
+    covered, nq = ground_truth_coverage(gt)
+    if covered == 0:
+        raise ValueError(
+            f"ground truth from {source} has no positive pair ({nq} queries x {np.shape(gt)[1]} "
+            "references, all False), so no metric can be computed. Check that the file lists "
+            "matching pairs for these image folders (names / 0-based indices), or use a larger "
+            "tolerance."
+        )
+    if covered < nq:
+        log.warning("ground truth from %s covers %d of %d queries; the other %d are dropped "
+                    "from every metric", source, covered, nq, nq - covered)
+    return covered, nq
+
+
+# ----------------------------------------------------------------------------------------------
+# Files
+# ----------------------------------------------------------------------------------------------
+
+
+def _name_index(paths: Sequence[Path], base: Path | None) -> dict[str, int]:
+    index: dict[str, int] = {}
+    stems: dict[str, list[int]] = {}
+    for i, p in enumerate(paths):
+        index[p.name] = i
+        stems.setdefault(p.stem, []).append(i)
+        if base is not None:
+            try:
+                index[p.relative_to(base).as_posix()] = i
+            except ValueError:
+                pass
+    for stem, idx in stems.items():
+        if len(idx) == 1:
+            index.setdefault(stem, idx[0])
+    return index
+
+
+def _read_npy(path: Path, nq: int, nr: int) -> np.ndarray:
+    try:
+        arr = np.load(path, allow_pickle=False)
+    except (OSError, ValueError, EOFError) as exc:  # what np.load raises on bad files
+        raise ValueError(
+            f"ground-truth file {path} is not a readable .npy array ({exc}); "
+            "save it with np.save(path, matrix)."
+        ) from None
+    if arr.shape != (nq, nr):
+        raise ValueError(
+            f"ground truth {path} has shape {arr.shape} but the dataset has {nq} query and "
+            f"{nr} reference images, so it must be ({nq}, {nr}); fix the matrix or the image "
+            "folders so they agree."
+        )
+    if arr.dtype != np.bool_ and (
+        not np.issubdtype(arr.dtype, np.number) or not np.isin(arr, (0, 1)).all()
+    ):
+        raise ValueError(
+            f"ground truth {path} must hold bools or 0/1 numbers, got dtype {arr.dtype} "
+            "with other values; save a bool matrix (gt.astype(bool))."
+        )
+    return arr.astype(bool)
+
+
+def _csv_rows(path: Path) -> list[tuple[int, str, str]]:
+    """``(line, query cell, reference cell)`` of every data row of a correspondence CSV."""
+    rows: list[tuple[int, str, str]] = []
+    with open(path, newline="", encoding="utf-8") as f:
+        for line, row in enumerate(csv.reader(f), start=1):
+            cells = [c.strip() for c in row]
+            if not cells or all(not c for c in cells) or cells[0].startswith("#"):
+                continue
+            if not rows and [c.lower() for c in cells] == ["query", "reference"]:
+                continue
+            if len(cells) != 2:
+                raise ValueError(
+                    f"{path}, line {line}: expected 2 columns 'query,reference', got {len(cells)} "
+                    f"({row!r}); write one query,reference pair per row."
+                )
+            rows.append((line, cells[0], cells[1]))
+    if not rows:
+        raise ValueError(
+            f"ground-truth file {path} has no query,reference rows; add one row per matching pair."
+        )
+    return rows
+
+
+def _looks_one_based(path: Path, cells: list[str], paths: Sequence[Path], side: str) -> bool:
+    """Warn when a side's numeric cells look 1-based; return True if they do."""
+    values = {int(c) for c in cells if c.isdigit()}
+    if len(values) < 2 or 0 in values or max(values) != len(values):
+        return False
+    first = paths[1].name if len(paths) > 1 else "(none)"
+    log.warning(
+        "%s: the %s cells are numbers 1..%d with no 0, which looks 1-based; they were read as "
+        "0-based indices into the naturally sorted %s images (cell '1' = %s). If they are 1-based "
+        "numbers or file stems, subtract 1 or write file names.", path, side, max(values), side,
+        first)
+    return True
+
+
+def _resolve(path: Path, line: int, cell: str, names: dict[str, int], n: int, side: str,
+             one_based: bool) -> int:
+    if cell.isdigit():
+        j = int(cell)
+        if j >= n:
+            hint = " (the cells look 1-based: subtract 1)" if one_based else ""
+            raise ValueError(
+                f"{path}, line {line}: {side} index {j} out of range (the dataset has {n} "
+                f"{side} images, indices 0..{n - 1}){hint}; fix the file or the image folder."
+            )
+        return j
+    if cell in names:
+        return names[cell]
+    raise ValueError(
+        f"{path}, line {line}: {side} image {cell!r} is not in the {side} folder; use a file "
+        f"name from that folder or a 0-based index."
+    )
+
+
+def _read_csv(path: Path, query_paths: Sequence[Path], reference_paths: Sequence[Path]
+              ) -> np.ndarray:
+    nq, nr = len(query_paths), len(reference_paths)
+    rows = _csv_rows(path)
+    q_one = _looks_one_based(path, [q for _, q, _ in rows], query_paths, "query")
+    r_one = _looks_one_based(path, [r for _, _, r in rows], reference_paths, "reference")
+    qnames = _name_index(query_paths, query_paths[0].parent if nq else None)
+    rnames = _name_index(reference_paths, reference_paths[0].parent if nr else None)
+    gt = np.zeros((nq, nr), dtype=bool)
+    for line, qc, rc in rows:
+        q = _resolve(path, line, qc, qnames, nq, "query", q_one)
+        r = _resolve(path, line, rc, rnames, nr, "reference", r_one)
+        gt[q, r] = True
+    return gt
+
+
+def read_ground_truth(
+    path: str | os.PathLike,
+    query_paths: Sequence[Path],
+    reference_paths: Sequence[Path],
+) -> np.ndarray:
+    """Read a ground-truth file (``.npy`` matrix or ``.csv`` correspondence list).
+
+    Args:
+        path: ``*.npy`` with a ``(Nq, Nr)`` bool or 0/1 matrix, or ``*.csv`` with
+            ``query,reference`` rows (indices or file names, see the module docstring).
+        query_paths: The ``Nq`` query files (names resolve CSV cells).
+        reference_paths: The ``Nr`` reference files.
+
+    Returns:
+        ``bool (Nq, Nr)`` match matrix (no tolerance applied, coverage not checked: the loaders
+        call :func:`check_ground_truth` after widening).
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: unknown format, a shape that does not fit the images, bad values or rows.
+    """
+    path = Path(path)
+    nq, nr = len(query_paths), len(reference_paths)
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"ground-truth file not found: {path}; create it (a .npy (Nq, Nr) matrix or a .csv "
+            "with query,reference rows) or pass ground_truth=<path> to the loader."
+        )
+    suffix = path.suffix.lower()
+    if suffix == ".npy":
+        return _read_npy(path, nq, nr)
+    if suffix != ".csv":
+        raise ValueError(
+            f"unsupported ground-truth file {path}: use a .npy (Nq, Nr) matrix or a .csv with "
+            "query,reference rows."
+        )
+    return _read_csv(path, query_paths, reference_paths)

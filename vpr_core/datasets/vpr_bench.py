@@ -1,0 +1,176 @@
+"""VPR-Bench's dataset layout (Zaffar et al. IJCV 2021): ``query/``, ``ref/``, ``ground_truth_new.npy``.
+
+Each VPR-Bench dataset (Gardens Point, Nordland, SPEDTest, ESSEX3IN1, 17places, Living room,
+Corridor, ...) is a folder::
+
+    <root>/query/*.jpg
+    <root>/ref/*.jpg
+    <root>/ground_truth_new.npy      # pickled numpy object array, one row per query:
+                                     # [query index, [reference indices]]
+
+The indices in ``ground_truth_new.npy`` index the sorted image lists. Which sort VPR-Bench uses
+could not be checked here, so they are read against the **naturally** sorted lists
+(``2.jpg`` before ``10.jpg``; the usual names ``0.jpg, 1.jpg, ...`` are numbered in that order)
+by default; ``order="lexicographic"`` reads them against plain string order instead. When the two
+orders differ for a folder, loading says so. Names that are zero-padded (``Image000.jpg``) sort
+the same either way.
+
+The ``.npy`` is a pickle: ``np.load(..., allow_pickle=True)`` can run code from the file, so load
+only files from a source you trust (the VPR-Bench release).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import pickle
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .base import PlaceDataset, list_images
+from .ground_truth import check_ground_truth, check_tolerance, widen
+from .layout import check_root, resolve_file, traverse_dir
+
+__all__ = ["VPR_BENCH_LAYOUT", "load_vpr_bench", "read_vprbench_ground_truth"]
+
+log = logging.getLogger("vpr_core")
+
+VPR_BENCH_LAYOUT = (
+    "<root>/query/*.jpg, <root>/ref/*.jpg, <root>/ground_truth_new.npy (pickled object array of "
+    "rows [query index, [reference indices]])"
+)
+_ORDERS = ("natural", "lexicographic")
+
+
+def _as_index(value: Any, path: Path, row: int, what: str) -> np.ndarray:
+    """``int64 (k,)`` from a scalar or a list/array of integral numbers; ValueError otherwise."""
+    arr = np.asarray(value, dtype=object).ravel()
+    try:
+        out = arr.astype(np.float64)
+    except (TypeError, ValueError):
+        out = None
+    if out is None or not np.all(np.isfinite(out)) or not np.all(out == np.round(out)):
+        raise ValueError(
+            f"{path}, row {row}: the {what} must be integer indices, got {value!r}; rows must be "
+            "[query index, [reference indices]] as in VPR-Bench's ground_truth_new.npy."
+        )
+    return out.astype(np.int64)
+
+
+def _rows(path: Path) -> list:
+    try:
+        arr = np.load(path, allow_pickle=True, encoding="latin1")
+    except (OSError, ValueError, EOFError, pickle.UnpicklingError) as exc:
+        raise ValueError(
+            f"{path} is not a readable VPR-Bench ground-truth file ({type(exc).__name__}: {exc}); "
+            "it must be a numpy .npy object array of rows [query index, [reference indices]]. "
+            "Download it again."
+        ) from None
+    if isinstance(arr, np.ndarray) and arr.dtype == object and arr.ndim == 0:
+        arr = arr.item()
+    if isinstance(arr, np.ndarray) and arr.ndim not in (1, 2):
+        raise ValueError(f"{path}: expected a list of [query index, [reference indices]] rows, "
+                         f"got an array of shape {arr.shape}.")
+    return list(arr)
+
+
+def read_vprbench_ground_truth(path: str | os.PathLike, nq: int, nr: int) -> np.ndarray:
+    """Read VPR-Bench's ``ground_truth_new.npy`` into a ``bool (nq, nr)`` matrix.
+
+    Args:
+        path: The file: a pickled object array (or list) of rows ``[q, refs]``; ``q`` an integer,
+            ``refs`` an integer or a list/array of integers (possibly empty).
+        nq: Number of query images.
+        nr: Number of reference images.
+
+    Returns:
+        ``bool (nq, nr)`` with ``gt[q, r]`` True for every listed pair (no tolerance applied).
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: unreadable file, a row that is not ``[q, refs]``, non-integer or out-of-range
+            indices (the message names the file and the row).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"VPR-Bench ground-truth file not found: {path}; every VPR-Bench dataset ships one "
+            f"(ground_truth_new.npy beside query/ and ref/). Expected layout: {VPR_BENCH_LAYOUT}"
+        )
+    gt = np.zeros((nq, nr), dtype=bool)
+    for k, row in enumerate(_rows(path)):
+        if isinstance(row, (str, bytes)) or not hasattr(row, "__len__") or len(row) != 2:
+            raise ValueError(
+                f"{path}, row {k}: expected [query index, [reference indices]], got {row!r}."
+            )
+        q = _as_index(row[0], path, k, "query index")
+        refs = _as_index(row[1], path, k, "reference indices")
+        if q.size != 1:
+            raise ValueError(f"{path}, row {k}: the query index must be one number, got {row[0]!r}.")
+        qi = int(q[0])
+        if not 0 <= qi < nq:
+            raise ValueError(f"{path}, row {k}: query index {qi} out of range (the query folder "
+                             f"has {nq} images, indices 0..{nq - 1}); is this the file of another "
+                             "dataset, or are images missing?")
+        bad = refs[(refs < 0) | (refs >= nr)]
+        if bad.size:
+            raise ValueError(f"{path}, row {k}: reference indices {bad[:5].tolist()} out of range "
+                             f"(the ref folder has {nr} images, indices 0..{nr - 1}); is this the "
+                             "file of another dataset, or are images missing?")
+        gt[qi, refs] = True
+    return gt
+
+
+def _ordered(paths: list[Path], order: str, side: str) -> list[Path]:
+    lexi = sorted(paths, key=lambda p: p.name)
+    if lexi != paths:
+        log.warning("vpr_bench: the %s file names sort differently naturally and lexicographically "
+                    "(%s...); ground-truth indices are read against the %s order (order=%r)",
+                    side, ", ".join(p.name for p in paths[:3]), order, order)
+    return lexi if order == "lexicographic" else paths
+
+
+def load_vpr_bench(
+    root: str | os.PathLike | None = None,
+    tolerance: int = 0,
+    query: str = "query",
+    reference: str = "ref",
+    ground_truth: str | os.PathLike = "ground_truth_new.npy",
+    order: str = "natural",
+) -> PlaceDataset:
+    """A dataset in VPR-Bench's layout (see the module docstring).
+
+    Args:
+        root: The dataset folder (holding ``query/``, ``ref/``, ``ground_truth_new.npy``).
+        tolerance: Frames by which listed matches are widened along the reference sequence
+            (``0``: exactly VPR-Bench's ground truth).
+        query: Query folder name.
+        reference: Reference folder name.
+        ground_truth: The ground-truth file, relative to root or absolute.
+        order: ``"natural"`` (default) or ``"lexicographic"``: the image order the file's
+            indices refer to.
+
+    Returns:
+        PlaceDataset named ``vpr_bench`` (``meta["dataset"]`` is the folder name).
+
+    Raises:
+        ValueError: bad options, a malformed file, out-of-range indices, no positive pair.
+        FileNotFoundError: missing root, folders or ground-truth file.
+    """
+    tolerance = check_tolerance(tolerance)
+    if order not in _ORDERS:
+        raise ValueError(f"vpr_bench: order must be one of {_ORDERS}, got {order!r}.")
+    root = check_root(root, "vpr_bench", VPR_BENCH_LAYOUT)
+    qp = _ordered(list_images(traverse_dir(root, query, "vpr_bench", VPR_BENCH_LAYOUT),
+                              "vpr_bench query folder"), order, "query")
+    rp = _ordered(list_images(traverse_dir(root, reference, "vpr_bench", VPR_BENCH_LAYOUT),
+                              "vpr_bench ref folder"), order, "reference")
+    gt_file = resolve_file(root, ground_truth)
+    gt = widen(read_vprbench_ground_truth(gt_file, len(qp), len(rp)), tolerance)
+    check_ground_truth(gt, str(gt_file))
+    meta = {"dataset": root.name, "query_traverse": query, "reference_traverse": reference,
+            "order": order, "layout": VPR_BENCH_LAYOUT, "ground_truth_file": str(gt_file),
+            "ground_truth_rule": "VPR-Bench ground_truth_new.npy"}
+    return PlaceDataset("vpr_bench", qp, rp, gt, tolerance, root=root, meta=meta)
