@@ -1,0 +1,142 @@
+"""Tests for vpr_core.baselines (VPR-Bench precomputed peer results)."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from vpr_core.baselines import (
+    PRECOMPUTED_FILE,
+    find_vprbench_peers,
+    load_vprbench_precomputed,
+    peer_similarity_for,
+)
+from vpr_core.datasets import PlaceDataset
+
+
+def _write(path: Path, sim: np.ndarray, queries=None, encode=0.0123, match=0.0045, as_list=False):
+    """Write a file as VPR-Bench does: an object array of 6 items saved with pickling."""
+    nq = sim.shape[0]
+    queries = np.arange(nq) if queries is None else np.asarray(queries)
+    top = np.argmax(sim, axis=-1) * np.ones(nq, int)
+    items = [queries, top, np.max(sim, axis=-1) * np.ones(nq), sim, encode, match]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if as_list:
+        arr = np.empty((), dtype=object)
+        arr[()] = items
+    else:
+        arr = np.empty(len(items), dtype=object)
+        for k, item in enumerate(items):
+            arr[k] = item
+    np.save(path, arr, allow_pickle=True)
+    return path
+
+
+def _sim(nq=4, nr=5, seed=0):
+    return np.random.default_rng(seed).random((nq, nr))
+
+
+def _dataset(nq, nr):
+    return PlaceDataset("t", [f"q{i}.png" for i in range(nq)], [f"r{i}.png" for i in range(nr)],
+                        np.eye(nq, nr, dtype=bool), 0)
+
+
+@pytest.mark.parametrize("as_list", [False, True])
+def test_load_precomputed_roundtrip(tmp_path, as_list):
+    sim = _sim()
+    path = _write(tmp_path / "precomputed_matches" / "GardensPointWalking" / "NetVLAD"
+                  / PRECOMPUTED_FILE, sim, as_list=as_list)
+    peer = load_vprbench_precomputed(path)
+    assert peer.name == "NetVLAD" and peer.dataset == "GardensPointWalking"
+    assert peer.source == path and peer.shape == (4, 5)
+    np.testing.assert_array_equal(peer.similarity, sim)
+    assert peer.similarity.dtype == np.float64
+    assert peer.encode_seconds == pytest.approx(0.0123) and peer.match_seconds == pytest.approx(0.0045)
+    np.testing.assert_array_equal(peer.top1_reference, np.argmax(sim, axis=1))
+    np.testing.assert_array_equal(peer_similarity_for(_dataset(4, 5), peer), sim)
+
+
+def test_peer_rows_follow_query_indices(tmp_path):
+    sim = _sim()
+    perm = np.array([2, 0, 3, 1])
+    peer = load_vprbench_precomputed(_write(tmp_path / "d" / "HOG" / PRECOMPUTED_FILE, sim, perm))
+    out = peer_similarity_for(_dataset(4, 5), peer)
+    for k, q in enumerate(perm):
+        np.testing.assert_array_equal(out[q], sim[k])
+
+
+def test_peer_shape_and_query_mismatch(tmp_path):
+    peer = load_vprbench_precomputed(_write(tmp_path / "d" / "CoHOG" / PRECOMPUTED_FILE, _sim()))
+    with pytest.raises(ValueError, match=r"\(4, 5\) similarity matrix.*3 queries and 5 references"):
+        peer_similarity_for(_dataset(3, 5), peer)
+    dup = load_vprbench_precomputed(_write(tmp_path / "d" / "CALC" / PRECOMPUTED_FILE, _sim(),
+                                           [0, 0, 1, 2]))
+    with pytest.raises(ValueError, match="query indices are not 0..3 each once"):
+        peer_similarity_for(_dataset(4, 5), dup)
+
+
+def test_load_precomputed_bad_files(tmp_path):
+    path = tmp_path / "d" / "X" / PRECOMPUTED_FILE
+    with pytest.raises(FileNotFoundError, match="not found"):
+        load_vprbench_precomputed(path)
+    path.parent.mkdir(parents=True)
+    arr = np.empty(5, dtype=object)
+    for k in range(5):
+        arr[k] = np.zeros(3)
+    np.save(path, arr, allow_pickle=True)
+    with pytest.raises(ValueError, match=rf"{PRECOMPUTED_FILE}.*found 5 items.*Expected 6 items"):
+        load_vprbench_precomputed(path)
+    np.save(path, np.zeros((4, 5)))
+    with pytest.raises(ValueError, match=r"found a float64 array of shape \(4, 5\)"):
+        load_vprbench_precomputed(path)
+    sim = _sim()
+    _write(path, sim, queries=np.arange(3))
+    with pytest.raises(ValueError, match=r"item 0 \(query indices\) has 3 values.*4 rows"):
+        load_vprbench_precomputed(path)
+    _write(path, sim[0])
+    with pytest.raises(ValueError, match=r"similarity matrix\) has shape \(5,\)"):
+        load_vprbench_precomputed(path)
+    _write(path, sim, encode=[0.1, 0.2])
+    with pytest.raises(ValueError, match=r"item 4 \(encode seconds\) must be one number"):
+        load_vprbench_precomputed(path)
+    path.write_bytes(b"garbage")
+    with pytest.raises(ValueError, match="unreadable"):
+        load_vprbench_precomputed(path)
+
+
+def test_distance_matrix_is_flagged(tmp_path, caplog):
+    sim = _sim(8, 8)
+    path = tmp_path / "d" / "D" / PRECOMPUTED_FILE
+    items = np.empty(6, dtype=object)
+    for k, it in enumerate([np.arange(8), np.argmin(sim, 1), sim.min(1), sim, 1.0, 2.0]):
+        items[k] = it
+    path.parent.mkdir(parents=True)
+    np.save(path, items, allow_pickle=True)
+    with caplog.at_level(logging.WARNING, logger="vpr_core"):
+        load_vprbench_precomputed(path)
+    assert "not a distance" in caplog.text
+
+
+def test_find_peers(tmp_path, monkeypatch):
+    base = tmp_path / "VPR-Bench" / "precomputed_matches"
+    for tech in ("NetVLAD", "AMOSNet", "HOG"):
+        _write(base / "SPEDTEST" / tech / PRECOMPUTED_FILE, _sim())
+    (base / "SPEDTEST" / "empty").mkdir()
+    (base / "Corridor").mkdir()
+    peers = find_vprbench_peers(tmp_path / "VPR-Bench", "SPEDTEST")
+    assert [p.name for p in peers] == ["AMOSNet", "HOG", "NetVLAD"]
+    assert [p.name for p in find_vprbench_peers(base, "spedtest")] == ["AMOSNet", "HOG", "NetVLAD"]
+    monkeypatch.setenv("VPR_BENCH_ROOT", str(tmp_path / "VPR-Bench"))
+    assert len(find_vprbench_peers(None, "SPEDTEST")) == 3
+    with pytest.raises(FileNotFoundError, match="datasets there: Corridor, SPEDTEST"):
+        find_vprbench_peers(None, "Nordland")
+    with pytest.raises(FileNotFoundError, match="no <technique>/precomputed_data_corrected.npy"):
+        find_vprbench_peers(None, "Corridor")
+    monkeypatch.delenv("VPR_BENCH_ROOT")
+    with pytest.raises(ValueError, match="VPR_BENCH_ROOT"):
+        find_vprbench_peers(None, "SPEDTEST")
+    with pytest.raises(FileNotFoundError, match="neither a VPR-Bench checkout"):
+        find_vprbench_peers(tmp_path, "SPEDTEST")
