@@ -89,9 +89,28 @@ def download_dataset(
     fname = Path(urllib.request.url2pathname(url.split("?")[0].rstrip("/").split("/")[-1])).name
     fname = fname or f"{name}.download"
     part = root / (fname + ".part")
-    digest = hashlib.sha256()
+    got = _stream(name, url, part, root)
+    if expected is not None and got != expected:
+        part.unlink(missing_ok=True)
+        raise ValueError(
+            f"SHA-256 mismatch for {url}: expected {expected}, got {got}; the file was removed. "
+            "Retry (the download may be truncated) or check the URL / the expected hash."
+        )
+    if expected is None:
+        log.warning("%s: no SHA-256 known for %s; computed sha256=%s (pass sha256=... to "
+                    "verify next time)", name, url, got)
+    target = root / fname
+    os.replace(part, target)
+    top = _unzip(name, target, root) if zipfile.is_zipfile(target) else ""
+    marker.write_text(json.dumps({"name": name, "url": url, "sha256": got, "top": top}))
+    return root / top if top else root
+
+
+def _stream(name: str, url: str, part: Path, root: Path) -> str:
+    """Stream ``url`` into ``part`` with a progress bar; return the SHA-256 hex digest."""
     from tqdm.auto import tqdm
 
+    digest = hashlib.sha256()
     try:
         with urllib.request.urlopen(url, timeout=60) as resp:
             total = int(resp.headers.get("Content-Length") or 0) or None
@@ -106,30 +125,20 @@ def download_dataset(
         part.unlink(missing_ok=True)
         raise OSError(f"download of {name!r} from {url} failed: {exc}; check the URL and your "
                       f"connection, or download it by hand into {root}.") from exc
-    got = digest.hexdigest()
-    if expected is not None and got != expected:
-        part.unlink(missing_ok=True)
-        raise ValueError(
-            f"SHA-256 mismatch for {url}: expected {expected}, got {got}; the file was removed. "
-            "Retry (the download may be truncated) or check the URL / the expected hash."
-        )
-    if expected is None:
-        log.warning("%s: no SHA-256 known for %s; computed sha256=%s (pass sha256=... to "
-                       "verify next time)", name, url, got)
-    target = root / fname
-    os.replace(part, target)
-    top = ""
-    if zipfile.is_zipfile(target):
-        try:
-            with zipfile.ZipFile(target) as zf:
-                names = _safe_extract(zf, root)
-        except zipfile.BadZipFile as exc:
-            raise ValueError(f"{target} is not a valid zip archive ({exc}); download it again "
-                             "with overwrite=True.") from None
-        target.unlink()
-        tops = {n.split("/")[0] for n in names if n.strip("/")}
-        if len(tops) == 1 and (root / next(iter(tops))).is_dir():
-            top = next(iter(tops))
-        log.info("%s: extracted %d entries into %s", name, len(names), root)
-    marker.write_text(json.dumps({"name": name, "url": url, "sha256": got, "top": top}))
-    return root / top if top else root
+    return digest.hexdigest()
+
+
+def _unzip(name: str, target: Path, root: Path) -> str:
+    """Extract the zip ``target`` into ``root``, remove it; return its single top folder or ""."""
+    try:
+        with zipfile.ZipFile(target) as zf:
+            names = _safe_extract(zf, root)
+    except zipfile.BadZipFile as exc:
+        raise ValueError(f"{target} is not a valid zip archive ({exc}); download it again "
+                         "with overwrite=True.") from None
+    target.unlink()
+    log.info("%s: extracted %d entries into %s", name, len(names), root)
+    tops = {n.split("/")[0] for n in names if n.strip("/")}
+    if len(tops) == 1 and (root / next(iter(tops))).is_dir():
+        return next(iter(tops))
+    return ""
