@@ -266,7 +266,8 @@ def test_select_min_scale_known_answer():
 
 def test_select_min_scale_undersupply(caplog, monkeypatch):
     boxes = cand_boxes()
-    monkeypatch.setattr(L.logger, "propagate", True)  # the vpr_core logger does not propagate
+    # the vpr_core logger may not propagate to the root logger that caplog listens on
+    monkeypatch.setattr(logging.getLogger("vpr_core"), "propagate", True)
     with caplog.at_level(logging.WARNING, logger="vpr_core"):
         sel, idx = L.select_min_scale(boxes, SIZE, n=100, return_indices=True)
     np.testing.assert_array_equal(idx, [1, 3, 4, 6, 8, 9, 10, 11])
@@ -453,45 +454,47 @@ def test_edge_boxes_blank_image():
 
 
 # ------------------------------------------------------------------------------------------
-# scheme registry
+# the paper's defaults (vpr_core.paper) on real Edge Box candidates
 # ------------------------------------------------------------------------------------------
 
 
-def test_scheme_registry_names():
-    assert set(L.LANDMARK_SCHEMES) >= {
-        "edge_boxes",
-        "dense",
-        "selection_scheme1",
-        "selection_scheme2",
-        "overlap_scheme1",
-    }
-    with pytest.raises(ValueError, match="selection_scheme1"):
-        L.get_landmark_scheme("selection_scheme3")
+def test_dense_defaults_are_the_papers():
+    from vpr_core.paper import DENSE_PER_SCALE, DENSE_SCALES
+
+    b = L.dense_sampling(SIZE)
+    np.testing.assert_array_equal(b, L.dense_sampling(SIZE, DENSE_SCALES, DENSE_PER_SCALE))
+    assert b.shape == (len(DENSE_SCALES) * DENSE_PER_SCALE, 4)
+    np.testing.assert_allclose(np.unique(L.normalized_scale(b, SIZE)), DENSE_SCALES)
+    assert L.dense_sampling(SIZE, per_scale=16).shape == (16 * len(DENSE_SCALES), 4)
 
 
-def test_scheme_dense_and_conf(synthetic_image):
-    b = L.generate_landmarks(synthetic_image, "dense")
-    np.testing.assert_array_equal(b, L.dense_sampling(SIZE))
-    b = L.get_landmark_scheme("dense")(synthetic_image, {"per_scale": 16})
-    assert b.shape == (64, 4)
-    with pytest.raises(ValueError, match="unknown option"):
-        L.generate_landmarks(synthetic_image, "dense", foo=1)
+def test_select_from_candidates_on_edge_boxes_uses_the_papers_defaults(synthetic_image):
+    from vpr_core.paper import MIN_SCALE_INDEX, N_LANDMARKS, NMS_IOU, SCALE_PRIORITY_ORDER
+
+    cand = L.edge_boxes(synthetic_image, max_boxes=300, model="gradient").boxes
+    assert len(cand) > N_LANDMARKS  # enough candidates for every scheme to choose from
+    np.testing.assert_array_equal(L.select_from_candidates(cand, SIZE, "edge_boxes"),
+                                  cand[:N_LANDMARKS])
+    s1 = L.select_from_candidates(cand, SIZE, "selection_scheme1")
+    np.testing.assert_array_equal(
+        s1, L.select_min_scale(cand, SIZE, n=N_LANDMARKS, min_index=MIN_SCALE_INDEX))
+    assert np.all(L.scale_index(s1, SIZE) >= MIN_SCALE_INDEX)
+    s2 = L.select_from_candidates(cand, SIZE, "selection_scheme2")
+    np.testing.assert_array_equal(
+        s2, L.select_scale_priority(cand, SIZE, n=N_LANDMARKS, order=SCALE_PRIORITY_ORDER))
+    assert set(L.scale_index(s2, SIZE)) <= set(SCALE_PRIORITY_ORDER)
+    o1 = L.select_from_candidates(cand, SIZE, "overlap_scheme1")
+    np.testing.assert_array_equal(o1, L.reduce_overlap(cand, n=N_LANDMARKS, iou_threshold=NMS_IOU))
+    iou = L.box_iou(o1, o1)
+    assert iou[~np.eye(len(o1), dtype=bool)].max() <= NMS_IOU
+    with pytest.raises(ValueError, match="valid: edge_boxes, selection_scheme1"):
+        L.select_from_candidates(cand, SIZE, "selection_scheme3")
 
 
-def test_scheme_edge_box_family(synthetic_image):
-    cand = L.edge_boxes(synthetic_image, max_boxes=200).boxes
-    s1 = L.generate_landmarks(synthetic_image, "selection_scheme1", n_candidates=200, n=10)
-    np.testing.assert_array_equal(s1, L.select_min_scale(cand, SIZE, n=10))
-    s2 = L.generate_landmarks(synthetic_image, "selection_scheme2", n_candidates=200, n=10)
-    np.testing.assert_array_equal(s2, L.select_scale_priority(cand, SIZE, n=10))
-    o1 = L.get_landmark_scheme("overlap_scheme1")(
-        synthetic_image, {"n_candidates": 200, "n": 10, "iou_threshold": 0.4}
-    )
-    np.testing.assert_array_equal(o1, L.reduce_overlap(cand, n=10, iou_threshold=0.4))
-    eb = L.generate_landmarks(synthetic_image, "edge_boxes", max_boxes=15)
-    np.testing.assert_array_equal(eb, cand[:15])
-    with pytest.raises(ValueError, match="unknown option"):
-        L.generate_landmarks(synthetic_image, "selection_scheme1", iou_threshold=0.4)
+def test_box_iou_is_the_one_in_vpr_core_boxes():
+    from vpr_core import boxes
+
+    assert L.box_iou is boxes.box_iou
 
 
 # ------------------------------------------------------------------------------------------

@@ -1,25 +1,18 @@
-"""Section 3.1 of the paper: labelled landmark matches and their scale statistics.
+"""Section 3.1 of the paper: scale statistics of landmark matches (CMR, CLS, ASL of Fig. 4).
 
-Two layers:
-
-* :func:`label_matches` decides, for the reciprocal landmark matches of one (query, reference)
-  image pair, which matches are *correct* (the two boxes show the same physical region). Three
-  labellers: ``exact`` (the ``synthetic`` generator's homography), ``geometric`` (SIFT + RANSAC
-  verification on real images, see :func:`estimate_pair_geometry`) and ``file`` (a CSV of manual
-  labels, as the paper annotated Gardens Point by hand).
-* :func:`scale_statistics` matches landmarks on query-dependent ground-truth pairs and on sampled
-  query-irrelevant pairs, labels the ground-truth matches and bins everything by the Table-1 scale
-  of the query-side landmark: CMR, CLS and ASL of Fig. 4. :func:`scale_statistics_from_matches`
-  is the same computation from pre-built :class:`MatchRecord` s (any landmark method, any
-  matcher).
+:func:`scale_statistics` matches landmarks on query-dependent ground-truth pairs and on sampled
+query-irrelevant pairs, labels the ground-truth matches (:func:`vpr_core.labels.label_matches`)
+and bins everything by the Table-1 scale of the query-side landmark. :func:`scale_statistics_from_matches`
+is the same computation from pre-built :class:`MatchRecord` s (any landmark method, any matcher).
 
 Arrays of :class:`ScaleStats` have length 10 and are indexed by the Table-1 scale 1..9 (index 0
-is unused and NaN / 0).
+is unused and NaN / 0). The labellers live in :mod:`vpr_core.labels`; their names are re-exported
+here, as are :func:`vpr_core.boxes.paired_iou` and the Table-1 constants of :mod:`vpr_core.paper`.
 """
 
 from __future__ import annotations
 
-import warnings
+import logging
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from os import PathLike
@@ -27,7 +20,24 @@ from typing import Any
 
 import numpy as np
 
-from .utils import logger, progress
+from .boxes import check_boxes, paired_iou
+from .labels import (
+    LABEL_METHODS,
+    LabelUnavailableError,
+    PairGeometry,
+    estimate_pair_geometry,
+    label_matches,
+    label_matches_exact,
+    label_matches_file,
+    label_matches_geometric,
+    map_boxes,
+    read_label_file,
+    resolve_label_method,
+)
+from .labels._pair import dataset_image_size
+from .landmarks.scales import scale_index
+from .paper import N_SCALES, SCALE_EDGES, SCALE_RANGE_LABELS
+from .utils import progress
 
 __all__ = [
     "LABEL_METHODS",
@@ -51,636 +61,7 @@ __all__ = [
     "scale_statistics_from_matches",
 ]
 
-LABEL_METHODS = ("auto", "exact", "geometric", "file")
-LABEL_COLUMNS = ("query", "reference", "query_box_index", "reference_box_index", "correct")
-N_SCALES = 9
-#: Table 1 upper edges of scales 1..8 (normalised scale = box area / image area).
-SCALE_EDGES = (0.02, 0.05, 0.09, 0.14, 0.23, 0.34, 0.5, 0.72)
-#: Human-readable normalised-scale range of each Table-1 scale (index 0 unused).
-SCALE_RANGE_LABELS = ("",) + tuple(
-    f"{lo:g}-{hi:g}" for lo, hi in zip((0.0,) + SCALE_EDGES, SCALE_EDGES + (1.0,))
-)
-
-
-class LabelUnavailableError(ValueError):
-    """The chosen labeller cannot label this pair (e.g. no known geometry for it).
-
-    :func:`scale_statistics` catches it and counts the pair as *unlabelled* (its matches still
-    enter ``n_matches``, CLS and ASL, but not CMR).
-    """
-
-
-# ---------------------------------------------------------------------------------------------
-# Box helpers
-# ---------------------------------------------------------------------------------------------
-
-
-def _as_boxes(boxes: Any, name: str) -> np.ndarray:
-    b = np.asarray(boxes, dtype=np.float64)
-    if b.size == 0:
-        return b.reshape(0, 4)
-    if b.ndim != 2 or b.shape[1] != 4:
-        raise ValueError(f"{name} must be (K, 4) (x, y, w, h) boxes, got shape {b.shape}")
-    return b
-
-
-def _as_matches(matches: Any, n_q: int, n_r: int) -> np.ndarray:
-    m = np.asarray(matches)
-    if m.size == 0:
-        return np.zeros((0, 2), dtype=np.int64)
-    if m.ndim != 2 or m.shape[1] != 2:
-        raise ValueError(f"matches must be (P, 2) index pairs, got shape {m.shape}")
-    m = m.astype(np.int64)
-    if (m[:, 0] < 0).any() or (m[:, 0] >= n_q).any():
-        raise ValueError(f"matches reference query boxes outside 0..{n_q - 1}")
-    if (m[:, 1] < 0).any() or (m[:, 1] >= n_r).any():
-        raise ValueError(f"matches reference reference boxes outside 0..{n_r - 1}")
-    return m
-
-
-def paired_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """IoU of row-wise paired boxes.
-
-    Args:
-        a: ``(P, 4)`` ``(x, y, w, h)`` boxes.
-        b: ``(P, 4)`` boxes, ``b[k]`` compared with ``a[k]``.
-
-    Returns:
-        ``(P,)`` float64 IoU in [0, 1] (0 where the union is empty).
-    """
-    a = np.asarray(a, dtype=np.float64).reshape(-1, 4)
-    b = np.asarray(b, dtype=np.float64).reshape(-1, 4)
-    x1 = np.maximum(a[:, 0], b[:, 0])
-    y1 = np.maximum(a[:, 1], b[:, 1])
-    x2 = np.minimum(a[:, 0] + a[:, 2], b[:, 0] + b[:, 2])
-    y2 = np.minimum(a[:, 1] + a[:, 3], b[:, 1] + b[:, 3])
-    inter = np.clip(x2 - x1, 0, None) * np.clip(y2 - y1, 0, None)
-    union = a[:, 2] * a[:, 3] + b[:, 2] * b[:, 3] - inter
-    with np.errstate(invalid="ignore", divide="ignore"):
-        iou = np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
-    return iou
-
-
-def map_boxes(boxes: np.ndarray, homography: np.ndarray,
-              image_size: tuple[int, int] | None = None) -> np.ndarray:
-    """Map boxes through a homography: axis-aligned bounding box of the 4 mapped corners.
-
-    Args:
-        boxes: ``(K, 4)`` ``(x, y, w, h)`` boxes in the source image.
-        homography: ``(3, 3)`` mapping source pixel ``(x, y, 1)`` to target pixel coordinates.
-        image_size: ``(H, W)`` of the target image; when given the mapped box is clipped to
-            ``[0, W] x [0, H]``.
-
-    Returns:
-        ``(K, 4)`` boxes in the target image. A box with a corner mapped to or behind the line at
-        infinity (projective scale <= 0), or clipped away entirely, gets width = height = 0.
-    """
-    b = _as_boxes(boxes, "boxes")
-    H = np.asarray(homography, dtype=np.float64).reshape(3, 3)
-    if len(b) == 0:
-        return b.copy()
-    x, y, w, h = b.T
-    cx = np.stack([x, x + w, x, x + w], axis=1)  # (K, 4)
-    cy = np.stack([y, y, y + h, y + h], axis=1)
-    pts = np.stack([cx, cy, np.ones_like(cx)], axis=-1) @ H.T  # (K, 4, 3)
-    z = pts[..., 2]
-    valid = (z > 1e-12).all(axis=1)
-    zs = np.where(z > 1e-12, z, 1.0)
-    mx, my = pts[..., 0] / zs, pts[..., 1] / zs
-    x1, x2 = mx.min(axis=1), mx.max(axis=1)
-    y1, y2 = my.min(axis=1), my.max(axis=1)
-    if image_size is not None:
-        Hh, Ww = float(image_size[0]), float(image_size[1])
-        x1, x2 = np.clip(x1, 0, Ww), np.clip(x2, 0, Ww)
-        y1, y2 = np.clip(y1, 0, Hh), np.clip(y2, 0, Hh)
-    out = np.stack([x1, y1, x2 - x1, y2 - y1], axis=1)
-    out[~valid, 2:] = 0.0
-    out[~valid, :2] = 0.0
-    return out
-
-
-def _image_size(dataset: Any, side: str, i: int) -> tuple[int, int]:
-    fn = getattr(dataset, "image_size", None)
-    if callable(fn):
-        hw = fn(side, i)
-        return int(hw[0]), int(hw[1])
-    img = dataset.load_image(side, i)
-    return int(img.shape[0]), int(img.shape[1])
-
-
-def _is_gt(dataset: Any, q: int, r: int) -> bool:
-    gt = np.asarray(dataset.ground_truth, dtype=bool)
-    if not (0 <= q < gt.shape[0] and 0 <= r < gt.shape[1]):
-        raise IndexError(f"pair (q={q}, r={r}) outside the ground truth of shape {gt.shape}")
-    return bool(gt[q, r])
-
-
-# ---------------------------------------------------------------------------------------------
-# exact labels (synthetic)
-# ---------------------------------------------------------------------------------------------
-
-
-def label_matches_exact(dataset: Any, q: int, r: int, boxes_q: np.ndarray, boxes_r: np.ndarray,
-                        matches: np.ndarray, iou_threshold: float = 0.5,
-                        image_size_r: tuple[int, int] | None = None) -> np.ndarray:
-    """Exact labels from the generator's homography (``synthetic``). See :func:`label_matches`.
-
-    Raises:
-        LabelUnavailableError: no homographies, or (q, r) is a ground-truth pair with ``r != q``
-            (the generator only knows the geometry of the pair (i, i)).
-    """
-    bq, br = _as_boxes(boxes_q, "boxes_q"), _as_boxes(boxes_r, "boxes_r")
-    m = _as_matches(matches, len(bq), len(br))
-    Hs = getattr(dataset, "homographies", None)
-    if Hs is None:
-        raise LabelUnavailableError(
-            f"exact labels need dataset.homographies; dataset {getattr(dataset, 'name', '?')!r} "
-            "has none: use method='geometric' or method='file'")
-    if not _is_gt(dataset, q, r):
-        return np.zeros(len(m), dtype=bool)  # not the same place: every match is wrong
-    if r != q:
-        raise LabelUnavailableError(
-            f"pair (q={q}, r={r}) is ground truth only through the tolerance; the generator's "
-            f"homography is known for (q, q) only. Label (q={q}, r={q}), or use "
-            "method='geometric' for neighbouring references")
-    if len(m) == 0:
-        return np.zeros(0, dtype=bool)
-    size_r = image_size_r if image_size_r is not None else _image_size(dataset, "reference", r)
-    mapped = map_boxes(bq[m[:, 0]], np.asarray(Hs)[q], size_r)
-    return paired_iou(mapped, br[m[:, 1]]) >= iou_threshold
-
-
-# ---------------------------------------------------------------------------------------------
-# geometric labels (real images)
-# ---------------------------------------------------------------------------------------------
-
-
-@dataclass
-class PairGeometry:
-    """Two-view geometry of one image pair from SIFT + ratio test + RANSAC.
-
-    Attributes:
-        kind: ``"homography"`` (one homography explains the verified correspondences),
-            ``"fundamental"`` (only epipolar geometry; the point rule decides) or ``"none"``
-            (too few verified correspondences; the pair cannot be labelled).
-        homography: ``(3, 3)`` query -> reference pixel map when ``kind == "homography"``.
-        fundamental: ``(3, 3)`` fundamental matrix when it could be estimated, else ``None``.
-        points_q: ``(N, 2)`` query pixel positions of the inlier correspondences of the chosen
-            model (for ``"homography"``: the homography inliers).
-        points_r: ``(N, 2)`` matching reference positions.
-        n_putative: correspondences that passed the ratio test.
-        n_inliers_h: homography RANSAC inliers (0 if not estimated).
-        n_inliers_f: fundamental-matrix RANSAC inliers (0 if not estimated).
-        image_size_q: ``(H, W)`` of the query image.
-        image_size_r: ``(H, W)`` of the reference image.
-    """
-
-    kind: str
-    homography: np.ndarray | None
-    fundamental: np.ndarray | None
-    points_q: np.ndarray
-    points_r: np.ndarray
-    n_putative: int
-    n_inliers_h: int
-    n_inliers_f: int
-    image_size_q: tuple[int, int]
-    image_size_r: tuple[int, int]
-
-
-def _gray(img: np.ndarray, equalize: bool, denoise: float = 0.0) -> np.ndarray:
-    import cv2
-
-    a = np.asarray(img)
-    if a.ndim == 3:
-        a = cv2.cvtColor(a[..., :3].astype(np.uint8), cv2.COLOR_RGB2GRAY)
-    a = a.astype(np.uint8)
-    if denoise > 0:  # night images: sensor noise makes spurious keypoints
-        a = cv2.GaussianBlur(a, (0, 0), float(denoise))
-    if equalize:  # night images: local contrast equalisation helps SIFT find keypoints
-        a = cv2.createCLAHE(clipLimit=2.0, tileGridSize=(8, 8)).apply(a)
-    return a
-
-
-def _homography_is_sane(H: np.ndarray, size_q: tuple[int, int]) -> bool:
-    """Reject degenerate / wildly distorting homographies (mapped image area ratio outside
-    [1/16, 16], non-convex or flipped image outline)."""
-    if H is None or not np.isfinite(H).all():
-        return False
-    h, w = size_q
-    corners = np.array([[0, 0, 1], [w, 0, 1], [w, h, 1], [0, h, 1]], dtype=np.float64) @ H.T
-    if (corners[:, 2] <= 1e-12).any():
-        return False
-    c = corners[:, :2] / corners[:, 2:]
-    # signed area (shoelace) and convexity: all cross products of consecutive edges same sign
-    edges = np.roll(c, -1, axis=0) - c
-    cross = edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(edges, -1,
-                                                                                      axis=0)[:, 0]
-    if not ((cross > 0).all() or (cross < 0).all()):
-        return False
-    area = 0.5 * abs(np.sum(c[:, 0] * np.roll(c[:, 1], -1) - np.roll(c[:, 0], -1) * c[:, 1]))
-    ratio = area / float(w * h)
-    return 1.0 / 16 <= ratio <= 16.0 and bool(cross[0] > 0)
-
-
-def estimate_pair_geometry(img_q: np.ndarray, img_r: np.ndarray, *, ratio: float = 0.8,
-                           max_features: int = 4000, equalize: bool = True,
-                           h_threshold: float = 4.0, f_threshold: float = 2.0,
-                           min_inliers: int = 15, min_inlier_ratio: float = 0.3,
-                           min_inliers_f: int = 20, min_inlier_ratio_f: float = 0.45,
-                           h_share: float = 0.7,
-                           contrast_threshold: float = 0.01, denoise: float = 0.0,
-                           upscale: float = 1.0, robust: str = "ransac",
-                           seed: int = 0) -> PairGeometry:
-    """SIFT keypoints, Lowe ratio test, RANSAC homography and fundamental matrix for one pair.
-
-    Model choice: the homography is kept when it has at least ``min_inliers`` inliers (at
-    ``h_threshold`` px) forming at least ``min_inlier_ratio`` of the ratio-test matches, is
-    geometrically sane (convex, orientation-preserving, area ratio within [1/16, 16]) and explains
-    at least ``h_share`` of the fundamental-matrix inliers (i.e. the scene looks planar / the
-    viewpoint change is mostly a camera rotation). Otherwise, when the fundamental matrix has at
-    least ``min_inliers_f`` inliers (at ``f_threshold`` px) forming at least
-    ``min_inlier_ratio_f`` of the ratio-test matches, its inliers are kept
-    (``kind="fundamental"``). Otherwise ``kind="none"``.
-
-    The acceptance thresholds were set from the chance level: on query-irrelevant pairs
-    (``synthetic`` seeds 1, 3, 7 and the 10-pair Gardens Point subset, 135 pairs) RANSAC finds up
-    to 30 homography inliers (ratio <= 0.32) and 36 fundamental inliers (ratio <= 0.40) by chance;
-    with the defaults none of them is accepted, while 116 of 120 ``synthetic`` ground-truth pairs
-    get a homography. Day-vs-night Gardens Point pairs mostly stay ``"none"`` (SIFT does not
-    survive the illumination change): label those with ``method="file"``.
-
-    Args:
-        img_q: ``(Hq, Wq, 3)`` uint8 RGB (or ``(Hq, Wq)`` gray) query image.
-        img_r: ``(Hr, Wr, 3)`` uint8 RGB reference image.
-        ratio: Lowe ratio-test threshold (nearest / second nearest descriptor distance).
-        max_features: SIFT keypoints per image (strongest kept).
-        equalize: CLAHE before SIFT (helps with night images).
-        h_threshold: homography RANSAC reprojection threshold in pixels.
-        f_threshold: fundamental-matrix RANSAC threshold in pixels.
-        min_inliers: minimum homography inliers.
-        min_inlier_ratio: minimum homography inliers / ratio-test matches.
-        min_inliers_f: minimum fundamental-matrix inliers.
-        min_inlier_ratio_f: minimum fundamental-matrix inliers / ratio-test matches.
-        h_share: minimum ``n_inliers_h / n_inliers_f`` to accept the homography.
-        contrast_threshold: SIFT contrast threshold (0.01, lower than OpenCV's 0.04: dark
-            images need low-contrast keypoints).
-        denoise: Gaussian blur sigma before SIFT (0: none).
-        upscale: image resize factor before SIFT (points are mapped back).
-        robust: ``"ransac"`` or ``"magsac"`` (OpenCV USAC_MAGSAC) estimator.
-        seed: OpenCV RNG seed (RANSAC is randomised; fixed for determinism).
-
-    Returns:
-        :class:`PairGeometry`.
-    """
-    import cv2
-
-    size_q = (int(img_q.shape[0]), int(img_q.shape[1]))
-    size_r = (int(img_r.shape[0]), int(img_r.shape[1]))
-    empty = np.zeros((0, 2), dtype=np.float64)
-    cv2.setRNGSeed(int(seed))
-    sift = cv2.SIFT_create(nfeatures=int(max_features), contrastThreshold=float(contrast_threshold))
-    gq, gr = _gray(img_q, equalize, denoise), _gray(img_r, equalize, denoise)
-    if upscale != 1.0:
-        gq = cv2.resize(gq, None, fx=upscale, fy=upscale, interpolation=cv2.INTER_LINEAR)
-        gr = cv2.resize(gr, None, fx=upscale, fy=upscale, interpolation=cv2.INTER_LINEAR)
-    kq, dq = sift.detectAndCompute(gq, None)
-    kr, dr = sift.detectAndCompute(gr, None)
-    if dq is None or dr is None or len(kq) < 2 or len(kr) < 2:
-        return PairGeometry("none", None, None, empty, empty, 0, 0, 0, size_q, size_r)
-    knn = cv2.BFMatcher(cv2.NORM_L2).knnMatch(dq, dr, k=2)
-    good = [p[0] for p in knn if len(p) == 2 and p[0].distance < ratio * p[1].distance]
-    n_put = len(good)
-    if n_put < max(min(min_inliers, min_inliers_f), 8):
-        return PairGeometry("none", None, None, empty, empty, n_put, 0, 0, size_q, size_r)
-    pq = np.float64([kq[g.queryIdx].pt for g in good]) / upscale
-    pr = np.float64([kr[g.trainIdx].pt for g in good]) / upscale
-    if robust not in ("ransac", "magsac"):
-        raise ValueError(f"robust must be 'ransac' or 'magsac', got {robust!r}")
-    h_method = cv2.RANSAC if robust == "ransac" else cv2.USAC_MAGSAC
-    f_method = cv2.FM_RANSAC if robust == "ransac" else cv2.USAC_MAGSAC
-
-    cv2.setRNGSeed(int(seed))
-    H, mask_h = cv2.findHomography(pq, pr, h_method, float(h_threshold), maxIters=5000,
-                                   confidence=0.999)
-    inl_h = mask_h.ravel().astype(bool) if mask_h is not None else np.zeros(n_put, bool)
-    cv2.setRNGSeed(int(seed))
-    F, mask_f = cv2.findFundamentalMat(pq, pr, f_method, float(f_threshold), 0.999, 5000)
-    if F is not None and F.shape != (3, 3):  # several solutions stacked: keep the first
-        F = F[:3]
-    inl_f = mask_f.ravel().astype(bool) if mask_f is not None else np.zeros(n_put, bool)
-    n_h, n_f = int(inl_h.sum()), int(inl_f.sum())
-
-    if (H is not None and n_h >= min_inliers and n_h >= min_inlier_ratio * n_put
-            and _homography_is_sane(H, size_q) and n_h >= h_share * max(n_f, 1)):
-        return PairGeometry("homography", H, F, pq[inl_h], pr[inl_h], n_put, n_h, n_f, size_q,
-                            size_r)
-    if F is not None and n_f >= min_inliers_f and n_f >= min_inlier_ratio_f * n_put:
-        return PairGeometry("fundamental", None, F, pq[inl_f], pr[inl_f], n_put, n_h, n_f, size_q,
-                            size_r)
-    return PairGeometry("none", None, None, empty, empty, n_put, n_h, n_f, size_q, size_r)
-
-
-def _inside(points: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-    """``(K, N)`` bool: point n inside box k (closed box)."""
-    if len(points) == 0 or len(boxes) == 0:
-        return np.zeros((len(boxes), len(points)), dtype=bool)
-    x, y = points[:, 0][None], points[:, 1][None]
-    bx, by, bw, bh = (boxes[:, i][:, None] for i in range(4))
-    return (x >= bx) & (x <= bx + bw) & (y >= by) & (y <= by + bh)
-
-
-def label_matches_geometric(boxes_q: np.ndarray, boxes_r: np.ndarray, matches: np.ndarray,
-                            geometry: PairGeometry, *, iou_threshold: float = 0.5,
-                            model: str = "auto", min_points: int = 2,
-                            point_iou: float = 0.4) -> np.ndarray:
-    """Geometric-verification labels from a :class:`PairGeometry`. See :func:`label_matches`.
-
-    Args:
-        boxes_q: ``(Kq, 4)`` query boxes.
-        boxes_r: ``(Kr, 4)`` reference boxes.
-        matches: ``(P, 2)`` (query box index, reference box index).
-        geometry: the pair's geometry (:func:`estimate_pair_geometry`).
-        iou_threshold: IoU threshold of the homography rule (as ``exact``).
-        model: ``"auto"`` (homography rule when ``geometry.kind == "homography"``, else the point
-            rule), ``"homography"`` or ``"points"`` (force one rule).
-        min_points: point rule: minimum inliers inside both boxes.
-        point_iou: point rule: minimum point-set IoU ``n_qr / (n_q + n_r - n_qr)``.
-
-    Returns:
-        ``(P,)`` bool labels.
-
-    Raises:
-        LabelUnavailableError: ``geometry.kind == "none"`` (no verified correspondences), or the
-            homography rule was forced without a homography.
-    """
-    bq, br = _as_boxes(boxes_q, "boxes_q"), _as_boxes(boxes_r, "boxes_r")
-    m = _as_matches(matches, len(bq), len(br))
-    if model not in ("auto", "homography", "points"):
-        raise ValueError(f"model must be 'auto', 'homography' or 'points', got {model!r}")
-    if geometry.kind == "none":
-        raise LabelUnavailableError(
-            f"no two-view geometry for this pair ({geometry.n_putative} ratio-test matches, "
-            f"{geometry.n_inliers_h} homography / {geometry.n_inliers_f} fundamental inliers)")
-    if len(m) == 0:
-        return np.zeros(0, dtype=bool)
-    use_h = model == "homography" or (model == "auto" and geometry.kind == "homography")
-    if use_h:
-        if geometry.homography is None:
-            raise LabelUnavailableError("homography rule requested but the pair has no homography")
-        mapped = map_boxes(bq[m[:, 0]], geometry.homography, geometry.image_size_r)
-        return paired_iou(mapped, br[m[:, 1]]) >= iou_threshold
-    in_q = _inside(geometry.points_q, bq[m[:, 0]])  # (P, N)
-    in_r = _inside(geometry.points_r, br[m[:, 1]])
-    n_q = in_q.sum(1)
-    n_r = in_r.sum(1)
-    n_qr = (in_q & in_r).sum(1)
-    union = n_q + n_r - n_qr
-    piou = np.where(union > 0, n_qr / np.maximum(union, 1), 0.0)
-    return (n_qr >= min_points) & (piou >= point_iou)
-
-
-# ---------------------------------------------------------------------------------------------
-# file labels
-# ---------------------------------------------------------------------------------------------
-
-
-def _parse_bool(values: Iterable[Any]) -> np.ndarray:
-    truthy = {"1", "true", "t", "yes", "y", "correct"}
-    falsy = {"0", "false", "f", "no", "n", "incorrect", "wrong"}
-    out = []
-    for v in values:
-        s = str(v).strip().lower()
-        if s in ("1.0",):
-            s = "1"
-        if s in ("0.0",):
-            s = "0"
-        if s in truthy:
-            out.append(True)
-        elif s in falsy:
-            out.append(False)
-        else:
-            raise ValueError(f"label file: 'correct' value {v!r} is not a boolean "
-                             "(use 1/0, true/false, yes/no)")
-    return np.asarray(out, dtype=bool)
-
-
-def read_label_file(path: str | PathLike) -> Any:
-    """Read and validate a manual-label CSV.
-
-    The header must contain ``query,reference,query_box_index,reference_box_index,correct``
-    (extra columns are ignored). ``correct`` accepts 1/0, true/false, yes/no.
-
-    Returns:
-        pandas DataFrame with int columns ``query, reference, query_box_index,
-        reference_box_index`` and bool ``correct``.
-
-    Raises:
-        FileNotFoundError: no such file.
-        ValueError: missing columns (the message names the expected header), non-integer indices
-            or non-boolean labels.
-    """
-    import pandas as pd
-
-    df = pd.read_csv(path, skipinitialspace=True)
-    df.columns = [str(c).strip() for c in df.columns]
-    return _validate_label_frame(df, source=str(path))
-
-
-def _validate_label_frame(df: Any, source: str = "labels") -> Any:
-    missing = [c for c in LABEL_COLUMNS if c not in df.columns]
-    if missing:
-        raise ValueError(f"label file {source}: missing column(s) {missing}; expected header "
-                         f"'{','.join(LABEL_COLUMNS)}' (got {list(df.columns)})")
-    out = df[list(LABEL_COLUMNS)].copy()
-    for c in LABEL_COLUMNS[:4]:
-        col = out[c]
-        try:
-            num = col.astype(np.float64)
-        except (TypeError, ValueError) as e:
-            raise ValueError(f"label file {source}: column {c!r} must hold integers") from e
-        if num.isna().any() or (num != np.round(num)).any():
-            raise ValueError(f"label file {source}: column {c!r} must hold integers")
-        out[c] = num.astype(np.int64)
-    out["correct"] = _parse_bool(out["correct"])
-    return out
-
-
-def label_matches_file(labels: Any, q: int, r: int, boxes_q: np.ndarray, boxes_r: np.ndarray,
-                       matches: np.ndarray, on_unmatched: str = "warn") -> np.ndarray:
-    """Labels looked up in a manual-label CSV (path or already-read DataFrame).
-
-    Rules for rows of pair (q, r):
-
-    * a box index outside ``0..K-1`` of its boxes -> ``ValueError`` (labels of another landmark
-      set);
-    * a match without a row -> ``ValueError`` listing the unlabelled matches;
-    * two rows of the same match that disagree -> ``ValueError``; identical duplicates are fine;
-    * a labelled pair that is not among the matches -> a ``UserWarning`` (``on_unmatched="warn"``,
-      default; e.g. labels made with another matcher setting), ignored (``"ignore"``) or an error
-      (``"error"``).
-
-    Returns:
-        ``(P,)`` bool labels.
-    """
-    bq, br = _as_boxes(boxes_q, "boxes_q"), _as_boxes(boxes_r, "boxes_r")
-    m = _as_matches(matches, len(bq), len(br))
-    if on_unmatched not in ("warn", "ignore", "error"):
-        raise ValueError(f"on_unmatched must be 'warn', 'ignore' or 'error', got {on_unmatched!r}")
-    if labels is None:
-        raise ValueError("method='file' needs labels=<path to CSV> with header "
-                         f"'{','.join(LABEL_COLUMNS)}'")
-    if isinstance(labels, (str, PathLike)):
-        df = read_label_file(labels)
-    else:
-        df = _validate_label_frame(labels)
-    rows = df[(df["query"] == q) & (df["reference"] == r)]
-    qi = rows["query_box_index"].to_numpy()
-    ri = rows["reference_box_index"].to_numpy()
-    cv = rows["correct"].to_numpy(dtype=bool)
-    bad = (qi < 0) | (qi >= len(bq)) | (ri < 0) | (ri >= len(br))
-    if bad.any():
-        k = int(np.flatnonzero(bad)[0])
-        raise ValueError(
-            f"label file: pair (q={q}, r={r}) has {int(bad.sum())} row(s) with a box index out "
-            f"of range (e.g. query_box_index={qi[k]}, reference_box_index={ri[k]}; the pair has "
-            f"{len(bq)} query and {len(br)} reference boxes): labels of another landmark set?")
-    table: dict[tuple[int, int], bool] = {}
-    for a, b, c in zip(qi.tolist(), ri.tolist(), cv.tolist()):
-        if (a, b) in table and table[(a, b)] != c:
-            raise ValueError(f"label file: pair (q={q}, r={r}) labels match ({a}, {b}) both "
-                             "correct and incorrect")
-        table[(a, b)] = c
-    keys = [(int(a), int(b)) for a, b in m]
-    missing = [k for k in keys if k not in table]
-    if missing:
-        raise ValueError(f"label file: {len(missing)} of {len(keys)} matches of pair (q={q}, "
-                         f"r={r}) have no label row, e.g. {missing[:5]} "
-                         "(query_box_index, reference_box_index)")
-    extra = sorted(set(table) - set(keys))
-    if extra:
-        msg = (f"label file: {len(extra)} labelled pair(s) of (q={q}, r={r}) are not among the "
-               f"matches, e.g. {extra[:5]}; ignored")
-        if on_unmatched == "error":
-            raise ValueError(msg)
-        if on_unmatched == "warn":
-            warnings.warn(msg, UserWarning, stacklevel=3)
-    return np.asarray([table[k] for k in keys], dtype=bool)
-
-
-# ---------------------------------------------------------------------------------------------
-# dispatcher
-# ---------------------------------------------------------------------------------------------
-
-
-def _resolve_method(dataset: Any, method: str, labels: Any) -> str:
-    if method not in LABEL_METHODS:
-        raise ValueError(f"unknown label method {method!r}; valid: {', '.join(LABEL_METHODS)}")
-    if method != "auto":
-        return method
-    if getattr(dataset, "homographies", None) is not None:
-        return "exact"
-    if labels is not None:
-        return "file"
-    return "geometric"
-
-
-def label_matches(dataset: Any, q: int, r: int, boxes_q: np.ndarray, boxes_r: np.ndarray,
-                  matches: np.ndarray, method: str = "auto", iou_threshold: float = 0.5,
-                  labels: Any = None, **options: Any) -> np.ndarray:
-    """Label the landmark matches of query ``q`` vs reference ``r`` as correct / incorrect.
-
-    A match is *correct* when its two boxes show the same physical region of the place.
-
-    Methods:
-
-    * ``exact`` (``synthetic``; needs ``dataset.homographies``): the 4 corners of the query box
-      are mapped into reference ``r`` with ``dataset.homographies[q]``; the axis-aligned bounding
-      box of the mapped corners, clipped to the reference image, is compared with the matched
-      reference box: correct iff ``IoU >= iou_threshold``. For a pair that is *not* ground truth
-      (different places) every match is incorrect by definition. The generator knows the geometry
-      of the pair (q, q) only: a ground-truth pair with ``r != q`` (tolerance > 0) raises
-      :class:`LabelUnavailableError` (label it with ``geometric`` instead).
-    * ``geometric`` (real images): SIFT + ratio test (0.8) + RANSAC (see
-      :func:`estimate_pair_geometry`) between the two images, then per match
-
-      - when the pair is explained by one homography: the ``exact`` rule with the estimated
-        homography (mapped box IoU >= ``iou_threshold``);
-      - otherwise (fundamental matrix only) the *point rule*: with ``n_q`` the RANSAC inliers
-        whose query point lies in the query box, ``n_r`` those whose reference point lies in the
-        reference box and ``n_qr`` those inside both, the match is correct iff
-        ``n_qr >= min_points`` (2) and the point-set IoU ``n_qr / (n_q + n_r - n_qr) >=
-        point_iou`` (0.4) — the inlier analogue of the box IoU.
-
-      A non-ground-truth pair is all incorrect (no image matching is run). A pair without a
-      usable geometry raises :class:`LabelUnavailableError`. Images are loaded from the dataset
-      unless ``images=(img_q, img_r)`` is given; ``geometry=`` passes a precomputed
-      :class:`PairGeometry`; ``geometry_cache=`` (a dict) caches geometries per (q, r).
-    * ``file``: rows of the CSV ``labels`` (columns
-      ``query,reference,query_box_index,reference_box_index,correct``) for this (q, r), looked up
-      per match; see :func:`label_matches_file` for the error / warning rules.
-    * ``auto``: ``exact`` when ``dataset.homographies is not None``, else ``file`` when
-      ``labels`` is given, else ``geometric``.
-
-    Args:
-        dataset: a ``PlaceDataset`` (uses ``ground_truth``, ``homographies``, ``load_image``,
-            ``image_size``).
-        q: query index.
-        r: reference index.
-        boxes_q: ``(Kq, 4)`` ``(x, y, w, h)`` query landmark boxes.
-        boxes_r: ``(Kr, 4)`` reference landmark boxes.
-        matches: ``(P, 2)`` int (query box index, reference box index) pairs.
-        method: ``"auto"``, ``"exact"``, ``"geometric"`` or ``"file"``.
-        iou_threshold: box-IoU threshold of the ``exact`` / homography rules.
-        labels: CSV path or DataFrame for ``file``.
-        **options: ``geometric``: ``images``, ``geometry``, ``geometry_cache``, ``model``,
-            ``min_points``, ``point_iou`` and :func:`estimate_pair_geometry` keywords
-            (``ratio``, ``min_inliers``, ...). ``file``: ``on_unmatched``. ``exact``:
-            ``image_size_r``.
-
-    Returns:
-        ``(P,)`` bool, True = correct match.
-
-    Raises:
-        ValueError: unknown method (lists the valid ones), bad shapes, bad label files.
-        LabelUnavailableError: the labeller has no information for this pair.
-    """
-    method = _resolve_method(dataset, method, labels)
-    if method == "exact":
-        unknown = set(options) - {"image_size_r"}
-        if unknown:
-            raise TypeError(f"unexpected options for method='exact': {sorted(unknown)}")
-        return label_matches_exact(dataset, q, r, boxes_q, boxes_r, matches, iou_threshold,
-                                   **options)
-    if method == "file":
-        unknown = set(options) - {"on_unmatched"}
-        if unknown:
-            raise TypeError(f"unexpected options for method='file': {sorted(unknown)}")
-        return label_matches_file(labels, q, r, boxes_q, boxes_r, matches, **options)
-    # geometric
-    rule_keys = {"model", "min_points", "point_iou"}
-    rule_opts = {k: options.pop(k) for k in list(options) if k in rule_keys}
-    images = options.pop("images", None)
-    geometry = options.pop("geometry", None)
-    cache = options.pop("geometry_cache", None)
-    bq, br = _as_boxes(boxes_q, "boxes_q"), _as_boxes(boxes_r, "boxes_r")
-    m = _as_matches(matches, len(bq), len(br))
-    if not _is_gt(dataset, q, r):
-        return np.zeros(len(m), dtype=bool)
-    if geometry is None and cache is not None:
-        geometry = cache.get((q, r))
-    if geometry is None:
-        if images is None:
-            images = (dataset.load_image("query", q), dataset.load_image("reference", r))
-        geometry = estimate_pair_geometry(images[0], images[1], **options)
-        if cache is not None:
-            cache[(q, r)] = geometry
-    return label_matches_geometric(bq, br, m, geometry, iou_threshold=iou_threshold,
-                                   **rule_opts)
-
-
-# ---------------------------------------------------------------------------------------------
-# Scale statistics (CMR / CLS / ASL, Fig. 4)
-# ---------------------------------------------------------------------------------------------
+logger = logging.getLogger("vpr_core")
 
 
 @dataclass
@@ -781,7 +162,7 @@ class ScaleStats:
         s = slice(1, N_SCALES + 1)
         df = pd.DataFrame({
             "scale": self.scales,
-            "range": list(SCALE_RANGE_LABELS[1:]),
+            "range": list(SCALE_RANGE_LABELS),
             "n_matches": self.n_matches[s],
             "n_labelled": self.n_labelled[s],
             "n_correct": self.n_correct[s],
@@ -945,6 +326,37 @@ def sample_irrelevant_references(ground_truth: np.ndarray, n_irrelevant: int = 5
     return out
 
 
+
+
+def _query_records(dataset: Any, q: int, size_q: tuple[int, int], boxes_q: np.ndarray,
+                   desc_q: np.ndarray, boxes_r: Sequence[np.ndarray],
+                   desc_r: Sequence[np.ndarray], pairs: list[tuple[int, bool]],
+                   match_options: dict, label_options: dict) -> list[MatchRecord]:
+    """The :class:`MatchRecord` of query ``q`` against each ``(r, is_gt)`` of ``pairs``.
+
+    Ground-truth pairs are labelled by :func:`label_matches` (``label_options``); a pair the
+    labeller cannot label is logged and kept unlabelled.
+    """
+    from .matching import match_landmarks
+
+    bq = check_boxes(boxes_q, f"boxes_q[{q}]")
+    sc_q = np.asarray(scale_index(bq, size_q), dtype=np.int64).reshape(-1)
+    records = []
+    for r, is_gt in pairs:
+        br = check_boxes(boxes_r[r], f"boxes_r[{r}]")
+        res = match_landmarks(desc_q, bq, desc_r[r], br, **match_options)
+        mt = np.asarray(res.matches, dtype=np.int64).reshape(-1, 2)
+        lab = None
+        if is_gt:
+            try:
+                lab = label_matches(dataset, q, r, bq, br, mt, **label_options)
+            except LabelUnavailableError as e:
+                logger.warning("scale_statistics: pair (%d, %d) unlabelled: %s", q, r, e)
+        records.append(MatchRecord(sc_q[mt[:, 0]], np.asarray(res.scores), lab, is_gt, q, r,
+                                   matches=mt))
+    return records
+
+
 def scale_statistics(dataset: Any, boxes_q: Sequence[np.ndarray], boxes_r: Sequence[np.ndarray],
                      desc_q: Sequence[np.ndarray], desc_r: Sequence[np.ndarray], *,
                      label_method: str = "auto", n_irrelevant: int = 5, seed: int = 0,
@@ -989,9 +401,6 @@ def scale_statistics(dataset: Any, boxes_q: Sequence[np.ndarray], boxes_r: Seque
     Returns:
         :class:`ScaleStats` (``meta`` records the settings).
     """
-    from .landmarks import scale_index
-    from .matching import match_landmarks
-
     gt = np.asarray(dataset.ground_truth, dtype=bool)
     nq, nr = gt.shape
     if len(boxes_q) != nq or len(desc_q) != nq:
@@ -1000,7 +409,9 @@ def scale_statistics(dataset: Any, boxes_q: Sequence[np.ndarray], boxes_r: Seque
     if len(boxes_r) != nr or len(desc_r) != nr:
         raise ValueError(f"boxes_r/desc_r need one entry per reference ({nr}), got "
                          f"{len(boxes_r)}/{len(desc_r)}")
-    method = _resolve_method(dataset, label_method, labels)
+    if "method" in label_options:
+        raise TypeError("scale_statistics takes the labeller as label_method=..., not method=...")
+    method = resolve_label_method(dataset, label_method, labels)
     if method == "file" and labels is not None and isinstance(labels, (str, PathLike)):
         labels = read_label_file(labels)
     if method == "geometric":
@@ -1008,30 +419,18 @@ def scale_statistics(dataset: Any, boxes_q: Sequence[np.ndarray], boxes_r: Seque
     qs = list(range(nq)) if queries is None else sorted(int(x) for x in queries)
     qs = [q for q in qs if gt[q].any()]
     irr = sample_irrelevant_references(gt, n_irrelevant, seed, qs)
+    match_options = {"soft_nms_iou": soft_nms_iou, "sigma": sigma}
+    label_options = {"method": method, "iou_threshold": iou_threshold, "labels": labels,
+                     **label_options}
 
     records: list[MatchRecord] = []
     for q in progress(qs, desc="scale statistics", unit="query"):
-        size_q = tuple(image_sizes[q]) if image_sizes is not None else _image_size(dataset,
-                                                                                   "query", q)
-        bq = _as_boxes(boxes_q[q], f"boxes_q[{q}]")
-        sc_q = np.asarray(scale_index(bq, size_q), dtype=np.int64).reshape(-1)
+        size_q = (tuple(image_sizes[q]) if image_sizes is not None
+                  else dataset_image_size(dataset, "query", q))
         pairs = [(r, True) for r in ground_truth_references(gt, q, gt_pairs)]
         pairs += [(r, False) for r in irr[q]]
-        for r, is_gt in pairs:
-            br = _as_boxes(boxes_r[r], f"boxes_r[{r}]")
-            res = match_landmarks(desc_q[q], bq, desc_r[r], br, soft_nms_iou=soft_nms_iou,
-                                  sigma=sigma)
-            mt = np.asarray(res.matches, dtype=np.int64).reshape(-1, 2)
-            lab = None
-            if is_gt:
-                try:
-                    lab = label_matches(dataset, q, r, bq, br, mt, method=method,
-                                        iou_threshold=iou_threshold, labels=labels,
-                                        **label_options)
-                except LabelUnavailableError as e:
-                    logger.warning("scale_statistics: pair (%d, %d) unlabelled: %s", q, r, e)
-            records.append(MatchRecord(sc_q[mt[:, 0]], np.asarray(res.scores), lab, is_gt, q, r,
-                                       matches=mt))
+        records += _query_records(dataset, q, size_q, boxes_q[q], desc_q[q], boxes_r, desc_r,
+                                  pairs, match_options, label_options)
     meta = {"dataset": getattr(dataset, "name", None), "label_method": method,
             "n_irrelevant": n_irrelevant, "seed": seed, "gt_pairs": gt_pairs,
             "soft_nms_iou": soft_nms_iou, "iou_threshold": iou_threshold,

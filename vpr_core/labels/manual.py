@@ -1,8 +1,8 @@
 """Optional interactive helper to label landmark matches by hand (the paper's manual labels).
 
 Needs ``ipywidgets`` (not a dependency: ``pip install ipywidgets``) and a live Jupyter kernel;
-headless runs never call it. The CSV it writes is the ``file`` format read by
-:func:`vpr_core.statistics.label_matches` (``method="file", labels=path``):
+headless runs never call :func:`label_widget`. The CSV it writes is the ``file`` format read by
+:func:`vpr_core.labels.label_matches` (``method="file", labels=path``):
 ``query,reference,query_box_index,reference_box_index,correct``.
 """
 
@@ -10,10 +10,13 @@ from __future__ import annotations
 
 import csv
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-LABEL_COLUMNS = ("query", "reference", "query_box_index", "reference_box_index", "correct")
+from .file import LABEL_COLUMNS
+
+__all__ = ["append_labels", "label_widget"]
 
 
 def append_labels(path: str | Path, q: int, r: int, matches: np.ndarray,
@@ -22,9 +25,13 @@ def append_labels(path: str | Path, q: int, r: int, matches: np.ndarray,
 
     Args:
         path: CSV file.
-        q, r: query and reference indices.
+        q: query index.
+        r: reference index.
         matches: ``(P, 2)`` landmark index pairs.
         correct: ``(P,)`` bool labels.
+
+    Returns:
+        The CSV path.
     """
     matches = np.asarray(matches, dtype=np.int64).reshape(-1, 2)
     correct = np.asarray(correct, dtype=bool).reshape(-1)
@@ -42,11 +49,21 @@ def append_labels(path: str | Path, q: int, r: int, matches: np.ndarray,
     return path
 
 
-def label_widget(dataset, q: int, r: int, boxes_q: np.ndarray, boxes_r: np.ndarray,
-                 matches: np.ndarray, out: str | Path = "labels.csv"):
+def label_widget(dataset: Any, q: int, r: int, boxes_q: np.ndarray, boxes_r: np.ndarray,
+                 matches: np.ndarray, out: str | Path = "labels.csv") -> Any:
     """Step through the matches of one pair, answer correct / wrong, then save to ``out``.
 
-    Returns the ipywidgets container to display in a notebook.
+    Args:
+        dataset: a ``PlaceDataset`` (``load_image``).
+        q: query index.
+        r: reference index.
+        boxes_q: ``(Kq, 4)`` query boxes.
+        boxes_r: ``(Kr, 4)`` reference boxes.
+        matches: ``(P, 2)`` (query box index, reference box index).
+        out: the labels CSV (appended by :func:`append_labels` after the last answer).
+
+    Returns:
+        The ipywidgets container to display in a notebook.
     """
     try:
         import ipywidgets as widgets
@@ -54,7 +71,7 @@ def label_widget(dataset, q: int, r: int, boxes_q: np.ndarray, boxes_r: np.ndarr
         raise ImportError("label_widget needs ipywidgets: pip install ipywidgets") from exc
     import matplotlib.pyplot as plt
 
-    from .viz import draw_boxes
+    from ..viz import draw_boxes
 
     img_q, img_r = dataset.load_image("query", q), dataset.load_image("reference", r)
     matches = np.asarray(matches, dtype=np.int64).reshape(-1, 2)
