@@ -1,0 +1,71 @@
+"""The world canvas of one place and its fill / paste / text primitives."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import cv2
+import numpy as np
+
+from .textures import _tex_patch, _texture_sources
+
+
+class _World:
+    """One place's world canvas (day RGB) plus the light sources used for its night version."""
+
+    def __init__(self, hc: int, wc: int, unit: float) -> None:
+        self.img = np.zeros((hc, wc, 3), np.uint8)
+        self.sky = np.zeros((hc, wc), bool)
+        self.unit = unit  # view height in canvas pixels
+        # lit rectangles: (x0, y0, x1, y1, light colour, alpha); at night the rectangle shows
+        # colour * ((1 - alpha) + alpha * day pixel): alpha 1 keeps a sign's print readable
+        self.lit: list[tuple[int, int, int, int, tuple, float]] = []
+        self.lamps: list[tuple[int, int, float]] = []  # glare centres + radius
+
+
+def _fill_textured(world: _World, x0: int, y0: int, x1: int, y1: int, color: Sequence[float],
+                   tex: str, scale: float, gain: float, rng: np.random.Generator) -> None:
+    hc, wc = world.img.shape[:2]
+    x0, x1, y0, y1 = max(0, x0), min(wc, x1), max(0, y0), min(hc, y1)
+    if x1 <= x0 or y1 <= y0:
+        return
+    t = _tex_patch(tex, scale * world.unit / 360.0, y1 - y0, x1 - x0, rng)
+    c = np.asarray(color, np.float32)
+    region = c[None, None, :] * (1.0 + gain * t[..., None])
+    world.img[y0:y1, x0:x1] = np.clip(region, 0, 255).astype(np.uint8)
+
+
+def _paste_poster(world: _World, x0: int, y0: int, w: int, h: int,
+                  rng: np.random.Generator) -> None:
+    hc, wc = world.img.shape[:2]
+    if w < 6 or h < 6 or x0 < 0 or y0 < 0 or x0 + w > wc or y0 + h > hc:
+        return
+    posters = _texture_sources()["posters"]
+    src = posters[int(rng.integers(len(posters)))]
+    sh, sw = src.shape[:2]
+    aspect = w / h
+    ch = int(rng.uniform(0.45, 1.0) * sh)
+    cw = min(sw, max(8, int(ch * aspect)))
+    ch = min(sh, max(8, int(cw / aspect)))
+    oy, ox = int(rng.integers(0, sh - ch + 1)), int(rng.integers(0, sw - cw + 1))
+    crop = src[oy:oy + ch, ox:ox + cw]
+    if rng.random() < 0.5:
+        crop = crop[:, ::-1]
+    b = max(1, int(0.008 * world.unit))
+    world.img[y0:y0 + h, x0:x0 + w] = (30, 30, 30)
+    world.img[y0 + b:y0 + h - b, x0 + b:x0 + w - b] = cv2.resize(
+        np.ascontiguousarray(crop), (w - 2 * b, h - 2 * b), interpolation=cv2.INTER_AREA)
+
+
+def _put_text_fit(img: np.ndarray, text: str, x0: int, y0: int, x1: int, y1: int,
+                  color: tuple, thickness_scale: float = 1.0) -> None:
+    font = cv2.FONT_HERSHEY_DUPLEX
+    w, h = max(1, x1 - x0), max(1, y1 - y0)
+    (tw, th), _ = cv2.getTextSize(text, font, 1.0, 1)
+    s = min(0.85 * w / tw, 0.7 * h / th)
+    if s <= 0.05:
+        return
+    thick = max(1, round(s * 1.6 * thickness_scale))
+    (tw, th), _ = cv2.getTextSize(text, font, s, thick)
+    org = (x0 + (w - tw) // 2, y0 + (h + th) // 2)
+    cv2.putText(img, text, org, font, s, color, thick, cv2.LINE_AA)

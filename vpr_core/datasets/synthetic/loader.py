@@ -1,0 +1,113 @@
+"""``load_synthetic``: the embedded default dataset, generated into the cache on demand."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ...utils import cache_dir, logger, progress, short_hash
+from ..core import PlaceDataset, _check_tolerance, _frame_aligned
+from .camera import synthetic_homography
+
+SYNTHETIC_VERSION = 5
+
+def _write_png(path: Path, rgb: np.ndarray) -> None:
+    ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR),
+                           [cv2.IMWRITE_PNG_COMPRESSION, 1])
+    if not ok:  # pragma: no cover - encoding a uint8 RGB array does not fail
+        raise RuntimeError(f"could not encode {path}")
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_bytes(buf.tobytes())
+    os.replace(tmp, path)
+
+
+def load_synthetic(
+    root: str | os.PathLike | None = None,
+    n_places: int = 60,
+    seed: int = 0,
+    image_size: tuple[int, int] = (360, 640),
+    tolerance: int = 0,
+) -> PlaceDataset:
+    """The embedded default: a generated street route (DESIGN.md section 3).
+
+    Place ``i`` is drawn from ``(seed, i)`` only: a wide world canvas of building facades
+    (window grids from a style bank shared by all places -- perceptual aliasing --, doors, shop
+    signs, posters from scikit-image's bundled images, trees, lamps, traffic signs, sidewalk and
+    road). The reference is a day view from one side of the path; the query is a night view
+    (dark, colour cast, lit windows, lamp glare, noise, blur, vignetting) from the other side
+    (horizontal shift, zoom 0.85-1.15, rotation +-5 deg, keystone perspective) with pedestrian /
+    car occluders. Query ``i`` shows the place of reference ``i``; ``homographies[i]`` maps
+    query-``i`` pixels to reference-``i`` pixels exactly (occluders aside).
+
+    Files: ``<dir>/query/0000.png``, ``<dir>/reference/0000.png`` and ``<dir>/manifest.json``
+    where ``<dir>`` is ``root`` if given, else ``cache_dir("datasets", "synthetic-<hash>")``
+    (the hash covers seed, image size and generator version, not ``n_places``, so a larger
+    route reuses the places of a smaller one). Missing files are (re)generated.
+
+    Args:
+        root: Output folder (default: the cache).
+        n_places: Number of places (``>= 1``).
+        seed: Route seed (``>= 0``); same seed -> identical pixels.
+        image_size: ``(H, W)`` of the views (each ``>= 32``).
+        tolerance: ``|q - r| <= tolerance`` ground truth.
+    """
+    tolerance = _check_tolerance(tolerance)
+    if isinstance(n_places, bool) or not isinstance(n_places, (int, np.integer)) or n_places < 1:
+        raise ValueError(f"synthetic: n_places must be an int >= 1, got {n_places!r}.")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"synthetic: seed must be an int >= 0, got {seed!r}.")
+    try:
+        size = tuple(int(v) for v in image_size)
+    except (TypeError, ValueError):
+        size = ()
+    if len(size) != 2 or min(size) < 32:
+        raise ValueError(
+            f"synthetic: image_size must be (H, W) with H, W >= 32, got {image_size!r}; "
+            "e.g. image_size=(360, 640)."
+        )
+    n_places, seed = int(n_places), int(seed)
+    params = {"generator": "synthetic", "version": SYNTHETIC_VERSION, "seed": seed,
+              "image_size": list(size)}
+    out = Path(root).expanduser() if root is not None else \
+        cache_dir("datasets", f"synthetic-{short_hash(params)}")
+    (out / "query").mkdir(parents=True, exist_ok=True)
+    (out / "reference").mkdir(parents=True, exist_ok=True)
+    qp = [out / "query" / f"{i:04d}.png" for i in range(n_places)]
+    rp = [out / "reference" / f"{i:04d}.png" for i in range(n_places)]
+    missing = [i for i in range(n_places) if not (qp[i].is_file() and rp[i].is_file())]
+    homs = np.zeros((n_places, 3, 3), np.float64)
+    if missing:
+        logger.info("synthetic: generating %d of %d places (seed=%d, %dx%d) into %s",
+                    len(missing), n_places, seed, size[0], size[1], out)
+    for i in progress(missing, desc="synthetic places", total=len(missing)):
+        ref, qry, _ = _render(seed, i, size)
+        _write_png(rp[i], ref)
+        _write_png(qp[i], qry)
+    for i in range(n_places):
+        homs[i] = synthetic_homography(seed, i, size)
+    if missing:
+        manifest_path = out / "manifest.json"
+        have = sorted(int(p.stem) for p in (out / "query").glob("[0-9][0-9][0-9][0-9].png"))
+        manifest = dict(params, places=len(have), files="query/NNNN.png, reference/NNNN.png",
+                        note="homographies map query pixels to reference pixels; "
+                             "recomputed from (seed, i) by synthetic_homography",
+                        homographies={str(i): synthetic_homography(seed, i, size).round(10).tolist()
+                                      for i in have})
+        tmp = manifest_path.with_name(f".manifest.{os.getpid()}.tmp")
+        tmp.write_text(json.dumps(manifest, indent=1))
+        os.replace(tmp, manifest_path)
+    gt = _frame_aligned(n_places, n_places, tolerance)
+    meta = dict(params, n_places=n_places, ground_truth_rule=f"frame-aligned |q-r|<={tolerance}",
+                exact_geometry=True)
+    return PlaceDataset("synthetic", qp, rp, gt, tolerance, root=out, homographies=homs, meta=meta)
+
+
+def _render(seed: int, i: int, size: tuple[int, int]):
+    """Call the package attribute ``render_synthetic_place`` (replaceable in tests)."""
+    from . import render_synthetic_place
+
+    return render_synthetic_place(seed, i, size)

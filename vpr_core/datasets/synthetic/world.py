@@ -1,0 +1,57 @@
+"""One place's world canvas: sky, a row of buildings, sidewalk, road and street furniture."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from .canvas import _fill_textured, _World
+from .facade import _draw_building, _random_style, _style_bank
+from .street import _draw_lamp, _draw_traffic_sign, _draw_tree
+
+
+def _render_world(seed: int, i: int, hc: int, wc: int, unit: float) -> _World:
+    rng = np.random.default_rng([seed, i, 2])
+    bank = _style_bank(seed)
+    world = _World(hc, wc, unit)
+    img = world.img
+    base = int(0.70 * hc)
+    # sky: vertical gradient + a few soft clouds
+    top_col = np.array([rng.uniform(90, 140), rng.uniform(140, 180), rng.uniform(200, 240)])
+    bot_col = np.array([rng.uniform(190, 225), rng.uniform(205, 230), rng.uniform(225, 245)])
+    tgrad = np.linspace(0, 1, base, dtype=np.float32)[:, None, None]
+    img[:base] = ((1 - tgrad) * top_col + tgrad * bot_col).astype(np.uint8)
+    world.sky[:base] = True
+    # buildings along the street
+    x = -int(rng.uniform(0, 0.2) * unit)
+    while x < wc:
+        bw = int(rng.uniform(0.55, 1.1) * unit)
+        top = int(rng.uniform(0.06, 0.32) * hc)
+        style = bank[int(rng.integers(len(bank)))] if rng.random() < 0.8 else _random_style(rng)
+        x1 = min(wc, x + bw)
+        world.sky[top:base, max(0, x):x1] = False
+        _draw_building(world, x, x1, top, base, style, rng)
+        x = x1 + (int(rng.uniform(0.02, 0.12) * unit) if rng.random() < 0.3 else 0)
+    # sidewalk and road
+    side_h = int(0.1 * hc)
+    _fill_textured(world, 0, base, wc, base + side_h, (165, 160, 150), "gravel", 0.5, 0.12, rng)
+    for k in range(0, wc, max(8, int(0.18 * unit))):  # paving joints
+        cv2.line(img, (k, base), (k - int(0.05 * unit), base + side_h), (135, 130, 125), 1)
+    cv2.rectangle(img, (0, base + side_h), (wc, base + side_h + max(2, int(0.015 * unit))),
+                  (200, 200, 195), -1)
+    _fill_textured(world, 0, base + side_h + max(2, int(0.015 * unit)), wc, hc, (70, 70, 75),
+                   "gravel", 0.4, 0.18, rng)
+    lane_y = base + side_h + int(0.17 * unit)
+    off = int(rng.uniform(0, 0.3 * unit))
+    for k in range(-off, wc, int(0.35 * unit)):
+        cv2.rectangle(img, (k, lane_y), (k + int(0.18 * unit), lane_y + max(2, int(0.015 * unit))),
+                      (225, 225, 215), -1)
+    # street furniture in front of the facades
+    ground = base + int(0.06 * hc)
+    for _ in range(int(rng.integers(0, 3))):
+        _draw_tree(world, int(rng.uniform(0.05, 0.95) * wc), ground, rng)
+    for _ in range(int(rng.integers(1, 3))):
+        _draw_lamp(world, int(rng.uniform(0.05, 0.95) * wc), ground, rng)
+    if rng.random() < 0.6:
+        _draw_traffic_sign(world, int(rng.uniform(0.1, 0.9) * wc), ground, rng)
+    return world
