@@ -23,11 +23,10 @@
 # the pair with Eq. (1)-(2). The proposed method replaces Edge Boxes by dense multi-scale
 # sampling: 4 normalised scales (0.16, 0.25, 0.36, 0.49) x 25 landmarks on a 5 x 5 grid.
 #
-# All logic lives in `vpr_core`; this notebook only calls it.
+# All logic lives in `vpr_core`; this notebook only calls it. Every figure cell shows the
+# figure and the numbers behind it; the files are in `figures/<dataset>/`.
 
 # %%
-from IPython.display import Image, display
-
 from vpr_core.study import open_study
 
 # %% tags=["parameters"]
@@ -35,16 +34,52 @@ dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg
 root = None  # dataset folder for the real datasets
 backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
 quick = False  # small run (8 synthetic places / 20 images) used by the tests
+pair = 0  # the query of the pair walked through the pipeline (with its ground-truth reference)
 
 # %%
 study = open_study(dataset, root=root, backbone=backbone, quick=quick, notebook="01_pipeline_tour")
 print(study.describe())
 
 # %% [markdown]
-# Three places of the dataset: reference (left) and query (right) with the 100 dense landmarks.
+# Three places of the dataset: reference (left) and query (right) with the 25 dense landmarks
+# of the smallest scale.
 
 # %%
-display(Image(filename=study.examples()))
+study.examples()
+
+# %% [markdown]
+# ## The pipeline, step by step, on one pair
+# ### 1. `dense_sampling`: 4 scales x 25 boxes on each image
+# A box of area ratio *a* is `sqrt(a)*W` wide and `sqrt(a)*H` high; 25 boxes per scale sit on a
+# 5 x 5 grid from the top-left corner to the far edges. The table checks Eq. (3): each level's
+# normalised scale (box area / image area) equals the requested one.
+
+# %%
+study.tour_dense_sampling(pair)
+
+# %% [markdown]
+# ### 2. `LandmarkEncoder.encode`: one descriptor per landmark
+# Each box is cropped, resized and passed through the backbone; the mid-level feature map is
+# flattened and randomly projected to 1,024 dimensions. One row per landmark.
+
+# %%
+study.tour_descriptors(pair)
+
+# %% [markdown]
+# ### 3. `reciprocal_matches`: mutual nearest neighbours on cosine distance
+# Landmark *i* of the query and *j* of the reference match when *j* is *i*'s nearest neighbour
+# and *i* is *j*'s.
+
+# %%
+study.tour_reciprocal_matches(pair)
+
+# %% [markdown]
+# ### 4. `image_similarity`: Eq. (1) with the shape penalty of Eq. (2)
+# `S = sum over the matched pairs of (1 - d*s) / sqrt(na*nb)`; the table lists every pair's
+# cosine distance *d*, shape penalty *s* and term.
+
+# %%
+study.tour_image_similarity(pair)
 
 # %% [markdown]
 # ## Fig. 3 — the classical pipeline on one pair
@@ -53,21 +88,19 @@ display(Image(filename=study.examples()))
 # `synthetic`, by SIFT + RANSAC verification on real images).
 
 # %%
-study.pipeline_figure("classical", pair=0, figure="fig03_classical_pipeline")
-display(Image(filename=study.figures_dir / "fig03_classical_pipeline.png"))
+study.fig03_classical_pipeline(pair)
 
 # %% [markdown]
 # ## Fig. 8 — the dense-sampling pipeline on the same pair
 
 # %%
-study.pipeline_figure("dense", pair=0, figure="fig08_dense_pipeline")
-display(Image(filename=study.figures_dir / "fig08_dense_pipeline.png"))
+study.fig08_dense_pipeline(pair)
 
 # %% [markdown]
 # ## Fig. 9 — the four dense sampling scales (25 landmarks each, image aspect kept)
 
 # %%
-display(Image(filename=study.dense_scales()))
+study.fig09_dense_scales()
 
 # %% [markdown]
 # ## Fig. 14 — landmark coverage: top-100 Edge Boxes vs dense sampling
@@ -75,7 +108,4 @@ display(Image(filename=study.dense_scales()))
 # least one landmark.
 
 # %%
-study.coverage(figure="fig14_coverage")
-
-# %%
-display(Image(filename=study.figures_dir / "fig14_coverage.png"))
+study.fig14_coverage()

@@ -30,8 +30,6 @@
 # of manual labels (`vpr_core.statistics.label_matches(..., method="file")`).
 
 # %%
-from IPython.display import Image, display
-
 from vpr_core.study import open_study, table1
 
 # %% tags=["parameters"]
@@ -58,28 +56,21 @@ table1()
 # ## Fig. 1 — matched landmarks between a query and its ground-truth reference
 
 # %%
-study.labelled_matches(pair=0, method=method, figure="fig01_labelled_matches")
-display(Image(filename=study.figures_dir / "fig01_labelled_matches.png"))
+study.fig01_labelled_matches(pair=0, method=method)
 
 # %% [markdown]
 # ## Fig. 2 — matches between two irrelevant images (all wrong by definition; note the overlap)
 
 # %%
-n_ref = len(study.dataset.reference_paths)
-study.labelled_matches(pair=0, method=method, reference=n_ref // 2,
-                       figure="fig02_irrelevant_matches")
-display(Image(filename=study.figures_dir / "fig02_irrelevant_matches.png"))
+study.fig02_irrelevant_matches(pair=0, method=method)
 
 # %% [markdown]
 # ## Fig. 4 — CMR, CLS and ASL per scale
+# The panels are also saved one by one (`fig04a_cmr`, `fig04b_cls`, `fig04c_asl`); the table
+# holds every number plotted.
 
 # %%
-stats = study.scale_statistics(method=method, n_irrelevant=n_irrelevant)
-stats.to_frame()
-
-# %%
-for path in study.plot_scale_statistics(stats)[-1:]:
-    display(Image(filename=path))
+study.fig04_scale_statistics(method=method, n_irrelevant=n_irrelevant)
 
 # %% [markdown]
 # ### Labelling by hand (optional, interactive only)

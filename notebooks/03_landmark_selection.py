@@ -23,8 +23,6 @@
 # scales, Scheme 2 concentrates on one.
 
 # %%
-from IPython.display import Image, display
-
 from vpr_core.study import open_study
 
 # %% tags=["parameters"]
@@ -42,21 +40,13 @@ print(study.describe())
 # ## Fig. 5 — PR curves: classical vs Scheme 1 vs Scheme 2 (ratio protocol)
 
 # %%
-study.compare(["classical", "selection_scheme1", "selection_scheme2"], figure="fig05_selection",
-              title="Fig. 5: landmark selection schemes")
-
-# %%
-display(Image(filename=study.figures_dir / "fig05_selection.png"))
+study.fig05_selection()
 
 # %% [markdown]
 # ## Fig. 6 — scale distribution of the selected landmarks (query and reference)
 
 # %%
-study.scale_distribution("selection_scheme1", figure="fig06a_scheme1_scales")
+study.fig06a_scheme1_scales()
 
 # %%
-study.scale_distribution("selection_scheme2", figure="fig06b_scheme2_scales")
-
-# %%
-display(Image(filename=study.figures_dir / "fig06a_scheme1_scales.png"))
-display(Image(filename=study.figures_dir / "fig06b_scheme2_scales.png"))
+study.fig06b_scheme2_scales()

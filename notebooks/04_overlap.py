@@ -24,9 +24,7 @@
 # The paper: both match the classical method at 0.7 and fall as t decreases.
 
 # %%
-from IPython.display import Image, display
-
-from vpr_core.study import OVERLAP_NMS_THRESHOLDS, OVERLAP_SOFT_NMS_THRESHOLDS, open_study
+from vpr_core.study import FIG7_NMS_THRESHOLDS, FIG7_SOFT_NMS_THRESHOLDS, open_study
 
 # %% tags=["parameters"]
 dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | folder
@@ -42,20 +40,10 @@ print(study.describe())
 # ## Fig. 7 (a) — overlap reduction Scheme 1 (NMS on the landmarks)
 
 # %%
-study.compare(["classical"] + [("overlap_scheme1", {"iou_threshold": t})
-                               for t in OVERLAP_NMS_THRESHOLDS],
-              figure="fig07a_overlap_nms", title="Fig. 7a: NMS on landmarks (Alg. 3)")
-
-# %%
-display(Image(filename=study.figures_dir / "fig07a_overlap_nms.png"))
+study.fig07a_overlap_nms(FIG7_NMS_THRESHOLDS)
 
 # %% [markdown]
 # ## Fig. 7 (b) — overlap reduction Scheme 2 (soft-NMS on the match scores)
 
 # %%
-study.compare(["classical"] + [("overlap_scheme2", {"soft_nms_iou": t})
-                               for t in OVERLAP_SOFT_NMS_THRESHOLDS],
-              figure="fig07b_overlap_soft_nms", title="Fig. 7b: soft-NMS on matches (Alg. 4)")
-
-# %%
-display(Image(filename=study.figures_dir / "fig07b_overlap_soft_nms.png"))
+study.fig07b_overlap_soft_nms(FIG7_SOFT_NMS_THRESHOLDS)

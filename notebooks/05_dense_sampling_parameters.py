@@ -21,8 +21,6 @@
 # The paper ran these on Mapillary Berlin; here they run on the dataset chosen below.
 
 # %%
-from IPython.display import Image, display
-
 from vpr_core.study import open_study
 
 # %% tags=["parameters"]
@@ -43,10 +41,7 @@ print(study.describe())
 study.dense_settings("table2")
 
 # %%
-study.dense_sweep("table2", figure="fig10_scale_levels")
-
-# %%
-display(Image(filename=study.figures_dir / "fig10_scale_levels.png"))
+study.fig10_scale_levels()
 
 # %% [markdown]
 # ## Table 3 / Fig. 11 — landmarks per scale at scales 0.16, 0.25, 0.36, 0.49
@@ -55,10 +50,7 @@ display(Image(filename=study.figures_dir / "fig10_scale_levels.png"))
 study.dense_settings("table3")
 
 # %%
-study.dense_sweep("table3", figure="fig11_landmarks_per_scale")
-
-# %%
-display(Image(filename=study.figures_dir / "fig11_landmarks_per_scale.png"))
+study.fig11_landmarks_per_scale()
 
 # %% [markdown]
 # ## Table 4 / Fig. 12 — normalised scales, 25 landmarks per scale
@@ -67,7 +59,4 @@ display(Image(filename=study.figures_dir / "fig11_landmarks_per_scale.png"))
 study.dense_settings("table4")
 
 # %%
-study.dense_sweep("table4", figure="fig12_normalized_scales")
-
-# %%
-display(Image(filename=study.figures_dir / "fig12_normalized_scales.png"))
+study.fig12_normalized_scales()

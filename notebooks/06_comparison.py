@@ -22,7 +22,7 @@
 # (`name=root;...`). Then the cost of each stage measured on this machine (Table 5).
 
 # %%
-from IPython.display import Image, display
+from IPython.display import display
 
 from vpr_core.study import extra_datasets, open_study
 
@@ -42,40 +42,30 @@ print(study.describe())
 # ## Fig. 13 — dense sampling vs Scheme 1 vs classical
 
 # %%
-study.compare(["dense", "selection_scheme1", "classical"], figure="fig13_comparison",
-              title="Fig. 13: dense vs selection vs classical")
-
-# %%
-display(Image(filename=study.figures_dir / "fig13_comparison.png"))
+study.fig13_comparison()
 
 # %% [markdown]
 # The same comparison on the other datasets found (figures in `figures/<name>/`).
 
 # %%
-others = {}
 for name, spec in (extra_datasets() if include_extra else {}).items():
     other = open_study(spec["dataset"], root=spec["root"], backbone=backbone, quick=quick,
                        notebook="06_comparison", label=name + ("_quick" if quick else ""))
     print(other.describe())
-    others[name] = other.compare(["dense", "selection_scheme1", "classical"],
-                                 figure="fig13_comparison",
-                                 title=f"Fig. 13: dense vs selection vs classical ({name})")
-    display(others[name])
-    display(Image(filename=other.figures_dir / "fig13_comparison.png"))
+    display(other.fig13_comparison(note=name))
 
 # %% [markdown]
 # ## Fig. 14 — coverage of the image by the landmarks
 
 # %%
-study.coverage(figure="fig14_coverage_comparison")
-
-# %%
-display(Image(filename=study.figures_dir / "fig14_coverage_comparison.png"))
+study.fig14_coverage(figure="fig14_coverage_comparison")
 
 # %% [markdown]
 # ## Table 5 — cost per stage, measured here (fresh computation, no cache)
-# Seconds per image for landmark extraction and CNN features, seconds per image pair for the
-# remaining steps (reciprocal matching + Eq. (1)), and the total for matching two new images.
+# Seconds per image for landmark extraction (the pipeline's landmark stage: 1,000 Edge Box
+# candidates then the method's selection, or the dense grid) and CNN features, seconds per
+# image pair for the remaining steps (reciprocal matching + Eq. (1)), and the total for
+# matching two new images.
 
 # %%
 study.cost_table(n_images=2 if quick else 6)

@@ -1,18 +1,36 @@
-"""The study notebooks: paired with jupytext, stored without outputs, executed headless (quick)."""
+"""The study notebooks: paired with jupytext, stored without outputs, thin, executed headless
+(quick) by the runner into a temporary output root."""
+
+from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pytest
 
 from vpr_core import runner
+from vpr_core.study import FIGURES, expected_figures
 
-NB_DIR = Path(__file__).resolve().parents[1] / "notebooks"
+REPO = Path(__file__).resolve().parents[1]
+NB_DIR = REPO / "notebooks"
 NOTEBOOKS = sorted(NB_DIR.glob("[0-9][0-9]_*.ipynb"))
 
 
-def test_six_numbered_notebooks():
-    assert [p.stem for p in NOTEBOOKS] == list(runner.EXPECTED_FIGURES)
+def test_six_numbered_notebooks_match_the_registry():
+    assert [p.stem for p in NOTEBOOKS] == list(expected_figures())
+    assert runner.notebooks_dir() == NB_DIR
+
+
+def test_runner_needs_the_repository(monkeypatch):
+    monkeypatch.setattr(runner, "source_checkout", lambda: None)
+    with pytest.raises(FileNotFoundError, match="clone of the repository"):
+        runner.notebook_paths()
+
+
+def test_unknown_notebook_is_a_clear_error():
+    with pytest.raises(ValueError, match="01_pipeline_tour"):
+        runner.notebook_paths(["99_nothing"])
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
@@ -31,26 +49,33 @@ def test_notebook_is_clean_paired_and_parametrised(path):
     # the .py twin holds the same cells (jupytext pairing)
     twin = jupytext.read(path.with_suffix(".py"))
     assert [c.source for c in twin.cells] == ["".join(c["source"]) for c in nb["cells"]]
+    # figures are shown from the FigureResult, never re-read from disk by file name
+    source = "".join("".join(c["source"]) for c in code)
+    assert "Image(filename" not in source and ".png" not in source
 
 
 def test_quick_study_runs_headless_and_writes_every_figure(tmp_path, monkeypatch):
-    monkeypatch.setenv("VPR_FIGURES_DIR", str(tmp_path / "figures"))
-    monkeypatch.setenv("VPR_RESULTS_DIR", str(tmp_path / "results"))
+    out = tmp_path / "out"
+    monkeypatch.setenv("VPR_OUTPUT_DIR", str(out))
+    monkeypatch.setenv("VPR_CACHE_DIR", os.environ.get("VPR_CACHE_DIR", str(REPO / ".cache")))
     table = runner.run_study(dataset="synthetic", quick=True)
-    for nb, stems in runner.EXPECTED_FIGURES.items():
-        for stem in stems:
-            png = tmp_path / "figures" / "synthetic_quick" / f"{stem}.png"
-            assert png.stat().st_size > 1000, png
-            assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    figures = out / "figures" / "synthetic_quick"
+    for spec in FIGURES:
+        png = figures / f"{spec.stem}.png"
+        assert png.stat().st_size > 1000, png
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not (NB_DIR / "figures").exists() and not (NB_DIR / "results").exists()
+    for nb in expected_figures():
+        assert (out / "runs" / "synthetic_quick" / f"{nb}.ipynb").exists()
     for nb in ("03_landmark_selection", "04_overlap", "05_dense_sampling_parameters",
                "06_comparison"):
-        assert (tmp_path / "results" / "synthetic_quick" / f"{nb}.csv").exists()
+        assert (out / "results" / "synthetic_quick" / f"{nb}.csv").exists()
+    assert (out / "results" / "synthetic_quick" / "06_comparison_table5_cost.csv").exists()
     assert {"AUC(ratio)", "R@100P", "R@1"} <= set(table.columns)
     assert len(table) >= 3 + 5 + 6 + 15 + 3
+    assert os.environ["VPR_OUTPUT_DIR"] == str(out)  # the runner restored the environment
     # executed again (features now cached): byte-identical figures
-    before = {p.name: p.read_bytes()
-              for p in (tmp_path / "figures" / "synthetic_quick").glob("fig0[56]*.png")}
+    before = {p.name: p.read_bytes() for p in figures.glob("fig0[56]*.png")}
     runner.run_study(dataset="synthetic", quick=True, notebooks=["03_landmark_selection"])
-    after = {p.name: p.read_bytes()
-             for p in (tmp_path / "figures" / "synthetic_quick").glob("fig0[56]*.png")}
+    after = {p.name: p.read_bytes() for p in figures.glob("fig0[56]*.png")}
     assert before and before == after

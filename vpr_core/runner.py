@@ -1,50 +1,73 @@
 """Execute the study notebooks headless (papermill) and check their figures.
 
-``vpr-study run`` and ``make study`` call :func:`run_study`. Each notebook in ``notebooks/``
-is executed with its ``parameters`` cell overridden (dataset, root, backbone, quick), with the
-working directory ``notebooks/``, into ``runs/<label>/<notebook>.ipynb``. Afterwards every
-expected figure must exist in ``figures/<label>/``, else a clear error lists the missing ones.
+``vpr-study run`` and ``make study`` call :func:`run_study`. Each notebook of the source
+checkout's ``notebooks/`` is executed with its ``parameters`` cell overridden (dataset, root,
+backbone, quick), with the working directory ``notebooks/``, into
+``<output root>/runs/<label>/<notebook>.ipynb``. The kernels inherit the absolute output and
+cache roots (``VPR_OUTPUT_DIR``, ``VPR_CACHE_DIR``), so they write where the caller works, not
+into ``notebooks/``. Afterwards every figure that :data:`vpr_core.study.FIGURES` lists for the
+notebook must exist in ``figures/<label>/``, else a clear error lists the missing ones.
 """
 
 from __future__ import annotations
 
+import logging
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 import pandas as pd
 
-from .utils import REPO_DIR, logger
+from . import paths
 
-NOTEBOOKS_DIR = REPO_DIR / "notebooks"
+__all__ = ["notebook_paths", "notebooks_dir", "output_label", "run_study", "source_checkout",
+           "summary_table"]
 
-#: Figures each notebook writes to ``figures/<label>/`` (stems, ``.png``).
-EXPECTED_FIGURES: dict[str, list[str]] = {
-    "01_pipeline_tour": ["examples", "fig03_classical_pipeline", "fig08_dense_pipeline",
-                         "fig09_dense_scales", "fig14_coverage"],
-    "02_scale_statistics": ["fig01_labelled_matches", "fig02_irrelevant_matches", "fig04a_cmr",
-                            "fig04b_cls", "fig04c_asl", "fig04_scale_statistics"],
-    "03_landmark_selection": ["fig05_selection", "fig06a_scheme1_scales", "fig06b_scheme2_scales"],
-    "04_overlap": ["fig07a_overlap_nms", "fig07b_overlap_soft_nms"],
-    "05_dense_sampling_parameters": ["fig10_scale_levels", "fig11_landmarks_per_scale",
-                                     "fig12_normalized_scales"],
-    "06_comparison": ["fig13_comparison", "fig14_coverage_comparison"],
-}
+logger = logging.getLogger("vpr_core")
+
+
+def source_checkout() -> Path | None:
+    """The repository this package runs from (the folder holding ``pyproject.toml`` next to
+    ``vpr_core/``), or None when the package is installed without its repository."""
+    root = Path(__file__).resolve().parents[1]
+    return root if (root / "pyproject.toml").is_file() else None
+
+
+def notebooks_dir() -> Path:
+    """The study notebooks' folder: ``notebooks/`` of the source checkout.
+
+    Raises:
+        FileNotFoundError: the package runs from an install without the repository.
+    """
+    root = source_checkout()
+    if root is None or not (root / "notebooks").is_dir():
+        raise FileNotFoundError(
+            "The study notebooks are not part of the installed package "
+            f"({Path(__file__).resolve().parent}); run `vpr-study run` from a clone of the "
+            "repository (pip install -e .), where notebooks/ sits beside vpr_core/.")
+    return root / "notebooks"
 
 
 def notebook_paths(names: Sequence[str] | None = None) -> list[Path]:
-    """The study notebooks (``notebooks/NN_*.ipynb``) in order, optionally a subset by stem."""
-    paths = sorted(NOTEBOOKS_DIR.glob("[0-9][0-9]_*.ipynb"))
+    """The study notebooks (``notebooks/NN_*.ipynb``) in order, optionally a subset by stem.
+
+    Raises:
+        ValueError: an unknown stem (the message lists the valid ones).
+        FileNotFoundError: no notebooks (see :func:`notebooks_dir`).
+    """
+    folder = notebooks_dir()
+    found = sorted(folder.glob("[0-9][0-9]_*.ipynb"))
+    if not found:
+        raise FileNotFoundError(f"No notebooks NN_*.ipynb in {folder}.")
     if names:
-        valid = {p.stem for p in paths}
+        valid = {p.stem for p in found}
         bad = [n for n in names if n not in valid]
         if bad:
             raise ValueError(f"Unknown notebook(s) {bad}; valid: {', '.join(sorted(valid))}.")
-        paths = [p for p in paths if p.stem in names]
-    if not paths:
-        raise FileNotFoundError(f"No notebooks found in {NOTEBOOKS_DIR}.")
-    return paths
+        found = [p for p in found if p.stem in names]
+    return found
 
 
 def output_label(dataset: str, quick: bool) -> str:
@@ -53,11 +76,9 @@ def output_label(dataset: str, quick: bool) -> str:
 
 
 def summary_table(label: str) -> pd.DataFrame:
-    """All metrics rows written by the notebooks for ``label`` (``results/<label>/*.csv``)."""
-    from .study import results_dir
-
+    """All metrics rows written by the notebooks for ``label`` (``results/<label>/NN_*.csv``)."""
     frames = []
-    for csv in sorted(results_dir(label).glob("0[0-9]_*.csv")):
+    for csv in sorted(paths.results_dir(label).glob("0[0-9]_*.csv")):
         df = pd.read_csv(csv)
         if "figure" in df.columns and "AUC(ratio)" in df.columns:
             df.insert(0, "notebook", csv.stem)
@@ -67,10 +88,56 @@ def summary_table(label: str) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True)
 
 
+@contextmanager
+def _kernel_environment() -> Iterator[Path]:
+    """Absolute ``VPR_OUTPUT_DIR`` (and ``VPR_CACHE_DIR`` when set) for the notebook kernels,
+    which run with cwd ``notebooks/``; the caller's environment is restored afterwards."""
+    saved = {k: os.environ.get(k) for k in (paths.OUTPUT_ENV, paths.CACHE_ENV)}
+    try:
+        root = paths.set_output_root(paths.output_root())
+        if saved[paths.CACHE_ENV]:
+            os.environ[paths.CACHE_ENV] = str(paths.cache_root())
+        yield root
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+
+def _unwritten(folder: Path, stems: Sequence[str], since: float) -> list[str]:
+    """The expected ``<stem>.png`` in ``folder`` that are absent or older than ``since``."""
+    out = []
+    for stem in stems:
+        png = folder / f"{stem}.png"
+        if not png.exists():
+            out.append(f"{png} (absent)")
+        elif png.stat().st_mtime < since - 2.0:  # 2 s: coarse file-system timestamps
+            out.append(f"{png} (not rewritten by this run)")
+    return out
+
+
+def _print_summary(table: pd.DataFrame, label: str, backbone: str) -> None:
+    with pd.option_context("display.width", 200, "display.max_rows", 200,
+                           "display.float_format", "{:.3f}".format):
+        cols = ["notebook", "figure", "method", "AUC(ratio)", "R@100P", "R@1"]
+        print(f"\nSummary ({label}, backbone {backbone}):")
+        print(table[cols].to_string(index=False))
+
+
 def run_study(dataset: str = "synthetic", root: str | None = None,
               backbone: str = "efficientnet_lite0", quick: bool = False,
               notebooks: Sequence[str] | None = None, kernel: str = "python3") -> pd.DataFrame:
     """Execute the notebooks with papermill and verify their figures.
+
+    Args:
+        dataset: :func:`~vpr_core.datasets.load_dataset` name.
+        root: dataset folder (made absolute: the kernels run in ``notebooks/``).
+        backbone: landmark encoder backbone.
+        quick: the small headless run (outputs under ``<dataset>_quick``).
+        notebooks: subset of notebook stems (default: all, in order).
+        kernel: Jupyter kernel name.
 
     Returns:
         The summary metrics table (also printed).
@@ -82,40 +149,36 @@ def run_study(dataset: str = "synthetic", root: str | None = None,
     import papermill as pm
 
     from .datasets import load_dataset
-    from .viz import figures_dir
+    from .study import expected_figures
 
-    if root is not None:  # notebooks run with cwd notebooks/: pass an absolute path
+    if root is not None:
         root = str(Path(root).expanduser().resolve())
     load_dataset(dataset, root=root)  # fail fast, with the loader's clear message
     label = output_label(dataset, quick)
-    out_dir = REPO_DIR / "runs" / label
-    out_dir.mkdir(parents=True, exist_ok=True)
+    expected = expected_figures()
     params = {"dataset": dataset, "root": root, "backbone": backbone, "quick": quick}
-    env_disable = os.environ.get("TQDM_DISABLE")
+    selected = notebook_paths(notebooks)
     missing: list[str] = []
-    for nb in notebook_paths(notebooks):
-        out = out_dir / nb.name
-        t0 = time.perf_counter()
-        logger.info("executing %s -> %s", nb.name, out)
-        try:
-            pm.execute_notebook(str(nb), str(out), parameters=params, cwd=str(NOTEBOOKS_DIR),
-                                kernel_name=kernel, progress_bar=not env_disable,
-                                log_output=False)
-        except Exception as exc:  # papermill raises PapermillExecutionError with the cell
-            raise RuntimeError(f"notebook {nb.name} failed; open {out} to see the failing cell:"
-                               f"\n{exc}") from exc
-        logger.info("%s done in %.1f s", nb.name, time.perf_counter() - t0)
-        # notebooks on other datasets write the same figure names; check this run's label
-        for stem in EXPECTED_FIGURES.get(nb.stem, []):
-            if not (figures_dir(label) / f"{stem}.png").exists():
-                missing.append(f"{label}/{stem}.png ({nb.stem})")
-    if missing:
-        raise RuntimeError("expected figures were not written: " + ", ".join(missing))
-    table = summary_table(label)
+    with _kernel_environment() as out_root:
+        out_dir = paths.runs_dir(label)
+        logger.info("study outputs under %s", out_root)
+        for nb in selected:
+            out = out_dir / nb.name
+            t0, started = time.perf_counter(), time.time()
+            logger.info("executing %s -> %s", nb.name, out)
+            try:
+                pm.execute_notebook(str(nb), str(out), parameters=params, cwd=str(nb.parent),
+                                    kernel_name=kernel,
+                                    progress_bar=not os.environ.get("TQDM_DISABLE"),
+                                    log_output=False)
+            except Exception as exc:  # papermill raises PapermillExecutionError with the cell
+                raise RuntimeError(f"notebook {nb.name} failed; open {out} to see the failing "
+                                   f"cell:\n{exc}") from exc
+            logger.info("%s done in %.1f s", nb.name, time.perf_counter() - t0)
+            missing += _unwritten(paths.figures_dir(label), expected.get(nb.stem, []), started)
+        if missing:
+            raise RuntimeError("expected figures were not written: " + ", ".join(missing))
+        table = summary_table(label)
     if not table.empty:
-        with pd.option_context("display.width", 200, "display.max_rows", 200,
-                               "display.float_format", "{:.3f}".format):
-            cols = ["notebook", "figure", "method", "AUC(ratio)", "R@100P", "R@1"]
-            print(f"\nSummary ({label}, backbone {backbone}):")
-            print(table[cols].to_string(index=False))
+        _print_summary(table, label, backbone)
     return table

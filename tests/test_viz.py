@@ -1,0 +1,65 @@
+"""Plot helpers: deterministic saving under the output root, the pipeline-tour pictures."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vpr_core import viz
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def _bytes(fig, path):
+    return viz.save_figure(fig, path).read_bytes()
+
+
+def test_save_figure_goes_under_the_output_root(tmp_path, monkeypatch):
+    import matplotlib.pyplot as plt
+
+    monkeypatch.setenv("VPR_OUTPUT_DIR", str(tmp_path))
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [1, 0])
+    p = viz.save_figure(fig, "f1", dataset="lab")
+    assert p == tmp_path / "figures" / "lab" / "f1.png"
+    assert p.read_bytes()[:8] == PNG
+    assert b"Software" not in p.read_bytes()  # no version stamp: byte-identical reruns
+    pdf = viz.save_figure(fig, tmp_path / "x" / "f2.pdf")
+    assert pdf.read_bytes()[:4] == b"%PDF"
+    plt.close(fig)
+
+
+def test_old_figure_helpers_are_gone():
+    # output folders come from vpr_core.paths only
+    assert not hasattr(viz, "figures_dir") and not hasattr(viz, "FIGURES_DIR")
+
+
+def test_landmark_panels_colour_groups_and_check_them(tmp_path):
+    img = np.zeros((60, 80, 3), np.uint8)
+    boxes = np.array([[0, 0, 10, 10], [5, 5, 20, 20], [30, 30, 10, 10]], float)
+    a = _bytes(viz.plot_landmark_panels({"q": (img, boxes), "r": (img, boxes)},
+                                        colors_by=[0, 0, 1]), tmp_path / "a.png")
+    b = _bytes(viz.plot_landmark_panels({"q": (img, boxes), "r": (img, boxes)},
+                                        colors_by=[0, 0, 1]), tmp_path / "b.png")
+    c = _bytes(viz.plot_landmark_panels({"q": (img, boxes), "r": (img, boxes)},
+                                        colors_by=[0, 1, 1]), tmp_path / "c.png")
+    assert a == b and a != c
+    with pytest.raises(ValueError, match="one group per box"):
+        viz.plot_landmark_panels({"q": (img, boxes)}, colors_by=[0, 1])
+    with pytest.raises(ValueError, match="empty"):
+        viz.plot_landmark_panels({})
+
+
+def test_descriptor_matrices_and_pair_terms(tmp_path):
+    rng = np.random.default_rng(0)
+    d = {"query": rng.normal(size=(10, 32)), "reference": rng.normal(size=(12, 32))}
+    a = _bytes(viz.plot_descriptor_matrices(d, title="t"), tmp_path / "d1.png")
+    assert a == _bytes(viz.plot_descriptor_matrices(d, title="t"), tmp_path / "d2.png")
+    with pytest.raises(ValueError, match=r"\(K, D\)"):
+        viz.plot_descriptor_matrices({"q": np.zeros(5)})
+    dist, shape = rng.uniform(0, 1, 7), rng.uniform(1, 2.7, 7)
+    fig = viz.plot_pair_terms(dist, shape, 10, 12, 0.25)
+    title = fig.axes[0].get_title()
+    assert f"{(1 - dist * shape).sum():.3f}" in title and "sqrt(10 x 12)" in title
+    with pytest.raises(ValueError, match="one entry per pair"):
+        viz.plot_pair_terms(dist, shape[:3], 10, 12, 0.25)

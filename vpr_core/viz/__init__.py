@@ -1,0 +1,62 @@
+"""Plot helpers (``plot_*``) and one deterministic :func:`save_figure`.
+
+Every figure of the study is drawn here; notebooks and :mod:`vpr_core.study` only call these.
+
+- :mod:`~vpr_core.viz.base`: :func:`save_figure` (byte-identical PNGs), :func:`draw_boxes`.
+- :mod:`~vpr_core.viz.images`: dataset examples, landmarks, dense scales (Fig. 9), coverage
+  (Fig. 14).
+- :mod:`~vpr_core.viz.curves`: PR curves (Fig. 5, 7, 10-13), metric bars, scale distributions
+  (Fig. 6).
+- :mod:`~vpr_core.viz.statistics`: CMR / CLS / ASL (Fig. 4).
+- :mod:`~vpr_core.viz.matches`: labelled matches (Fig. 1-3, 8), descriptor matrices and Eq. (1)
+  pair terms (pipeline tour).
+"""
+
+from __future__ import annotations
+
+import os
+
+import matplotlib
+
+if not os.environ.get("MPLBACKEND"):
+    matplotlib.use("Agg")
+
+from .base import METHOD_COLORS, SAVE_DPI, draw_boxes, save_figure
+from .curves import plot_metric_bars, plot_pr_curves, plot_scale_distribution
+from .images import (
+    plot_coverage,
+    plot_dataset_overview,
+    plot_dense_scales,
+    plot_examples,
+    plot_landmark_panels,
+    plot_landmarks,
+)
+from .matches import (
+    plot_descriptor_matrices,
+    plot_labelled_matches,
+    plot_pair_terms,
+)
+from .statistics import plot_asl, plot_cls, plot_cmr, plot_scale_statistics
+
+__all__ = [
+    "METHOD_COLORS",
+    "SAVE_DPI",
+    "draw_boxes",
+    "plot_asl",
+    "plot_cls",
+    "plot_cmr",
+    "plot_coverage",
+    "plot_dataset_overview",
+    "plot_dense_scales",
+    "plot_descriptor_matrices",
+    "plot_examples",
+    "plot_labelled_matches",
+    "plot_landmark_panels",
+    "plot_landmarks",
+    "plot_metric_bars",
+    "plot_pair_terms",
+    "plot_pr_curves",
+    "plot_scale_distribution",
+    "plot_scale_statistics",
+    "save_figure",
+]

@@ -1,0 +1,206 @@
+"""Pictures of images and landmarks: dataset examples, landmark boxes, dense scales (Fig. 9),
+coverage heatmaps (Fig. 14)."""
+
+from __future__ import annotations
+
+import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+
+from ..paper import DENSE_PER_SCALE, DENSE_SCALES
+from .base import draw_boxes, landmark_canvas, show_canvas
+
+__all__ = ["plot_coverage", "plot_dataset_overview", "plot_dense_scales", "plot_examples",
+           "plot_landmark_panels", "plot_landmarks"]
+
+
+def plot_examples(dataset, indices=(0, 1, 2), boxes=None,
+                  title: str | None = None) -> matplotlib.figure.Figure:
+    """Reference / query example pairs: one row per pair, columns ``reference | query``.
+
+    Args:
+        dataset: ``vpr_core.datasets.PlaceDataset``.
+        indices: Query indices to show; each row shows query ``q`` and its first ground-truth
+            reference (reference ``q`` when the query has none and ``q < Nr``).
+        boxes: Optional callable ``(side, i, image_size) -> (K, 4)`` ``(x, y, w, h)`` boxes
+            drawn on each image (``side`` is ``"query"`` or ``"reference"``), or None.
+        title: Optional suptitle (default: dataset name and tolerance).
+
+    Returns:
+        A ``len(indices) x 2`` figure (deterministic for identical inputs).
+    """
+    indices = [int(i) for i in indices]
+    if not indices:
+        raise ValueError("plot_examples: indices is empty; pass at least one query index.")
+    gt = np.asarray(dataset.ground_truth, bool)
+    rows = []
+    for q in indices:
+        if not 0 <= q < gt.shape[0]:
+            raise IndexError(f"plot_examples: query index {q} out of range 0..{gt.shape[0] - 1}.")
+        hits = np.flatnonzero(gt[q])
+        r = int(hits[np.argmin(np.abs(hits - q))]) if hits.size else q
+        if not 0 <= r < gt.shape[1]:
+            raise IndexError(f"plot_examples: query {q} has no ground-truth reference to show.")
+        rows.append((q, r))
+    fig, axes = plt.subplots(len(rows), 2, figsize=(9.0, 2.6 * len(rows)), squeeze=False)
+    for (q, r), (ax_r, ax_q) in zip(rows, axes):
+        for ax, side, i in ((ax_r, "reference", r), (ax_q, "query", q)):
+            img = dataset.load_image(side, i)
+            ax.imshow(img)
+            if boxes is not None:
+                b = np.asarray(boxes(side, i, img.shape[:2]), dtype=float).reshape(-1, 4)
+                draw_boxes(ax, b, color="yellow" if side == "reference" else "cyan", lw=0.8)
+            ax.set_title(f"{side} {i}", fontsize=9)
+            ax.set_xticks([])
+            ax.set_yticks([])
+    tol = getattr(dataset, "tolerance", None)
+    fig.suptitle(title if title is not None else
+                 f"{dataset.name}: reference | query (tolerance {tol})", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def plot_dataset_overview(dataset, n: int = 6) -> matplotlib.figure.Figure:
+    """Thumbnails of ``n`` evenly spaced places: reference row on top, query row below.
+
+    Args:
+        dataset: ``PlaceDataset``.
+        n: Number of places (clipped to the dataset size).
+
+    Returns:
+        A ``2 x n`` figure.
+    """
+    m = min(len(dataset), getattr(dataset, "n_reference", len(dataset.reference_paths)))
+    n = max(1, min(int(n), m))
+    idx = np.unique(np.linspace(0, m - 1, n).round().astype(int))
+    fig, axes = plt.subplots(2, len(idx), figsize=(2.4 * len(idx), 3.4), squeeze=False)
+    for col, i in enumerate(idx):
+        for row, side in enumerate(("reference", "query")):
+            ax = axes[row, col]
+            ax.imshow(dataset.load_image(side, int(i)))
+            ax.set_xticks([])
+            ax.set_yticks([])
+            ax.set_title(f"{side[0]}{int(i)}", fontsize=8)
+    fig.suptitle(f"{dataset.name}: {len(dataset)} queries, {len(dataset.reference_paths)} "
+                 "references (top: reference, bottom: query)", fontsize=9)
+    fig.tight_layout()
+    return fig
+
+
+
+def plot_landmarks(image: np.ndarray, boxes: np.ndarray, ax=None, color: str = "yellow",
+                   title: str | None = None, lw: float = 1.0) -> matplotlib.figure.Figure:
+    """Draw ``(K, 4)`` ``(x, y, w, h)`` landmark boxes on an ``(H, W, 3)`` image.
+
+    Returns the figure (a new one when ``ax`` is None).
+    """
+    boxes = np.asarray(boxes, dtype=float)
+    if boxes.size and (boxes.ndim != 2 or boxes.shape[1] != 4):
+        raise ValueError(f"boxes must have shape (K, 4), got {boxes.shape}")
+    img, size = landmark_canvas(image)
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(6.4, 6.4 * size[0] / size[1] + 0.4))
+    else:
+        fig = ax.figure
+    show_canvas(ax, img, size)
+    draw_boxes(ax, boxes, color=color, lw=lw)
+    ax.set_title(title if title is not None else f"{len(boxes.reshape(-1, 4))} landmarks")
+    return fig
+
+
+def plot_dense_scales(image_or_size, scales=DENSE_SCALES,
+                      per_scale=DENSE_PER_SCALE) -> matplotlib.figure.Figure:
+    """Fig. 9: one panel per dense-sampling scale level with that level's boxes.
+
+    Args:
+        image_or_size: ``(H, W, 3)`` image or an ``(H, W)`` size (blank canvas).
+        scales: normalized scales (area ratios), one panel each.
+        per_scale: boxes per scale (int or one per scale), as in ``dense_sampling``.
+    """
+    from ..landmarks import dense_sampling
+
+    img, size = landmark_canvas(image_or_size)
+    scales = list(np.atleast_1d(np.asarray(scales, dtype=float)))
+    counts = [per_scale] * len(scales) if np.ndim(per_scale) == 0 else list(per_scale)
+    n = len(scales)
+    ncols = 2 if n == 4 else min(n, 3)
+    nrows = int(np.ceil(n / ncols))
+    panel_w = 4.2
+    fig, axes = plt.subplots(nrows, ncols, squeeze=False,
+                             figsize=(panel_w * ncols, (panel_w * size[0] / size[1] + 0.5) * nrows))
+    colors = plt.get_cmap("tab10").colors
+    for k, ax in enumerate(axes.ravel()):
+        if k >= n:
+            ax.axis("off")
+            continue
+        boxes = dense_sampling(size, (scales[k],), counts[k])
+        show_canvas(ax, img, size)
+        for j, box in enumerate(boxes):
+            draw_boxes(ax, box[None], color=colors[j % len(colors)], lw=1.0)
+        ax.set_title(f"({chr(ord('a') + k)}) scale {k + 1}: {len(boxes)} landmarks, "
+                     f"{scales[k]:g} normalized scale", fontsize=9)
+    fig.tight_layout()
+    return fig
+
+
+def plot_coverage(image: np.ndarray, boxes: np.ndarray, ax=None, cmap: str = "viridis",
+                  alpha: float = 0.6, title: str | None = None) -> matplotlib.figure.Figure:
+    """Fig. 14: how many landmarks cover each pixel, as a heatmap over the (grey) image.
+
+    The default title gives the share of pixels covered by at least one box.
+    """
+    from ..landmarks import landmark_coverage
+
+    img, size = landmark_canvas(image)
+    cov = landmark_coverage(boxes, size)
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(6.4, 6.4 * size[0] / size[1] + 0.4))
+    else:
+        fig = ax.figure
+    show_canvas(ax, img, size, gray=True)
+    shown = np.ma.masked_where(cov <= 0, cov)  # uncovered pixels show the plain image
+    im = ax.imshow(shown, cmap=cmap, alpha=alpha, vmin=0, vmax=max(1.0, float(cov.max())))
+    fig.colorbar(im, ax=ax, fraction=0.046, pad=0.02, label="boxes covering the pixel")
+    covered = float((cov > 0).mean())
+    ax.set_title(title if title is not None else
+                 f"coverage of {len(np.asarray(boxes).reshape(-1, 4))} landmarks: "
+                 f"{100 * covered:.0f}% of pixels")
+    return fig
+
+
+
+def plot_landmark_panels(panels: dict, colors_by: np.ndarray | None = None,
+                         title: str | None = None) -> matplotlib.figure.Figure:
+    """Several images side by side, each with its landmark boxes (pipeline tour, step 1).
+
+    Args:
+        panels: ``{panel title: (image (H, W, 3) uint8, boxes (K, 4) (x, y, w, h))}``.
+        colors_by: optional ``(K,)`` integer group of each box (e.g. its dense scale level);
+            boxes of one group share a colour. Applies to every panel (same K each).
+        title: optional suptitle.
+
+    Returns:
+        A ``1 x len(panels)`` figure.
+    """
+    if not panels:
+        raise ValueError("plot_landmark_panels: panels is empty; pass {title: (image, boxes)}.")
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.6), squeeze=False)
+    palette = plt.get_cmap("tab10").colors
+    for ax, (name, (image, boxes)) in zip(axes[0], panels.items()):
+        boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
+        img, size = landmark_canvas(image)
+        show_canvas(ax, img, size)
+        if colors_by is None:
+            draw_boxes(ax, boxes, color="yellow", lw=0.8)
+        else:
+            groups = np.asarray(colors_by).reshape(-1)
+            if len(groups) != len(boxes):
+                raise ValueError(f"colors_by has {len(groups)} entries for {len(boxes)} boxes "
+                                 f"in panel {name!r}; give one group per box.")
+            for g in np.unique(groups):
+                draw_boxes(ax, boxes[groups == g], color=palette[int(g) % len(palette)], lw=0.8)
+        ax.set_title(f"{name}: {len(boxes)} landmarks", fontsize=9)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig

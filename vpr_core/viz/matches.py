@@ -1,0 +1,151 @@
+"""Landmark matches between two images (Fig. 1-3, 8) and the pipeline-tour pictures of the
+descriptors and of the Eq. (1) pair terms."""
+
+from __future__ import annotations
+
+import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+
+from .base import draw_boxes
+
+__all__ = ["plot_descriptor_matrices", "plot_labelled_matches", "plot_pair_terms"]
+
+
+def plot_labelled_matches(img_q: np.ndarray, img_r: np.ndarray, boxes_q: np.ndarray,
+                          boxes_r: np.ndarray, matches: np.ndarray, labels: np.ndarray | None,
+                          ax=None, gap: int = 12, lw: float = 1.2,
+                          title: str | None = None) -> matplotlib.figure.Figure:
+    """Fig. 1-2: query and reference side by side, matched landmark boxes coloured by label.
+
+    Args:
+        img_q: ``(Hq, Wq, 3)`` uint8 query image (left).
+        img_r: ``(Hr, Wr, 3)`` uint8 reference image (right).
+        boxes_q: ``(Kq, 4)`` ``(x, y, w, h)`` query boxes.
+        boxes_r: ``(Kr, 4)`` reference boxes.
+        matches: ``(P, 2)`` (query box index, reference box index).
+        labels: ``(P,)`` bool (green = correct, red = incorrect) or ``None`` (all yellow).
+        ax: axes to draw on (default: a new figure sized to the canvas).
+        gap: white pixels between the two images.
+        lw: box / line width.
+        title: axes title (default: counts of correct / incorrect matches).
+
+    Returns:
+        The figure holding ``ax``. Boxes of each match and a line joining their centres.
+    """
+    iq = np.asarray(img_q)
+    ir = np.asarray(img_r)
+    if iq.ndim == 2:
+        iq = np.repeat(iq[..., None], 3, axis=2)
+    if ir.ndim == 2:
+        ir = np.repeat(ir[..., None], 3, axis=2)
+    hh = max(iq.shape[0], ir.shape[0])
+    canvas = np.full((hh, iq.shape[1] + gap + ir.shape[1], 3), 255, dtype=np.uint8)
+    canvas[: iq.shape[0], : iq.shape[1]] = iq[..., :3]
+    off = iq.shape[1] + gap
+    canvas[: ir.shape[0], off:] = ir[..., :3]
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(min(16.0, canvas.shape[1] / 80), canvas.shape[0] / 80 + 0.5))
+    else:
+        fig = ax.figure
+    ax.imshow(canvas)
+    ax.set_axis_off()
+    m = np.asarray(matches, dtype=np.int64).reshape(-1, 2)
+    bq = np.asarray(boxes_q, dtype=float).reshape(-1, 4)
+    br = np.asarray(boxes_r, dtype=float).reshape(-1, 4)
+    lab = None if labels is None else np.asarray(labels, dtype=bool).reshape(-1)
+    if lab is not None and len(lab) != len(m):
+        raise ValueError(f"labels ({len(lab)}) must have one entry per match ({len(m)})")
+    # incorrect first, correct on top
+    order = np.arange(len(m)) if lab is None else np.argsort(lab, kind="stable")
+    for k in order:
+        i, j = m[k]
+        color = "yellow" if lab is None else ("lime" if lab[k] else "red")
+        a = bq[i]
+        b = br[j] + np.array([off, 0.0, 0.0, 0.0])
+        draw_boxes(ax, a[None], color=color, lw=lw)
+        draw_boxes(ax, b[None], color=color, lw=lw)
+        ax.plot([a[0] + a[2] / 2, b[0] + b[2] / 2], [a[1] + a[3] / 2, b[1] + b[3] / 2],
+                color=color, lw=lw * 0.8, alpha=0.8)
+    if title is None:
+        if lab is None:
+            title = f"{len(m)} matches (unlabelled)"
+        else:
+            title = f"{len(m)} matches: {int(lab.sum())} correct (green), " \
+                    f"{int((~lab).sum())} incorrect (red)"
+    ax.set_title(title, fontsize=9)
+    return fig
+
+
+
+def plot_descriptor_matrices(descriptors: dict, title: str | None = None
+                             ) -> matplotlib.figure.Figure:
+    """Landmark descriptor matrices as heatmaps, one panel per image (pipeline tour, step 2).
+
+    Args:
+        descriptors: ``{panel title: (K, D) float descriptors}`` (one row per landmark).
+        title: optional suptitle.
+
+    Returns:
+        A ``1 x len(descriptors)`` figure; rows = landmarks, columns = descriptor dimensions,
+        colour = value (symmetric around 0, shared scale).
+    """
+    if not descriptors:
+        raise ValueError("plot_descriptor_matrices: descriptors is empty.")
+    mats = {k: np.asarray(v, dtype=float) for k, v in descriptors.items()}
+    for k, m in mats.items():
+        if m.ndim != 2:
+            raise ValueError(f"descriptors[{k!r}] must have shape (K, D), got {m.shape}")
+    vmax = max(float(np.abs(m).max()) if m.size else 0.0 for m in mats.values()) or 1.0
+    fig, axes = plt.subplots(1, len(mats), figsize=(5.2 * len(mats), 3.4), squeeze=False)
+    im = None
+    for ax, (name, m) in zip(axes[0], mats.items()):
+        im = ax.imshow(m, aspect="auto", cmap="RdBu_r", vmin=-vmax, vmax=vmax,
+                       interpolation="nearest")
+        ax.set_title(f"{name}: {m.shape[0]} x {m.shape[1]}", fontsize=9)
+        ax.set_xlabel("descriptor dimension")
+        ax.set_ylabel("landmark")
+    fig.colorbar(im, ax=list(axes[0]), fraction=0.03, pad=0.02, label="value")
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return fig
+
+
+def plot_pair_terms(distances: np.ndarray, shape: np.ndarray, n_a: int, n_b: int,
+                    similarity: float, title: str | None = None) -> matplotlib.figure.Figure:
+    """Eq. (1) as a picture: every reciprocal pair's term ``1 - d*s`` and the image score
+    (pipeline tour, step 4).
+
+    Args:
+        distances: ``(P,)`` cosine distances ``d`` of the matched pairs.
+        shape: ``(P,)`` shape penalties ``s`` (Eq. 2) of the same pairs.
+        n_a: landmarks of image a; n_b: landmarks of image b.
+        similarity: the Eq. (1) score ``S = sum(1 - d*s) / sqrt(n_a * n_b)`` to print.
+        title: optional suptitle.
+
+    Returns:
+        A two-panel figure: (a) the pair terms in decreasing order, (b) ``d`` against ``s``
+        coloured by the term.
+    """
+    d = np.asarray(distances, dtype=float).reshape(-1)
+    s = np.asarray(shape, dtype=float).reshape(-1)
+    if d.shape != s.shape:
+        raise ValueError(f"distances {d.shape} and shape {s.shape} must have one entry per pair")
+    terms = 1.0 - d * s
+    fig, (ax_a, ax_b) = plt.subplots(1, 2, figsize=(11.0, 3.6))
+    order = np.argsort(-terms, kind="stable")
+    ax_a.bar(np.arange(len(terms)), terms[order], width=0.85, color="tab:blue")
+    ax_a.axhline(0.0, color="0.3", lw=0.8)
+    ax_a.set_xlabel("reciprocal pair (sorted by its term)")
+    ax_a.set_ylabel("1 - d * s")
+    ax_a.set_title(f"(a) S = {terms.sum():.3f} / sqrt({n_a} x {n_b}) = {similarity:.4f}",
+                   fontsize=9)
+    sc = ax_b.scatter(d, s, c=terms, cmap="viridis", s=14)
+    fig.colorbar(sc, ax=ax_b, label="1 - d * s")
+    ax_b.set_xlabel("cosine distance d")
+    ax_b.set_ylabel("shape penalty s (Eq. 2)")
+    ax_b.set_title(f"(b) {len(terms)} pairs", fontsize=9)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,126 @@
+"""Fig. 4: the scale statistics CMR (a), CLS (b) and ASL (c) per Table-1 scale."""
+
+from __future__ import annotations
+
+import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+
+from .base import new_axes
+
+__all__ = ["plot_asl", "plot_cls", "plot_cmr", "plot_scale_statistics"]
+
+
+_STATS_GT_COLOR = "tab:green"
+_STATS_IRR_COLOR = "tab:gray"
+
+
+_PANEL_SIZE = (5.0, 3.4)
+
+
+def _stats_scale_axis(ax, stats, title: str, ylabel: str) -> None:
+    """Common x axis (Table-1 scales 1..9) of the Fig. 4 panels."""
+    scales = np.arange(1, 10)
+    ax.set_xticks(scales)
+    ax.set_xticklabels([f"S{s}" for s in scales])
+    ax.set_xlim(0.4, 9.6)
+    ax.set_xlabel("landmark scale (Table 1)")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.grid(axis="y", alpha=0.3)
+    ax.set_axisbelow(True)
+
+
+def plot_cmr(stats, ax=None, color: str = "tab:blue") -> matplotlib.figure.Figure:
+    """Fig. 4a: correct landmark matching rate per scale (bars; empty scales left blank).
+
+    Args:
+        stats: ``vpr_core.statistics.ScaleStats`` (arrays of length 10, index = scale).
+        ax: axes to draw on (default: a new figure).
+        color: bar colour.
+
+    Returns:
+        The figure holding ``ax``. Each bar is annotated with its number of labelled matches.
+    """
+    fig, ax = new_axes(ax, _PANEL_SIZE)
+    scales = np.arange(1, 10)
+    cmr = np.asarray(stats.cmr, dtype=float)[1:10]
+    n = np.asarray(getattr(stats, "n_labelled", stats.n_matches))[1:10]
+    ax.bar(scales, np.nan_to_num(cmr, nan=0.0), width=0.7, color=color)
+    for s, v, k in zip(scales, cmr, n):
+        if np.isfinite(v):
+            ax.text(s, v + 0.01, f"{int(k)}", ha="center", va="bottom", fontsize=7)
+    ax.set_ylim(0, 1.08)
+    if not np.isfinite(cmr).any():
+        ax.text(5, 0.5, "no labelled matches:\nthe pairs could not be verified\n"
+                "(give manual labels: method='file')", ha="center", va="center", fontsize=8,
+                color="0.35")
+    _stats_scale_axis(ax, stats, "(a) correct matching rate (CMR)", "CMR")
+    return fig
+
+
+def _stats_grouped(ax, gt: np.ndarray, irr: np.ndarray) -> None:
+    scales = np.arange(1, 10)
+    w = 0.38
+    ax.bar(scales - w / 2, np.nan_to_num(np.asarray(gt, float)[1:10], nan=0.0), width=w,
+           color=_STATS_GT_COLOR, label="ground-truth pairs")
+    ax.bar(scales + w / 2, np.nan_to_num(np.asarray(irr, float)[1:10], nan=0.0), width=w,
+           color=_STATS_IRR_COLOR, label="query-irrelevant pairs")
+    ax.legend(fontsize=7, loc="best", frameon=True, framealpha=0.8)
+
+
+def plot_cls(stats, ax=None) -> matplotlib.figure.Figure:
+    """Fig. 4b: contribution of each scale to the similarity (CLS), ground-truth vs
+    query-irrelevant pairs (grouped bars; each group sums to 1 over the scales).
+
+    Args:
+        stats: ``ScaleStats``.
+        ax: axes to draw on (default: a new figure).
+
+    Returns:
+        The figure holding ``ax``.
+    """
+    fig, ax = new_axes(ax, _PANEL_SIZE)
+    _stats_grouped(ax, stats.cls_gt, stats.cls_irrelevant)
+    _stats_scale_axis(ax, stats, "(b) contribution to similarity (CLS)", "share of similarity")
+    ax.set_ylim(bottom=0)
+    return fig
+
+
+def plot_asl(stats, ax=None) -> matplotlib.figure.Figure:
+    """Fig. 4c: average pair score ``1 - d*s`` of the matched landmarks per scale (ASL),
+    ground-truth vs query-irrelevant pairs (grouped bars).
+
+    Args:
+        stats: ``ScaleStats``.
+        ax: axes to draw on (default: a new figure).
+
+    Returns:
+        The figure holding ``ax``.
+    """
+    fig, ax = new_axes(ax, _PANEL_SIZE)
+    _stats_grouped(ax, stats.asl_gt, stats.asl_irrelevant)
+    _stats_scale_axis(ax, stats, "(c) average similarity of matches (ASL)", "mean 1 - d*s")
+    return fig
+
+
+def plot_scale_statistics(stats, title: str | None = None) -> matplotlib.figure.Figure:
+    """Fig. 4: CMR, CLS and ASL side by side.
+
+    Args:
+        stats: ``vpr_core.statistics.ScaleStats``.
+        title: optional suptitle (e.g. dataset, landmark method, label method).
+
+    Returns:
+        A 1x3-panel figure.
+    """
+    fig, axes = plt.subplots(1, 3, figsize=(14.0, 3.8))
+    plot_cmr(stats, ax=axes[0])
+    plot_cls(stats, ax=axes[1])
+    plot_asl(stats, ax=axes[2])
+    if title:
+        fig.suptitle(title, fontsize=11)
+    fig.tight_layout()
+    return fig
+
+
