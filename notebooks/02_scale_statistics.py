@@ -74,6 +74,6 @@ study.fig04_scale_statistics(method=method, n_irrelevant=n_irrelevant)
 
 # %% [markdown]
 # ### Labelling by hand (optional, interactive only)
-# `vpr_core.labelling.label_widget(study.dataset, q, r, ...)` shows one pair's matches and
+# `vpr_core.labels.label_widget(study.dataset, q, r, ...)` shows one pair's matches and
 # writes a CSV usable with `label_matches(..., method="file")`. It needs `ipywidgets`
 # (`pip install ipywidgets`) and is not used by the headless run.
