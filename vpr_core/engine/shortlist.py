@@ -1,0 +1,187 @@
+"""Shortlist + re-rank: a global descriptor picks each query's top-k references, Eq. (1) re-ranks.
+
+Exhaustive matching scores every query against every reference by Eq. (1) (``Nq * Nr`` landmark
+matmuls). With a shortlist, one whole-image descriptor per image first ranks the references of
+each query by cosine similarity (one ``(Nq, D) x (D, Nr)`` matmul), and Eq. (1) is evaluated only
+on each query's ``k`` best references (:func:`vpr_core.matching.similarity_pairs`).
+:func:`rerank` then builds the final ``(Nq, Nr)`` matrix: the Eq. (1) values on the shortlisted
+pairs and NaN everywhere else.
+
+**NaN means "not ranked".** The evaluation never picks a NaN entry as a query's best or second
+best reference, and drops a query whose row is all NaN. Consequences for the protocols:
+
+* ``ratio`` (the paper's, Sunderhauf et al. 2015): S1 is the best Eq. (1) value *inside the
+  shortlist* and S2 the second best *inside the shortlist* (``k >= 2``); references outside the
+  shortlist take no part. With ``k = 1`` there is no S2 (use ``k >= 2`` with this protocol).
+  S2 inside the shortlist is at least as large as it would be among the shortlisted references
+  of an exhaustive run, and can only be smaller than the exhaustive S2 when the exhaustive
+  second best lies outside the shortlist.
+* ``best_match`` and Recall@K: the ranking inside the shortlist; a query whose correct reference
+  is not shortlisted cannot be a true positive (Recall@K for K > k equals Recall@k).
+* With ``k >= Nr`` every pair is shortlisted and the matrix equals the exhaustive one exactly.
+
+Ties in the global cosine are broken by the lowest reference index (as everywhere in the
+workbench), so the shortlist is deterministic.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["global_cosine", "rerank", "shortlist_pairs", "topk_lowest_index"]
+
+#: Queries per chunk of the global cosine matrix (bounds the temporary memory to
+#: ``CHUNK_QUERIES * Nr`` float64 values per step).
+CHUNK_QUERIES = 1024
+
+
+def _check_global(x: np.ndarray, name: str) -> np.ndarray:
+    """``x`` as a finite float64 ``(N, D)`` array with N >= 1 (clear errors otherwise)."""
+    arr = np.asarray(x)
+    if arr.ndim != 2:
+        raise ValueError(f"{name} must be a (N, D) array of global descriptors (one row per "
+                         f"image), got shape {arr.shape}")
+    if arr.shape[0] < 1 or arr.shape[1] < 1:
+        raise ValueError(f"{name} is empty (shape {arr.shape}): every image needs a global "
+                         "descriptor")
+    if not np.issubdtype(arr.dtype, np.number):
+        raise ValueError(f"{name} must be numeric, got dtype {arr.dtype}")
+    arr = arr.astype(np.float64, copy=False)
+    if not np.isfinite(arr).all():
+        bad = int(np.flatnonzero(~np.isfinite(arr).all(1))[0])
+        raise ValueError(f"{name}[{bad}] contains NaN or inf: recompute that image's global "
+                         "descriptor (a corrupt feature cache can be deleted and rebuilt)")
+    return arr
+
+
+def _unit(x: np.ndarray) -> np.ndarray:
+    """Rows scaled to unit L2 norm; all-zero rows stay zero (cosine 0 with everything)."""
+    n = np.linalg.norm(x, axis=1, keepdims=True)
+    return x / np.where(n > 0, n, 1.0)
+
+
+def _check_k(k: int) -> int:
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or int(k) < 1:
+        raise ValueError(f"shortlist k must be an integer >= 1 (references kept per query), "
+                         f"got {k!r}")
+    return int(k)
+
+
+def global_cosine(global_query: np.ndarray, global_reference: np.ndarray) -> np.ndarray:
+    """Cosine similarity of every query x reference pair of whole-image descriptors.
+
+    Args:
+        global_query: ``(Nq, D)`` descriptors.
+        global_reference: ``(Nr, D)`` descriptors.
+
+    Returns:
+        ``(Nq, Nr)`` float64 cosines (0 for an all-zero descriptor).
+    """
+    q = _unit(_check_global(global_query, "global_query"))
+    r = _unit(_check_global(global_reference, "global_reference"))
+    if q.shape[1] != r.shape[1]:
+        raise ValueError(f"global descriptor dimensions differ: query D={q.shape[1]}, "
+                         f"reference D={r.shape[1]} (use the same encoder for both sides)")
+    out = np.empty((q.shape[0], r.shape[0]), dtype=np.float64)
+    for q0 in range(0, q.shape[0], CHUNK_QUERIES):
+        np.matmul(q[q0:q0 + CHUNK_QUERIES], r.T, out=out[q0:q0 + CHUNK_QUERIES])
+    return out
+
+
+def topk_lowest_index(scores: np.ndarray, k: int) -> np.ndarray:
+    """Column indices of each row's ``k`` largest scores, best first, ties by lowest index.
+
+    Vectorised: ``argpartition`` finds each row's k-th largest value, the k winners are sorted by
+    (score descending, index ascending); rows where the k-th value is tied with a value outside
+    the winners (rare) are re-done with a stable full sort, so ties always go to the lowest index.
+
+    Args:
+        scores: ``(N, M)`` finite scores.
+        k: winners per row, ``1 <= k <= M``.
+
+    Returns:
+        ``(N, k)`` int64 column indices.
+    """
+    m = scores.shape[1]
+    if k >= m:
+        return np.argsort(-scores, axis=1, kind="stable").astype(np.int64)
+    part = np.argpartition(-scores, k - 1, axis=1)[:, :k]
+    vals = np.take_along_axis(scores, part, axis=1)
+    # sort the winners: primary key score (descending), secondary key index (ascending)
+    order = np.lexsort((part, -vals), axis=1)
+    top = np.take_along_axis(part, order, axis=1)
+    kth = np.take_along_axis(scores, top[:, -1:], axis=1)
+    ambiguous = np.flatnonzero((scores >= kth).sum(1) > k)
+    if ambiguous.size:
+        top[ambiguous] = np.argsort(-scores[ambiguous], axis=1, kind="stable")[:, :k]
+    return top.astype(np.int64)
+
+
+def shortlist_pairs(global_query: np.ndarray, global_reference: np.ndarray, k: int
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Each query's top-k references by cosine of whole-image descriptors.
+
+    Args:
+        global_query: ``(Nq, D)`` whole-image descriptors of the queries.
+        global_reference: ``(Nr, D)`` whole-image descriptors of the references.
+        k: references kept per query, ``k >= 1``; clipped to ``Nr`` (``k' = min(k, Nr)``).
+
+    Returns:
+        ``(pairs, global_similarity)``: ``pairs`` ``(Nq * k', 2)`` int64 ``(query, reference)``
+        rows grouped by query (query 0's k' references first), each query's references in
+        descending global cosine (ties: lowest index); ``global_similarity`` ``(Nq, Nr)`` float64
+        cosines that chose them.
+
+    Raises:
+        ValueError: bad ``k``, shapes, dimensions, or non-finite descriptors.
+    """
+    k = _check_k(k)
+    sim = global_cosine(global_query, global_reference)
+    nq, nr = sim.shape
+    kk = min(k, nr)
+    top = np.empty((nq, kk), dtype=np.int64)
+    for q0 in range(0, nq, CHUNK_QUERIES):
+        top[q0:q0 + CHUNK_QUERIES] = topk_lowest_index(sim[q0:q0 + CHUNK_QUERIES], kk)
+    pairs = np.stack([np.repeat(np.arange(nq, dtype=np.int64), kk), top.reshape(-1)], axis=1)
+    return pairs, sim
+
+
+def rerank(similarity_pairs_values: np.ndarray, pairs: np.ndarray, nq: int, nr: int
+           ) -> np.ndarray:
+    """The final similarity matrix of a shortlist run: Eq. (1) on listed pairs, NaN elsewhere.
+
+    Args:
+        similarity_pairs_values: ``(P,)`` Eq. (1) similarities of ``pairs`` (as returned by
+            :func:`vpr_core.matching.similarity_pairs`).
+        pairs: ``(P, 2)`` int ``(query, reference)`` indices (e.g. from :func:`shortlist_pairs`).
+        nq: number of queries; nr: number of references.
+
+    Returns:
+        ``(nq, nr)`` float64: the values at the listed pairs, NaN ("not ranked") elsewhere.
+
+    Raises:
+        ValueError: shapes disagree, indices out of range, non-finite values, or one pair listed
+            twice with different values.
+    """
+    vals = np.asarray(similarity_pairs_values, dtype=np.float64)
+    pr = np.asarray(pairs)
+    if pr.ndim != 2 or pr.shape[1] != 2 or not np.issubdtype(pr.dtype, np.integer):
+        raise ValueError(f"pairs must be a (P, 2) integer array of (query, reference) indices, "
+                         f"got shape {pr.shape}, dtype {pr.dtype}")
+    if vals.shape != (pr.shape[0],):
+        raise ValueError(f"similarity_pairs_values must have shape ({pr.shape[0]},) (one value "
+                         f"per pair), got {vals.shape}")
+    if not np.isfinite(vals).all():
+        raise ValueError("similarity_pairs_values contains NaN or inf; Eq. (1) values are "
+                         "finite: recompute them")
+    nq, nr = int(nq), int(nr)
+    for col, n, what in ((0, nq, "query"), (1, nr, "reference")):
+        bad = np.flatnonzero((pr[:, col] < 0) | (pr[:, col] >= n))
+        if bad.size:
+            raise ValueError(f"pairs[{bad[0]}] has {what} index {int(pr[bad[0], col])}, outside "
+                             f"0..{n - 1} ({n} {what} images)")
+    out = np.full((nq, nr), np.nan, dtype=np.float64)
+    out[pr[:, 0], pr[:, 1]] = vals
+    if not np.array_equal(out[pr[:, 0], pr[:, 1]], vals):
+        raise ValueError("a (query, reference) pair is listed twice with different values")
+    return out
