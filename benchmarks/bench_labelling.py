@@ -1,7 +1,7 @@
 """Agreement of the ``geometric`` match labeller with the ``exact`` one on ``synthetic`` pairs.
 
 On ``synthetic`` the generator's homography gives exact labels. ``geometric`` (SIFT + ratio test
-+ RANSAC, :func:`vpr_core.statistics.estimate_pair_geometry`) is what real datasets use; this
++ RANSAC, :func:`vpr_core.labels.estimate_pair_geometry`) is what real datasets use; this
 script measures how often it agrees with ``exact`` on the reciprocal landmark matches of the
 ground-truth pairs (irrelevant pairs are all-incorrect under both and are left out).
 
@@ -42,14 +42,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from vpr_core.datasets import load_dataset
 from vpr_core.features import LandmarkEncoder
-from vpr_core.landmarks import dense_sampling, edge_boxes
-from vpr_core.matching import match_landmarks
-from vpr_core.statistics import (
+from vpr_core.labels import (
     LabelUnavailableError,
     estimate_pair_geometry,
     label_matches,
     label_matches_geometric,
 )
+from vpr_core.landmarks import dense_sampling, edge_boxes
+from vpr_core.matching import match_landmarks
+from vpr_core.paper import N_LANDMARKS
 from vpr_core.utils import progress
 
 
@@ -59,7 +60,7 @@ def landmark_boxes(image: np.ndarray, landmarks: str) -> np.ndarray:
     if landmarks == "dense":
         return dense_sampling(image.shape[:2])
     if landmarks == "edge_boxes":
-        return np.asarray(edge_boxes(image, max_boxes=100), dtype=np.float64)
+        return np.asarray(edge_boxes(image, max_boxes=N_LANDMARKS), dtype=np.float64)
     raise ValueError(f"landmarks must be 'dense' or 'edge_boxes', got {landmarks!r}")
 
 
