@@ -1,4 +1,4 @@
-"""Known-answer tests of vpr_core.evaluation (PR curves, AUC, R@100P, R@K)."""
+"""Known-answer tests of vpr_core.evaluation (PR curves, AUC, R@100P, R@K, bootstrap intervals)."""
 
 from __future__ import annotations
 
@@ -8,12 +8,18 @@ import pytest
 from vpr_core.evaluation import (
     PRCurve,
     auc_pr,
+    bootstrap_columns,
+    bootstrap_metrics,
     evaluate,
+    format_interval,
+    ground_truth_coverage,
     metrics_table,
+    paired_bootstrap,
     pr_curve,
     recall_at_100_precision,
     recall_at_k,
 )
+from vpr_core.evaluation.bootstrap import _per_query, _resample_metrics
 
 # 5 queries x 3 references.
 S = np.array([
@@ -74,17 +80,14 @@ def test_ratio_ties_accepted_together_and_clipping():
     np.testing.assert_allclose(c.precision, [1, 1, 2 / 3, 3 / 4])
 
 
-def test_nothing_correct_and_no_ground_truth():
+def test_nothing_correct():
     s = np.array([[0.9, 0.1], [0.1, 0.9]])
     gt = np.array([[0, 1], [1, 0]], dtype=bool)  # best always wrong
     c = pr_curve(s, gt)
     np.testing.assert_allclose(c.recall, [0, 0])  # TP + FN = 0 -> recall 0
     np.testing.assert_allclose(c.precision, [1, 0])
     assert auc_pr(c) == 0.0 and recall_at_100_precision(c) == 0.0
-    c = pr_curve(s, np.zeros((2, 2), dtype=bool))  # no query kept
-    assert c.n_queries == 0
-    np.testing.assert_allclose(c.recall, [0]) and np.testing.assert_allclose(c.precision, [1])
-    assert recall_at_k(s, np.zeros((2, 2), bool), 1) == 0.0
+    assert ground_truth_coverage(gt) == (2, 2)
 
 
 def test_best_match_protocol():
@@ -115,8 +118,10 @@ def test_bad_inputs():
         pr_curve(S[:, :1], GT[:, :1])
     with pytest.raises(ValueError, match="boolean"):
         pr_curve(S, GT * 2)
-    with pytest.raises(ValueError, match="NaN"):
+    with pytest.raises(ValueError, match="no ranked reference"):
         pr_curve(np.full((2, 2), np.nan), np.eye(2, dtype=bool))
+    with pytest.raises(ValueError, match="inf"):
+        pr_curve(np.array([[np.inf, 0.0], [0.0, 1.0]]), np.eye(2, dtype=bool))
     with pytest.raises(ValueError, match="k must be"):
         recall_at_k(S, GT, 0)
 
@@ -145,3 +150,113 @@ def test_plot_pr_curves():
     assert labels[0].startswith("a") and "0.83" in labels[0]
     fig2 = viz.plot_metric_bars(metrics_table({"a": evaluate(S, GT)}), metric="auc")
     assert fig2.axes
+
+
+# ------------------------------------------------------------------------------------------
+# bootstrap intervals
+# ------------------------------------------------------------------------------------------
+
+
+def _noisy(rng, n, signal, nr=None):
+    """A similarity matrix whose diagonal (the ground truth) stands out by ``signal``."""
+    nr = nr or n
+    s = rng.random((n, nr))
+    s[np.arange(n), np.arange(n) % nr] += signal * rng.random(n)
+    return s
+
+
+def test_bootstrap_point_values_are_the_table_metrics():
+    rng = np.random.default_rng(1)
+    s = _noisy(rng, 80, 0.6).round(2)  # rounded: ties in the scores
+    gt = np.eye(80, dtype=bool)
+    gt[3] = False  # a query without ground truth (dropped)
+    s[5] = np.nan  # a query with nothing ranked (dropped)
+    s[7, 10:] = np.nan  # a query with few ranked references
+    b = bootstrap_metrics(s, gt, n=200, seed=0, ks=(1, 5, 10))
+    c = pr_curve(s, gt)
+    assert b["auc"][0] == auc_pr(c)
+    assert b["r@100p"][0] == recall_at_100_precision(c)
+    for k in (1, 5, 10):
+        assert b[f"r@{k}"][0] == recall_at_k(s, gt, k)
+    for value, lo, hi in b.values():
+        assert lo <= value <= hi and lo < hi
+    bm = bootstrap_metrics(s, gt, n=50, protocol="best_match")
+    assert bm["auc"][0] == auc_pr(pr_curve(s, gt, "best_match"))
+
+
+def test_bootstrap_resample_equals_metrics_of_repeated_rows():
+    rng = np.random.default_rng(2)
+    s = _noisy(rng, 60, 0.5).round(2)
+    gt = np.eye(60, dtype=bool)
+    s[4] = np.nan
+    s[9, 1:] = np.nan  # one ranked reference: S2 := S1
+    pq = _per_query(s, gt, "ratio", (1, 5))
+    for seed in range(5):
+        idx = np.random.default_rng(seed).integers(0, 60, 60)
+        w = np.bincount(idx, minlength=60)[None].astype(float)
+        got = {k: float(v[0]) for k, v in _resample_metrics(pq, w).items()}
+        want = evaluate(s[idx], gt[idx])
+        assert got["auc"] == pytest.approx(want["auc"], abs=1e-12)
+        assert got["r@100p"] == pytest.approx(want["r_at_100p"], abs=1e-12)
+        assert got["r@1"] == pytest.approx(want["r_at_1"], abs=1e-12)
+        assert got["r@5"] == pytest.approx(want["r_at_5"], abs=1e-12)
+
+
+def test_bootstrap_seeds_reproduce_and_differ():
+    rng = np.random.default_rng(3)
+    s, gt = _noisy(rng, 50, 0.5), np.eye(50, dtype=bool)
+    a = bootstrap_metrics(s, gt, n=100, seed=7)
+    assert a == bootstrap_metrics(s, gt, n=100, seed=7)
+    assert a != bootstrap_metrics(s, gt, n=100, seed=8)
+
+
+def test_paired_bootstrap_identical_and_clearly_better():
+    rng = np.random.default_rng(4)
+    gt = np.eye(120, dtype=bool)
+    weak = _noisy(rng, 120, 0.3)
+    strong = _noisy(rng, 120, 3.0)
+    same = paired_bootstrap(weak, weak.copy(), gt, n=200)
+    for delta, lo, hi, p in same.values():
+        assert (delta, lo, hi, p) == (0.0, 0.0, 0.0, 1.0)
+    better = paired_bootstrap(strong, weak, gt, n=300, seed=1)
+    for key in ("auc", "r@1"):
+        delta, lo, hi, p = better[key]
+        assert 0 < lo <= delta <= hi and p < 0.05
+        a, b = bootstrap_metrics(strong, gt, n=10)[key][0], bootstrap_metrics(weak, gt, n=10)[key][0]
+        assert delta == pytest.approx(a - b, abs=1e-15)
+    worse = paired_bootstrap(weak, strong, gt, n=300, seed=1)
+    assert worse["auc"][2] < 0 and worse["auc"][3] < 0.05
+
+
+def test_bootstrap_is_fast_on_nordland_size():
+    import time
+
+    rng = np.random.default_rng(5)
+    n = 3576
+    s, gt = _noisy(rng, n, 0.3), np.eye(n, dtype=bool)
+    t = time.process_time()
+    bootstrap_metrics(s, gt, n=1000)
+    assert time.process_time() - t < 60  # ~3 s idle; a per-resample sort loop takes minutes
+
+
+def test_format_interval_and_columns():
+    assert format_interval(0.8123, 0.7509, 0.8661) == "0.812 [0.751, 0.866]"
+    cols = bootstrap_columns({"auc": (0.8, 0.7, 0.9), "r@100p": (0.1, 0.0, 0.2),
+                              "r@1": (0.5, 0.4, 0.6)})
+    assert list(cols) == ["AUC", "AUC lo", "AUC hi", "R@100P", "R@100P lo", "R@100P hi",
+                          "R@1", "R@1 lo", "R@1 hi"]
+    paired = bootstrap_columns({"auc": (0.1, 0.05, 0.15, 0.002)}, prefix="d")
+    assert paired == {"dAUC": 0.1, "dAUC lo": 0.05, "dAUC hi": 0.15, "dAUC p": 0.002}
+    with pytest.raises(ValueError, match="value, low, high"):
+        bootstrap_columns({"auc": (0.1, 0.2)})
+
+
+def test_bootstrap_bad_arguments():
+    with pytest.raises(ValueError, match="resamples"):
+        bootstrap_metrics(S, GT, n=0)
+    with pytest.raises(ValueError, match="protocol"):
+        bootstrap_metrics(S, GT, protocol="multi_match")
+    with pytest.raises(ValueError, match="ks"):
+        bootstrap_metrics(S, GT, ks=(0,))
+    with pytest.raises(ValueError, match="shape"):
+        paired_bootstrap(S, S[:, :2], GT)

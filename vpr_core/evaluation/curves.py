@@ -1,0 +1,338 @@
+"""Precision-recall curves and the table metrics (AUC, R@100P, R@K) of a similarity matrix.
+
+Protocols (``pr_curve(..., protocol=...)``):
+
+``ratio`` (the paper's, after Sunderhauf et al., IROS 2015)
+    Queries without any ground-truth reference are dropped. For each kept query: best reference
+    ``b1`` (highest similarity ``S1``; ties: lowest index), ``S2`` = best similarity among all
+    other references, score ``r = S2 / S1`` (1.0 when ``S1 <= 0``), clipped to ``[0, 1]``.
+    A query is *accepted* when ``r <= tau``; accepted and ``gt[q, b1]`` -> TP, accepted otherwise
+    -> FP, rejected -> FN. ``tau`` takes every distinct ``r`` (ascending; queries with equal ``r``
+    are accepted together). Recall denominator: ``TP + FN`` = kept queries minus the accepted
+    wrong ones (a wrongly accepted query is an FP, not an FN), so once every query is accepted
+    recall is 1 if any TP exists. Precision ``TP / (TP + FP)``, 1 when nothing is accepted.
+``best_match``
+    Same rules, thresholding ``S1`` instead: accepted when ``S1 >= tau``; ``tau`` takes every
+    distinct ``S1`` (descending). Same recall denominator ``TP + FN``.
+``multi_match``
+    Every (query, reference) pair is a decision: accepted when ``S[q, r] >= tau`` (``tau``: every
+    distinct similarity, descending); accepted and ground truth -> TP, accepted otherwise -> FP;
+    ground-truth pairs not accepted -> FN. Recall denominator: all ground-truth pairs. All queries
+    are kept (pairs of queries without ground truth can only be FPs).
+
+Every curve starts at ``(recall 0, precision 1)`` with a sentinel threshold (``-inf`` for
+``ratio``, ``+inf`` for the others) meaning "nothing accepted".
+
+Unranked references (NaN)
+    A NaN similarity means "not ranked" (e.g. an image without landmarks is excluded from
+    matching, never scored as 0). A NaN reference is never a query's best or second best and never
+    in its top k. A query whose row is entirely NaN is dropped like a query without ground truth
+    (``ratio``, ``best_match``, R@K) and counted in the coverage warning. A ``ratio`` query with only
+    one ranked reference has no second best: ``S2 := S1``, so ``r = 1`` (the least confident score,
+    accepted only at the last threshold) -- the choice that cannot inflate the metrics. In
+    ``multi_match`` a NaN pair is never accepted (a ground-truth NaN pair is an FN).
+
+Ground-truth coverage
+    Queries without any ground-truth reference are left out (``ratio``, ``best_match``, R@K). When
+    no query is left, every metric raises a ValueError (a metric over nothing is not 0); when some
+    are left out, the ``vpr_core`` logger warns with the count (:func:`ground_truth_coverage`).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = [
+    "PROTOCOLS",
+    "PRCurve",
+    "auc_pr",
+    "evaluate",
+    "ground_truth_coverage",
+    "metrics_table",
+    "pr_curve",
+    "recall_at_100_precision",
+    "recall_at_k",
+]
+
+logger = logging.getLogger("vpr_core")
+
+PROTOCOLS = ("ratio", "best_match", "multi_match")
+
+
+@dataclass
+class PRCurve:
+    """A precision-recall curve.
+
+    Attributes:
+        recall: ``(T + 1,)`` recall, non-decreasing, ``recall[0] = 0``.
+        precision: ``(T + 1,)`` precision, ``precision[0] = 1``.
+        thresholds: ``(T + 1,)`` the ``tau`` of each point (``thresholds[0]`` is the sentinel).
+        protocol: protocol name.
+        n_queries: queries (``ratio``/``best_match``: kept queries) or pairs (``multi_match``)
+            the curve is computed on.
+        tp, fp, fn: ``(T + 1,)`` int counts at each point.
+    """
+
+    recall: np.ndarray
+    precision: np.ndarray
+    thresholds: np.ndarray
+    protocol: str = "ratio"
+    n_queries: int = 0
+    tp: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    fp: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    fn: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    def __iter__(self):
+        """Unpack as ``recall, precision, thresholds``."""
+        return iter((self.recall, self.precision, self.thresholds))
+
+
+def _check(similarity, ground_truth) -> tuple[np.ndarray, np.ndarray]:
+    """Validate shapes and dtypes; NaN similarities are allowed (unranked), inf is not."""
+    s = np.asarray(similarity, dtype=np.float64)
+    gt = np.asarray(ground_truth)
+    if s.ndim != 2:
+        raise ValueError(f"similarity must be a (Nq, Nr) matrix, got shape {s.shape}")
+    if gt.shape != s.shape:
+        raise ValueError(f"ground_truth shape {gt.shape} differs from similarity shape {s.shape}")
+    if gt.dtype != bool:
+        if not np.isin(gt, (0, 1)).all():
+            raise ValueError("ground_truth must be boolean (or 0/1)")
+        gt = gt.astype(bool)
+    if np.isinf(s).any():
+        raise ValueError("similarity contains inf; use NaN to mark a pair that is not ranked")
+    return s, gt
+
+
+def ground_truth_coverage(ground_truth: np.ndarray) -> tuple[int, int]:
+    """Number of queries with at least one ground-truth reference, and of all queries.
+
+    Args:
+        ground_truth: ``(Nq, Nr)`` bool (or 0/1).
+
+    Returns:
+        ``(n_with, n_total)``.
+    """
+    gt = np.asarray(ground_truth)
+    if gt.ndim != 2:
+        raise ValueError(f"ground_truth must be a (Nq, Nr) matrix, got shape {gt.shape}")
+    return int(gt.astype(bool).any(axis=1).sum()), int(gt.shape[0])
+
+
+def _kept_queries(s: np.ndarray, gt: np.ndarray, warn: bool = True) -> np.ndarray:
+    """``(Nq,)`` bool: queries with ground truth and at least one ranked (non-NaN) reference.
+
+    Raises a ValueError when none is left; logs one warning with the counts when some are left
+    out (``warn``).
+    """
+    has_gt = gt.any(axis=1)
+    ranked = ~np.isnan(s).all(axis=1) if s.shape[1] else np.zeros(s.shape[0], dtype=bool)
+    keep = has_gt & ranked
+    n_total, n_gt, n_kept = s.shape[0], int(has_gt.sum()), int(keep.sum())
+    if n_gt == 0:
+        raise ValueError(
+            f"no query has a ground-truth reference (0 of {n_total} queries), so no metric can be "
+            "computed. Check the ground-truth file (query/reference indices, 0- or 1-based) or "
+            "widen the tolerance (e.g. load_dataset(..., tolerance=2)).")
+    if n_kept == 0:
+        raise ValueError(
+            f"every query with ground truth ({n_gt} of {n_total}) has no ranked reference (all "
+            "similarities NaN: images without landmarks). Check the landmark settings.")
+    if warn and n_kept < n_total:
+        logger.warning(
+            "metrics use %d of %d queries: %d have no ground-truth reference%s", n_kept, n_total,
+            n_total - n_gt, f", {n_gt - n_kept} have no ranked reference (all NaN)"
+            if n_gt > n_kept else "")
+    return keep
+
+
+def _best_two(s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Best index (ties: lowest), best value and second best value among ranked references.
+
+    NaN entries are never chosen; with a single ranked reference the second best is the best
+    (``S2 := S1``). Every row must have at least one non-NaN entry.
+    """
+    nan = np.isnan(s)
+    if nan.any():
+        s = np.where(nan, -np.inf, s)
+    b1 = np.argmax(s, axis=1)
+    rows = np.arange(s.shape[0])
+    s1 = s[rows, b1]
+    rest = s.copy()
+    rest[rows, b1] = -np.inf
+    s2 = rest.max(axis=1)
+    if nan.any():
+        s2 = np.where(np.isneginf(s2), s1, s2)
+    return b1, s1, s2
+
+
+def _query_scores(s: np.ndarray, gt: np.ndarray, protocol: str) -> tuple[np.ndarray, np.ndarray]:
+    """Per-query score and correctness of the best match (``ratio`` / ``best_match``).
+
+    Args:
+        s: ``(n, Nr)`` similarities of kept queries; gt: ``(n, Nr)`` bool.
+        protocol: ``"ratio"`` (score ``r = S2 / S1`` in ``[0, 1]``, accept ``r <= tau``) or
+            ``"best_match"`` (score ``S1``, accept ``S1 >= tau``).
+
+    Returns:
+        ``(score (n,), correct (n,) bool)``.
+    """
+    b1, s1, s2 = _best_two(s)
+    correct = gt[np.arange(s.shape[0]), b1]
+    if protocol == "best_match":
+        return s1, correct
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r = np.where(s1 > 0, s2 / np.where(s1 > 0, s1, 1.0), 1.0)
+    return np.clip(r, 0.0, 1.0), correct
+
+
+def _curve_from_scores(score: np.ndarray, correct: np.ndarray, ascending: bool, protocol: str,
+                       n_pos: int | None = None) -> PRCurve:
+    """Sweep a threshold over per-decision scores (accept ``score <= tau`` if ascending)."""
+    n = score.shape[0]
+    order = np.argsort(score if ascending else -score, kind="stable")
+    sc, ok = score[order], correct[order]
+    tp_cum = np.cumsum(ok)
+    # last index of each run of equal scores: equal scores are accepted together
+    last = np.flatnonzero(np.r_[sc[1:] != sc[:-1], True]) if n else np.zeros(0, dtype=int)
+    tp = tp_cum[last].astype(np.int64)
+    acc = last + 1
+    fp = acc - tp
+    fn = (n - acc) if n_pos is None else (n_pos - tp)
+    fn = np.asarray(fn, dtype=np.int64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        recall = np.where(tp + fn > 0, tp / np.maximum(tp + fn, 1), 0.0)
+        precision = np.where(acc > 0, tp / np.maximum(acc, 1), 1.0)
+    sentinel = -np.inf if ascending else np.inf
+    fn0 = n if n_pos is None else n_pos
+    return PRCurve(
+        recall=np.r_[0.0, recall],
+        precision=np.r_[1.0, precision],
+        thresholds=np.r_[sentinel, sc[last]],
+        protocol=protocol,
+        n_queries=int(n),
+        tp=np.r_[0, tp].astype(np.int64),
+        fp=np.r_[0, fp].astype(np.int64),
+        fn=np.r_[fn0, fn].astype(np.int64),
+    )
+
+
+def pr_curve(similarity: np.ndarray, ground_truth: np.ndarray, protocol: str = "ratio",
+             warn: bool = True) -> PRCurve:
+    """Precision-recall curve of a similarity matrix (see the module docstring for protocols).
+
+    Args:
+        similarity: ``(Nq, Nr)`` float, higher = more similar; NaN = not ranked.
+        ground_truth: ``(Nq, Nr)`` bool, True where reference r shows query q's place.
+        protocol: ``"ratio"`` (paper), ``"best_match"`` or ``"multi_match"``.
+        warn: log a warning when queries are left out (no ground truth / nothing ranked).
+
+    Returns:
+        :class:`PRCurve` starting at ``(R=0, P=1)``.
+
+    Raises:
+        ValueError: bad shapes or protocol, or no query with ground truth (no pair for
+            ``multi_match``).
+    """
+    if protocol not in PROTOCOLS:
+        raise ValueError(f"unknown protocol {protocol!r}; valid: {', '.join(PROTOCOLS)}")
+    s, gt = _check(similarity, ground_truth)
+    if protocol == "multi_match":
+        if not gt.any():
+            _kept_queries(s, gt)  # raises: no ground truth
+        ranked = ~np.isnan(s).ravel()
+        return _curve_from_scores(s.ravel()[ranked], gt.ravel()[ranked], False, protocol,
+                                  n_pos=int(gt.sum()))
+    if protocol == "ratio" and s.shape[1] < 2:
+        raise ValueError(f"the ratio protocol needs at least 2 references, got {s.shape[1]}")
+    if s.shape[1] < 1:
+        raise ValueError("similarity has no reference column")
+    keep = _kept_queries(s, gt, warn)
+    score, correct = _query_scores(s[keep], gt[keep], protocol)
+    return _curve_from_scores(score, correct, protocol == "ratio", protocol)
+
+
+def auc_pr(curve: PRCurve) -> float:
+    """Area under the PR curve: trapezoid rule over recall (``np.trapezoid``)."""
+    return float(np.trapezoid(curve.precision, curve.recall))
+
+
+def recall_at_100_precision(curve: PRCurve) -> float:
+    """Highest recall reached with precision exactly 1 (0 if none beyond the start point)."""
+    ok = curve.precision >= 1.0
+    return float(curve.recall[ok].max()) if ok.any() else 0.0
+
+
+def _true_rank(s: np.ndarray, gt: np.ndarray) -> np.ndarray:
+    """``(n,)`` 0-based rank of each row's best-ranked true reference (int64 max if none is ranked).
+
+    The rank in the order of ``np.argsort(-s, kind="stable")`` (descending similarity, ties by
+    reference index) with NaN entries unranked: the number of entries above the best true
+    similarity ``t`` plus the entries equal to ``t`` at a lower index than the first true one.
+    Computed by comparisons (no sort); ``rank < k`` is "a true reference in the top k".
+    """
+    nan = np.isnan(s)
+    true_vals = np.where(gt & ~nan, s, -np.inf)
+    j = np.argmax(true_vals, axis=1)  # lowest index among the best true ones
+    rows = np.arange(s.shape[0])
+    t = true_vals[rows, j]
+    with np.errstate(invalid="ignore"):
+        above = (s > t[:, None]).sum(axis=1)
+        tied_before = ((s == t[:, None]) & (np.arange(s.shape[1]) < j[:, None])).sum(axis=1)
+    return np.where(np.isneginf(t), np.iinfo(np.int64).max, above + tied_before)
+
+
+def _topk_hits(s: np.ndarray, gt: np.ndarray, k: int) -> np.ndarray:
+    """``(n,)`` bool: a true reference among the top-k ranked (non-NaN) references of each row."""
+    return _true_rank(s, gt) < int(k)
+
+
+def recall_at_k(similarity: np.ndarray, ground_truth: np.ndarray, k: int,
+                warn: bool = True) -> float:
+    """Fraction of queries (with ground truth) whose top-k references include a true one.
+
+    Args:
+        similarity: ``(Nq, Nr)``; NaN = not ranked (never in the top k).
+        ground_truth: ``(Nq, Nr)`` bool.
+        k: list length (>= 1; capped at Nr). Ties: stable by reference index.
+        warn: log a warning when queries are left out.
+
+    Returns:
+        Recall@k in ``[0, 1]``.
+
+    Raises:
+        ValueError: no query with ground truth (or none with a ranked reference).
+    """
+    if int(k) < 1:
+        raise ValueError(f"k must be >= 1, got {k}")
+    s, gt = _check(similarity, ground_truth)
+    keep = _kept_queries(s, gt, warn)
+    return float(_topk_hits(s[keep], gt[keep], k).mean())
+
+
+def evaluate(similarity: np.ndarray, ground_truth: np.ndarray, protocol: str = "ratio"
+             ) -> dict[str, float]:
+    """Table metrics: ``{"auc", "r_at_100p", "r_at_1", "r_at_5"}`` (PR metrics per ``protocol``).
+
+    Logs at most one coverage warning; raises a ValueError when no query has ground truth.
+    """
+    curve = pr_curve(similarity, ground_truth, protocol)
+    return {
+        "auc": auc_pr(curve),
+        "r_at_100p": recall_at_100_precision(curve),
+        "r_at_1": recall_at_k(similarity, ground_truth, 1, warn=protocol == "multi_match"),
+        "r_at_5": recall_at_k(similarity, ground_truth, 5, warn=False),
+    }
+
+
+def metrics_table(results: Mapping[str, Mapping[str, float]]):
+    """``pandas.DataFrame`` with one row per method name and one column per metric."""
+    import pandas as pd
+
+    df = pd.DataFrame.from_dict({k: dict(v) for k, v in results.items()}, orient="index")
+    df.index.name = "method"
+    return df
