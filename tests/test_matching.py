@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import inspect
 import math
 
 import numpy as np
 import pytest
+import torch
 
 from vpr_core.matching import (
     MatchResult,
@@ -17,8 +19,10 @@ from vpr_core.matching import (
     reciprocal_matches,
     shape_penalty,
     similarity_matrix,
+    similarity_pairs,
     soft_nms_scores,
 )
+from vpr_core.paper import SOFT_NMS_SIGMA
 
 BOX = [0.0, 0.0, 10.0, 10.0]
 
@@ -284,3 +288,104 @@ def test_pairwise_bad_inputs():
         reciprocal_matches(np.ones(3), np.ones((2, 3)))
     with pytest.raises(ValueError, match="overlaps"):
         soft_nms_scores([1.0, 2.0], np.eye(3), 0.5)
+
+
+# ------------------------------------------------------------------------------------------
+# threads, devices, defaults
+# ------------------------------------------------------------------------------------------
+
+
+def test_similarity_matrix_same_bits_for_any_thread_count():
+    rng = np.random.default_rng(13)
+    qd, qb = _random_sets(rng, 20, 1, 30, 32)
+    rd, rb = _random_sets(rng, 9, 1, 30, 32)
+    threads = torch.get_num_threads()
+    try:
+        torch.set_num_threads(1)
+        one = similarity_matrix(qd, qb, rd, rb, batch_size=3, show_progress=False)
+        assert torch.get_num_threads() == 1
+        torch.set_num_threads(2)
+        two = similarity_matrix(qd, qb, rd, rb, batch_size=3, show_progress=False)
+        assert torch.get_num_threads() == 2  # the workers' thread setting does not leak
+    finally:
+        torch.set_num_threads(threads)
+    np.testing.assert_array_equal(one, two)
+    np.testing.assert_allclose(two, _pairwise(qd, qb, rd, rb), atol=1e-5, rtol=0)
+
+
+def test_soft_nms_sigma_default_is_the_papers():
+    for fn in (image_similarity, match_landmarks, soft_nms_scores, similarity_matrix,
+               similarity_pairs):
+        assert inspect.signature(fn).parameters["sigma"].default == SOFT_NMS_SIGMA
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="checks the no-GPU message")
+def test_cuda_without_gpu_is_a_clear_error():
+    d, bx = [np.ones((3, 8))], [np.ones((3, 4))]
+    with pytest.raises(ValueError, match="no CUDA GPU"):
+        similarity_matrix(d, bx, d, bx, device="cuda")
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
+@pytest.mark.parametrize("t", [None, 0.3])
+def test_cuda_equals_pairwise(t):
+    rng = np.random.default_rng(17)
+    qd, qb = _random_sets(rng, 6, 1, 20, 48)
+    rd, rb = _random_sets(rng, 7, 1, 20, 48)
+    want = _pairwise(qd, qb, rd, rb, soft_nms_iou=t)
+    got = similarity_matrix(qd, qb, rd, rb, soft_nms_iou=t, device="cuda")
+    np.testing.assert_allclose(got, want, atol=1e-5, rtol=0)
+    pairs = np.array([[0, 1], [5, 6], [2, 2]])
+    got_p = similarity_pairs(qd, qb, rd, rb, pairs, soft_nms_iou=t, device="cuda")
+    np.testing.assert_allclose(got_p, want[pairs[:, 0], pairs[:, 1]], atol=1e-5, rtol=0)
+
+
+# ------------------------------------------------------------------------------------------
+# similarity_pairs (shortlist re-ranking)
+# ------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("t", [None, 0.3])
+def test_similarity_pairs_equals_pairwise(t):
+    rng = np.random.default_rng(19)
+    qd, qb = _random_sets(rng, 7, 1, 16, 40)
+    rd, rb = _random_sets(rng, 9, 1, 16, 40)
+    rd[4], rb[4] = qd[2].copy(), qb[2].copy()
+    qd[6], qb[6] = np.zeros((0, 40), np.float32), np.zeros((0, 4))
+    want = _pairwise(qd, qb, rd, rb, soft_nms_iou=t)
+    # unsorted, repeated, several references per query (chunks of 2), an empty query
+    pairs = np.array([[3, 1], [0, 4], [2, 4], [0, 0], [3, 8], [2, 4], [6, 1], [0, 7], [0, 2],
+                      [5, 5]])
+    got = similarity_pairs(qd, qb, rd, rb, pairs, soft_nms_iou=t, ref_batch_size=2,
+                           show_progress=False)
+    assert got.shape == (10,) and got.dtype == np.float64
+    np.testing.assert_allclose(got, want[pairs[:, 0], pairs[:, 1]], atol=1e-5, rtol=0)
+    full = similarity_matrix(qd, qb, rd, rb, soft_nms_iou=t, show_progress=False)
+    np.testing.assert_allclose(got, full[pairs[:, 0], pairs[:, 1]], atol=1e-6, rtol=0)
+    assert got[6] == 0.0
+
+
+def test_similarity_pairs_shortlist_of_every_query():
+    rng = np.random.default_rng(23)
+    qd = rng.standard_normal((12, 30, 64)).astype(np.float32)
+    rd = rng.standard_normal((15, 30, 64)).astype(np.float32)
+    qb = np.concatenate([rng.uniform(0, 50, (12, 30, 2)), rng.uniform(10, 60, (12, 30, 2))], 2)
+    rb = np.concatenate([rng.uniform(0, 50, (15, 30, 2)), rng.uniform(10, 60, (15, 30, 2))], 2)
+    top = np.argsort(-rng.random((12, 15)), axis=1)[:, :4]
+    pairs = np.stack([np.repeat(np.arange(12), 4), top.ravel()], axis=1)
+    full = similarity_matrix(qd, qb, rd, rb, show_progress=False)
+    got = similarity_pairs(qd, qb, rd, rb, pairs, show_progress=False)
+    np.testing.assert_allclose(got, full[pairs[:, 0], pairs[:, 1]], atol=1e-6, rtol=0)
+
+
+def test_similarity_pairs_bad_pairs():
+    d, bx = [np.ones((3, 8))] * 2, [np.ones((3, 4))] * 2
+    assert similarity_pairs(d, bx, d, bx, np.zeros((0, 2), int)).shape == (0,)
+    with pytest.raises(ValueError, match=r"\(P, 2\)"):
+        similarity_pairs(d, bx, d, bx, np.array([0, 1]))
+    with pytest.raises(ValueError, match="integer"):
+        similarity_pairs(d, bx, d, bx, np.array([[0.0, 1.0]]))
+    with pytest.raises(ValueError, match="reference index 2, outside 0..1"):
+        similarity_pairs(d, bx, d, bx, np.array([[0, 1], [1, 2]]))
+    with pytest.raises(ValueError, match="query index -1"):
+        similarity_pairs(d, bx, d, bx, np.array([[-1, 0]]))

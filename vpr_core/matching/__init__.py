@@ -16,7 +16,7 @@ Helpers of the batched path: :mod:`~vpr_core.matching.padding` (padded landmark 
 
 from __future__ import annotations
 
-from .batched import similarity_matrix
+from .batched import similarity_matrix, similarity_pairs
 from .pairwise import (
     NMS_TIE_TOL,
     TIE_TOL,
@@ -45,5 +45,6 @@ __all__ = [
     "reciprocal_matches",
     "shape_penalty",
     "similarity_matrix",
+    "similarity_pairs",
     "soft_nms_scores",
 ]

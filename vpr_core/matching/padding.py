@@ -39,11 +39,23 @@ class Side:
     _norm64: torch.Tensor | None = None
     _unit64: torch.Tensor | None = None
 
-    def unit_rows64(self, start: int, stop: int) -> torch.Tensor:
-        """``(stop - start, D)`` float64 unit descriptors of a range of flat rows (cached)."""
+    def images(self, sel: slice | torch.Tensor) -> torch.Tensor:
+        """``(n * K, D)`` normalised matmul-dtype descriptors of the images ``sel``.
+
+        Args:
+            sel: a ``slice`` of image indices (a view, no copy) or an int64 index tensor.
+        """
+        if isinstance(sel, slice):
+            return self.d32[sel.start * self.k: sel.stop * self.k]
+        return self.d32.view(self.n, self.k, -1).index_select(0, sel).view(-1, self.dim)
+
+    def unit_images64(self, sel: slice | torch.Tensor) -> torch.Tensor:
+        """``(n * K, D)`` float64 unit descriptors of the images ``sel`` (cache built once)."""
         if self._unit64 is None:
             self._unit64 = self.raw.double() / self.norm64()[:, None]
-        return self._unit64[start:stop]
+        if isinstance(sel, slice):
+            return self._unit64[sel.start * self.k: sel.stop * self.k]
+        return self._unit64.view(self.n, self.k, -1).index_select(0, sel).view(-1, self.dim)
 
     def norm64(self) -> torch.Tensor:
         """``(N*K,)`` float64 descriptor norms (1 for zero rows), computed once."""
