@@ -1,4 +1,8 @@
-"""The world canvas of one place and its fill / paste / text primitives."""
+"""The world canvas of one place and its fill / paste / text primitives.
+
+Drawing uses integer coordinates and OpenCV's ``LINE_8`` primitives only (integer rasterisation);
+fills are elementwise float64 arithmetic (see :mod:`.exact`).
+"""
 
 from __future__ import annotations
 
@@ -7,6 +11,7 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
+from .exact import resize_area
 from .textures import _tex_patch, _texture_sources
 
 
@@ -25,18 +30,20 @@ class _World:
 
 def _fill_textured(world: _World, x0: int, y0: int, x1: int, y1: int, color: Sequence[float],
                    tex: str, scale: float, gain: float, rng: np.random.Generator) -> None:
+    """Fill a canvas rectangle with ``color * (1 + gain * texture)`` (clipped to the canvas)."""
     hc, wc = world.img.shape[:2]
     x0, x1, y0, y1 = max(0, x0), min(wc, x1), max(0, y0), min(hc, y1)
     if x1 <= x0 or y1 <= y0:
         return
     t = _tex_patch(tex, scale * world.unit / 360.0, y1 - y0, x1 - x0, rng)
-    c = np.asarray(color, np.float32)
+    c = np.asarray(color, np.float64)
     region = c[None, None, :] * (1.0 + gain * t[..., None])
     world.img[y0:y1, x0:x1] = np.clip(region, 0, 255).astype(np.uint8)
 
 
 def _paste_poster(world: _World, x0: int, y0: int, w: int, h: int,
                   rng: np.random.Generator) -> None:
+    """Paste a random crop of a bundled image, framed, into ``(x0, y0, w, h)`` (if it fits)."""
     hc, wc = world.img.shape[:2]
     if w < 6 or h < 6 or x0 < 0 or y0 < 0 or x0 + w > wc or y0 + h > hc:
         return
@@ -53,12 +60,13 @@ def _paste_poster(world: _World, x0: int, y0: int, w: int, h: int,
         crop = crop[:, ::-1]
     b = max(1, int(0.008 * world.unit))
     world.img[y0:y0 + h, x0:x0 + w] = (30, 30, 30)
-    world.img[y0 + b:y0 + h - b, x0 + b:x0 + w - b] = cv2.resize(
-        np.ascontiguousarray(crop), (w - 2 * b, h - 2 * b), interpolation=cv2.INTER_AREA)
+    small = resize_area(crop, (h - 2 * b, w - 2 * b))
+    world.img[y0 + b:y0 + h - b, x0 + b:x0 + w - b] = np.floor(small + 0.5).astype(np.uint8)
 
 
 def _put_text_fit(img: np.ndarray, text: str, x0: int, y0: int, x1: int, y1: int,
                   color: tuple, thickness_scale: float = 1.0) -> None:
+    """Centre ``text`` in a rectangle, scaled to fit (Hershey font, ``LINE_8``: integer-exact)."""
     font = cv2.FONT_HERSHEY_DUPLEX
     w, h = max(1, x1 - x0), max(1, y1 - y0)
     (tw, th), _ = cv2.getTextSize(text, font, 1.0, 1)
@@ -68,4 +76,4 @@ def _put_text_fit(img: np.ndarray, text: str, x0: int, y0: int, x1: int, y1: int
     thick = max(1, round(s * 1.6 * thickness_scale))
     (tw, th), _ = cv2.getTextSize(text, font, s, thick)
     org = (x0 + (w - tw) // 2, y0 + (h + th) // 2)
-    cv2.putText(img, text, org, font, s, color, thick, cv2.LINE_AA)
+    cv2.putText(img, text, org, font, s, color, thick, cv2.LINE_8)

@@ -6,6 +6,7 @@ import cv2
 import numpy as np
 
 from .canvas import _fill_textured, _paste_poster, _put_text_fit, _World
+from .exact import normal
 from .textures import _WALL_TEXTURES
 
 _SHOP_WORDS = (
@@ -13,6 +14,8 @@ _SHOP_WORDS = (
     "DELI", "TAXI", "POST", "OPTIK", "APOTHEKE", "SUSHI", "FLORIST", "GYM", "CINEMA", "LAUNDRY",
     "TOYS", "SHOES", "DINER", "TEA", "MUSIC", "PRINT", "BIKES", "GELATO", "RAMEN", "CAFE",
 )
+
+
 def _style_bank(seed: int, n: int = 6) -> list[dict]:
     """Facade styles shared by all places of one seed (the source of perceptual aliasing)."""
     rng = np.random.default_rng([seed, 999_983])
@@ -20,12 +23,13 @@ def _style_bank(seed: int, n: int = 6) -> list[dict]:
 
 
 def _random_style(rng: np.random.Generator) -> dict:
+    """One facade style: colour, wall texture, window grid, frames, shutters, roof."""
     base = rng.choice([
         (200, 170, 140), (180, 90, 70), (225, 215, 190), (150, 150, 155), (210, 190, 120),
         (120, 140, 160), (190, 120, 100), (235, 235, 230), (170, 160, 120), (140, 100, 80),
     ])
     return {
-        "color": tuple(int(c) for c in np.clip(base + rng.normal(0, 12, 3), 30, 250)),
+        "color": tuple(int(c) for c in np.clip(base + normal(rng, 0, 12, 3), 30, 250)),
         "texture": str(rng.choice(_WALL_TEXTURES, p=[0.4, 0.2, 0.3, 0.1])),
         "tex_scale": float(rng.uniform(0.35, 0.8)),
         "tex_gain": float(rng.uniform(0.08, 0.2)),
@@ -44,15 +48,44 @@ def _random_style(rng: np.random.Generator) -> dict:
         "floor_h": float(rng.uniform(0.19, 0.24)),
     }
 
+
 def _draw_building(world: _World, x0: int, x1: int, top: int, base: int, style: dict,
-                   rng: np.random.Generator) -> None:
+                   rng: np.random.Generator, lit_windows: float = 0.35) -> None:
+    """Draw one building (wall, roof, window grid, ground floor) between ``x0`` and ``x1``.
+
+    Args:
+        world: Canvas to draw on (its ``lit`` list receives the night light sources).
+        x0, x1: Horizontal extent (canvas pixels).
+        top, base: Roof line and ground line (canvas pixels).
+        style: A :func:`_random_style` dict.
+        rng: Random stream of this building.
+        lit_windows: Probability that a window is lit at night.
+    """
     u = world.unit
-    img = world.img
-    color = np.clip(np.asarray(style["color"], float) + rng.normal(0, 6, 3), 20, 250)
+    color = np.clip(np.asarray(style["color"], float) + normal(rng, 0, 6, 3), 20, 250)
     _fill_textured(world, x0, top, x1, base, color, style["texture"], style["tex_scale"],
                    style["tex_gain"], rng)
     dark = tuple(int(c * 0.55) for c in color)
-    # roof
+    _draw_roof(world, x0, x1, top, style, color, dark, rng)
+    floor_h = int(style["floor_h"] * u)
+    gf_top = base - floor_h
+    cv2.line(world.img, (x0, gf_top), (x1, gf_top), dark, max(1, int(0.012 * u)))
+    _draw_windows(world, x0, x1, top, gf_top, style, dark, rng, lit_windows)
+    _draw_ground_floor(world, x0, x1, base, gf_top, floor_h, rng)
+    # occasional big billboard on the facade (a strong, unique landmark)
+    bw = x1 - x0
+    if rng.random() < 0.25 and bw > 0.35 * u and gf_top - top > 0.35 * u:
+        bw2 = int(rng.uniform(0.25, 0.4) * u)
+        bh2 = int(bw2 * rng.uniform(0.6, 1.0))
+        bx = int(rng.uniform(x0 + 0.05 * bw, max(x0 + 0.05 * bw + 1, x1 - bw2 - 0.05 * bw)))
+        by = int(rng.uniform(top + 0.06 * u, max(top + 0.06 * u + 1, gf_top - bh2 - 0.05 * u)))
+        _paste_poster(world, bx, by, bw2, bh2, rng)
+
+
+def _draw_roof(world: _World, x0: int, x1: int, top: int, style: dict, color: np.ndarray,
+               dark: tuple, rng: np.random.Generator) -> None:
+    """Cornice or gable (with tile rows) above the roof line; flat roofs draw nothing."""
+    u, img = world.unit, world.img
     if style["roof"] == "cornice":
         ch = max(2, int(0.03 * u))
         cv2.rectangle(img, (x0 - 2, top), (x1 + 2, top + ch), dark, -1)
@@ -71,11 +104,12 @@ def _draw_building(world: _World, x0: int, x1: int, top: int, base: int, style: 
             cv2.line(img, (int(xm - half), y), (int(xm + half), y),
                      tuple(int(c * 0.7) for c in roof_col), 1)
         cv2.fillPoly(world.sky.view(np.uint8), [pts], 0)
-    # ground floor
-    floor_h = int(style["floor_h"] * u)
-    gf_top = base - floor_h
-    cv2.line(img, (x0, gf_top), (x1, gf_top), dark, max(1, int(0.012 * u)))
-    # window grid (upper floors)
+
+
+def _draw_windows(world: _World, x0: int, x1: int, top: int, gf_top: int, style: dict,
+                  dark: tuple, rng: np.random.Generator, lit_windows: float) -> None:
+    """The window grid of the upper floors; some windows are registered as lit at night."""
+    u, img = world.unit, world.img
     ww, wh = int(style["win_w"] * u), int(style["win_h"] * u)
     gx, gy = int(style["gap_x"] * u), int(style["gap_y"] * u)
     bw = x1 - x0
@@ -88,7 +122,7 @@ def _draw_building(world: _World, x0: int, x1: int, top: int, base: int, style: 
         while y + wh < gf_top - int(0.04 * u):
             for c in range(ncol):
                 wx = mx + c * (ww + gx)
-                glass = np.clip(np.asarray(style["glass"]) + rng.normal(0, 10, 3), 0, 255)
+                glass = np.clip(np.asarray(style["glass"]) + normal(rng, 0, 10, 3), 0, 255)
                 if rng.random() < 0.15:  # a curtain / blind: local uniqueness
                     glass = rng.integers(120, 230, 3)
                 glass_t = tuple(int(v) for v in glass)
@@ -109,10 +143,17 @@ def _draw_building(world: _World, x0: int, x1: int, top: int, base: int, style: 
                     cv2.line(img, (wx + ww // 2, y), (wx + ww // 2, y + wh), frame, ft)
                     cv2.line(img, (wx, y + wh // 2), (wx + ww, y + wh // 2), frame, ft)
                 cv2.rectangle(img, (wx - ft, y + wh), (wx + ww + ft, y + wh + 2 * ft), dark, -1)
-                if rng.random() < 0.35:
+                if rng.random() < lit_windows:
                     warm = (255, int(rng.uniform(190, 235)), int(rng.uniform(100, 170)))
                     world.lit.append((wx, y, wx + ww, y + wh, warm, 0.45))
             y += wh + gy
+
+
+def _draw_ground_floor(world: _World, x0: int, x1: int, base: int, gf_top: int, floor_h: int,
+                       rng: np.random.Generator) -> None:
+    """Door, shop window with its (often lit) sign, and posters on the free wall."""
+    u, img = world.unit, world.img
+    bw = x1 - x0
     # ground floor: door, shop window, sign, posters
     door_w = int(rng.uniform(0.09, 0.13) * u)
     door_h = int(0.8 * floor_h)
@@ -155,10 +196,3 @@ def _draw_building(world: _World, x0: int, x1: int, top: int, base: int, style: 
             ph = int(min(0.65 * floor_h, pw * rng.uniform(1.0, 1.5)))
             px = int(rng.uniform(a, max(a + 1, b - pw)))
             _paste_poster(world, px, base - ph - int(0.08 * u), pw, ph, rng)
-    # occasional big billboard on the facade (a strong, unique landmark)
-    if rng.random() < 0.25 and bw > 0.35 * u and gf_top - top > 0.35 * u:
-        bw2 = int(rng.uniform(0.25, 0.4) * u)
-        bh2 = int(bw2 * rng.uniform(0.6, 1.0))
-        bx = int(rng.uniform(x0 + 0.05 * bw, max(x0 + 0.05 * bw + 1, x1 - bw2 - 0.05 * bw)))
-        by = int(rng.uniform(top + 0.06 * u, max(top + 0.06 * u + 1, gf_top - bh2 - 0.05 * u)))
-        _paste_poster(world, bx, by, bw2, bh2, rng)

@@ -12,10 +12,15 @@ import numpy as np
 from ...utils import cache_dir, logger, progress, short_hash
 from ..core import PlaceDataset, _check_tolerance, _frame_aligned
 from .camera import synthetic_homography
+from .difficulty import SyntheticDifficulty, resolve_difficulty
 
-SYNTHETIC_VERSION = 5
+#: Generator version: part of every cache key. 6: exact arithmetic (same pixels on every CPU)
+#: and difficulty settings.
+SYNTHETIC_VERSION = 6
+
 
 def _write_png(path: Path, rgb: np.ndarray) -> None:
+    """Write ``uint8 (H, W, 3)`` RGB as a PNG atomically (temporary file + rename)."""
     ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR),
                            [cv2.IMWRITE_PNG_COMPRESSION, 1])
     if not ok:  # pragma: no cover - encoding a uint8 RGB array does not fail
@@ -31,6 +36,7 @@ def load_synthetic(
     seed: int = 0,
     image_size: tuple[int, int] = (360, 640),
     tolerance: int = 0,
+    difficulty: str | SyntheticDifficulty = "default",
 ) -> PlaceDataset:
     """The embedded default: a generated street route (DESIGN.md section 3).
 
@@ -39,14 +45,15 @@ def load_synthetic(
     signs, posters from scikit-image's bundled images, trees, lamps, traffic signs, sidewalk and
     road). The reference is a day view from one side of the path; the query is a night view
     (dark, colour cast, lit windows, lamp glare, noise, blur, vignetting) from the other side
-    (horizontal shift, zoom 0.85-1.15, rotation +-5 deg, keystone perspective) with pedestrian /
-    car occluders. Query ``i`` shows the place of reference ``i``; ``homographies[i]`` maps
+    (horizontal shift, zoom, rotation, keystone perspective) with pedestrian / car occluders;
+    ``difficulty`` sets how strong each of these is and how many buildings are exact copies
+    of buildings elsewhere on the route (docs/SYNTHETIC.md). Query ``i`` shows the place of reference ``i``; ``homographies[i]`` maps
     query-``i`` pixels to reference-``i`` pixels exactly (occluders aside).
 
     Files: ``<dir>/query/0000.png``, ``<dir>/reference/0000.png`` and ``<dir>/manifest.json``
     where ``<dir>`` is ``root`` if given, else ``cache_dir("datasets", "synthetic-<hash>")``
-    (the hash covers seed, image size and generator version, not ``n_places``, so a larger
-    route reuses the places of a smaller one). Missing files are (re)generated.
+    (the hash covers seed, image size, difficulty and generator version, not ``n_places``, so a
+    larger route reuses the places of a smaller one). Missing files are (re)generated.
 
     Args:
         root: Output folder (default: the cache).
@@ -54,8 +61,15 @@ def load_synthetic(
         seed: Route seed (``>= 0``); same seed -> identical pixels.
         image_size: ``(H, W)`` of the views (each ``>= 32``).
         tolerance: ``|q - r| <= tolerance`` ground truth.
+        difficulty: A name of ``DIFFICULTIES`` (``easy``, ``default``, ``hard``) or a
+            :class:`SyntheticDifficulty`.
+
+    Raises:
+        ValueError: bad ``n_places``, ``seed``, ``image_size``, ``tolerance`` or an unknown
+            difficulty name (the message lists the valid ones).
     """
     tolerance = _check_tolerance(tolerance)
+    diff_name, diff = resolve_difficulty(difficulty)
     if isinstance(n_places, bool) or not isinstance(n_places, (int, np.integer)) or n_places < 1:
         raise ValueError(f"synthetic: n_places must be an int >= 1, got {n_places!r}.")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
@@ -71,7 +85,8 @@ def load_synthetic(
         )
     n_places, seed = int(n_places), int(seed)
     params = {"generator": "synthetic", "version": SYNTHETIC_VERSION, "seed": seed,
-              "image_size": list(size)}
+              "image_size": list(size), "difficulty": diff_name,
+              "difficulty_settings": diff.as_dict()}
     out = Path(root).expanduser() if root is not None else \
         cache_dir("datasets", f"synthetic-{short_hash(params)}")
     (out / "query").mkdir(parents=True, exist_ok=True)
@@ -84,19 +99,20 @@ def load_synthetic(
         logger.info("synthetic: generating %d of %d places (seed=%d, %dx%d) into %s",
                     len(missing), n_places, seed, size[0], size[1], out)
     for i in progress(missing, desc="synthetic places", total=len(missing)):
-        ref, qry, _ = _render(seed, i, size)
+        ref, qry, _ = _render(seed, i, size, diff)
         _write_png(rp[i], ref)
         _write_png(qp[i], qry)
     for i in range(n_places):
-        homs[i] = synthetic_homography(seed, i, size)
+        homs[i] = synthetic_homography(seed, i, size, diff)
     if missing:
         manifest_path = out / "manifest.json"
         have = sorted(int(p.stem) for p in (out / "query").glob("[0-9][0-9][0-9][0-9].png"))
         manifest = dict(params, places=len(have), files="query/NNNN.png, reference/NNNN.png",
                         note="homographies map query pixels to reference pixels; "
                              "recomputed from (seed, i) by synthetic_homography",
-                        homographies={str(i): synthetic_homography(seed, i, size).round(10).tolist()
-                                      for i in have})
+                        homographies={
+                            str(i): synthetic_homography(seed, i, size, diff).round(10).tolist()
+                            for i in have})
         tmp = manifest_path.with_name(f".manifest.{os.getpid()}.tmp")
         tmp.write_text(json.dumps(manifest, indent=1))
         os.replace(tmp, manifest_path)
@@ -106,8 +122,8 @@ def load_synthetic(
     return PlaceDataset("synthetic", qp, rp, gt, tolerance, root=out, homographies=homs, meta=meta)
 
 
-def _render(seed: int, i: int, size: tuple[int, int]):
+def _render(seed: int, i: int, size: tuple[int, int], diff: SyntheticDifficulty):
     """Call the package attribute ``render_synthetic_place`` (replaceable in tests)."""
     from . import render_synthetic_place
 
-    return render_synthetic_place(seed, i, size)
+    return render_synthetic_place(seed, i, size, diff)

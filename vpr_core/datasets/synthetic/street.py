@@ -6,10 +6,12 @@ import cv2
 import numpy as np
 
 from .canvas import _World
+from .exact import normal
 from .textures import _tex_patch
 
 
 def _draw_tree(world: _World, x: int, ground: int, rng: np.random.Generator) -> None:
+    """A trunk and a crown of overlapping discs with a leaf texture, standing at ``x``."""
     u = world.unit
     img = world.img
     th = int(rng.uniform(0.35, 0.55) * u)
@@ -24,10 +26,10 @@ def _draw_tree(world: _World, x: int, ground: int, rng: np.random.Generator) -> 
         return
     mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
     for _ in range(int(rng.integers(4, 8))):
-        cx = int(x - x0 + rng.normal(0, 0.6 * r0))
-        cyy = int(cy - y0 + rng.normal(-0.3 * r0, 0.45 * r0))
+        cx = int(x - x0 + normal(rng, 0, 0.6 * r0))
+        cyy = int(cy - y0 + normal(rng, -0.3 * r0, 0.45 * r0))
         cv2.circle(mask, (cx, cyy), int(r0 * rng.uniform(0.55, 0.95)), 1, -1)
-    green = np.array([rng.uniform(40, 80), rng.uniform(100, 150), rng.uniform(30, 60)], np.float32)
+    green = np.array([rng.uniform(40, 80), rng.uniform(100, 150), rng.uniform(30, 60)], np.float64)
     t = _tex_patch("grass", 0.5 * u / 360.0, y1 - y0, x1 - x0, rng)
     leaves = np.clip(green[None, None, :] * (1.0 + 0.35 * t[..., None]), 0, 255).astype(np.uint8)
     m = mask.astype(bool)
@@ -36,6 +38,7 @@ def _draw_tree(world: _World, x: int, ground: int, rng: np.random.Generator) -> 
 
 
 def _draw_lamp(world: _World, x: int, ground: int, rng: np.random.Generator) -> None:
+    """A street lamp (its head becomes a glare source at night)."""
     u = world.unit
     h = int(rng.uniform(0.5, 0.7) * u)
     w = max(2, int(0.012 * u))
@@ -51,6 +54,7 @@ def _draw_lamp(world: _World, x: int, ground: int, rng: np.random.Generator) -> 
 
 
 def _draw_traffic_sign(world: _World, x: int, ground: int, rng: np.random.Generator) -> None:
+    """A pole with a prohibition, direction or warning sign."""
     u = world.unit
     h = int(rng.uniform(0.3, 0.42) * u)
     w = max(2, int(0.01 * u))
@@ -63,8 +67,12 @@ def _draw_traffic_sign(world: _World, x: int, ground: int, rng: np.random.Genera
         cv2.circle(world.img, c, int(r * 0.7), (245, 245, 245), -1)
     elif kind == 1:
         cv2.circle(world.img, c, r, (20, 60, 180), -1)
-        cv2.arrowedLine(world.img, (c[0] - r // 2, c[1]), (c[0] + r // 2, c[1]),
-                        (250, 250, 250), max(1, r // 5), tipLength=0.5)
+        # arrow: shaft + head as integer polygons (no anti-aliasing, no trigonometry)
+        t = max(1, r // 10)
+        cv2.rectangle(world.img, (c[0] - r // 2, c[1] - t), (c[0], c[1] + t), (250, 250, 250), -1)
+        head = np.array([[c[0], c[1] - r // 3], [c[0] + r // 2, c[1]], [c[0], c[1] + r // 3]],
+                        np.int32)
+        cv2.fillPoly(world.img, [head], (250, 250, 250))
     else:
         pts = np.array([[c[0], c[1] - r], [c[0] - r, c[1] + r * 3 // 4],
                         [c[0] + r, c[1] + r * 3 // 4]], np.int32)

@@ -6,11 +6,27 @@ import cv2
 import numpy as np
 
 from .canvas import _fill_textured, _World
+from .difficulty import SyntheticDifficulty
 from .facade import _draw_building, _random_style, _style_bank
 from .street import _draw_lamp, _draw_traffic_sign, _draw_tree
 
+#: Stream key of the route-wide shared buildings (perceptual aliasing between places).
+_POOL_KEY = 7_919
 
-def _render_world(seed: int, i: int, hc: int, wc: int, unit: float) -> _World:
+
+def _render_world(seed: int, i: int, hc: int, wc: int, unit: float,
+                  diff: SyntheticDifficulty) -> _World:
+    """The day canvas of place ``i``: sky, buildings, sidewalk, road, trees, lamps, signs.
+
+    Args:
+        seed, i: Route seed and place index (the canvas depends on nothing else).
+        hc, wc: Canvas size in pixels.
+        unit: View height in canvas pixels (sizes are given in this unit).
+        diff: Difficulty (style sharing, repeated buildings, lit windows).
+
+    Returns:
+        The :class:`_World` with its ``uint8 (hc, wc, 3)`` image, sky mask and light sources.
+    """
     rng = np.random.default_rng([seed, i, 2])
     bank = _style_bank(seed)
     world = _World(hc, wc, unit)
@@ -19,18 +35,24 @@ def _render_world(seed: int, i: int, hc: int, wc: int, unit: float) -> _World:
     # sky: vertical gradient + a few soft clouds
     top_col = np.array([rng.uniform(90, 140), rng.uniform(140, 180), rng.uniform(200, 240)])
     bot_col = np.array([rng.uniform(190, 225), rng.uniform(205, 230), rng.uniform(225, 245)])
-    tgrad = np.linspace(0, 1, base, dtype=np.float32)[:, None, None]
+    tgrad = np.linspace(0, 1, base, dtype=np.float64)[:, None, None]
     img[:base] = ((1 - tgrad) * top_col + tgrad * bot_col).astype(np.uint8)
     world.sky[:base] = True
     # buildings along the street
     x = -int(rng.uniform(0, 0.2) * unit)
     while x < wc:
-        bw = int(rng.uniform(0.55, 1.1) * unit)
-        top = int(rng.uniform(0.06, 0.32) * hc)
-        style = bank[int(rng.integers(len(bank)))] if rng.random() < 0.8 else _random_style(rng)
+        b_rng = rng
+        if rng.random() < diff.repeat_facades:  # a copy of one of the route's shared buildings
+            b_rng = np.random.default_rng([seed, _POOL_KEY, int(rng.integers(diff.facade_pool))])
+        bw = int(b_rng.uniform(0.55, 1.1) * unit)
+        top = int(b_rng.uniform(0.06, 0.32) * hc)
+        if b_rng.random() < diff.style_share:
+            style = bank[int(b_rng.integers(len(bank)))]
+        else:
+            style = _random_style(b_rng)
         x1 = min(wc, x + bw)
         world.sky[top:base, max(0, x):x1] = False
-        _draw_building(world, x, x1, top, base, style, rng)
+        _draw_building(world, x, x1, top, base, style, b_rng, diff.lit_windows)
         x = x1 + (int(rng.uniform(0.02, 0.12) * unit) if rng.random() < 0.3 else 0)
     # sidewalk and road
     side_h = int(0.1 * hc)
