@@ -19,13 +19,17 @@ gives a seeded random initialisation, flagged loudly (for speed tests and plumbi
 
 from __future__ import annotations
 
+import logging
 import os
 from pathlib import Path
 
 import torch
 from torch import nn
 
-from ..utils import logger
+from ..paper import ALEXNET_INPUT
+from .checkpoint import load_checkpoint
+
+logger = logging.getLogger("vpr_core")
 
 ALEXNET_URL = "https://download.pytorch.org/models/alexnet-owt-7be5be79.pth"
 ALEXNET_FILENAME = "alexnet-owt-7be5be79.pth"
@@ -33,6 +37,8 @@ ALEXNET_ENV = "VPR_ALEXNET_WEIGHTS"
 RANDOM_WEIGHTS_LABEL = "random (NOT pretrained)"
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
+#: What a weights file must hold (for error messages).
+EXPECTED_WEIGHTS = f"a torchvision AlexNet state dict, e.g. {ALEXNET_FILENAME}"
 CONV3_KEYS: dict[str, tuple[int, ...]] = {
     "features.0.weight": (64, 3, 11, 11),
     "features.0.bias": (64,),
@@ -102,7 +108,8 @@ def extract_conv3_state(state: dict[str, torch.Tensor], source: str = "") -> dic
     if isinstance(state, dict) and "state_dict" in state and isinstance(state["state_dict"], dict):
         state = state["state_dict"]
     if not isinstance(state, dict):
-        raise TypeError(f"AlexNet weights {source}: expected a state dict, got {type(state)}")
+        raise TypeError(f"AlexNet weights {source}: expected {EXPECTED_WEIGHTS}, "
+                        f"got {type(state)}")
     state = {k.removeprefix("module."): v for k, v in state.items()}
     out, problems = {}, []
     for key, shape in CONV3_KEYS.items():
@@ -114,7 +121,8 @@ def extract_conv3_state(state: dict[str, torch.Tensor], source: str = "") -> dic
             out[key] = state[key].float()
     if problems:
         raise ValueError(
-            f"AlexNet weights {source} do not match torchvision's AlexNet layout: "
+            f"AlexNet weights {source} do not match torchvision's AlexNet layout (expected "
+            f"{EXPECTED_WEIGHTS}): "
             + "; ".join(problems)
             + f". Found keys: {sorted(state)[:12]}{' ...' if len(state) > 12 else ''}"
         )
@@ -125,19 +133,25 @@ class AlexNetConv3(nn.Module):
     """AlexNet truncated after conv3 + ReLU (torchvision parameter names ``features.N``).
 
     Attributes:
-        input_size: square crop side (227 in the paper).
-        raw_dim: ``384 * 13 * 13 = 64,896`` at 227.
+        input_size: square crop side (``paper.ALEXNET_INPUT`` = 227).
+        raw_dim: ``384 * 13 * 13`` (``paper.ALEXNET_CONV3_DIM``) at 227.
+        stride: 16, the conv3 output stride (two stride-2 max-pools after the stride-4 conv1).
+        feature_offset: 15.5: conv3 cell ``i`` is centred on input pixel ``16 * i + 15``
+            (continuous coordinate ``16 * i + 15.5``; conv1 pads 2 with an 11-pixel kernel).
         weights_source: file name, or ``"random (NOT pretrained)"``.
 
-    ``forward``: ``(B, 3, s, s)`` ImageNet-normalised crops -> ``(B, raw_dim)`` float32.
+    ``forward``: ``(B, 3, s, s)`` ImageNet-normalised crops -> ``(B, raw_dim)`` float32;
+    ``feature_map``: ``(B, 3, H, W)`` -> ``(B, 384, h, w)``.
     """
 
     mean = IMAGENET_MEAN
     std = IMAGENET_STD
+    stride = 16
+    feature_offset = 15.5
 
     def __init__(
         self,
-        input_size: int = 227,
+        input_size: int = ALEXNET_INPUT,
         weights: str | os.PathLike | None = None,
         seed: int = 0,
     ) -> None:
@@ -167,7 +181,7 @@ class AlexNetConv3(nn.Module):
                 "paper's pretrained conv3 features; use only for speed/plumbing tests."
             )
         else:
-            state = torch.load(resolved, map_location="cpu", weights_only=True)
+            state = load_checkpoint(resolved, EXPECTED_WEIGHTS)
             self.load_state_dict(extract_conv3_state(state, str(resolved)), strict=True)
             self.weights_source = str(resolved.name)
         self.input_size = int(input_size)
@@ -176,6 +190,10 @@ class AlexNetConv3(nn.Module):
         self.feature_shape = tuple(shape)
         self.raw_dim = int(shape.numel())
         self.eval()
+
+    def feature_map(self, batch: torch.Tensor) -> torch.Tensor:
+        """``(B, 3, H, W)`` normalised images -> conv3 + ReLU ``(B, 384, h, w)``."""
+        return self.features(batch)
 
     def forward(self, batch: torch.Tensor) -> torch.Tensor:
         return self.features(batch).flatten(1)

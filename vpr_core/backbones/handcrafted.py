@@ -20,7 +20,8 @@ class HOGBackbone(nn.Module):
         weights_source: ``"none (handcrafted)"``.
 
     ``forward``: ``(B, 3, s, s)`` RGB crops in [0, 1] (``mean=0``, ``std=1``: no normalisation)
-    -> ``(B, raw_dim)`` float32.
+    -> ``(B, raw_dim)`` float32 on the batch's device (HOG itself runs on the CPU). No
+    ``feature_map``: the ``roi`` pooling mode does not apply to it.
     """
 
     mean = (0.0, 0.0, 0.0)
@@ -52,4 +53,4 @@ class HOGBackbone(nn.Module):
         feats = np.stack([hog(g, **self.hog_params) for g in gray]) if len(gray) else np.zeros(
             (0, self.raw_dim)
         )
-        return torch.from_numpy(feats.astype(np.float32))
+        return torch.from_numpy(feats.astype(np.float32)).to(batch.device)

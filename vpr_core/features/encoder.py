@@ -1,0 +1,305 @@
+"""``LandmarkEncoder``: an image and its landmark boxes -> one descriptor per box.
+
+As in the paper's Section 2.1 (AlexNet conv3, 64,896-d, Gaussian random projection to 1,024-d,
+cosine distance downstream), in one of two pooling modes:
+
+* ``pooling="crop"`` (default, the paper's path): every box is cropped and resized to the
+  backbone's square input (:mod:`vpr_core.features.crops`) and run through the backbone in
+  batches of ``batch_size``; the flattened feature map of each crop is its raw feature.
+* ``pooling="roi"`` (fast path): the backbone runs once per image at a fixed working size and
+  every box is pooled from the feature map by bilinear RoIAlign to the same ``(C, n, n)`` layout
+  (:mod:`vpr_core.features.roi`).
+
+Then both modes:
+
+1. **Normalise** with the backbone's mean/std (ImageNet for the CNNs), applied to the whole image
+   once (it commutes with bilinear sampling).
+2. **Project** with a Gaussian random matrix ``P (raw_dim, dim)``, entries ``N(0, 1/dim)``, drawn
+   from ``numpy.random.default_rng(seed)`` (:func:`~vpr_core.features.random_projection`). With
+   ``dim=None`` or ``dim >= raw_dim`` there is no projection and descriptors are raw features.
+   Descriptors are not normalised; they are float32 numpy arrays on the host, whatever the device.
+
+:meth:`LandmarkEncoder.encode_global` is the whole-image descriptor: the descriptor of the box
+``(0, 0, W, H)`` in the encoder's pooling mode, so the ``global`` method and the landmark methods
+share backbone, pooling and projection.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from typing import Any
+
+import numpy as np
+import torch
+
+from ..backbones import DEFAULT_INPUT_SIZE, available_backbones, build_backbone, canonical_backbone
+from ..boxes import check_boxes, check_image
+from ..paper import PROJECTION_DIM
+from .crops import crop_boxes, pyramid_levels
+from .projection import random_projection
+from .roi import DEFAULT_ROI_SAMPLING, DEFAULT_WORKING_SIZE, roi_pool, working_image
+
+logger = logging.getLogger("vpr_core")
+
+__all__ = ["DESCRIPTOR_VERSION", "POOLING_MODES", "LandmarkEncoder", "default_input_size"]
+
+#: Bumped when the descriptor computation changes in a way that invalidates caches.
+DESCRIPTOR_VERSION = 2  # 2: fixed batch shape (grouping-invariant descriptors)
+#: Accepted ``pooling`` values.
+POOLING_MODES = ("crop", "roi")
+
+
+class LandmarkEncoder:
+    """Describe landmark boxes with a CNN (or handcrafted) backbone + Gaussian random projection.
+
+    Args:
+        backbone: name in :func:`available_backbones`, optionally with options
+            (``"efficientnet_lite0:stage=4,input_size=96"``, see :mod:`vpr_core.backbones`).
+        dim: output dimension of the random projection (``paper.PROJECTION_DIM``); None or
+            ``>= raw_dim``: no projection, raw features.
+        seed: seed of the projection matrix (and of ``weights="random"`` initialisations).
+        device: torch device for the backbone and projection (``"cuda"`` when torch sees a GPU).
+        pooling: ``"crop"`` (per-box crops, the paper's) or ``"roi"`` (one pass per image).
+        weights: backbone weights: a path to a state dict, ``"random"`` (AlexNet only, flagged),
+            or None for the backbone's default lookup (see :mod:`vpr_core.backbones`).
+        input_size: square crop side; None -> the spec's or backbone's default
+            (``efficientnet_lite0``: 128, ``alexnet_conv3``: 227, ``hog``: 64). In ``roi`` mode
+            it fixes the pooled grid ``n = ceil(input_size / stride)`` and the sample geometry.
+        batch_size: crops per forward pass, and rows per projection matmul (fixed shape).
+        antialias: crop large boxes from an average-pooled image pyramid (``crop`` mode).
+        working_size: ``roi`` mode: long side of the image fed to the backbone, pixels.
+        roi_sampling: ``roi`` mode: bilinear samples per pooled cell and axis.
+
+    Attributes:
+        raw_dim: backbone feature length before projection.
+        dim: descriptor length actually produced.
+        config: dict describing everything that determines the descriptors (cache key),
+            including ``pooling``.
+
+    Raises:
+        ValueError: unknown backbone (lists valid names), unknown pooling, bad arguments,
+            ``roi`` with a backbone that has no feature map (``hog``).
+        FileNotFoundError: required weights are missing (message says how to get them).
+        WeightsFileError: a weights file cannot be read or does not fit the backbone.
+    """
+
+    def __init__(
+        self,
+        backbone: str = "efficientnet_lite0",
+        dim: int | None = PROJECTION_DIM,
+        seed: int = 0,
+        device: str | torch.device = "cpu",
+        pooling: str = "crop",
+        weights: str | os.PathLike | None = None,
+        input_size: int | None = None,
+        batch_size: int = 50,
+        antialias: bool = True,
+        working_size: int = DEFAULT_WORKING_SIZE,
+        roi_sampling: int = DEFAULT_ROI_SAMPLING,
+    ) -> None:
+        spec = canonical_backbone(backbone)  # validates name and options first
+        if pooling not in POOLING_MODES:
+            raise ValueError(f"unknown pooling {pooling!r}; valid: {', '.join(POOLING_MODES)}")
+        if dim is not None and int(dim) < 1:
+            raise ValueError(f"dim must be a positive integer or None, got {dim}")
+        if int(batch_size) < 1:
+            raise ValueError(f"batch_size must be >= 1, got {batch_size}")
+        if int(working_size) < 32 or int(roi_sampling) < 1:
+            raise ValueError(f"working_size must be >= 32 and roi_sampling >= 1, got "
+                             f"{working_size}, {roi_sampling}")
+        self.device = torch.device(device)
+        if self.device.type == "cuda" and not torch.cuda.is_available():
+            raise ValueError(f"device={device!r} but torch sees no CUDA GPU; use device='cpu'")
+        self.backbone_name = spec
+        self.seed = int(seed)
+        self.pooling = pooling
+        self.batch_size = int(batch_size)
+        self.antialias = bool(antialias)
+        self.working_size = int(working_size)
+        self.roi_sampling = int(roi_sampling)
+        self.model = build_backbone(spec, input_size=input_size, weights=weights,
+                                    seed=self.seed).to(self.device)
+        if pooling == "roi" and not hasattr(self.model, "feature_map"):
+            raise ValueError(f"pooling='roi' needs a CNN backbone with a feature map; {spec!r} "
+                             "has none: use pooling='crop'")
+        self.input_size = int(self.model.input_size)
+        self.raw_dim = int(self.model.raw_dim)
+        self.weights_source = str(self.model.weights_source)
+        self._mean = torch.tensor(self.model.mean, dtype=torch.float32, device=self.device)
+        self._std = torch.tensor(self.model.std, dtype=torch.float32, device=self.device)
+        self.dim_requested = None if dim is None else int(dim)
+        if self.dim_requested is None or self.dim_requested >= self.raw_dim:
+            self.projection: torch.Tensor | None = None
+            self.dim = self.raw_dim
+        else:
+            self.projection = random_projection(self.raw_dim, self.dim_requested, self.seed).to(
+                self.device)
+            self.dim = self.dim_requested
+        self.config = self._make_config()
+        logger.debug("LandmarkEncoder %s", self.config)
+
+    def _make_config(self) -> dict[str, Any]:
+        config: dict[str, Any] = {
+            "backbone": self.backbone_name,
+            "input_size": self.input_size,
+            "raw_dim": self.raw_dim,
+            "feature_shape": list(getattr(self.model, "feature_shape", (self.raw_dim,))),
+            "dim": self.dim,
+            "projection": ("none" if self.projection is None
+                           else "gaussian N(0, 1/dim), numpy default_rng(seed)"),
+            "seed": self.seed,
+            "weights": self.weights_source,
+            "normalisation": {"mean": list(self.model.mean), "std": list(self.model.std)},
+            "antialias": self.antialias,
+            "pooling": self.pooling,
+            "version": DESCRIPTOR_VERSION,
+        }
+        if self.pooling == "roi":
+            config["working_size"] = self.working_size
+            config["roi_sampling"] = self.roi_sampling
+            config.pop("antialias")  # crop-mode option
+        if hasattr(self.model, "stage"):
+            config["stage"] = int(self.model.stage)
+        return config
+
+    # ------------------------------------------------------------------ description
+    def describe(self) -> dict[str, Any]:
+        """A copy of :attr:`config` (backbone, pooling, input size, dims, seed, weights, ...)."""
+        return dict(self.config)
+
+    def __repr__(self) -> str:
+        c = self.config
+        return (f"LandmarkEncoder(backbone={c['backbone']!r}, pooling={c['pooling']!r}, "
+                f"input_size={c['input_size']}, raw_dim={c['raw_dim']}, dim={c['dim']}, "
+                f"seed={c['seed']}, weights={c['weights']!r})")
+
+    # ------------------------------------------------------------------ inputs
+    def _levels(self, boxes: np.ndarray, image_size: tuple[int, int] | None = None) -> np.ndarray:
+        """Pyramid level per box (see :func:`~vpr_core.features.crops.pyramid_levels`)."""
+        return pyramid_levels(boxes, self.input_size, image_size, self.antialias)
+
+    def _image_tensor(self, image: np.ndarray) -> torch.Tensor:
+        """``(H, W, 3)`` uint8 -> ``(1, 3, H, W)`` float32 normalised, on the device."""
+        x = torch.from_numpy(np.ascontiguousarray(image)).to(self.device)
+        x = x.permute(2, 0, 1).unsqueeze(0).float().div_(255.0)
+        return (x - self._mean[:, None, None]) / self._std[:, None, None]
+
+    def crops(self, image: np.ndarray, boxes: np.ndarray) -> torch.Tensor:
+        """Normalised crops of ``boxes`` (``crop`` mode's network input).
+
+        Args:
+            image: ``(H, W, 3)`` uint8 RGB.
+            boxes: ``(K, 4)`` float ``(x, y, w, h)`` pixels.
+
+        Returns:
+            ``(K, 3, s, s)`` float32 tensor on the device, ``s = input_size``.
+        """
+        image = check_image(image)
+        boxes = check_boxes(boxes, positive=True)
+        return crop_boxes(self._image_tensor(image), boxes, self.input_size, self.batch_size,
+                          self.antialias)
+
+    # ------------------------------------------------------------------ encode
+    def encode(self, image: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+        """Describe each landmark box.
+
+        Args:
+            image: ``(H, W, 3)`` uint8 RGB.
+            boxes: ``(K, 4)`` float ``(x, y, w, h)`` pixels (clipped to the image).
+
+        Returns:
+            ``(K, dim)`` float32 descriptors (``(0, dim)`` for no boxes); row k describes box k
+            independently of the other boxes (bit for bit, in both pooling modes).
+
+        Raises:
+            TypeError / ValueError: wrong image type/shape/dtype or boxes shape.
+        """
+        image = check_image(image)
+        boxes = check_boxes(boxes, positive=True)
+        if len(boxes) == 0:
+            return np.zeros((0, self.dim), dtype=np.float32)
+        outs = []
+        with torch.inference_mode():
+            if self.pooling == "roi":
+                raw = self._roi_raw(image, boxes)
+                for start in range(0, len(boxes), self.batch_size):
+                    outs.append(self._project_fixed(raw[start:start + self.batch_size]).cpu())
+            else:
+                crops = crop_boxes(self._image_tensor(image), boxes, self.input_size,
+                                   self.batch_size, self.antialias)
+                for start in range(0, len(boxes), self.batch_size):
+                    chunk = crops[start:start + self.batch_size]
+                    feats = self._forward_fixed(chunk, keep_padding=True)
+                    if self.projection is not None:
+                        feats = feats @ self.projection
+                    outs.append(feats[:len(chunk)].cpu())
+        return torch.cat(outs).numpy().astype(np.float32, copy=False)
+
+    def encode_global(self, image: np.ndarray) -> np.ndarray:
+        """Whole-image descriptor: :meth:`encode` of the box ``(0, 0, W, H)``.
+
+        Same backbone, pooling mode and projection as the landmark descriptors (the ``global``
+        method). Args: ``image`` ``(H, W, 3)`` uint8 RGB. Returns: ``(dim,)`` float32.
+        """
+        image = check_image(image)
+        h, w = image.shape[:2]
+        return self.encode(image, np.array([[0.0, 0.0, w, h]]))[0]
+
+    def _roi_raw(self, image: np.ndarray, boxes: np.ndarray) -> torch.Tensor:
+        """``roi`` mode raw features ``(K, raw_dim)`` on the device (one backbone pass)."""
+        x = working_image(self._image_tensor(image), self.working_size)
+        fmap = self.model.feature_map(x)
+        return roi_pool(fmap, boxes, image.shape[:2], tuple(x.shape[-2:]), self.input_size,
+                        int(self.model.stride), float(self.model.feature_offset),
+                        self.roi_sampling)
+
+    def _project_fixed(self, raw: torch.Tensor) -> torch.Tensor:
+        """Project ``(B, raw_dim)`` rows in a matmul of fixed shape ``(batch_size, raw_dim)``."""
+        if self.projection is None:
+            return raw
+        n = raw.shape[0]
+        if n < self.batch_size:
+            raw = torch.cat([raw, raw[-1:].expand(self.batch_size - n, -1)])
+        return (raw @ self.projection)[:n]
+
+    def _forward_fixed(self, batch: torch.Tensor, keep_padding: bool = False) -> torch.Tensor:
+        """Backbone on a batch padded to ``batch_size`` rows (repeating the last crop).
+
+        CPU kernels (convolutions, and the projection matmul, which becomes a matrix-vector
+        product for one row) are chosen by shape, and some shapes give results that differ in
+        the 4th decimal; a fixed batch shape makes every descriptor independent of how the
+        boxes were grouped (cached resumes, subsets), so the same command gives the same
+        numbers. ``(B, C, S, S)`` -> ``(B, raw_dim)`` float32 (``(batch_size, raw_dim)`` with
+        ``keep_padding``, the padding rows last).
+        """
+        n = batch.shape[0]
+        if n < self.batch_size:
+            pad = batch[-1:].expand(self.batch_size - n, *batch.shape[1:])
+            batch = torch.cat([batch, pad])
+        out = self.model(batch).float()
+        return out if keep_padding else out[:n]
+
+    def encode_raw(self, image: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+        """Backbone features before projection: ``(K, raw_dim)`` float32 (either pooling)."""
+        image = check_image(image)
+        boxes = check_boxes(boxes, positive=True)
+        if len(boxes) == 0:
+            return np.zeros((0, self.raw_dim), dtype=np.float32)
+        with torch.inference_mode():
+            if self.pooling == "roi":
+                return self._roi_raw(image, boxes).cpu().numpy()
+            crops = crop_boxes(self._image_tensor(image), boxes, self.input_size,
+                               self.batch_size, self.antialias)
+            feats = [self._forward_fixed(crops[i:i + self.batch_size]).cpu()
+                     for i in range(0, len(boxes), self.batch_size)]
+        return torch.cat(feats).numpy()
+
+
+def default_input_size(backbone: str) -> int:
+    """Default crop side of ``backbone``."""
+    if backbone not in DEFAULT_INPUT_SIZE:
+        raise ValueError(
+            f"unknown backbone {backbone!r}; valid names: {', '.join(available_backbones())}"
+        )
+    return DEFAULT_INPUT_SIZE[backbone]
