@@ -220,13 +220,10 @@ def scale_statistics_from_matches(records: Iterable[MatchRecord], meta: dict | N
                                   ) -> ScaleStats:
     """CMR / CLS / ASL per Table-1 scale from per-pair match records.
 
-    * ``cmr[s]`` = labelled-correct / labelled matches of ground-truth pairs whose query-side
-      landmark has scale ``s`` (NaN where none);
-    * ``cls_gt[s]`` = sum of the positive parts ``max(1 - d*s, 0)`` of the pair scores of
-      ground-truth-pair matches of scale ``s`` divided by the sum over all scales, pooled over all
-      pairs (so ``nansum(cls_gt[1:]) == 1``; all NaN when there are no matches or no positive
-      mass); ``cls_irrelevant`` likewise;
-    * ``asl_gt[s]`` / ``asl_irrelevant[s]`` = mean pair score of those matches (NaN where none).
+    Matches are binned by their query-side scale and pooled over all pairs: ``cmr`` from the
+    labelled matches of ground-truth pairs, ``cls_*`` (shares of the positive pair scores, so
+    ``nansum(cls_gt[1:]) == 1``) and ``asl_*`` (mean pair scores) from ground-truth and
+    query-irrelevant pairs; see :class:`ScaleStats` for each array. NaN where a scale has none.
 
     Args:
         records: :class:`MatchRecord` per image pair.
