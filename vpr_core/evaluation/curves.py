@@ -35,7 +35,8 @@ Unranked references (NaN)
 Ground-truth coverage
     Queries without any ground-truth reference are left out (``ratio``, ``best_match``, R@K). When
     no query is left, every metric raises a ValueError (a metric over nothing is not 0); when some
-    are left out, the ``vpr_core`` logger warns with the count (:func:`ground_truth_coverage`).
+    are left out, the ``vpr_core`` logger warns with the count
+    (:func:`~vpr_core.datasets.ground_truth.ground_truth_coverage`, re-exported here).
 """
 
 from __future__ import annotations
@@ -45,6 +46,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from ..datasets.ground_truth import ground_truth_coverage
 
 __all__ = [
     "PROTOCOLS",
@@ -106,21 +109,6 @@ def _check(similarity, ground_truth) -> tuple[np.ndarray, np.ndarray]:
     if np.isinf(s).any():
         raise ValueError("similarity contains inf; use NaN to mark a pair that is not ranked")
     return s, gt
-
-
-def ground_truth_coverage(ground_truth: np.ndarray) -> tuple[int, int]:
-    """Number of queries with at least one ground-truth reference, and of all queries.
-
-    Args:
-        ground_truth: ``(Nq, Nr)`` bool (or 0/1).
-
-    Returns:
-        ``(n_with, n_total)``.
-    """
-    gt = np.asarray(ground_truth)
-    if gt.ndim != 2:
-        raise ValueError(f"ground_truth must be a (Nq, Nr) matrix, got shape {gt.shape}")
-    return int(gt.astype(bool).any(axis=1).sum()), int(gt.shape[0])
 
 
 def _kept_queries(s: np.ndarray, gt: np.ndarray, warn: bool = True) -> np.ndarray:

@@ -64,7 +64,9 @@ def similarity_matrix(query_desc: LandmarkSets, query_boxes: LandmarkSets,
         show_progress: progress bar over query blocks (``TQDM_DISABLE=1`` silences it).
 
     Returns:
-        ``(Nq, Nr)`` float64 similarity matrix.
+        ``(Nq, Nr)`` float64 similarity matrix; 0 for a pair where an image has no landmark
+        (Eq. 1's convention; to exclude such images from ranking, set their entries to NaN,
+        which :mod:`vpr_core.evaluation` treats as "not ranked").
     """
     ctx = _Context.build(query_desc, query_boxes, reference_desc, reference_boxes, soft_nms_iou,
                          sigma, device, matmul_dtype)
@@ -191,10 +193,9 @@ class _Context:
         nms = None
         if soft_nms_iou is not None and not empty:
             nms = (iou_stack(q, dev), iou_stack(r, dev), float(soft_nms_iou), float(sigma))
-            q.unit_images64(slice(0, 0))  # build the float64 caches before threads share them
-            r.unit_images64(slice(0, 0))
         if not empty:
-            q.norm64(), r.norm64()
+            q.build_caches(unit64=nms is not None)
+            r.build_caches(unit64=nms is not None)
         return cls(q, r, dev, mm_dtype, margin, nms, empty)
 
     def block(self, qsel: Selection, rsel: Selection) -> torch.Tensor:

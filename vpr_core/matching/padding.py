@@ -57,6 +57,12 @@ class Side:
             return self._unit64[sel.start * self.k: sel.stop * self.k]
         return self._unit64.view(self.n, self.k, -1).index_select(0, sel).view(-1, self.dim)
 
+    def build_caches(self, unit64: bool) -> None:
+        """Compute the lazy float64 caches now (before worker threads share this side)."""
+        self.norm64()
+        if unit64:
+            self.unit_images64(slice(0, 0))
+
     def norm64(self) -> torch.Tensor:
         """``(N*K,)`` float64 descriptor norms (1 for zero rows), computed once."""
         if self._norm64 is None:
