@@ -41,7 +41,7 @@ def similarity_matrix(query_desc: LandmarkSets, query_boxes: LandmarkSets,
     Descriptors are L2-normalised, zero padded to the largest landmark count (padded entries are
     masked out), and compared by one matmul per block of ``batch_size`` queries x
     ``ref_batch_size`` references; reciprocal matches come from argmax both ways. On the CPU the
-    query blocks are spread over ``torch.get_num_threads()`` worker threads, each running its
+    blocks are spread over ``torch.get_num_threads()`` worker threads, each running its
     matmuls and reductions on one core (no per-operation barriers, so the reductions after each
     matmul use every core; the result does not depend on the thread count). The matmul runs
     in ``matmul_dtype`` (float32 by default); every row or column whose best two cosines lie within
@@ -78,13 +78,13 @@ def similarity_matrix(query_desc: LandmarkSets, query_boxes: LandmarkSets,
     br = int(ref_batch_size or max(1, BLOCK_BYTES // (4 * bq * q.k * r.k)))
     br = max(1, min(br, r.n))
 
-    def task(q0: int) -> None:
-        q1 = min(q0 + bq, q.n)
-        for r0 in range(0, r.n, br):
-            r1 = min(r0 + br, r.n)
-            out[q0:q1, r0:r1] = ctx.block(slice(q0, q1), slice(r0, r1))
+    def task(q0: int, r0: int) -> None:
+        q1, r1 = min(q0 + bq, q.n), min(r0 + br, r.n)
+        out[q0:q1, r0:r1] = ctx.block(slice(q0, q1), slice(r0, r1))
 
-    _run(ctx, [lambda q0=q0: task(q0) for q0 in range(0, q.n, bq)], show_progress)
+    tasks = [lambda q0=q0, r0=r0: task(q0, r0)
+             for q0 in range(0, q.n, bq) for r0 in range(0, r.n, br)]
+    _run(ctx, tasks, show_progress)
     return out.cpu().numpy()
 
 
