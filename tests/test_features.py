@@ -317,3 +317,117 @@ def test_descriptors_do_not_depend_on_how_boxes_are_grouped():
     for k in (1, 3, 5):
         parts = np.concatenate([enc.encode(img, boxes[i:i + k]) for i in range(0, len(boxes), k)])
         np.testing.assert_array_equal(whole, parts)
+
+
+# ----------------------------------------------------------------------------- roi pooling
+def _natural_image() -> np.ndarray:
+    from skimage.data import astronaut
+
+    return np.ascontiguousarray(np.concatenate([astronaut(), astronaut()[:, ::-1]], 1)[:360, :640])
+
+
+@pytest.fixture(scope="module")
+def roi_encoder():
+    return LandmarkEncoder(pooling="roi")
+
+
+def test_roi_config_shape_and_global(roi_encoder, encoder):
+    img = _natural_image()
+    c = roi_encoder.describe()
+    assert c["pooling"] == "roi" and encoder.describe()["pooling"] == "crop"
+    assert c["working_size"] == 512 and c["dim"] == 1024 and c["raw_dim"] == encoder.raw_dim
+    from vpr_core.pipeline import _encoder_slug
+
+    assert _encoder_slug(roi_encoder) != _encoder_slug(encoder)
+    boxes = np.array([[0, 0, 640, 360], [100, 50, 200, 150]], dtype=float)
+    d = roi_encoder.encode(img, boxes)
+    assert d.shape == (2, 1024) and d.dtype == np.float32 and np.isfinite(d).all()
+    g = roi_encoder.encode_global(img)
+    assert g.shape == (1024,) and g.dtype == np.float32
+    np.testing.assert_array_equal(g, d[0])
+    np.testing.assert_array_equal(encoder.encode_global(img), encoder.encode(img, boxes[:1])[0])
+    assert roi_encoder.encode(img, np.zeros((0, 4))).shape == (0, 1024)
+
+
+def test_roi_grouping_invariant_and_deterministic(roi_encoder):
+    from vpr_core.landmarks import dense_sampling
+
+    img = _natural_image()
+    boxes = np.concatenate([dense_sampling(img.shape[:2]), [[-30, -20, 100, 90], [600, 330, 80, 60]]])
+    whole = roi_encoder.encode(img, boxes)
+    for k in (1, 7, 50):
+        parts = np.concatenate([roi_encoder.encode(img, boxes[i:i + k])
+                                for i in range(0, len(boxes), k)])
+        np.testing.assert_array_equal(whole, parts)
+    np.testing.assert_array_equal(whole, LandmarkEncoder(pooling="roi").encode(img, boxes))
+
+
+def test_roi_pool_equals_grid_sample_reference():
+    """The separable weights equal grid_sample (bilinear, border, align_corners=False) averaged
+    over each cell's r x r sub-samples."""
+    from vpr_core.features.roi import roi_pool, roi_sample_points
+
+    g = torch.Generator().manual_seed(0)
+    fmap = torch.randn(1, 5, 9, 13, generator=g)
+    boxes = np.array([[0, 0, 208, 144], [30, 20, 70, 50], [-10, 100, 90, 60], [190, 5, 40, 40]],
+                     dtype=float)
+    image_size, work, s, stride, off, r = (144, 208), (144, 208), 64, 16, 15.5, 3
+    got = roi_pool(fmap, boxes, image_size, work, s, stride, off, r)
+    n = s // stride
+    pts = roi_sample_points(boxes, image_size, s, n, stride, off, r)
+    qx = ((pts[0] + 0.5) - off) / stride
+    qy = ((pts[1] + 0.5) - off) / stride
+    gx = (2 * qx + 1) / 13 - 1
+    gy = (2 * qy + 1) / 9 - 1
+    ref = []
+    for k in range(len(boxes)):
+        grid = np.stack(np.meshgrid(gx[k], gy[k]), -1)[None].astype(np.float32)  # (1, nr, nr, 2)
+        smp = F.grid_sample(fmap, torch.from_numpy(grid), mode="bilinear",
+                            padding_mode="border", align_corners=False)[0]  # (C, nr, nr)
+        ref.append(smp.reshape(5, n, r, n, r).mean((2, 4)).reshape(-1))
+    torch.testing.assert_close(got, torch.stack(ref), atol=1e-5, rtol=1e-5)
+
+
+def test_roi_describes_the_same_regions_as_crop(roi_encoder, encoder):
+    """Each roi descriptor is closest to the crop descriptor of the same box (100 dense boxes
+    of a natural image), and the two agree in cosine far above unrelated boxes."""
+    from vpr_core.landmarks import dense_sampling
+
+    img = _natural_image()
+    boxes = dense_sampling(img.shape[:2])
+    dc, dr = encoder.encode(img, boxes), roi_encoder.encode(img, boxes)
+    nc = dc / np.linalg.norm(dc, axis=1, keepdims=True)
+    nr = dr / np.linalg.norm(dr, axis=1, keepdims=True)
+    cos = nr @ nc.T
+    assert (cos.argmax(1) == np.arange(len(boxes))).mean() >= 0.95
+    assert np.diag(cos).mean() > 0.5
+    # a mis-registered roi grid (shifted by half the box) would not match
+    shifted = boxes.copy()
+    shifted[:, 0] += shifted[:, 2] / 2
+    ds = roi_encoder.encode(img, shifted)
+    ns = ds / np.linalg.norm(ds, axis=1, keepdims=True)
+    assert np.diag(nr @ nc.T).mean() > np.einsum("ij,ij->i", ns, nc).mean() + 0.1
+
+
+def test_pooling_errors():
+    with pytest.raises(ValueError, match="crop, roi"):
+        LandmarkEncoder(pooling="max")
+    with pytest.raises(ValueError, match="feature map.*pooling='crop'"):
+        LandmarkEncoder("hog", pooling="roi")
+    if not torch.cuda.is_available():
+        with pytest.raises(ValueError, match="no CUDA"):
+            LandmarkEncoder(device="cuda")
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
+@pytest.mark.parametrize("pooling", ["crop", "roi"])
+def test_cuda_matches_cpu(pooling, image):
+    boxes = np.array([[0, 0, 50, 40], [10, 20, 100, 90], [150, 80, 60, 60]], dtype=float)
+    cpu = LandmarkEncoder(pooling=pooling)
+    gpu = LandmarkEncoder(pooling=pooling, device="cuda")
+    assert gpu.projection.device.type == "cuda"
+    assert next(gpu.model.parameters()).device.type == "cuda"
+    d = gpu.encode(image, boxes)
+    assert isinstance(d, np.ndarray) and d.dtype == np.float32 and d.shape == (3, 1024)
+    np.testing.assert_allclose(d, cpu.encode(image, boxes), rtol=2e-2, atol=2e-2)
+    assert gpu.encode_global(image).shape == (1024,)

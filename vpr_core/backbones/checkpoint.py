@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import os
-import pickle
-import zipfile
 from pathlib import Path
 
 import torch
@@ -36,8 +34,10 @@ def load_checkpoint(path: str | os.PathLike, expected: str) -> dict[str, torch.T
     p = Path(path)
     try:
         state = torch.load(p, map_location="cpu", weights_only=True)
-    except (pickle.UnpicklingError, EOFError, zipfile.BadZipFile, RuntimeError, ValueError,
-            UnicodeDecodeError, AttributeError, TypeError) as exc:
+    except OSError:
+        raise  # missing / unreadable file: the OS error already names it
+    except Exception as exc:  # torch's unpickler raises anything on garbage
+        # (UnpicklingError, EOFError, BadZipFile, RuntimeError, IndexError, ...)
         raise WeightsFileError(
             f"cannot read weights file {p} ({p.stat().st_size if p.exists() else 0} bytes): "
             f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}. Expected "

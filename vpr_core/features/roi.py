@@ -7,7 +7,8 @@
    smallest dense box (area 0.16) about 13x7: a few cells wide, like the 8x8 cells that ``crop``
    mode gives every box. Every image, whatever its size, is processed at the same working size,
    so the backbone sees the same scale for the same normalised box.
-2. **Bilinear RoIAlign** (``torch.nn.functional.grid_sample``, ``align_corners=False``): each box
+2. **Bilinear RoIAlign** (bilinear sampling as ``grid_sample(align_corners=False,
+   padding_mode="border")``, computed separably by :func:`roi_pool`): each box
    gives an ``n x n`` grid, ``n`` = the side of ``crop`` mode's feature map for that backbone and
    crop size (8 for Lite0 stage 5 at 128 px). Sample ``(i, j)`` is placed where cell ``(i, j)`` of
    the crop-mode feature map is centred once the crop is mapped back onto the image (same corner
@@ -18,9 +19,9 @@
 3. The ``(K, C, n, n)`` result is flattened in ``crop`` mode's order and projected with the same
    matrix, so both modes give descriptors of the same dimension in the same space.
 
-Determinism: the feature map depends only on the image; each box's sample points start at a
-multiple of 16 in the sampling grid (padded), so a box's descriptor does not depend on which other
-boxes are encoded with it.
+Determinism: the feature map depends only on the image, and each box is pooled by its own
+matmuls of fixed shape, so a box's descriptor does not depend on which other boxes are encoded
+with it.
 """
 
 from __future__ import annotations
@@ -38,7 +39,6 @@ __all__ = ["DEFAULT_ROI_SAMPLING", "DEFAULT_WORKING_SIZE", "roi_pool", "roi_samp
 DEFAULT_WORKING_SIZE = 512
 #: Bilinear samples per output cell and axis (RoIAlign's sampling ratio).
 DEFAULT_ROI_SAMPLING = 4
-_ALIGN = 16  # sample points per box padded to a multiple of this (vector lanes)
 
 
 def working_shape(image_size: tuple[int, int], working_size: int) -> tuple[int, int]:
@@ -93,10 +93,42 @@ def roi_sample_points(boxes: np.ndarray, image_size: tuple[int, int], crop_size:
     return np.stack([xs, ys])
 
 
+def _axis_weights(q: np.ndarray, size: int, side: int, sampling: int) -> np.ndarray:
+    """Bilinear weights along one axis, averaged over each cell's sub-samples.
+
+    Args:
+        q: ``(K, side * sampling)`` sample positions in feature-index coordinates (cell ``i``
+            centred at ``i``); clamped to ``[0, size - 1]`` (``grid_sample``'s border padding).
+        size: feature map length along this axis.
+        side: pooled cells ``n``.
+        sampling: sub-samples per cell ``r``.
+
+    Returns:
+        ``(K, n, size)`` float64; row ``(k, j)`` sums to 1.
+    """
+    k = q.shape[0]
+    q = np.clip(q, 0.0, size - 1.0)
+    i0 = np.floor(q).astype(np.int64)
+    i1 = np.minimum(i0 + 1, size - 1)
+    w1 = q - i0
+    weights = np.zeros((k, side, size))
+    rows = np.broadcast_to(np.arange(k)[:, None], q.shape)
+    cells = np.broadcast_to(np.repeat(np.arange(side), sampling)[None, :], q.shape)
+    np.add.at(weights, (rows, cells, i0), (1.0 - w1) / sampling)
+    np.add.at(weights, (rows, cells, i1), w1 / sampling)
+    return weights
+
+
 def roi_pool(fmap: torch.Tensor, boxes: np.ndarray, image_size: tuple[int, int],
              work_size: tuple[int, int], crop_size: int, stride: int, offset: float,
              sampling: int = DEFAULT_ROI_SAMPLING) -> torch.Tensor:
     """Pool every box from a feature map to crop mode's ``(C, n, n)`` layout, flattened.
+
+    Bilinear interpolation on a separable sample grid factors into one weight matrix per axis:
+    the average of the ``r x r`` bilinear samples of cell ``(i, j)`` is
+    ``sum_{y, x} Ay[i, y] * F[c, y, x] * Ax[j, x]``, computed as two batched matmuls
+    (``Ay @ F @ Ax^T``). It equals ``grid_sample(..., mode="bilinear", padding_mode="border",
+    align_corners=False)`` averaged over the sub-samples (tested), at a fraction of the cost.
 
     Args:
         fmap: ``(1, C, hf, wf)`` backbone feature map of the working-size image.
@@ -112,31 +144,16 @@ def roi_pool(fmap: torch.Tensor, boxes: np.ndarray, image_size: tuple[int, int],
     """
     n = math.ceil(crop_size / stride)
     k, r = len(boxes), int(sampling)
-    hf, wf = fmap.shape[-2:]
+    c, hf, wf = fmap.shape[-3:]
     pts = roi_sample_points(boxes, image_size, crop_size, n, stride, offset, r)
-    # image index -> working-image continuous coordinate -> feature index -> grid_sample [-1, 1]
-    fx = work_size[1] / image_size[1]
-    fy = work_size[0] / image_size[0]
-    qx = ((pts[0] + 0.5) * fx - offset) / stride
-    qy = ((pts[1] + 0.5) * fy - offset) / stride
-    gx = (2.0 * qx + 1.0) / wf - 1.0  # (K, n*r)
-    gy = (2.0 * qy + 1.0) / hf - 1.0
-    # grid (1, r*r, K * P, 2): row = sub-sample (ty, tx), column = (box, cell y, cell x)
-    gx = gx.reshape(k, 1, n, 1, r)  # box, -, cell x, -, tx
-    gy = gy.reshape(k, n, 1, r, 1)  # box, cell y, -, ty, -
-    grid = np.stack(np.broadcast_arrays(gx, gy), axis=-1)  # (K, n, n, r, r, 2)
-    grid = grid.transpose(3, 4, 0, 1, 2, 5).reshape(r * r, k, n * n, 2)
-    pad = -(n * n) % _ALIGN
-    if pad:
-        grid = np.concatenate([grid, np.zeros((r * r, k, pad, 2))], axis=2)
-    p = n * n + pad
-    g = torch.from_numpy(grid.reshape(1, r * r, k * p, 2).astype(np.float32)).to(fmap.device)
-    samples = F.grid_sample(fmap.float().contiguous(), g, mode="bilinear",
-                            padding_mode="border", align_corners=False)[0]  # (C, r*r, K*P)
-    acc = samples[:, 0]
-    for i in range(1, r * r):  # fixed summation order: grouping-independent
-        acc = acc + samples[:, i]
-    acc = acc * (1.0 / (r * r))
-    c = acc.shape[0]
-    out = acc.reshape(c, k, p)[:, :, : n * n].permute(1, 0, 2)  # (K, C, n*n)
-    return out.reshape(k, c * n * n).contiguous()
+    # image index -> working-image continuous coordinate -> feature index (cell centre = integer)
+    qx = ((pts[0] + 0.5) * (work_size[1] / image_size[1]) - offset) / stride
+    qy = ((pts[1] + 0.5) * (work_size[0] / image_size[0]) - offset) / stride
+    to = {"dtype": torch.float32, "device": fmap.device}
+    ax = torch.from_numpy(_axis_weights(qx, wf, n, r)).to(**to)  # (K, n, wf)
+    ay = torch.from_numpy(_axis_weights(qy, hf, n, r)).to(**to)  # (K, n, hf)
+    feat = fmap[0].float().contiguous()  # (C, hf, wf)
+    out = torch.empty((k, c, n, n), **to)
+    for i in range(k):  # one box at a time: the same kernels whatever K (grouping-invariant)
+        out[i] = torch.matmul(torch.matmul(ay[i], feat), ax[i].T)  # (C, n, n)
+    return out.reshape(k, c * n * n)
