@@ -1,0 +1,170 @@
+"""The Dask engine (vpr_core.engine.distributed) against a LocalCluster on 127.0.0.1.
+
+The cluster has two worker processes with one thread each (Dask's nanny also sets
+OMP_NUM_THREADS=1 there), while this process runs torch with its default thread count: the
+results must still equal the in-process ones exactly.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from vpr_core.engine import (
+    SCHEDULER_ENV,
+    extract_features_distributed,
+    get_client,
+    rerank,
+    scheduler_address,
+    shortlist_pairs,
+    similarity_blocks_distributed,
+    similarity_pairs_distributed,
+)
+from vpr_core.features import LandmarkEncoder
+from vpr_core.landmarks import dense_sampling
+from vpr_core.matching import similarity_matrix, similarity_pairs
+
+distributed = pytest.importorskip("distributed")
+
+ENCODER = {"backbone": "efficientnet_lite0", "dim": 64, "seed": 0}
+
+
+@pytest.fixture(scope="module")
+def client():
+    """A Client on a two-process LocalCluster bound to 127.0.0.1 (closed after the module)."""
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                       host="127.0.0.1", dashboard_address=None)
+    with cluster, get_client(cluster.scheduler_address) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def small_set():
+    from vpr_core.datasets import load_dataset
+
+    return load_dataset("synthetic", n_places=4, image_size=(64, 112))
+
+
+def _random_sets(rng, n, dim=48, kmin=6, kmax=20):
+    desc, boxes = [], []
+    for k in rng.integers(kmin, kmax + 1, n):
+        desc.append(rng.standard_normal((k, dim)).astype(np.float32))
+        boxes.append(np.c_[rng.uniform(0, 60, (k, 2)), rng.uniform(5, 60, (k, 2))])
+    return desc, boxes
+
+
+def test_cluster_is_local_and_workers_single_threaded(client):
+    workers = client.scheduler_info()["workers"]
+    assert len(workers) == 2
+    assert all(addr.startswith("tcp://127.0.0.1:") for addr in workers)
+    threads = client.run(torch.get_num_threads)
+    assert set(threads.values()) == {1}
+
+
+def test_features_on_cluster_equal_in_process(client, small_set):
+    enc = LandmarkEncoder(**ENCODER)
+    for side in ("query", "reference"):
+        n = len(small_set.paths(side))
+        boxes = [dense_sampling(small_set.image_size(side, i), per_scale=4) for i in range(n)]
+        got, secs = extract_features_distributed(client, small_set, side, ENCODER,
+                                                 boxes=boxes, shard_size=3)
+        assert len(got) == n and len(secs) == n and all(s > 0 for s in secs)
+        for i in range(n):
+            want = enc.encode(small_set.load_image(side, i), boxes[i])
+            assert got[i].dtype == np.float32
+            assert np.array_equal(got[i], want), f"{side} image {i} differs"
+    # a subset in any order comes back in that order
+    idx = [3, 0]
+    boxes = [dense_sampling(small_set.image_size("query", i), per_scale=1) for i in idx]
+    got, _ = extract_features_distributed(client, small_set, "query", ENCODER, indices=idx,
+                                          boxes=boxes, shard_size=1)
+    for g, i, b in zip(got, idx, boxes):
+        assert np.array_equal(g, enc.encode(small_set.load_image("query", i), b))
+
+
+def test_global_features_on_cluster_equal_in_process(client, small_set):
+    if not hasattr(LandmarkEncoder, "encode_global"):
+        pytest.skip("LandmarkEncoder.encode_global not available yet")
+    enc = LandmarkEncoder(**ENCODER)
+    got, _ = extract_features_distributed(client, small_set, "reference", ENCODER, kind="global")
+    want = [enc.encode_global(small_set.load_image("reference", i)) for i in range(4)]
+    assert np.array_equal(np.stack(got), np.stack(want))
+
+
+def test_similarity_and_shortlist_of_real_features_equal_in_process(client, small_set):
+    n = 4
+    feats, boxes = {}, {}
+    for side in ("query", "reference"):
+        boxes[side] = [dense_sampling(small_set.image_size(side, i)) for i in range(n)]
+        feats[side], _ = extract_features_distributed(client, small_set, side, ENCODER,
+                                                      boxes=boxes[side])
+    args = (feats["query"], boxes["query"], feats["reference"], boxes["reference"])
+    want = similarity_matrix(*args, show_progress=False)
+    got = similarity_blocks_distributed(client, *args, block_queries=3)
+    assert np.array_equal(got, want)
+    gq = np.stack([d.mean(0) for d in feats["query"]])
+    gr = np.stack([d.mean(0) for d in feats["reference"]])
+    pairs, _ = shortlist_pairs(gq, gr, 2)
+    vals = similarity_pairs_distributed(client, *args, pairs, block_queries=3,
+                                        block_references=2)
+    assert np.array_equal(vals, similarity_pairs(*args, pairs, show_progress=False))
+    sim = rerank(vals, pairs, n, n)
+    assert np.isnan(sim).sum() == n * (n - 2)
+
+
+@pytest.mark.parametrize("soft_nms_iou", [None, 0.4])
+def test_similarity_blocks_unequal_landmark_counts_equal_in_process(client, soft_nms_iou):
+    rng = np.random.default_rng(7)
+    qd, qb = _random_sets(rng, 11)
+    rd, rb = _random_sets(rng, 13)
+    want = similarity_matrix(qd, qb, rd, rb, soft_nms_iou=soft_nms_iou, show_progress=False)
+    got = similarity_blocks_distributed(client, qd, qb, rd, rb, soft_nms_iou=soft_nms_iou,
+                                        block_queries=4)
+    assert np.array_equal(got, want)
+    # a shuffled shortlist with repeats, spread over several query and reference blocks
+    pairs = np.stack([rng.integers(0, 11, 60), rng.integers(0, 13, 60)], axis=1)
+    want_p = similarity_pairs(qd, qb, rd, rb, pairs, soft_nms_iou=soft_nms_iou,
+                              show_progress=False)
+    got_p = similarity_pairs_distributed(client, qd, qb, rd, rb, pairs,
+                                         soft_nms_iou=soft_nms_iou, block_queries=3,
+                                         block_references=4)
+    assert np.array_equal(got_p, want_p)
+    # the pairs path agrees with the matrix path (bit for bit without soft-NMS; with it the
+    # matcher's float64 soft-NMS scores can differ in the last bit between the two paths)
+    np.testing.assert_allclose(got_p, want[pairs[:, 0], pairs[:, 1]], rtol=0,
+                               atol=0 if soft_nms_iou is None else 1e-15)
+
+
+def test_in_process_fallback_equals_direct_call():
+    rng = np.random.default_rng(8)
+    qd, qb = _random_sets(rng, 3)
+    rd, rb = _random_sets(rng, 4)
+    want = similarity_matrix(qd, qb, rd, rb, show_progress=False)
+    assert np.array_equal(similarity_blocks_distributed(None, qd, qb, rd, rb), want)
+
+
+def test_scheduler_address_resolution(monkeypatch):
+    monkeypatch.delenv(SCHEDULER_ENV, raising=False)
+    assert scheduler_address(None) is None
+    assert get_client(None) is None
+    monkeypatch.setenv(SCHEDULER_ENV, " tcp://127.0.0.1:8786 ")
+    assert scheduler_address(None) == "tcp://127.0.0.1:8786"
+    assert scheduler_address("tcp://127.0.0.1:9000") == "tcp://127.0.0.1:9000"
+    with pytest.raises(ValueError, match="non-empty string"):
+        scheduler_address("  ")
+
+
+def test_unreachable_scheduler_names_address_and_fix():
+    with pytest.raises(ConnectionError, match=r"127\.0\.0\.1:1.*dask scheduler"):
+        get_client("tcp://127.0.0.1:1", timeout=2)
+
+
+def test_feature_arguments_validated(small_set):
+    with pytest.raises(ValueError, match="one boxes array per image"):
+        extract_features_distributed(None, small_set, "query", ENCODER, boxes=[np.zeros((0, 4))])
+    with pytest.raises(ValueError, match="side must be"):
+        extract_features_distributed(None, small_set, "left", ENCODER)
+    with pytest.raises(ValueError, match="block_queries must be"):
+        similarity_blocks_distributed(object(), [np.ones((1, 2))], [np.ones((1, 4))],
+                                      [np.ones((1, 2))], [np.ones((1, 4))], block_queries=0)
