@@ -252,7 +252,7 @@ class LandmarkEncoder:
         fmap = self.model.feature_map(x)
         return roi_pool(fmap, boxes, image.shape[:2], tuple(x.shape[-2:]), self.input_size,
                         int(self.model.stride), float(self.model.feature_offset),
-                        self.roi_sampling)
+                        self.roi_sampling, self.batch_size)
 
     def _project_fixed(self, raw: torch.Tensor) -> torch.Tensor:
         """Project ``(B, raw_dim)`` rows in a matmul of fixed shape ``(batch_size, raw_dim)``."""

@@ -19,9 +19,9 @@
 3. The ``(K, C, n, n)`` result is flattened in ``crop`` mode's order and projected with the same
    matrix, so both modes give descriptors of the same dimension in the same space.
 
-Determinism: the feature map depends only on the image, and each box is pooled by its own
-matmuls of fixed shape, so a box's descriptor does not depend on which other boxes are encoded
-with it.
+Determinism: the feature map depends only on the image, and boxes are pooled by batched matmuls
+of one fixed shape (chunks of ``batch_size`` boxes, padded), so a box's descriptor does not
+depend on which other boxes are encoded with it.
 """
 
 from __future__ import annotations
@@ -121,7 +121,7 @@ def _axis_weights(q: np.ndarray, size: int, side: int, sampling: int) -> np.ndar
 
 def roi_pool(fmap: torch.Tensor, boxes: np.ndarray, image_size: tuple[int, int],
              work_size: tuple[int, int], crop_size: int, stride: int, offset: float,
-             sampling: int = DEFAULT_ROI_SAMPLING) -> torch.Tensor:
+             sampling: int = DEFAULT_ROI_SAMPLING, chunk: int = 50) -> torch.Tensor:
     """Pool every box from a feature map to crop mode's ``(C, n, n)`` layout, flattened.
 
     Bilinear interpolation on a separable sample grid factors into one weight matrix per axis:
@@ -138,6 +138,7 @@ def roi_pool(fmap: torch.Tensor, boxes: np.ndarray, image_size: tuple[int, int],
         crop_size: crop mode's square input side ``s``; ``n = ceil(s / stride)``.
         stride, offset: the backbone's ``stride`` and ``feature_offset``.
         sampling: bilinear samples per output cell and axis.
+        chunk: boxes per batched matmul (fixed shape; the encoder passes its ``batch_size``).
 
     Returns:
         ``(K, C * n * n)`` float32 on ``fmap.device`` (order ``C, y, x`` like ``crop`` mode).
@@ -154,6 +155,12 @@ def roi_pool(fmap: torch.Tensor, boxes: np.ndarray, image_size: tuple[int, int],
     ay = torch.from_numpy(_axis_weights(qy, hf, n, r)).to(**to)  # (K, n, hf)
     feat = fmap[0].float().contiguous()  # (C, hf, wf)
     out = torch.empty((k, c, n, n), **to)
-    for i in range(k):  # one box at a time: the same kernels whatever K (grouping-invariant)
-        out[i] = torch.matmul(torch.matmul(ay[i], feat), ax[i].T)  # (C, n, n)
+    # Batched matmuls in chunks of exactly `chunk` boxes (the last padded by repeating its last
+    # box): CPU kernels are chosen by shape, so a fixed shape makes a box's result independent of
+    # the other boxes encoded with it (tested bit for bit).
+    for start in range(0, k, chunk):
+        idx = torch.arange(start, start + chunk, device=fmap.device).clamp_(max=k - 1)
+        rows = torch.matmul(ay[idx][:, None], feat[None])  # (chunk, C, n, wf)
+        pooled = torch.matmul(rows, ax[idx].transpose(1, 2)[:, None])  # (chunk, C, n, n)
+        out[start:start + chunk] = pooled[: min(chunk, k - start)]
     return out.reshape(k, c * n * n)

@@ -1,0 +1,172 @@
+"""Which landmark descriptor? Speed and accuracy of the backbone options on real data.
+
+Run: ``VPR_CACHE_DIR=/tmp/desc_cache .venv/bin/python benchmarks/bench_descriptors.py
+[--nordland-step 200] [--options NAME ...] [--bootstrap 1000]``.
+
+For each option (a backbone spec, see :mod:`vpr_core.backbones`, and a pooling mode):
+
+* ``s/img``: median wall seconds (and process CPU seconds) to encode one 640x360 image with 100
+  dense landmarks (Sec. 4 default grid), measured here after a warm-up;
+* pooling ``roi@N`` is ``roi`` at working size N (default 512);
+* R@1 and AUC (ratio protocol) with 95% bootstrap intervals over queries
+  (``vpr_core.evaluation.bootstrap_metrics``, 1,000 resamples, seed 0) for the ``classical`` and
+  ``dense`` methods on ``gardens_point_mini`` (10 Gardens Point day/night pairs, exact ground
+  truth) and a Nordland subset (winter vs summer, every ``step``-th place, tolerance 1).
+
+``crop`` options run through ``vpr_core.pipeline.run_method(method, dataset, backbone=spec)``;
+``roi`` options (not a ``run_method`` argument yet) through the same landmark and feature stages
+(``extract_landmarks`` / ``extract_features``) with a ``LandmarkEncoder(pooling="roi")``. The
+table is printed and written to ``results/descriptor_choice.csv`` (``vpr_core.paths``) after
+each option, so an interrupted run keeps what it measured.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+#: (label, backbone spec, pooling). Lite0 stages 4/5/6 at 96-224 px, Lite1, Lite2, HOG, roi.
+OPTIONS: tuple[tuple[str, str, str], ...] = (
+    ("lite0 s5 128 (default)", "efficientnet_lite0", "crop"),
+    ("lite0 s5 96", "efficientnet_lite0:input_size=96", "crop"),
+    ("lite0 s5 160", "efficientnet_lite0:input_size=160", "crop"),
+    ("lite0 s4 160", "efficientnet_lite0:stage=4,input_size=160", "crop"),
+    ("lite0 s6 224", "efficientnet_lite0:stage=6,input_size=224", "crop"),
+    ("lite1 s5 128", "efficientnet_lite1", "crop"),
+    ("lite2 s5 128", "efficientnet_lite2", "crop"),
+    ("hog 64", "hog", "crop"),
+    ("lite0 s5 128 roi", "efficientnet_lite0", "roi"),
+    ("lite0 s5 128 roi@384", "efficientnet_lite0", "roi@384"),
+)
+METHODS = ("classical", "dense")
+SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+
+def datasets(step: int) -> dict:
+    """``{label: PlaceDataset}`` for the real data found beside the checkout."""
+    from vpr_core.datasets import load_dataset
+
+    out = {}
+    if (SHARED / "gardens_point_mini").is_dir():
+        out["gardens_point_mini"] = load_dataset("folder", SHARED / "gardens_point_mini")
+    if (SHARED / "nordland_64x32").is_dir():
+        out[f"nordland_step{step}"] = load_dataset("nordland", SHARED / "nordland_64x32",
+                                                   step=step, tolerance=1)
+    if not out:
+        raise SystemExit(f"no real data under {SHARED}: nothing to measure")
+    return out
+
+
+def encoder_for(spec: str, pooling: str):
+    """The encoder of one option (``run_method``'s shared one for crop)."""
+    from vpr_core.features import LandmarkEncoder
+    from vpr_core.pipeline import get_encoder
+
+    if pooling == "crop":
+        return get_encoder(spec)
+    mode, _, size = pooling.partition("@")  # "roi@384": roi at working size 384
+    return LandmarkEncoder(spec, pooling=mode, **({"working_size": int(size)} if size else {}))
+
+
+def seconds_per_image(encoder, repeats: int = 3) -> tuple[float, float]:
+    """Median wall and CPU seconds to encode a 640x360 image with 100 dense landmarks."""
+    from vpr_core.landmarks import dense_sampling
+
+    rng = np.random.default_rng(0)
+    image = rng.integers(0, 256, (360, 640, 3), dtype=np.uint8)
+    boxes = np.asarray(dense_sampling(image.shape[:2]))
+    encoder.encode(image, boxes)  # warm-up
+    wall, cpu = [], []
+    for _ in range(repeats):
+        t0, c0 = time.perf_counter(), time.process_time()
+        encoder.encode(image, boxes)
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    return statistics.median(wall), statistics.median(cpu)
+
+
+def similarity(method: str, dataset, spec: str, pooling: str, encoder) -> tuple[np.ndarray,
+                                                                                np.ndarray]:
+    """``(similarity (Nq, Nr), ground_truth (Nq, Nr))`` of one method with one option."""
+    from vpr_core import pipeline
+
+    if pooling == "crop":
+        r = pipeline.run_method(method, dataset, backbone=spec)
+        return r.similarity, r.ground_truth
+    from vpr_core.matching import similarity_matrix
+    from vpr_core.methods import get_method
+
+    conf = get_method(method)
+    boxes = pipeline.extract_landmarks(conf, dataset)
+    feats = pipeline.extract_features(boxes, dataset, encoder)
+    sim = similarity_matrix(feats["query"], boxes["query"], feats["reference"],
+                            boxes["reference"], soft_nms_iou=conf["matching"]["soft_nms_iou"],
+                            sigma=conf["matching"]["sigma"])
+    return np.asarray(sim, dtype=np.float64), np.asarray(dataset.ground_truth, dtype=bool)
+
+
+def fmt(v: tuple[float, float, float]) -> str:
+    """``value [low, high]``."""
+    return f"{v[0]:.3f} [{v[1]:.2f}, {v[2]:.2f}]"
+
+
+def main() -> None:
+    """Measure every option and write the table."""
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--nordland-step", type=int, default=200)
+    p.add_argument("--options", nargs="*", default=None, help="labels from OPTIONS (default all)")
+    p.add_argument("--bootstrap", type=int, default=1000)
+    p.add_argument("--repeats", type=int, default=3)
+    args = p.parse_args()
+    os.environ.setdefault("TQDM_DISABLE", "1")
+    from vpr_core.evaluation import bootstrap_metrics
+    from vpr_core.paths import results_dir
+
+    data = datasets(args.nordland_step)
+    options = [o for o in OPTIONS if args.options is None or o[0] in args.options]
+    out = results_dir() / "descriptor_choice.csv"
+    print(f"torch threads {torch.get_num_threads()}, load average {os.getloadavg()}; datasets: "
+          + ", ".join(f"{k} ({len(v.query_paths)}q x {len(v.reference_paths)}r, tolerance "
+                      f"{v.tolerance})" for k, v in data.items()))
+    rows = []
+    for label, spec, pooling in options:
+        t_opt = time.perf_counter()
+        enc = encoder_for(spec, pooling)
+        wall, cpu = seconds_per_image(enc, args.repeats)
+        row = {"option": label, "backbone": spec, "pooling": pooling, "raw_dim": enc.raw_dim,
+               "s/img": round(wall, 4), "cpu s/img": round(cpu, 4)}
+        for dname, ds in data.items():
+            for method in METHODS:
+                sim, gt = similarity(method, ds, spec, pooling, enc)
+                bm = bootstrap_metrics(sim, gt, n=args.bootstrap, seed=0)
+                for key, name in (("r@1", "R@1"), ("auc", "AUC")):
+                    v = bm[key]
+                    row[f"{dname} {method} {name}"] = round(v[0], 4)
+                    row[f"{dname} {method} {name} 95%"] = f"[{v[1]:.3f}, {v[2]:.3f}]"
+                print(f"  {label:<24} {dname:<22} {method:<10} R@1 {fmt(bm['r@1'])}  "
+                      f"AUC {fmt(bm['auc'])}", flush=True)
+        print(f"{label:<24} {wall:.3f} s/img wall, {cpu:.3f} s/img cpu "
+              f"({time.perf_counter() - t_opt:.0f} s for this option)", flush=True)
+        rows.append(row)
+        with open(out, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
+    print(f"\nwritten {out}")
+    keys = [k for k in rows[0] if k.endswith(("R@1", "AUC"))]
+    print(f"{'option':<24}{'s/img':>7}  " + "  ".join(k.replace('gardens_point_mini', 'gp')
+                                                       for k in keys))
+    for r in rows:
+        print(f"{r['option']:<24}{r['s/img']:>7.3f}  "
+              + "  ".join(f"{r[k]:.3f} {r[k + ' 95%']}" for k in keys))
+
+
+if __name__ == "__main__":
+    main()
