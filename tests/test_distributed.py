@@ -27,7 +27,9 @@ from vpr_core.matching import similarity_matrix, similarity_pairs
 
 distributed = pytest.importorskip("distributed")
 
-ENCODER = {"backbone": "efficientnet_lite0", "dim": 64, "seed": 0}
+#: Small encoders: 16 landmarks per image fill one crop batch; ``roi`` is one pass per image.
+ENCODER = {"backbone": "efficientnet_lite0", "dim": 64, "seed": 0, "batch_size": 16}
+ENCODER_ROI = {**ENCODER, "pooling": "roi"}
 
 
 @pytest.fixture(scope="module")
@@ -62,12 +64,13 @@ def test_cluster_is_local_and_workers_single_threaded(client):
     assert set(threads.values()) == {1}
 
 
-def test_features_on_cluster_equal_in_process(client, small_set):
-    enc = LandmarkEncoder(**ENCODER)
+@pytest.mark.parametrize("conf", [ENCODER, ENCODER_ROI], ids=["crop", "roi"])
+def test_features_on_cluster_equal_in_process(client, small_set, conf):
+    enc = LandmarkEncoder(**conf)
     for side in ("query", "reference"):
         n = len(small_set.paths(side))
         boxes = [dense_sampling(small_set.image_size(side, i), per_scale=4) for i in range(n)]
-        got, secs = extract_features_distributed(client, small_set, side, ENCODER,
+        got, secs = extract_features_distributed(client, small_set, side, conf,
                                                  boxes=boxes, shard_size=3)
         assert len(got) == n and len(secs) == n and all(s > 0 for s in secs)
         for i in range(n):
@@ -77,7 +80,7 @@ def test_features_on_cluster_equal_in_process(client, small_set):
     # a subset in any order comes back in that order
     idx = [3, 0]
     boxes = [dense_sampling(small_set.image_size("query", i), per_scale=1) for i in idx]
-    got, _ = extract_features_distributed(client, small_set, "query", ENCODER, indices=idx,
+    got, _ = extract_features_distributed(client, small_set, "query", conf, indices=idx,
                                           boxes=boxes, shard_size=1)
     for g, i, b in zip(got, idx, boxes):
         assert np.array_equal(g, enc.encode(small_set.load_image("query", i), b))
@@ -86,8 +89,9 @@ def test_features_on_cluster_equal_in_process(client, small_set):
 def test_global_features_on_cluster_equal_in_process(client, small_set):
     if not hasattr(LandmarkEncoder, "encode_global"):
         pytest.skip("LandmarkEncoder.encode_global not available yet")
-    enc = LandmarkEncoder(**ENCODER)
-    got, _ = extract_features_distributed(client, small_set, "reference", ENCODER, kind="global")
+    enc = LandmarkEncoder(**ENCODER_ROI)
+    got, _ = extract_features_distributed(client, small_set, "reference", ENCODER_ROI,
+                                          kind="global")
     want = [enc.encode_global(small_set.load_image("reference", i)) for i in range(4)]
     assert np.array_equal(np.stack(got), np.stack(want))
 
@@ -97,7 +101,7 @@ def test_similarity_and_shortlist_of_real_features_equal_in_process(client, smal
     feats, boxes = {}, {}
     for side in ("query", "reference"):
         boxes[side] = [dense_sampling(small_set.image_size(side, i)) for i in range(n)]
-        feats[side], _ = extract_features_distributed(client, small_set, side, ENCODER,
+        feats[side], _ = extract_features_distributed(client, small_set, side, ENCODER_ROI,
                                                       boxes=boxes[side])
     args = (feats["query"], boxes["query"], feats["reference"], boxes["reference"])
     want = similarity_matrix(*args, show_progress=False)

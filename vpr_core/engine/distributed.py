@@ -20,9 +20,10 @@ every task runs the same public function (:func:`vpr_core.matching.similarity_ma
 :func:`~vpr_core.matching.similarity_pairs`, ``LandmarkEncoder.encode``) on its block, built so
 that the matcher sees the same padding widths and reference tiling as the in-process call (see
 :mod:`~vpr_core.engine.blocks`: with soft-NMS those change the last bit otherwise); the encoder
-pads every batch to a fixed shape; Dask workers run torch on one thread, which does not change
-any value (checked by ``tests/test_distributed.py``); blocks are placed by position, not by
-completion order.
+pads every batch to a fixed shape; feature tasks run torch with the client's thread count
+(``roi`` feature maps change in the last bits with it; the matcher's values do not, and its
+tasks keep the worker's single thread); blocks are placed by position, not by completion order.
+``tests/test_distributed.py`` checks all of it on a two-process ``LocalCluster``.
 """
 
 from __future__ import annotations
@@ -65,22 +66,35 @@ def _encoder(key: str):
 
 
 def _encode_shard(dataset, side: str, indices: list[int], boxes: list[np.ndarray] | None,
-                  key: str, kind: str) -> tuple[list[np.ndarray], list[float], dict]:
+                  key: str, kind: str, threads: int | None = None
+                  ) -> tuple[list[np.ndarray], list[float], dict]:
     """Task: descriptors of a shard of images (runs on a worker, or in-process).
+
+    ``threads``: torch intra-op threads for this task (restored afterwards); None keeps the
+    process's setting. ``roi`` feature maps change in the last bits with torch's thread count,
+    so the engine runs worker tasks with the client's count.
 
     Returns:
         ``(descriptors, seconds, encoder config)``: per image ``(K_i, dim)`` float32
         (``kind="landmarks"``) or ``(dim,)`` (``kind="global"``), its compute seconds, and the
         config of the encoder that made them.
     """
+    import torch
+
     enc = _encoder(key)
+    before = torch.get_num_threads()
+    if threads is not None:
+        torch.set_num_threads(int(threads))
     descs, secs = [], []
-    for n, i in enumerate(indices):
-        image = dataset.load_image(side, int(i))
-        t0 = time.perf_counter()
-        d = enc.encode_global(image) if kind == "global" else enc.encode(image, boxes[n])
-        secs.append(time.perf_counter() - t0)
-        descs.append(np.asarray(d, dtype=np.float32))
+    try:
+        for n, i in enumerate(indices):
+            image = dataset.load_image(side, int(i))
+            t0 = time.perf_counter()
+            d = enc.encode_global(image) if kind == "global" else enc.encode(image, boxes[n])
+            secs.append(time.perf_counter() - t0)
+            descs.append(np.asarray(d, dtype=np.float32))
+    finally:
+        torch.set_num_threads(before)
     return descs, secs, dict(enc.config)
 
 
@@ -88,6 +102,7 @@ def extract_features_distributed(client, dataset, side: str, encoder_kwargs: dic
                                  indices: Sequence[int] | None = None,
                                  boxes: Sequence[np.ndarray] | None = None,
                                  kind: str = "landmarks", shard_size: int = 16,
+                                 threads: int | None = None,
                                  ) -> tuple[list[np.ndarray], list[float]]:
     """Descriptors of one side's images, computed in shards of images on a Dask cluster.
 
@@ -102,6 +117,10 @@ def extract_features_distributed(client, dataset, side: str, encoder_kwargs: dic
         boxes: with ``kind="landmarks"``, one ``(K_i, 4)`` array per entry of ``indices``.
         kind: ``"landmarks"`` (``encode(image, boxes)``) or ``"global"`` (``encode_global``).
         shard_size: images per task.
+        threads: torch threads per worker task; default: this process's
+            ``torch.get_num_threads()``, so that descriptors equal the in-process ones bit for
+            bit (``roi`` feature maps depend on the thread count). Start workers with
+            ``--nthreads 1`` and fewer processes than cores to leave room for them.
 
     Returns:
         ``(descriptors, seconds)`` in the order of ``indices``: ``(K_i, dim)`` float32 arrays
@@ -132,8 +151,11 @@ def extract_features_distributed(client, dataset, side: str, encoder_kwargs: dic
         results = [_encode_shard(dataset, side, i, b, key, kind)
                    for i, b in progress(args, desc=f"features {side}")]
     else:
+        import torch
+
+        nthreads = int(threads) if threads is not None else torch.get_num_threads()
         ds = client.scatter(dataset, broadcast=False, hash=False)
-        futures = [client.submit(_encode_shard, ds, side, i, b, key, kind, pure=False)
+        futures = [client.submit(_encode_shard, ds, side, i, b, key, kind, nthreads, pure=False)
                    for i, b in args]
         results = gather_in_order(client, futures, f"features {side} (dask)")
     descs: list[np.ndarray] = []
