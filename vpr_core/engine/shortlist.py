@@ -12,7 +12,8 @@ best reference, and drops a query whose row is all NaN. Consequences for the pro
 
 * ``ratio`` (the paper's, Sunderhauf et al. 2015): S1 is the best Eq. (1) value *inside the
   shortlist* and S2 the second best *inside the shortlist* (``k >= 2``); references outside the
-  shortlist take no part. With ``k = 1`` there is no S2 (use ``k >= 2`` with this protocol).
+  shortlist take no part. With ``k = 1`` there is no S2: the evaluation then sets
+  ``S2 := S1`` (ratio 1, accepted only at ``tau = 1``), so use ``k >= 2`` with this protocol.
   S2 inside the shortlist is at least as large as it would be among the shortlisted references
   of an exhaustive run, and can only be smaller than the exhaustive S2 when the exhaustive
   second best lies outside the shortlist.
