@@ -115,9 +115,11 @@ class TourSteps:
             "dimensions": [d.shape[1] for d in desc.values()],
             "mean L2 norm": [float(np.linalg.norm(d, axis=1).mean()) for d in desc.values()],
         }, index=pd.Index(list(desc), name="image"))
+        table["backbone"] = cfg.get("backbone")
+        table["weights"] = cfg.get("weights")
         fig = plot_descriptor_matrices(
-            desc, title=f"step 2, LandmarkEncoder.encode ({cfg.get('backbone')}, weights "
-                        f"{cfg.get('weights')}): {self._tour_caption(pair)}")
+            desc, title=f"step 2, LandmarkEncoder.encode ({cfg.get('backbone')}): "
+                        f"{self._tour_caption(pair)}")
         return self.save(fig, "tour2_descriptors", table=table)
 
     def tour_reciprocal_matches(self, pair: int = 0) -> FigureResult:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import matplotlib
 import matplotlib.pyplot as plt
+import matplotlib.ticker
 import numpy as np
 
 from .base import draw_boxes
@@ -97,7 +98,8 @@ def plot_descriptor_matrices(descriptors: dict, title: str | None = None
         if m.ndim != 2:
             raise ValueError(f"descriptors[{k!r}] must have shape (K, D), got {m.shape}")
     vmax = max(float(np.abs(m).max()) if m.size else 0.0 for m in mats.values()) or 1.0
-    fig, axes = plt.subplots(1, len(mats), figsize=(5.2 * len(mats), 3.4), squeeze=False)
+    fig, axes = plt.subplots(1, len(mats), figsize=(5.2 * len(mats), 3.6), squeeze=False,
+                             layout="constrained")
     im = None
     for ax, (name, m) in zip(axes[0], mats.items()):
         im = ax.imshow(m, aspect="auto", cmap="RdBu_r", vmin=-vmax, vmax=vmax,
@@ -136,6 +138,7 @@ def plot_pair_terms(distances: np.ndarray, shape: np.ndarray, n_a: int, n_b: int
     order = np.argsort(-terms, kind="stable")
     ax_a.bar(np.arange(len(terms)), terms[order], width=0.85, color="tab:blue")
     ax_a.axhline(0.0, color="0.3", lw=0.8)
+    ax_a.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
     ax_a.set_xlabel("reciprocal pair (sorted by its term)")
     ax_a.set_ylabel("1 - d * s")
     ax_a.set_title(f"(a) S = {terms.sum():.3f} / sqrt({n_a} x {n_b}) = {similarity:.4f}",
