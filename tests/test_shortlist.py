@@ -114,3 +114,40 @@ def test_rerank_validates_inputs():
         rerank(np.array([0.1, 0.2]), np.array([[0, 1], [0, 1]]), 2, 2)
     with pytest.raises(ValueError, match=r"\(P, 2\) integer"):
         rerank(np.zeros(2), pairs.astype(float), 2, 2)
+
+
+def test_match_stage_exhaustive_and_full_shortlist_agree():
+    from vpr_core.engine.stages import match
+
+    rng = np.random.default_rng(4)
+    qd, qb = _landmark_sets(rng, 5)
+    rd, rb = _landmark_sets(rng, 7)
+    boxes, feats = {"query": qb, "reference": rb}, {"query": qd, "reference": rd}
+    full, info = match(boxes, feats)
+    np.testing.assert_array_equal(full, similarity_matrix(qd, qb, rd, rb, show_progress=False))
+    assert info["pairs"] == 35
+    glob = {"query": rng.standard_normal((5, 6)), "reference": rng.standard_normal((7, 6))}
+    sim, info = match(boxes, feats, shortlist=7, global_desc=glob)
+    np.testing.assert_array_equal(sim, full)
+    sim, info = match(boxes, feats, shortlist=2, global_desc=glob)
+    assert info["pairs"] == 10 and np.isnan(sim).sum() == 25
+    with pytest.raises(ValueError, match="global_desc"):
+        match(boxes, feats, shortlist=2)
+
+
+def test_whole_image_boxes_round_trip(tiny_synthetic):
+    from vpr_core.engine.stages import split_whole_image, with_whole_image_boxes
+
+    n = len(tiny_synthetic.query_paths)
+    boxes = {"query": [np.zeros((0, 4))] + [np.ones((2, 4))] * (n - 1),
+             "reference": [np.ones((3, 4))] * n, "seconds": {}}
+    out = with_whole_image_boxes(boxes, tiny_synthetic)
+    h, w = tiny_synthetic.image_size("query", 0)
+    np.testing.assert_array_equal(out["query"][0], [[0, 0, w, h]])
+    assert out["reference"][0].shape == (4, 4) and "seconds" in out
+    feats = {s: [np.arange(len(b) * 2, dtype=np.float32).reshape(-1, 2) for b in out[s]]
+             for s in ("query", "reference")}
+    lm, glob = split_whole_image(feats)
+    assert lm["query"][0].shape == (0, 2) and lm["reference"][0].shape == (3, 2)
+    np.testing.assert_array_equal(glob["reference"][0], [6, 7])
+    assert glob["query"].shape == (n, 2)
