@@ -149,11 +149,13 @@ def run_study(dataset: str = "synthetic", root: str | None = None,
     import papermill as pm
 
     from .datasets import load_dataset
-    from .study import expected_figures
+    from .study import QUICK_PLACES, expected_figures
 
     if root is not None:
         root = str(Path(root).expanduser().resolve())
-    load_dataset(dataset, root=root)  # fail fast, with the loader's clear message
+    # fail fast, with the loader's clear message (quick synthetic: only the places it uses)
+    load_dataset(dataset, root=root, **({"n_places": QUICK_PLACES}
+                                        if quick and dataset == "synthetic" else {}))
     label = output_label(dataset, quick)
     expected = expected_figures()
     params = {"dataset": dataset, "root": root, "backbone": backbone, "quick": quick}
