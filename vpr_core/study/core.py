@@ -23,7 +23,7 @@ import pandas as pd
 from .. import paths
 from ..paper import PROJECTION_DIM, SCALE_LABELS, SCALE_RANGE_LABELS, SCALE_RANGES
 from ..pipeline import MethodResult, get_encoder, run_method
-from ..utils import make_deterministic
+from ..utils import configure_logging, make_deterministic
 from ..viz.base import SAVE_DPI
 from .comparisons import ComparisonFigures
 from .cost import CostTable
@@ -168,15 +168,6 @@ class Study(MatchFigures, ScaleFigures, LandmarkFigures, ComparisonFigures, Tour
                 f"backbone {self.backbone} (weights: {self.encoder.config.get('weights')})")
 
 
-def _configure_logging() -> None:
-    """Notebook output for the ``vpr_core`` logger (``vpr_core.utils.configure_logging``)."""
-    from .. import utils
-
-    configure = getattr(utils, "configure_logging", None)
-    if configure is not None:  # added by the logging change; older trees log nothing extra
-        configure()
-
-
 def open_study(dataset: str = "synthetic", root: str | None = None,
                backbone: str = "efficientnet_lite0", quick: bool = False,
                notebook: str = "study", label: str | None = None, seed: int = 0,
@@ -199,7 +190,7 @@ def open_study(dataset: str = "synthetic", root: str | None = None,
     """
     from ..datasets import load_dataset
 
-    _configure_logging()
+    configure_logging()
     make_deterministic(seed)
     if dataset == "synthetic" and quick:
         options.setdefault("n_places", QUICK_PLACES)
