@@ -35,6 +35,8 @@ import torch
 #: (label, backbone spec, pooling). Lite0 stages 4/5/6 at 96-224 px, Lite1, Lite2, HOG, roi.
 OPTIONS: tuple[tuple[str, str, str], ...] = (
     ("lite0 s5 128 (default)", "efficientnet_lite0", "crop"),
+    ("lite0 s5 128 roi", "efficientnet_lite0", "roi"),
+    ("lite0 s5 128 roi@384", "efficientnet_lite0", "roi@384"),
     ("lite0 s5 96", "efficientnet_lite0:input_size=96", "crop"),
     ("lite0 s5 160", "efficientnet_lite0:input_size=160", "crop"),
     ("lite0 s4 160", "efficientnet_lite0:stage=4,input_size=160", "crop"),
@@ -42,8 +44,6 @@ OPTIONS: tuple[tuple[str, str, str], ...] = (
     ("lite1 s5 128", "efficientnet_lite1", "crop"),
     ("lite2 s5 128", "efficientnet_lite2", "crop"),
     ("hog 64", "hog", "crop"),
-    ("lite0 s5 128 roi", "efficientnet_lite0", "roi"),
-    ("lite0 s5 128 roi@384", "efficientnet_lite0", "roi@384"),
 )
 METHODS = ("classical", "dense")
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"

@@ -1,5 +1,7 @@
 """The ``vpr-study`` command line."""
 
+import os
+
 import pytest
 
 from vpr_core import cli
@@ -13,8 +15,12 @@ def test_eval_prints_table_and_writes_plot(tmp_path, capsys):
     for col in ("AUC(ratio)", "R@100P", "R@1", "R@5", "landmarks s/img", "features s/img",
                 "matching s/pair"):
         assert col in out
-    assert (tmp_path / "eval_dense_efficientnet_lite0.png").stat().st_size > 0
-    assert (tmp_path / "eval_dense_efficientnet_lite0.csv").read_text().startswith("method,")
+    assert "AUC(ratio) [95% CI]" in out and "queries with ground truth: 6 of 6" in out
+    res = tmp_path / "results" / "synthetic"
+    assert (res / "eval_dense_efficientnet_lite0.png").stat().st_size > 0
+    csv = (res / "eval_dense_efficientnet_lite0.csv").read_text()
+    assert csv.startswith("method,") and "AUC lo" in csv
+    assert os.environ.get("VPR_OUTPUT_DIR") != str(tmp_path)  # --out is per command
 
 
 def test_eval_unknown_method_lists_valid(capsys):

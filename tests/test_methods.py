@@ -7,7 +7,7 @@ from vpr_core.methods import available_methods, get_method
 
 def test_all_paper_methods_present():
     assert set(available_methods()) == {"classical", "selection_scheme1", "selection_scheme2",
-                                        "overlap_scheme1", "overlap_scheme2", "dense"}
+                                        "overlap_scheme1", "overlap_scheme2", "dense", "global"}
 
 
 def test_classical_is_top100_edge_boxes_without_soft_nms():
@@ -46,3 +46,37 @@ def test_unknown_method_lists_valid_names():
 def test_unknown_override_is_an_error():
     with pytest.raises(ValueError, match="Unknown option 'threshold'"):
         get_method("overlap_scheme1", threshold=0.4)
+
+
+def test_options_that_do_not_apply_are_refused_with_the_valid_list():
+    with pytest.raises(ValueError, match="Options of 'dense': scales, per_scale"):
+        get_method("dense", iou_threshold=0.1)
+    with pytest.raises(ValueError, match="'iou_threshold' for method 'classical'"):
+        get_method("classical", iou_threshold=0.1, min_index=7)
+    with pytest.raises(ValueError, match="Options of 'global': none"):
+        get_method("global", n=5)
+
+
+@pytest.mark.parametrize("bad", [0.25, "0.25", (), (0.2, 1.5), ("a",)])
+def test_bad_scales_are_named_before_any_label_is_made(bad):
+    with pytest.raises(ValueError, match="option scales="):
+        get_method("dense", scales=bad)
+
+
+def test_bad_option_values_are_named():
+    with pytest.raises(ValueError, match="iou_threshold=1.5"):
+        get_method("overlap_scheme1", iou_threshold=1.5)
+    with pytest.raises(ValueError, match="per_scale"):
+        get_method("dense", per_scale="25")
+    with pytest.raises(ValueError, match="order"):
+        get_method("selection_scheme2", order="5,6")
+
+
+def test_method_label_lives_in_methods_and_names_settings():
+    from vpr_core.methods import method_label
+
+    assert method_label(get_method("overlap_scheme1", iou_threshold=0.4)) == \
+        "overlap_scheme1 (IoU 0.4)"
+    assert method_label(get_method("dense")) == "dense"
+    assert method_label(get_method("dense", scales=(0.25,), per_scale=100)) == "dense (0.25 x 100)"
+    assert get_method("global")["landmarks"] == {"scheme": "whole_image"}

@@ -4,6 +4,8 @@ Examples::
 
     vpr-study eval --dataset synthetic --method dense
     vpr-study eval --dataset gardens_point --root ~/data/gardens_point --method classical
+    vpr-study eval --dataset nordland --root ../shared/data/nordland_64x32 --method dense \\
+        --pooling roi --shortlist 25             # all 3,576 x 3,576 places
     vpr-study run --dataset synthetic            # all notebooks, figures/ and results/
     vpr-study run --dataset synthetic --quick    # the small headless run used by the tests
 """
@@ -11,10 +13,22 @@ Examples::
 from __future__ import annotations
 
 import argparse
+import os
 import sys
-from pathlib import Path
 
-from .utils import REPO_DIR
+from . import paths
+from .utils import configure_logging
+
+INTERRUPTED = "interrupted; cached work is kept, rerun to resume"
+
+
+def _parse_value(text: str):
+    for cast in (int, float):
+        try:
+            return cast(text)
+        except ValueError:
+            pass
+    return {"true": True, "false": False, "none": None}.get(text.lower(), text)
 
 
 def _dataset_options(args: argparse.Namespace) -> dict:
@@ -23,6 +37,13 @@ def _dataset_options(args: argparse.Namespace) -> dict:
         opts["tolerance"] = args.tolerance
     if getattr(args, "n_places", None) is not None:
         opts["n_places"] = args.n_places
+    if getattr(args, "step", None) is not None:
+        opts["step"] = args.step
+    for item in getattr(args, "opt", None) or []:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ValueError(f"--opt {item!r} is not KEY=VALUE (e.g. --opt query=winter)")
+        opts[key.strip()] = _parse_value(value.strip())
     return opts
 
 
@@ -41,30 +62,102 @@ def format_table(rows: list[dict], columns: list[str] | None = None, floatfmt: s
     return "\n".join([line, sep, *body])
 
 
+def _peer_results(args: argparse.Namespace, dataset) -> list:
+    """VPR-Bench peers (``--peers ROOT --peer-dataset NAME``) as results beside ours."""
+    if not args.peers and not args.peer_dataset:
+        return []
+    from .baselines import find_vprbench_peers
+    from .pipeline import peer_result
+
+    if not args.peer_dataset:
+        raise ValueError("--peers needs --peer-dataset NAME (the folder under "
+                         "precomputed_matches/, e.g. GardensPointWalking)")
+    return [peer_result(p, dataset, n_bootstrap=args.n_bootstrap)
+            for p in find_vprbench_peers(args.peers, args.peer_dataset)]
+
+
+def _paired_rows(results: list, n_bootstrap: int) -> list[dict]:
+    """Paired bootstrap of every method against the first one (same resampled queries)."""
+    from .evaluation import paired_bootstrap
+
+    rows = []
+    base = results[0]
+    for r in results[1:]:
+        d = paired_bootstrap(r.similarity, base.similarity, base.ground_truth,
+                             n=max(n_bootstrap, 1), seed=0)
+        row = {"difference": f"{r.label} - {base.label}"}
+        for key, name in (("auc", "dAUC"), ("r@1", "dR@1")):
+            delta, lo, hi, pval = d[key]
+            row[name] = f"{delta:+.3f} [{lo:+.3f}, {hi:+.3f}]"
+            row[f"{name} p"] = f"{pval:.3f}"
+            row[f"{name} verdict"] = "finding" if lo > 0 or hi < 0 else "inconclusive"
+        rows.append(row)
+    return rows
+
+
+def _display_rows(results: list) -> list[dict]:
+    from .evaluation import format_interval
+
+    rows = []
+    for r in results:
+        row = r.row()
+        iv = r.intervals
+        out = {"method": row["method"]}
+        for key, name, col in (("auc", "AUC(ratio) [95% CI]", "AUC(ratio)"),
+                               ("r@100p", "R@100P [95% CI]", "R@100P"),
+                               ("r@1", "R@1 [95% CI]", "R@1")):
+            out[name] = format_interval(*iv[key]) if key in iv else f"{row[col]:.3f}"
+        out["R@5"] = row["R@5"]
+        for col in ("landmarks/img", "landmarks s/img", "features s/img", "matching s/pair",
+                    "pairs scored"):
+            out[col] = row[col]
+        rows.append(out)
+    return rows
+
+
 def cmd_eval(args: argparse.Namespace) -> int:
     from .datasets import load_dataset
+    from .evaluation import ground_truth_coverage
     from .pipeline import run_method
     from .viz import plot_pr_curves, save_figure
 
     dataset = load_dataset(args.dataset, root=args.root, **_dataset_options(args))
+    n_gt, n_q = ground_truth_coverage(dataset.ground_truth)
     print(f"dataset: {dataset.name}  queries={len(dataset.query_paths)} "
           f"references={len(dataset.reference_paths)} tolerance={dataset.tolerance}")
+    print(f"queries with ground truth: {n_gt} of {n_q}")
+    mode = "exhaustive" if args.shortlist is None else f"shortlist k={args.shortlist}"
     results = [run_method(m, dataset, backbone=args.backbone, dim=args.dim, seed=args.seed,
-                          weights=args.weights) for m in args.method]
+                          weights=args.weights, pooling=args.pooling, device=args.device,
+                          shortlist=args.shortlist, scheduler=args.scheduler,
+                          n_bootstrap=args.n_bootstrap) for m in args.method]
+    results += _peer_results(args, dataset)
     rows = [r.row() for r in results]
-    table = format_table(rows, floatfmt=".4f")
     print(f"backbone: {results[0].encoder.get('backbone')} "
-          f"(weights: {results[0].encoder.get('weights')})")
+          f"(weights: {results[0].encoder.get('weights')}, pooling: {args.pooling}, {mode}; "
+          f"95% bootstrap intervals over queries, {args.n_bootstrap} resamples)")
+    table = format_table(_display_rows(results), floatfmt=".4f")
     print(table)
-    out = Path(args.out) if args.out else REPO_DIR / "results" / dataset.name
-    out.mkdir(parents=True, exist_ok=True)
-    stem = "eval_" + "+".join(args.method) + f"_{args.backbone}"
-    (out / f"{stem}.txt").write_text(table + "\n")
+    paired = _paired_rows(results, args.n_bootstrap) if len(results) > 1 else []
+    if paired:
+        print("\npaired bootstrap (same resampled queries); a finding only where the interval "
+              "excludes 0:")
+        print(format_table(paired))
+    out = paths.results_dir(dataset.name)
+    stem = "eval_" + "+".join(args.method) + f"_{args.backbone.replace(':', '_')}"
+    if args.pooling != "crop":
+        stem += f"_{args.pooling}"
+    if args.shortlist is not None:
+        stem += f"_k{args.shortlist}"
+    (out / f"{stem}.txt").write_text(
+        f"queries with ground truth: {n_gt} of {n_q}; tolerance {dataset.tolerance}; {mode}\n"
+        + table + "\n" + ("\n" + format_table(paired) + "\n" if paired else ""))
     import pandas as pd
 
     pd.DataFrame(rows).to_csv(out / f"{stem}.csv", index=False, float_format="%.6f")
-    fig = plot_pr_curves({r.label: r.curve() for r in results},
-                         title=f"{dataset.name} (tolerance {dataset.tolerance})")
+    fig = plot_pr_curves({r.legend(): r.curve() for r in results},
+                         title=f"{dataset.name} ({n_gt} queries, tolerance {dataset.tolerance}"
+                               f", {mode})")
     png = save_figure(fig, out / f"{stem}.png")
     print(f"wrote {out / (stem + '.csv')} and {png}")
     return 0
@@ -80,6 +173,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     from .methods import available_methods
+    from .paper import PROJECTION_DIM
 
     p = argparse.ArgumentParser(prog="vpr-study", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -88,20 +182,44 @@ def build_parser() -> argparse.ArgumentParser:
     def common(sp: argparse.ArgumentParser) -> None:
         sp.add_argument("--dataset", default="synthetic",
                         help="synthetic | gardens_point | mapillary_berlin | "
-                             "freiburg_across_seasons | folder")
+                             "freiburg_across_seasons | nordland | vpr_bench | folder")
         sp.add_argument("--root", default=None, help="dataset folder (real datasets)")
         sp.add_argument("--backbone", default="efficientnet_lite0")
+        sp.add_argument("--out", default=None,
+                        help="output root: figures/, results/, runs/ (and .cache/ unless "
+                             "VPR_CACHE_DIR is set) go under it; default the current folder "
+                             "or $VPR_OUTPUT_DIR")
 
     e = sub.add_parser("eval", help="evaluate one or more methods on a dataset")
     common(e)
     e.add_argument("--method", nargs="+", default=["dense"],
                    help=f"one or more of: {', '.join(available_methods())}")
-    e.add_argument("--dim", type=int, default=1024)
+    e.add_argument("--dim", type=int, default=PROJECTION_DIM)
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--weights", default=None, help="AlexNet weights file (alexnet_conv3)")
+    e.add_argument("--pooling", default="crop", choices=("crop", "roi"),
+                   help="crop: the paper's per-landmark crops (default); roi: one backbone "
+                        "pass per image, regions pooled from the feature map")
+    e.add_argument("--shortlist", type=int, default=None, metavar="K",
+                   help="re-rank only each query's top-K references by a whole-image "
+                        "descriptor (default: exhaustive, the paper's)")
+    e.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="Dask scheduler (tcp://host:8786; default $VPR_DASK_SCHEDULER): run "
+                        "features and matching on that cluster; unset: in-process")
+    e.add_argument("--device", default="cpu", help="torch device: cpu (default) or cuda")
+    e.add_argument("--n-bootstrap", type=int, default=1000,
+                   help="bootstrap resamples of the 95%% intervals (default 1000)")
+    e.add_argument("--peers", default=None, metavar="VPR_BENCH",
+                   help="VPR-Bench checkout (or $VPR_BENCH_ROOT): add its precomputed "
+                        "techniques for --peer-dataset as peers in the table and the figure")
+    e.add_argument("--peer-dataset", default=None, metavar="NAME",
+                   help="VPR-Bench dataset folder under precomputed_matches/ "
+                        "(e.g. GardensPointWalking)")
+    e.add_argument("--step", type=int, default=None, help="nordland: keep every step-th place")
+    e.add_argument("--opt", action="append", metavar="KEY=VALUE",
+                   help="any other loader option, e.g. --opt query=winter (repeatable)")
     e.add_argument("--tolerance", type=int, default=None, help="ground-truth tolerance (frames)")
     e.add_argument("--n-places", type=int, default=None, help="synthetic: number of places")
-    e.add_argument("--out", default=None, help="output folder (default results/<dataset>)")
     e.set_defaults(func=cmd_eval)
 
     r = sub.add_parser("run", help="execute the study notebooks and regenerate figures/")
@@ -112,20 +230,44 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if args.command == "eval":
-        from .methods import available_methods
+def _check_names(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Unknown methods and backbones are reported before any dataset is generated or read."""
+    from .backbones import parse_backbone
+    from .methods import available_methods
 
+    if args.command == "eval":
         bad = [m for m in args.method if m not in available_methods()]
         if bad:
             parser.error(f"unknown method(s) {bad}; valid: {', '.join(available_methods())}")
     try:
+        parse_backbone(args.backbone)
+    except (TypeError, ValueError) as exc:
+        parser.error(str(exc))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``vpr-study``; returns the exit code (2 on a user error, 130 on Ctrl-C)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    _check_names(parser, args)
+    configure_logging()
+    saved = os.environ.get(paths.OUTPUT_ENV)
+    try:
+        if args.out:
+            paths.set_output_root(args.out)
         return args.func(args)
-    except (ValueError, FileNotFoundError, IndexError, RuntimeError) as exc:
+    except KeyboardInterrupt:
+        print(INTERRUPTED, file=sys.stderr)
+        return 130
+    except (ValueError, TypeError, FileNotFoundError, IndexError, RuntimeError, OSError,
+            ConnectionError, ImportError) as exc:
         print(f"vpr-study: error: {exc}", file=sys.stderr)
         return 2
+    finally:  # --out applies to this command only (callers in the same process keep theirs)
+        if saved is None:
+            os.environ.pop(paths.OUTPUT_ENV, None)
+        else:
+            os.environ[paths.OUTPUT_ENV] = saved
 
 
 if __name__ == "__main__":  # pragma: no cover

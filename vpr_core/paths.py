@@ -15,8 +15,8 @@ import os
 from pathlib import Path
 
 __all__ = [
-    "OUTPUT_ENV",
     "CACHE_ENV",
+    "OUTPUT_ENV",
     "cache_root",
     "figures_dir",
     "output_root",

@@ -13,16 +13,10 @@ from typing import Any
 
 import numpy as np
 
-logger = logging.getLogger("vpr_core")
-if not logger.handlers:
-    _h = logging.StreamHandler()
-    _h.setFormatter(logging.Formatter("[vpr_core %(levelname)s] %(message)s"))
-    logger.addHandler(_h)
-    logger.setLevel(logging.INFO)
-    logger.propagate = False
+from . import paths
 
-PACKAGE_DIR = Path(__file__).resolve().parent
-REPO_DIR = PACKAGE_DIR.parent
+logger = logging.getLogger("vpr_core")
+logger.addHandler(logging.NullHandler())  # library convention: the application configures output
 
 
 def make_deterministic(seed: int = 0) -> None:
@@ -39,20 +33,29 @@ def make_deterministic(seed: int = 0) -> None:
 
 
 def cache_root() -> Path:
-    """Root folder of on-disk caches (datasets, landmarks, features, results).
+    """Root folder of on-disk caches: ``$VPR_CACHE_DIR``, else ``<output root>/.cache``.
 
-    ``$VPR_CACHE_DIR`` if set, else ``<repo>/.cache`` when running from a source checkout,
-    else ``~/.cache/vpr-landmarks``.
+    See :mod:`vpr_core.paths`; nothing is ever written inside the installed package.
     """
-    env = os.environ.get("VPR_CACHE_DIR")
-    if env:
-        root = Path(env).expanduser()
-    elif (REPO_DIR / "pyproject.toml").exists():
-        root = REPO_DIR / ".cache"
+    return paths.cache_root()
+
+
+def configure_logging(level: str | int = "INFO") -> logging.Logger:
+    """Send ``vpr_core`` log records to stderr as ``[vpr_core LEVEL] message`` (idempotent).
+
+    The library itself only has a NullHandler; the CLI and notebooks (``open_study``) call this.
+    """
+    for h in logger.handlers:
+        if getattr(h, "_vpr_console", False):
+            break
     else:
-        root = Path.home() / ".cache" / "vpr-landmarks"
-    root.mkdir(parents=True, exist_ok=True)
-    return root
+        h = logging.StreamHandler()
+        h.setFormatter(logging.Formatter("[vpr_core %(levelname)s] %(message)s"))
+        h._vpr_console = True  # type: ignore[attr-defined]
+        logger.addHandler(h)
+    logger.setLevel(level)
+    logger.propagate = False
+    return logger
 
 
 def cache_dir(*parts: str) -> Path:

@@ -39,6 +39,11 @@ def dense_run(set_name: str, scales: Sequence[float], per_scale) -> tuple[str, d
             dense_set_label(set_name, scales, per_scale))
 
 
+def _legend(result) -> str:
+    """Legend entry: the label with AUC and its 95% interval when the result has one."""
+    return result.legend() if hasattr(result, "legend") else result.label
+
+
 def _check_table(table: str) -> dict:
     if table not in DENSE_TABLES:
         raise ValueError(f"Unknown table {table!r}; valid: {', '.join(DENSE_TABLES)}.")
@@ -80,7 +85,7 @@ class ComparisonFigures:
         from ..viz import plot_pr_curves
 
         results = [self.resolve_run(item) for item in runs]
-        fig = plot_pr_curves({r.label: r.curve() for r in results},
+        fig = plot_pr_curves({_legend(r): r.curve() for r in results},
                              title=f"{title or figure}\n{self.label} "
                                    f"({len(self.dataset.query_paths)} queries, "
                                    f"tolerance {self.dataset.tolerance})")

@@ -81,16 +81,16 @@ class SyntheticDifficulty:
 DIFFICULTIES: dict[str, SyntheticDifficulty] = {
     "easy": SyntheticDifficulty(),
     "default": SyntheticDifficulty(
-        shift=(0.18, 0.32), zoom=(0.78, 1.25), rotation_deg=7.0, keystone=(0.04, 0.10),
+        shift=(0.16, 0.30), zoom=(0.8, 1.22), rotation_deg=7.0, keystone=(0.04, 0.10),
         vertical=0.07, occluders=(1, 3), day_occluder=0.5, style_share=0.9,
-        repeat_facades=0.35, facade_pool=6, night_ambient=(0.2, 0.4), night_gamma=1.3,
-        lit_windows=0.35, glow=0.5, noise=(0.03, 0.05), blur=(0.7, 1.3),
+        repeat_facades=0.35, facade_pool=6, night_ambient=(0.3, 0.5), night_gamma=1.15,
+        lit_windows=0.35, glow=0.45, noise=(0.025, 0.045), blur=(0.6, 1.1),
     ),
     "hard": SyntheticDifficulty(
-        shift=(0.25, 0.4), zoom=(0.7, 1.35), rotation_deg=9.0, keystone=(0.06, 0.13),
+        shift=(0.22, 0.38), zoom=(0.72, 1.32), rotation_deg=9.0, keystone=(0.06, 0.13),
         vertical=0.09, occluders=(2, 4), day_occluder=0.6, style_share=1.0,
-        repeat_facades=0.55, facade_pool=5, night_ambient=(0.12, 0.3), night_gamma=1.45,
-        lit_windows=0.3, glow=0.6, noise=(0.04, 0.07), blur=(0.9, 1.6),
+        repeat_facades=0.55, facade_pool=5, night_ambient=(0.2, 0.35), night_gamma=1.3,
+        lit_windows=0.3, glow=0.55, noise=(0.035, 0.06), blur=(0.8, 1.4),
     ),
 }
 

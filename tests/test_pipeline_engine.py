@@ -1,0 +1,142 @@
+"""run_method's fast paths (shortlist, roi, Dask), intervals, peers, cache healing, Ctrl-C."""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import pytest
+
+from vpr_core import cli, pipeline
+from vpr_core.datasets import load_dataset
+
+#: A small encoder so the tests stay fast (16 dense landmarks per image).
+SMALL = {"dim": 64, "scales": (0.25,), "per_scale": 16}
+
+
+@pytest.fixture(scope="module")
+def small():
+    return load_dataset("synthetic", n_places=6, image_size=(96, 160))
+
+
+@pytest.fixture()
+def isolated_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("VPR_CACHE_DIR", str(tmp_path / "cache"))
+    return tmp_path / "cache"
+
+
+def _run(ds, **kw):
+    opts = {**SMALL, **kw}
+    return pipeline.run_method("dense", ds, **opts)
+
+
+def test_shortlist_covering_every_reference_is_exhaustive(small):
+    full = _run(small)
+    same = _run(small, shortlist=len(small.reference_paths))
+    np.testing.assert_array_equal(full.similarity, same.similarity)
+    assert same.shortlist is None and full.timings["pairs"] == 36
+
+
+def test_shortlist_scores_k_pairs_per_query_and_keeps_their_values(small):
+    full = _run(small)
+    res = _run(small, shortlist=3)
+    ranked = ~np.isnan(res.similarity)
+    assert (ranked.sum(axis=1) == 3).all() and res.timings["pairs"] == 18
+    # inside the shortlist the Eq. (1) values are the exhaustive ones
+    np.testing.assert_allclose(res.similarity[ranked], full.similarity[ranked], atol=1e-6)
+    assert res.row()["pairs scored"] == 18 and res.shortlist == 3
+
+
+def test_bad_shortlist_is_refused(small):
+    for bad in (0, -2, 2.5, True, "5"):
+        with pytest.raises(ValueError, match="shortlist must be a positive integer"):
+            _run(small, shortlist=bad)
+
+
+def test_every_row_carries_its_interval(small):
+    row = _run(small).row()
+    for name in ("AUC(ratio)", "R@100P", "R@1"):
+        lo, hi = row[f"{name.split('(')[0]} lo"], row[f"{name.split('(')[0]} hi"]
+        assert lo <= row[name] + 1e-12 and row[name] <= hi + 1e-12
+    assert row["queries"] == 6
+    assert "AUC" in _run(small).legend() and "[" in _run(small).legend()
+
+
+def test_roi_pooling_runs_end_to_end_and_is_deterministic(small, isolated_cache):
+    a = _run(small, pooling="roi")
+    pipeline.get_encoder.cache_clear()
+    b = _run(small, pooling="roi")
+    np.testing.assert_array_equal(a.similarity, b.similarity)
+    assert a.encoder["pooling"] == "roi"
+    assert not np.array_equal(a.similarity, _run(small).similarity)
+
+
+def test_run_method_on_a_local_cluster_equals_in_process(small, isolated_cache):
+    distributed = pytest.importorskip("distributed")
+    local = _run(small, shortlist=3)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        import shutil
+
+        shutil.rmtree(isolated_cache)  # features and matrices are recomputed on the cluster
+        remote = _run(small, shortlist=3, scheduler=cluster.scheduler_address)
+    np.testing.assert_array_equal(local.similarity, remote.similarity)
+
+
+def _truncate(path):
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 3])
+
+
+@pytest.mark.parametrize("kind", ["landmarks", "features", "results"])
+def test_a_truncated_cache_entry_heals(kind, small, isolated_cache, caplog):
+    ref = pipeline.run_method("classical", small, dim=64)
+    files = sorted((isolated_cache / kind).rglob("*.npz"))
+    assert files, f"no {kind} cache entries were written"
+    for f in files[:3]:
+        _truncate(f)
+    pipeline.get_encoder.cache_clear()
+    with caplog.at_level(logging.WARNING, logger="vpr_core"):
+        again = pipeline.run_method("classical", small, dim=64)
+    np.testing.assert_array_equal(ref.similarity, again.similarity)
+    msgs = [r.getMessage() for r in caplog.records if "unreadable" in r.getMessage()]
+    assert any(str(files[0]) in m for m in msgs), msgs
+    # healed: a third run reads everything without warnings
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="vpr_core"):
+        pipeline.run_method("classical", small, dim=64)
+    assert not [r for r in caplog.records if "unreadable" in r.getMessage()]
+
+
+def test_peer_result_sits_beside_ours(small, tmp_path):
+    from test_baselines import _write
+
+    from vpr_core.baselines import load_vprbench_precomputed
+
+    gt = np.asarray(small.ground_truth)
+    sim = np.where(gt, 0.9, 0.1) + np.random.default_rng(0).random(gt.shape) * 0.01
+    peer = load_vprbench_precomputed(_write(tmp_path / "NetVLAD" / "x.npy", sim))
+    res = pipeline.peer_result(peer, small)
+    assert res.metrics["r_at_1"] == 1.0 and res.intervals["auc"][1] <= 1.0
+    assert res.row()["method"].startswith("NetVLAD")
+
+
+def test_cli_shortlist_roi_and_paired_differences(small, tmp_path, capsys):
+    rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "dense",
+                   "global", "--pooling", "roi", "--shortlist", "3", "--dim", "64",
+                   "--n-bootstrap", "200", "--out", str(tmp_path)])
+    assert rc == 0
+    out = capsys.readouterr().out
+    assert "shortlist k=3" in out and "paired bootstrap" in out and "global - dense" in out
+    assert ("finding" in out) or ("inconclusive" in out)
+    assert (tmp_path / "results" / "synthetic" / "eval_dense+global_efficientnet_lite0_roi_k3.csv"
+            ).is_file()
+
+
+def test_ctrl_c_prints_one_line_and_exits_130(monkeypatch, capsys):
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "cmd_eval", interrupted)  # build_parser binds it at each call
+    assert cli.main(["eval", "--dataset", "synthetic", "--method", "dense"]) == 130
+    assert capsys.readouterr().err.strip().splitlines() == [cli.INTERRUPTED]

@@ -1,0 +1,175 @@
+"""Feature stage: landmark descriptors of every image, cached per image and encoder config.
+
+``features/<encoder slug>/<image key>.npz`` is a per-image store of ``(boxes, descriptors)`` for
+one encoder config (backbone, pooling, input size, dim, seed, weights). Boxes are looked up row by
+row, so a new landmark config computes only the boxes it has not seen (resume), and the same
+config a second time reads everything from disk. The whole-image descriptor of the ``global``
+method and of shortlists is the row of the box ``(0, 0, W, H)`` in the same store.
+"""
+
+from __future__ import annotations
+
+import time
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from ..paper import PROJECTION_DIM
+from ..utils import cache_dir, config_slug, progress
+from .cache import SIDES, atomic_savez, load_npz, n_images
+
+__all__ = ["encoder_kwargs", "extract_features", "features_for_image", "get_encoder"]
+
+
+def get_encoder(backbone: str = "efficientnet_lite0", dim: int = PROJECTION_DIM, seed: int = 0,
+                weights: str | None = None, pooling: str = "crop", device: str = "cpu"):
+    """A shared :class:`~vpr_core.features.LandmarkEncoder` (model loading is the slow part).
+
+    The same arguments return the same object, however they are passed.
+    """
+    return _cached_encoder(str(backbone), int(dim), int(seed), weights, str(pooling), str(device))
+
+
+@lru_cache(maxsize=4)
+def _cached_encoder(backbone: str, dim: int, seed: int, weights: str | None, pooling: str,
+                    device: str):
+    from ..features import LandmarkEncoder
+
+    kwargs: dict[str, Any] = {"backbone": backbone, "dim": dim, "seed": seed, "pooling": pooling,
+                              "device": device}
+    if weights is not None:
+        kwargs["weights"] = weights
+    enc = LandmarkEncoder(**kwargs)
+    enc._vpr_kwargs = dict(kwargs)  # rebuilt from these on Dask workers
+    return enc
+
+
+get_encoder.cache_clear = _cached_encoder.cache_clear  # type: ignore[attr-defined]
+
+
+def _encoder_slug(encoder) -> str:
+    cfg = dict(encoder.config)
+    cfg.pop("device", None)  # the device does not change the cached descriptors' meaning
+    return config_slug(str(cfg.get("backbone", "encoder")), cfg)
+
+
+def _box_keys(boxes: np.ndarray) -> list[bytes]:
+    return [np.round(b, 3).astype(np.float64).tobytes() for b in np.asarray(boxes, dtype=float)]
+
+
+def _store_path(encoder, dataset, side: str, i: int):
+    return cache_dir("features", _encoder_slug(encoder)) / f"{dataset.image_key(side, i)}.npz"
+
+
+def _read_store(path, dim: int, overwrite: bool = False):
+    """``(boxes (S, 4), desc (S, dim), cost (S,))`` of a per-image store (empty if absent)."""
+    stored = None if overwrite else load_npz(path, ("boxes", "desc", "cost"))
+    if stored is None:
+        return np.zeros((0, 4)), np.zeros((0, dim), np.float32), np.zeros((0,))
+    return stored["boxes"].reshape(-1, 4), stored["desc"], stored["cost"]
+
+
+def _missing_boxes(s_boxes: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """The distinct rows of ``boxes`` not in the store, in first-occurrence order."""
+    index = set(_box_keys(s_boxes))
+    keys = _box_keys(boxes)
+    first = {k: j for j, k in reversed(list(enumerate(keys)))}
+    missing = [k for k in dict.fromkeys(keys) if k not in index]
+    return boxes[[first[k] for k in missing]].reshape(-1, 4)
+
+
+def _add_to_store(path, store, new_boxes: np.ndarray, new_desc: np.ndarray, seconds: float):
+    """Append freshly computed rows to a store and write it atomically; returns the store."""
+    s_boxes, s_desc, s_cost = store
+    cost = seconds / max(len(new_boxes), 1)
+    s_boxes = np.concatenate([s_boxes.reshape(-1, 4), new_boxes])
+    s_desc = np.concatenate([s_desc.reshape(-1, new_desc.shape[1]), new_desc]).astype(np.float32)
+    s_cost = np.concatenate([s_cost, np.full(len(new_boxes), cost)])
+    atomic_savez(path, boxes=s_boxes, desc=s_desc, cost=s_cost)
+    return s_boxes, s_desc, s_cost
+
+
+def _rows(store, boxes: np.ndarray) -> tuple[np.ndarray, float]:
+    s_boxes, s_desc, s_cost = store
+    index = {k: j for j, k in enumerate(_box_keys(s_boxes))}
+    rows = np.array([index[k] for k in _box_keys(boxes)], dtype=np.int64)
+    return s_desc[rows].astype(np.float32), float(s_cost[rows].sum())
+
+
+def features_for_image(encoder, dataset, side: str, i: int, boxes: np.ndarray,
+                       overwrite: bool = False) -> tuple[np.ndarray, float]:
+    """Descriptors of ``boxes`` in one image, from the per-image store; computes what is missing.
+
+    Returns:
+        ``(desc (K, dim) float32, seconds)``: seconds is the recorded compute cost of these K
+        descriptors (measured when they were computed, so cached runs report real costs).
+    """
+    path = _store_path(encoder, dataset, side, i)
+    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    store = _read_store(path, encoder.dim or 0, overwrite)
+    new_boxes = _missing_boxes(store[0], boxes)
+    if len(new_boxes):
+        image = dataset.load_image(side, i)
+        t0 = time.perf_counter()
+        new_desc = encoder.encode(image, new_boxes)
+        store = _add_to_store(path, store, new_boxes, new_desc, time.perf_counter() - t0)
+    return _rows(store, boxes)
+
+
+def encoder_kwargs(encoder) -> dict[str, Any]:
+    """The JSON-serialisable keyword arguments that rebuild ``encoder`` on a Dask worker."""
+    kwargs = getattr(encoder, "_vpr_kwargs", None)
+    if kwargs is None:
+        raise ValueError("this encoder was not made by vpr_core.pipeline.get_encoder; build it "
+                         "with get_encoder(...) to run it on a Dask cluster")
+    return dict(kwargs)
+
+
+def _extract_side_distributed(client, boxes: list, dataset, side: str, encoder) -> tuple:
+    """One side's descriptors: the client reads/writes the stores, workers compute what is
+    missing (:func:`vpr_core.engine.extract_features_distributed`)."""
+    from ..engine import extract_features_distributed
+
+    n = n_images(dataset, side)
+    all_boxes = [np.asarray(boxes[i], dtype=np.float64).reshape(-1, 4) for i in range(n)]
+    paths_ = [_store_path(encoder, dataset, side, i) for i in range(n)]
+    stores = [_read_store(p, encoder.dim or 0) for p in paths_]
+    todo = [i for i in range(n) if len(_missing_boxes(stores[i][0], all_boxes[i]))]
+    if todo:
+        new = [_missing_boxes(stores[i][0], all_boxes[i]) for i in todo]
+        descs, secs = extract_features_distributed(client, dataset, side, encoder_kwargs(encoder),
+                                                   indices=todo, boxes=new)
+        for i, nb, d, s in zip(todo, new, descs, secs):
+            stores[i] = _add_to_store(paths_[i], stores[i], nb, d, s)
+    out = [_rows(stores[i], all_boxes[i]) for i in range(n)]
+    return [d for d, _ in out], [s for _, s in out]
+
+
+def extract_features(boxes: dict[str, Any], dataset, encoder, client=None) -> dict[str, Any]:
+    """Descriptors for every image's landmarks (cached per image and encoder config).
+
+    Args:
+        boxes: output of :func:`~vpr_core.pipeline.extract_landmarks`.
+        dataset: a :class:`~vpr_core.datasets.PlaceDataset`.
+        encoder: a :class:`~vpr_core.features.LandmarkEncoder` from :func:`get_encoder`.
+        client: a ``dask.distributed.Client``: images whose descriptors are not cached are
+            encoded on the cluster in shards (workers return arrays; only this process touches
+            the cache). None: in-process.
+
+    Returns:
+        ``{"query": [(K_i, D) float32 ...], "reference": [...], "seconds": {side: [...]}}``.
+    """
+    out: dict[str, Any] = {"seconds": {}}
+    for side in SIDES:
+        if client is not None:
+            descs, secs = _extract_side_distributed(client, boxes[side], dataset, side, encoder)
+        else:
+            descs, secs = [], []
+            for i in progress(range(n_images(dataset, side)), desc=f"features {side}"):
+                d, s = features_for_image(encoder, dataset, side, i, boxes[side][i])
+                descs.append(d)
+                secs.append(s)
+        out[side] = descs
+        out["seconds"][side] = secs
+    return out

@@ -1,0 +1,252 @@
+"""One method on one dataset: landmarks -> features -> similarity matrix -> metrics.
+
+``results/<dataset>-<hash>/<method slug>.npz`` caches the similarity matrix of a
+(dataset, landmark config, matching config, encoder) combination.
+
+An image for which a scheme produced no landmark at all is *excluded from ranking*: every pair
+that involves it is NaN in the similarity matrix (the evaluation never ranks a NaN reference and
+drops a query whose row is all NaN), and a warning names the image. It is never scored as zeros.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..methods import get_method, landmark_config, method_label
+from ..paper import PROJECTION_DIM
+from ..utils import cache_dir, config_slug, logger
+from .cache import SIDES, atomic_savez, dataset_fingerprint, load_npz, n_images
+from .feature_stage import extract_features, get_encoder
+from .landmark_stage import extract_landmarks
+
+__all__ = ["INTERVAL_COLUMNS", "N_BOOTSTRAP", "MethodResult", "peer_result", "run_method"]
+
+
+#: Bootstrap resamples of the metric intervals (``evaluation.bootstrap_metrics``).
+N_BOOTSTRAP = 1000
+
+#: Interval columns of :meth:`MethodResult.row` (95% bootstrap over queries).
+INTERVAL_COLUMNS = ["AUC lo", "AUC hi", "R@100P lo", "R@100P hi", "R@1 lo", "R@1 hi"]
+
+
+@dataclass
+class MethodResult:
+    """Everything one method produced on one dataset.
+
+    Attributes:
+        method: preset name; ``label``: a display label (e.g. ``"overlap_scheme1 (IoU 0.4)"``).
+        config: the full method config; ``encoder``: the encoder config.
+        similarity: ``(Nq, Nr)`` Eq. (1) similarities (NaN = not ranked: off the shortlist, or an
+            image without landmarks).
+        ground_truth: ``(Nq, Nr)`` bool.
+        boxes: ``{"query": [(K_i, 4)], "reference": [...]}``.
+        metrics: AUC (ratio protocol), R@100P, R@1, R@5.
+        intervals: ``{"auc", "r@100p", "r@1", "r@5": (value, low, high)}``, 95% bootstrap over
+            queries (:func:`~vpr_core.evaluation.bootstrap_metrics`, ``N_BOOTSTRAP`` resamples,
+            seed 0).
+        timings: seconds per image for landmarks and features (recorded compute costs), seconds
+            per image pair for matching (measured when the matrix was computed) and the number
+            of image pairs scored by Eq. (1).
+        shortlist: None (exhaustive) or the k of shortlist + re-rank.
+        queries_with_gt: ``(queries with ground truth, all queries)``.
+    """
+
+    method: str
+    label: str
+    dataset: str
+    config: dict
+    encoder: dict
+    similarity: np.ndarray
+    ground_truth: np.ndarray
+    boxes: dict
+    metrics: dict
+    timings: dict
+    descriptors: dict | None = field(default=None, repr=False)
+    intervals: dict = field(default_factory=dict)
+    shortlist: int | None = None
+    queries_with_gt: tuple[int, int] = (0, 0)
+
+    def row(self) -> dict:
+        """One table row: label, metrics with their 95% intervals, coverage and costs."""
+        t, iv = self.timings, self.intervals
+        row = {"method": self.label, "AUC(ratio)": float(self.metrics["auc"]),
+               "R@100P": float(self.metrics["r_at_100p"]), "R@1": float(self.metrics["r_at_1"]),
+               "R@5": float(self.metrics["r_at_5"])}
+        for key, name in (("auc", "AUC"), ("r@100p", "R@100P"), ("r@1", "R@1")):
+            lo, hi = (iv[key][1], iv[key][2]) if key in iv else (np.nan, np.nan)
+            row[f"{name} lo"], row[f"{name} hi"] = float(lo), float(hi)
+        row.update({"queries": int(self.queries_with_gt[0]),
+                    "landmarks/img": float(t["landmarks_per_image"]),
+                    "landmarks s/img": float(t["landmarks_s_per_image"]),
+                    "features s/img": float(t["features_s_per_image"]),
+                    "matching s/pair": float(t["matching_s_per_pair"]),
+                    "pairs scored": float(t.get("pairs", np.nan))})
+        return row
+
+    def legend(self) -> str:
+        """Legend text: the label with AUC and its 95% interval."""
+        if "auc" not in self.intervals:
+            return self.label
+        v, lo, hi = self.intervals["auc"]
+        return f"{self.label}  AUC {v:.3f} [{lo:.3f}, {hi:.3f}]"
+
+    def curve(self, protocol: str = "ratio"):
+        """PR curve of this result under ``protocol``."""
+        from ..evaluation import pr_curve
+
+        return pr_curve(self.similarity, self.ground_truth, protocol=protocol, warn=False)
+
+
+def _exclude_empty(sim: np.ndarray, boxes: dict, dataset) -> np.ndarray:
+    """NaN for every pair involving an image without landmarks; one warning naming them."""
+    empty = {s: [i for i, b in enumerate(boxes[s]) if len(b) == 0] for s in SIDES}
+    if not (empty["query"] or empty["reference"]):
+        return sim
+    sim = sim.copy()
+    sim[empty["query"], :] = np.nan
+    sim[:, empty["reference"]] = np.nan
+    names = [f"{s} {i} ({(dataset.query_paths if s == 'query' else dataset.reference_paths)[i]})"
+             for s in SIDES for i in empty[s]]
+    logger.warning("no landmarks in %d image(s), excluded from ranking: %s", len(names),
+                   "; ".join(names[:10]) + (" ..." if len(names) > 10 else ""))
+    return sim
+
+
+def _check_shortlist(shortlist: Any, n_ref: int) -> int | None:
+    if shortlist is None:
+        return None
+    if isinstance(shortlist, bool) or not isinstance(shortlist, (int, np.integer)) \
+            or shortlist < 1:
+        raise ValueError(f"shortlist must be a positive integer k (references re-ranked per "
+                         f"query) or None for exhaustive matching, got {shortlist!r}")
+    if shortlist == 1:
+        logger.warning("shortlist=1 leaves no second-best reference: the ratio protocol then "
+                       "sets S2 := S1 (ratio 1); use k >= 2")
+    return int(min(shortlist, n_ref)) if shortlist < n_ref else None
+
+
+def _features(conf: dict, boxes: dict, dataset, encoder, shortlist: int | None, client):
+    """Landmark descriptors (and whole-image descriptors when a shortlist needs them)."""
+    from ..engine.stages import split_whole_image, with_whole_image_boxes
+
+    if shortlist is None:
+        return extract_features(boxes, dataset, encoder, client=client), None
+    feats = extract_features(with_whole_image_boxes(boxes, dataset), dataset, encoder,
+                             client=client)
+    return split_whole_image(feats)
+
+
+def run_method(method: str | dict, dataset, backbone: str = "efficientnet_lite0",
+               dim: int = PROJECTION_DIM, seed: int = 0, weights: str | None = None,
+               keep_descriptors: bool = False, label: str | None = None,
+               pooling: str = "crop", device: str = "cpu", shortlist: int | None = None,
+               scheduler: str | None = None, n_bootstrap: int = N_BOOTSTRAP,
+               **overrides: Any) -> MethodResult:
+    """Run a named method (or a config from :func:`~vpr_core.methods.get_method`) on a dataset.
+
+    Args:
+        method: preset name (``classical``, ``dense``, ``global``, ...) or a config dict.
+        dataset: a :class:`~vpr_core.datasets.PlaceDataset`.
+        backbone, dim, seed, weights, pooling, device: the landmark encoder
+            (``pooling="crop"`` is the paper's per-landmark crops, ``"roi"`` one backbone pass).
+        keep_descriptors: also return the descriptors (needed by the scale statistics).
+        label: display label; default from the config.
+        shortlist: None (exhaustive, the paper's) or k: each query's top-k references by the
+            cosine of whole-image descriptors (same backbone and pooling) are re-ranked by
+            Eq. (1); all other pairs are NaN ("not ranked"; the ratio protocol's S2 is the
+            second best inside the shortlist). k >= the number of references is exhaustive.
+        scheduler: a Dask scheduler address (or ``$VPR_DASK_SCHEDULER``): features and
+            matching run as tasks on that cluster; None: in-process.
+        n_bootstrap: resamples of the metric intervals.
+        **overrides: the method's own options, e.g. ``iou_threshold=0.4``; an option the
+            method does not take is an error.
+
+    Returns:
+        A :class:`MethodResult`.
+    """
+    from ..engine import get_client
+    from ..engine.stages import match
+    from ..evaluation import bootstrap_metrics, evaluate, ground_truth_coverage
+
+    conf = get_method(method, **overrides) if isinstance(method, str) else dict(method)
+    nq, nr = n_images(dataset, "query"), n_images(dataset, "reference")
+    k = _check_shortlist(shortlist, nr)
+    encoder = get_encoder(backbone, dim, seed, weights, pooling=pooling, device=device)
+    client = get_client(scheduler)
+    try:
+        boxes = extract_landmarks(conf, dataset)
+        feats, glob = _features(conf, boxes, dataset, encoder, k, client)
+        key = {"dataset": dataset_fingerprint(dataset), "landmarks": landmark_config(conf),
+               "matching": conf["matching"], "encoder": dict(encoder.config)}
+        if k is not None:
+            key["shortlist"] = k
+        folder = cache_dir("results", f"{dataset.name}-{key['dataset']}")
+        path = folder / f"{config_slug(conf['name'], key)}.npz"
+        cached = load_npz(path, ("similarity", "seconds_per_pair", "pairs"))
+        if cached is not None:
+            sim, match_s = cached["similarity"], float(cached["seconds_per_pair"])
+            n_pairs = float(cached["pairs"])
+        else:
+            sim, info = match(boxes, feats, soft_nms_iou=conf["matching"]["soft_nms_iou"],
+                              sigma=conf["matching"]["sigma"], shortlist=k, global_desc=glob,
+                              client=client)
+            n_pairs = info["pairs"]
+            match_s = (info["matching_s"] + info["shortlist_s"]) / max(n_pairs, 1)
+            atomic_savez(path, similarity=sim, seconds_per_pair=np.array(match_s),
+                         pairs=np.array(n_pairs))
+    finally:
+        if client is not None:
+            client.close()
+    sim = _exclude_empty(np.asarray(sim, dtype=np.float64), boxes, dataset)
+    gt = np.asarray(dataset.ground_truth, dtype=bool)
+    metrics = evaluate(sim, gt)
+    intervals = bootstrap_metrics(sim, gt, n=n_bootstrap, seed=0) if n_bootstrap else {}
+    n_img = nq + nr
+    timings = {
+        "landmarks_s_per_image": float(sum(map(sum, boxes["seconds"].values())) / n_img),
+        "features_s_per_image": float(sum(map(sum, feats["seconds"].values())) / n_img),
+        "matching_s_per_pair": match_s,
+        "landmarks_per_image": float(np.mean([len(b) for s in SIDES for b in boxes[s]])),
+        "pairs": n_pairs,
+    }
+    return MethodResult(
+        method=conf["name"], label=label or method_label(conf), dataset=dataset.name,
+        config=conf, encoder=dict(encoder.config), similarity=sim, ground_truth=gt,
+        boxes={s: boxes[s] for s in SIDES}, metrics=metrics, timings=timings,
+        descriptors={s: feats[s] for s in SIDES} if keep_descriptors else None,
+        intervals=intervals, shortlist=k, queries_with_gt=ground_truth_coverage(gt),
+    )
+
+
+def peer_result(peer, dataset, n_bootstrap: int = N_BOOTSTRAP) -> MethodResult:
+    """A VPR-Bench peer (:class:`~vpr_core.baselines.PeerResult`) as a result beside ours.
+
+    Its similarity matrix is checked against ``dataset`` (shape, query order) and evaluated with
+    the same metrics and intervals. Costs: ``features s/img`` is VPR-Bench's stored encode time
+    and ``matching s/pair`` its stored match time, as VPR-Bench recorded them on its machine
+    (not comparable with ours to more than an order of magnitude); landmark columns are NaN.
+
+    Args:
+        peer: a loaded peer (:func:`~vpr_core.baselines.load_vprbench_precomputed`).
+        dataset: the :class:`~vpr_core.datasets.PlaceDataset` it was computed on.
+        n_bootstrap: resamples of the metric intervals.
+    """
+    from ..baselines import peer_similarity_for
+    from ..evaluation import bootstrap_metrics, evaluate, ground_truth_coverage
+
+    sim = peer_similarity_for(dataset, peer)
+    gt = np.asarray(dataset.ground_truth, dtype=bool)
+    nq, nr = gt.shape
+    timings = {"landmarks_s_per_image": float("nan"), "landmarks_per_image": float("nan"),
+               "features_s_per_image": float(peer.encode_seconds),
+               "matching_s_per_pair": float(peer.match_seconds), "pairs": float(nq * nr)}
+    return MethodResult(
+        method=f"peer:{peer.name}", label=f"{peer.name} (VPR-Bench)", dataset=dataset.name,
+        config={"name": f"peer:{peer.name}", "source": str(peer.source)}, encoder={},
+        similarity=sim, ground_truth=gt, boxes={"query": [], "reference": []},
+        metrics=evaluate(sim, gt), timings=timings,
+        intervals=bootstrap_metrics(sim, gt, n=n_bootstrap, seed=0) if n_bootstrap else {},
+        queries_with_gt=ground_truth_coverage(gt))
