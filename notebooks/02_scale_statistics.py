@@ -37,13 +37,16 @@ dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg
 root = None  # dataset folder for the real datasets
 backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
 quick = False  # small run (8 synthetic places / 20 images) used by the tests
+label = None  # output subfolder of figures/ and results/ (default: the dataset name)
+options = {}  # loader options, e.g. {"step": 50, "tolerance": 0} for nordland
+pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass per image
 
 method = "classical"  # landmark method whose matches are studied
 n_irrelevant = 5  # query-irrelevant references sampled per query
 
 # %%
 study = open_study(dataset, root=root, backbone=backbone, quick=quick,
-                   notebook="02_scale_statistics")
+                   notebook="02_scale_statistics", label=label, pooling=pooling, **options)
 print(study.describe())
 
 # %% [markdown]

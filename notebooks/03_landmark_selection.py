@@ -30,10 +30,13 @@ dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg
 root = None  # dataset folder for the real datasets
 backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
 quick = False  # small run (8 synthetic places / 20 images) used by the tests
+label = None  # output subfolder of figures/ and results/ (default: the dataset name)
+options = {}  # loader options, e.g. {"step": 50, "tolerance": 0} for nordland
+pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass per image
 
 # %%
 study = open_study(dataset, root=root, backbone=backbone, quick=quick,
-                   notebook="03_landmark_selection")
+                   notebook="03_landmark_selection", label=label, pooling=pooling, **options)
 print(study.describe())
 
 # %% [markdown]

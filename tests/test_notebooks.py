@@ -7,6 +7,7 @@ import json
 import os
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from vpr_core import runner
@@ -79,3 +80,23 @@ def test_quick_study_runs_headless_and_writes_every_figure(tmp_path, monkeypatch
     runner.run_study(dataset="synthetic", quick=True, notebooks=["03_landmark_selection"])
     after = {p.name: p.read_bytes() for p in figures.glob("fig0[56]*.png")}
     assert before and before == after
+
+
+def test_real_datasets_beside_the_project_get_the_comparison(tmp_path, monkeypatch):
+    from vpr_core.study import extra_datasets
+
+    found = extra_datasets()
+    if not found:
+        pytest.skip("no real datasets beside the project (../shared/data)")
+    out = tmp_path / "out"
+    monkeypatch.setenv("VPR_OUTPUT_DIR", str(out))
+    monkeypatch.setenv("VPR_CACHE_DIR", os.environ.get("VPR_CACHE_DIR", str(REPO / ".cache")))
+    runner.run_study(dataset="synthetic", quick=True, notebooks=["06_comparison"],
+                     real_data=True)
+    for name in found:
+        label = f"{name}_quick"
+        assert (out / "figures" / label / "fig13_comparison.png").stat().st_size > 1000
+        table = pd.read_csv(out / "results" / label / "06_comparison.csv")
+        assert {"dense", "selection_scheme1", "classical", "global"} <= set(table["method"])
+        assert (table["AUC lo"] <= table["AUC(ratio)"] + 1e-9).all()
+        assert (out / "results" / label / "06_comparison_fig13_comparison_paired.csv").exists()

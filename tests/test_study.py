@@ -8,6 +8,7 @@ import os
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from vpr_core import paper, study
@@ -169,10 +170,39 @@ def test_extra_datasets_rejects_malformed_entries(monkeypatch):
         study.extra_datasets()
     monkeypatch.setenv("VPR_DATASETS", "gardens_point=/data/gp")
     assert study.extra_datasets()["gardens_point"] == {"dataset": "gardens_point",
-                                                       "root": "/data/gp"}
+                                                       "root": "/data/gp", "options": {},
+                                                       "pooling": "crop"}
 
 
 def test_quick_subset_of_real_dataset(gardens_point_mini_root, out_root):
     s = study.open_study("folder", root=str(gardens_point_mini_root), quick=True, notebook="t")
     assert s.label == "folder_quick"
     assert np.array_equal(s.dataset.ground_truth, np.eye(10, dtype=bool))
+
+
+def test_compare_writes_paired_differences_with_verdicts(out_root):
+    s = study.open_study("synthetic", quick=True, notebook="nbp", n_places=6)
+    runs = [("dense", {"scales": (0.25,), "per_scale": 4}, "a"),
+            ("dense", {"scales": (0.49,), "per_scale": 4}, "b"), "global"]
+    res = s.compare(runs, "figp")
+    assert {"AUC lo", "AUC hi", "R@1 lo", "R@1 hi", "queries"} <= set(res.table.columns)
+    assert (res.table["AUC lo"] <= res.table["AUC(ratio)"] + 1e-12).all()
+    paired = pd.read_csv(out_root / "results" / "synthetic_quick" / "nbp_figp_paired.csv")
+    assert list(paired["method"]) == ["b", "global"] and set(paired["baseline"]) == {"a"}
+    for name in ("dAUC", "dR@1"):
+        assert set(paired[f"{name} verdict"]) <= {"finding", "inconclusive"}
+        finding = (paired[f"{name} lo"] > 0) | (paired[f"{name} hi"] < 0)
+        assert ((paired[f"{name} verdict"] == "finding") == finding).all()
+    again = s.paired_differences("figp", baseline="global")
+    assert set(again.index) == {"a", "b"}
+    with pytest.raises(ValueError, match="baseline 'nope'"):
+        s.paired_differences("figp", baseline="nope")
+    with pytest.raises(KeyError, match="not been compared"):
+        s.paired_differences("fig99")
+
+
+def test_open_study_passes_loader_options_and_pooling(out_root, gardens_point_mini_root):
+    s = study.open_study("folder", root=str(gardens_point_mini_root), notebook="t",
+                         label="gp", pooling="roi", tolerance=1)
+    assert s.label == "gp" and s.pooling == "roi" and s.dataset.tolerance == 1
+    assert s.encoder.config["pooling"] == "roi"

@@ -167,7 +167,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .runner import run_study
 
     run_study(dataset=args.dataset, root=args.root, backbone=args.backbone, quick=args.quick,
-              notebooks=args.notebooks or None)
+              notebooks=args.notebooks or None, real_data=args.real_data)
     return 0
 
 
@@ -226,6 +226,11 @@ def build_parser() -> argparse.ArgumentParser:
     common(r)
     r.add_argument("--quick", action="store_true", help="small synthetic set (used by tests)")
     r.add_argument("--notebooks", nargs="*", help="subset of notebooks (file stems)")
+    r.add_argument("--real-data", dest="real_data", action="store_true", default=None,
+                   help="also run notebooks 03-06 on the real datasets beside the project "
+                        "(default for the full synthetic study)")
+    r.add_argument("--no-real-data", dest="real_data", action="store_false",
+                   help="only the --dataset study")
     r.set_defaults(func=cmd_run)
     return p
 

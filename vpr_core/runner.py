@@ -121,14 +121,51 @@ def _unwritten(folder: Path, stems: Sequence[str], since: float) -> list[str]:
 def _print_summary(table: pd.DataFrame, label: str, backbone: str) -> None:
     with pd.option_context("display.width", 200, "display.max_rows", 200,
                            "display.float_format", "{:.3f}".format):
-        cols = ["notebook", "figure", "method", "AUC(ratio)", "R@100P", "R@1"]
+        cols = [c for c in ("notebook", "figure", "method", "AUC(ratio)", "AUC lo", "AUC hi",
+                            "R@100P", "R@1", "R@1 lo", "R@1 hi") if c in table.columns]
         print(f"\nSummary ({label}, backbone {backbone}):")
         print(table[cols].to_string(index=False))
 
 
+#: The comparison notebooks that ``make study`` also runs on the real datasets beside the
+#: project (:func:`vpr_core.study.extra_datasets`).
+REAL_DATA_NOTEBOOKS = ("03_landmark_selection", "04_overlap", "05_dense_sampling_parameters",
+                       "06_comparison")
+
+
+def _execute(nb: Path, out: Path, params: dict, kernel: str) -> None:
+    import papermill as pm
+
+    t0 = time.perf_counter()
+    logger.info("executing %s -> %s", nb.name, out)
+    try:
+        pm.execute_notebook(str(nb), str(out), parameters=params, cwd=str(nb.parent),
+                            kernel_name=kernel, progress_bar=not os.environ.get("TQDM_DISABLE"),
+                            log_output=False)
+    except Exception as exc:  # papermill raises PapermillExecutionError with the cell
+        raise RuntimeError(f"notebook {nb.name} failed; open {out} to see the failing "
+                           f"cell:\n{exc}") from exc
+    logger.info("%s done in %.1f s", nb.name, time.perf_counter() - t0)
+
+
+def _run_label(label: str, selected: Sequence[Path], params: dict, kernel: str) -> list[str]:
+    """Execute ``selected`` notebooks for one output label; the expected figures not written."""
+    from .study import expected_figures
+
+    expected = expected_figures()
+    out_dir = paths.runs_dir(label)
+    missing: list[str] = []
+    for nb in selected:
+        started = time.time()
+        _execute(nb, out_dir / nb.name, params, kernel)
+        missing += _unwritten(paths.figures_dir(label), expected.get(nb.stem, []), started)
+    return missing
+
+
 def run_study(dataset: str = "synthetic", root: str | None = None,
               backbone: str = "efficientnet_lite0", quick: bool = False,
-              notebooks: Sequence[str] | None = None, kernel: str = "python3") -> pd.DataFrame:
+              notebooks: Sequence[str] | None = None, kernel: str = "python3",
+              real_data: bool | None = None) -> pd.DataFrame:
     """Execute the notebooks with papermill and verify their figures.
 
     Args:
@@ -138,49 +175,50 @@ def run_study(dataset: str = "synthetic", root: str | None = None,
         quick: the small headless run (outputs under ``<dataset>_quick``).
         notebooks: subset of notebook stems (default: all, in order).
         kernel: Jupyter kernel name.
+        real_data: also run :data:`REAL_DATA_NOTEBOOKS` (of those selected) on every real
+            dataset of :func:`vpr_core.study.extra_datasets` (outputs under
+            ``figures/<label>/``, ``results/<label>/``); default: on for the full
+            ``synthetic`` study, off otherwise.
 
     Returns:
-        The summary metrics table (also printed).
+        The summary metrics table of ``dataset`` (also printed, then one per real dataset).
 
     Raises:
         RuntimeError: a notebook failed (the message names it and the executed copy to open)
             or expected figures are missing.
     """
-    import papermill as pm
-
     from .datasets import load_dataset
-    from .study import QUICK_PLACES, expected_figures
+    from .study import QUICK_PLACES, extra_datasets
 
     if root is not None:
         root = str(Path(root).expanduser().resolve())
     # fail fast, with the loader's clear message (quick synthetic: only the places it uses)
     load_dataset(dataset, root=root, **({"n_places": QUICK_PLACES}
                                         if quick and dataset == "synthetic" else {}))
+    if real_data is None:
+        real_data = dataset == "synthetic" and not quick
     label = output_label(dataset, quick)
-    expected = expected_figures()
     params = {"dataset": dataset, "root": root, "backbone": backbone, "quick": quick}
     selected = notebook_paths(notebooks)
-    missing: list[str] = []
+    extra = extra_datasets() if real_data else {}
     with _kernel_environment() as out_root:
-        out_dir = paths.runs_dir(label)
         logger.info("study outputs under %s", out_root)
-        for nb in selected:
-            out = out_dir / nb.name
-            t0, started = time.perf_counter(), time.time()
-            logger.info("executing %s -> %s", nb.name, out)
-            try:
-                pm.execute_notebook(str(nb), str(out), parameters=params, cwd=str(nb.parent),
-                                    kernel_name=kernel,
-                                    progress_bar=not os.environ.get("TQDM_DISABLE"),
-                                    log_output=False)
-            except Exception as exc:  # papermill raises PapermillExecutionError with the cell
-                raise RuntimeError(f"notebook {nb.name} failed; open {out} to see the failing "
-                                   f"cell:\n{exc}") from exc
-            logger.info("%s done in %.1f s", nb.name, time.perf_counter() - t0)
-            missing += _unwritten(paths.figures_dir(label), expected.get(nb.stem, []), started)
+        missing = _run_label(label, selected, params, kernel)
+        real_selected = [nb for nb in selected if nb.stem in REAL_DATA_NOTEBOOKS]
+        for name, spec in extra.items():
+            sub = output_label(name, quick)
+            logger.info("real data: %s (%s, %s)", sub, spec["dataset"], spec["root"])
+            missing += _run_label(sub, real_selected, {
+                "dataset": spec["dataset"], "root": spec["root"], "backbone": backbone,
+                "quick": quick, "label": sub, "options": spec.get("options", {}),
+                "pooling": spec.get("pooling", "crop")}, kernel)
         if missing:
             raise RuntimeError("expected figures were not written: " + ", ".join(missing))
         table = summary_table(label)
+        others = {output_label(n, quick): summary_table(output_label(n, quick)) for n in extra}
     if not table.empty:
         _print_summary(table, label, backbone)
+    for sub, t in others.items():
+        if not t.empty:
+            _print_summary(t, sub, backbone)
     return table

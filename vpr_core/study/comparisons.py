@@ -88,8 +88,78 @@ class ComparisonFigures:
         fig = plot_pr_curves({_legend(r): r.curve() for r in results},
                              title=f"{title or figure}\n{self.label} "
                                    f"({len(self.dataset.query_paths)} queries, "
-                                   f"tolerance {self.dataset.tolerance})")
-        return self.save(fig, figure, table=self.record(figure, results))
+                                   f"tolerance {self.dataset.tolerance}; AUC with 95% CI)")
+        table = self.record(figure, results)
+        self._figure_results[figure] = results
+        if len(results) > 1:
+            self.paired_differences(figure)
+        return self.save(fig, figure, table=table)
+
+    def paired_differences(self, figure: str, baseline: str | None = None) -> pd.DataFrame:
+        """Paired bootstrap of every run of a compared figure against one of them.
+
+        Same resampled queries for both methods (:func:`~vpr_core.evaluation.paired_bootstrap`,
+        1,000 resamples, seed 0). A difference is a ``finding`` only when its 95% interval
+        excludes 0, else ``inconclusive``. Written to
+        ``results/<label>/<notebook>_<figure>_paired.csv``.
+
+        Args:
+            figure: a figure stem already drawn by :meth:`compare` in this study.
+            baseline: the label of the run to compare against (default: the figure's first).
+
+        Returns:
+            One row per other run: ``dAUC``, ``dR@100P``, ``dR@1`` with ``lo``, ``hi``, ``p``
+            and a verdict per metric.
+        """
+        from ..evaluation import bootstrap_columns, paired_bootstrap
+
+        if figure not in self._figure_results:
+            raise KeyError(f"figure {figure!r} has not been compared in this study yet; drawn: "
+                           f"{', '.join(self._figure_results) or 'none'}")
+        results = self._figure_results[figure]
+        labels = [r.label for r in results]
+        base_label = labels[0] if baseline is None else baseline
+        if base_label not in labels:
+            raise ValueError(f"baseline {baseline!r} is not a run of {figure}; runs: "
+                             f"{', '.join(labels)}")
+        base = results[labels.index(base_label)]
+        rows = []
+        for r in results:
+            if r is base:
+                continue
+            d = paired_bootstrap(r.similarity, base.similarity, base.ground_truth,
+                                 ks=(1,), seed=0)
+            row = {"figure": figure, "method": r.label, "baseline": base.label,
+                   **bootstrap_columns(d, prefix="d")}
+            for name in ("dAUC", "dR@100P", "dR@1"):
+                lo, hi = row[f"{name} lo"], row[f"{name} hi"]
+                row[f"{name} verdict"] = "finding" if lo > 0 or hi < 0 else "inconclusive"
+            rows.append(row)
+        table = pd.DataFrame(rows)
+        table.to_csv(self.results_dir / f"{self.notebook}_{figure}_paired.csv", index=False,
+                     float_format="%.6f")
+        return table.set_index("method") if len(table) else table
+
+    def vprbench_peers(self, root: str | None = None, dataset: str | None = None) -> list:
+        """VPR-Bench's precomputed techniques on this study's images, as results for
+        :meth:`compare` (``extra=``).
+
+        Args:
+            root: a VPR-Bench checkout or its ``precomputed_matches/`` (None:
+                ``$VPR_BENCH_ROOT``).
+            dataset: its dataset folder (e.g. ``"GardensPointWalking"``); None: no peers.
+
+        Returns:
+            One result per technique (empty when ``dataset`` is None or no root is known).
+        """
+        import os
+
+        from ..baselines import VPR_BENCH_ROOT_ENV, find_vprbench_peers
+        from ..pipeline import peer_result
+
+        if dataset is None or (root is None and not os.environ.get(VPR_BENCH_ROOT_ENV)):
+            return []
+        return [peer_result(p, self.dataset) for p in find_vprbench_peers(root, dataset)]
 
     def _paper_compare(self, runs: Sequence[RunSpec], stem: str,
                        note: str | None = None) -> FigureResult:

@@ -89,6 +89,7 @@ class Study(MatchFigures, ScaleFigures, LandmarkFigures, ComparisonFigures, Tour
         notebook: the notebook's stem; metrics go to ``results/<label>/<notebook>.csv``.
         backbone: landmark encoder backbone.
         seed: seed of the encoder's random projection and of sampling.
+        pooling: ``"crop"`` (the paper's per-landmark crops) or ``"roi"`` (one backbone pass).
     """
 
     dataset: Any
@@ -96,8 +97,10 @@ class Study(MatchFigures, ScaleFigures, LandmarkFigures, ComparisonFigures, Tour
     notebook: str
     backbone: str = "efficientnet_lite0"
     seed: int = 0
+    pooling: str = "crop"
     _rows: list = field(default_factory=list, repr=False)
     _cache: dict = field(default_factory=dict, repr=False)
+    _figure_results: dict = field(default_factory=dict, repr=False)
 
     # ---- infrastructure --------------------------------------------------------------------
     @property
@@ -113,7 +116,7 @@ class Study(MatchFigures, ScaleFigures, LandmarkFigures, ComparisonFigures, Tour
     @property
     def encoder(self):
         """The shared :class:`~vpr_core.features.LandmarkEncoder` of this study's backbone."""
-        return get_encoder(self.backbone, PROJECTION_DIM, self.seed)
+        return get_encoder(self.backbone, PROJECTION_DIM, self.seed, pooling=self.pooling)
 
     def save(self, fig, stem: str, table: pd.DataFrame | None = None,
              panels: Sequence[Path] = ()) -> FigureResult:
@@ -141,7 +144,7 @@ class Study(MatchFigures, ScaleFigures, LandmarkFigures, ComparisonFigures, Tour
         key = (method, label, keep_descriptors, tuple(sorted(overrides.items())))
         if key not in self._cache:
             self._cache[key] = run_method(method, self.dataset, backbone=self.backbone,
-                                          seed=self.seed, label=label,
+                                          seed=self.seed, label=label, pooling=self.pooling,
                                           keep_descriptors=keep_descriptors, **overrides)
         return self._cache[key]
 
@@ -168,13 +171,14 @@ class Study(MatchFigures, ScaleFigures, LandmarkFigures, ComparisonFigures, Tour
         d = self.dataset
         return (f"dataset {d.name!r} ({self.label}): {len(d.query_paths)} queries, "
                 f"{len(d.reference_paths)} references, tolerance {d.tolerance}; "
-                f"backbone {self.backbone} (weights: {self.encoder.config.get('weights')})")
+                f"backbone {self.backbone} (weights: {self.encoder.config.get('weights')}, "
+                f"pooling {self.pooling}); metrics with 95% bootstrap intervals over queries")
 
 
 def open_study(dataset: str = "synthetic", root: str | None = None,
                backbone: str = "efficientnet_lite0", quick: bool = False,
                notebook: str = "study", label: str | None = None, seed: int = 0,
-               **options: Any) -> Study:
+               pooling: str = "crop", **options: Any) -> Study:
     """Open the study for a notebook (and set up the ``vpr_core`` log output).
 
     Args:
@@ -186,7 +190,8 @@ def open_study(dataset: str = "synthetic", root: str | None = None,
         notebook: the calling notebook's stem (names the metrics CSV).
         label: output subfolder (default: dataset name, ``_quick`` appended in quick mode).
         seed: seed of the encoder projection and of sampling.
-        **options: passed to the loader (e.g. ``tolerance``).
+        pooling: landmark pooling, ``"crop"`` (default, the paper's) or ``"roi"``.
+        **options: passed to the loader (e.g. ``tolerance``, ``step``).
 
     Returns:
         A :class:`Study` writing under :func:`vpr_core.paths.output_root`.
@@ -200,33 +205,51 @@ def open_study(dataset: str = "synthetic", root: str | None = None,
     ds = load_dataset(dataset, root=root, **options)
     if quick and dataset != "synthetic":
         ds = _subset(ds, QUICK_IMAGES)
-    label = label or (ds.name if not quick else f"{ds.name}_quick")
+    label = label or ds.name
+    if quick and not label.endswith("_quick"):
+        label += "_quick"
     logger.info("study %s: %s (outputs under %s)", notebook, label, paths.output_root())
-    return Study(dataset=ds, label=label, notebook=notebook, backbone=backbone, seed=seed)
+    return Study(dataset=ds, label=label, notebook=notebook, backbone=backbone, seed=seed,
+                 pooling=pooling)
+
+
+#: The Nordland subset of ``make study``: every 50th of the 3,576 places of
+#: ``../shared/data/nordland_64x32`` (72 places, 500 original frames apart, so tolerance 0),
+#: winter queries against summer references, ``roi`` pooling (one backbone pass per image: the
+#: 64x32 frames make per-landmark crops as slow as full-size images for no extra detail).
+NORDLAND_STUDY = {"dataset": "nordland", "options": {"step": 50, "tolerance": 0},
+                  "pooling": "roi"}
 
 
 def extra_datasets() -> dict[str, dict]:
-    """Real datasets found beside the project, for the comparison notebook.
+    """Real datasets found beside the project, for the comparison notebooks (03-06).
 
     ``../shared/data/gardens_point_mini`` next to the source checkout (10 Gardens Point
-    day/night pairs) when present, and any ``VPR_DATASETS`` entries (``name=root`` separated by
-    ``;``; ``name`` is a :func:`~vpr_core.datasets.load_dataset` name).
+    day/night pairs, crop pooling), ``../shared/data/nordland_64x32`` (the
+    :data:`NORDLAND_STUDY` subset) when present, and any ``VPR_DATASETS`` entries
+    (``name=root`` separated by ``;``; ``name`` is a :func:`~vpr_core.datasets.load_dataset`
+    name; loader defaults, crop pooling).
 
     Returns:
-        ``{label: {"dataset": loader name, "root": folder}}``.
+        ``{label: {"dataset": loader name, "root": folder, "options": {...}, "pooling": ...}}``.
     """
     from ..runner import source_checkout
 
     found: dict[str, dict] = {}
     checkout = source_checkout()
     if checkout is not None:
-        mini = checkout.parent / "shared" / "data" / "gardens_point_mini"
-        if mini.is_dir():
-            found["gardens_point_mini"] = {"dataset": "folder", "root": str(mini)}
+        data = checkout.parent / "shared" / "data"
+        if (data / "gardens_point_mini").is_dir():
+            found["gardens_point_mini"] = {"dataset": "folder",
+                                           "root": str(data / "gardens_point_mini"),
+                                           "options": {}, "pooling": "crop"}
+        if (data / "nordland_64x32").is_dir():
+            found["nordland_step50"] = {**NORDLAND_STUDY, "root": str(data / "nordland_64x32")}
     for item in filter(None, os.environ.get("VPR_DATASETS", "").split(";")):
         name, sep, root = item.partition("=")
         if not sep or not name.strip() or not root.strip():
             raise ValueError(f"VPR_DATASETS entry {item!r} is not 'name=root'; write entries as "
                              "'gardens_point=/data/gp;folder=/data/x'.")
-        found[name.strip()] = {"dataset": name.strip(), "root": root.strip()}
+        found[name.strip()] = {"dataset": name.strip(), "root": root.strip(), "options": {},
+                               "pooling": "crop"}
     return found
