@@ -171,6 +171,20 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_findings(args: argparse.Namespace) -> int:
+    from .study.findings import findings_markdown
+
+    labels = args.labels or sorted(p.name for p in (paths.output_root() / "results").iterdir()
+                                   if p.is_dir() and not p.name.endswith("_quick"))
+    text = findings_markdown(labels)
+    print(text)
+    if args.write:
+        out = paths.results_dir() / "findings.md"
+        out.write_text(text + "\n")
+        print(f"wrote {out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .methods import available_methods
     from .paper import PROJECTION_DIM
@@ -232,6 +246,13 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--no-real-data", dest="real_data", action="store_false",
                    help="only the --dataset study")
     r.set_defaults(func=cmd_run)
+
+    f = sub.add_parser("findings", help="the paper's claims vs results/<dataset>/ (Markdown)")
+    f.add_argument("--labels", nargs="*", help="result folders (default: all but *_quick)")
+    f.add_argument("--write", action="store_true", help="also write results/findings.md")
+    f.add_argument("--out", default=None, help="output root (default: the current folder)")
+    f.add_argument("--backbone", default="efficientnet_lite0", help=argparse.SUPPRESS)
+    f.set_defaults(func=cmd_findings)
     return p
 
 

@@ -162,6 +162,16 @@ def _run_label(label: str, selected: Sequence[Path], params: dict, kernel: str) 
     return missing
 
 
+def _write_findings(labels: Sequence[str]) -> None:
+    """``results/findings.md``: the paper's claims against these labels' paired differences."""
+    from .study.findings import findings_markdown
+
+    text = findings_markdown(list(labels))
+    out = paths.results_dir() / "findings.md"
+    out.write_text(text + "\n")
+    print(f"\nThe paper's claims (dAUC [95% CI], paired bootstrap), also in {out}:\n{text}")
+
+
 def run_study(dataset: str = "synthetic", root: str | None = None,
               backbone: str = "efficientnet_lite0", quick: bool = False,
               notebooks: Sequence[str] | None = None, kernel: str = "python3",
@@ -216,6 +226,8 @@ def run_study(dataset: str = "synthetic", root: str | None = None,
             raise RuntimeError("expected figures were not written: " + ", ".join(missing))
         table = summary_table(label)
         others = {output_label(n, quick): summary_table(output_label(n, quick)) for n in extra}
+        if len(selected) == len(notebook_paths()):
+            _write_findings([label, *others])
     if not table.empty:
         _print_summary(table, label, backbone)
     for sub, t in others.items():
