@@ -140,3 +140,25 @@ def test_ctrl_c_prints_one_line_and_exits_130(monkeypatch, capsys):
     monkeypatch.setattr(cli, "cmd_eval", interrupted)  # build_parser binds it at each call
     assert cli.main(["eval", "--dataset", "synthetic", "--method", "dense"]) == 130
     assert capsys.readouterr().err.strip().splitlines() == [cli.INTERRUPTED]
+
+
+def test_image_without_landmarks_is_excluded_and_named(tmp_path, isolated_cache, caplog):
+    """A blank image gets no Edge Box: it is named and excluded from ranking, never scored 0."""
+    import cv2
+    from skimage import data
+
+    tex = data.astronaut()[::4, ::4][:96, :128]
+    for side in ("query", "reference"):
+        (tmp_path / "ds" / side).mkdir(parents=True)
+        for i in range(3):
+            img = np.roll(tex, 9 * i, axis=1).copy()
+            if side == "query" and i == 1:
+                img[:] = 128  # blank: no edges, no proposals
+            assert cv2.imwrite(str(tmp_path / "ds" / side / f"{i:03d}.png"), img[..., ::-1])
+    ds = load_dataset("folder", tmp_path / "ds")
+    with caplog.at_level(logging.WARNING, logger="vpr_core"):
+        res = pipeline.run_method("classical", ds, dim=32, n_bootstrap=0)
+    text = " ".join(r.getMessage() for r in caplog.records)
+    assert "001.png" in text and "excluded from ranking" in text
+    assert "gave 0 of the 100 landmarks" in text
+    assert np.isnan(res.similarity[1]).all() and not np.isnan(res.similarity[0]).any()

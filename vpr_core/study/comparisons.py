@@ -85,9 +85,12 @@ class ComparisonFigures:
         from ..viz import plot_pr_curves
 
         results = [self.resolve_run(item) for item in runs]
+        from ..evaluation import ground_truth_coverage
+
+        n_gt, n_q = ground_truth_coverage(self.dataset.ground_truth)
         fig = plot_pr_curves({_legend(r): r.curve() for r in results},
                              title=f"{title or figure}\n{self.label} "
-                                   f"({len(self.dataset.query_paths)} queries, "
+                                   f"({n_gt} of {n_q} queries with ground truth, "
                                    f"tolerance {self.dataset.tolerance}; AUC with 95% CI)")
         table = self.record(figure, results)
         self._figure_results[figure] = results

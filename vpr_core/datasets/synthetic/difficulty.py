@@ -81,9 +81,9 @@ class SyntheticDifficulty:
 DIFFICULTIES: dict[str, SyntheticDifficulty] = {
     "easy": SyntheticDifficulty(),
     "default": SyntheticDifficulty(
-        shift=(0.16, 0.30), zoom=(0.8, 1.22), rotation_deg=7.0, keystone=(0.04, 0.10),
-        vertical=0.07, occluders=(1, 3), day_occluder=0.5, style_share=0.9,
-        repeat_facades=0.35, facade_pool=6, night_ambient=(0.3, 0.5), night_gamma=1.15,
+        shift=(0.18, 0.33), zoom=(0.78, 1.26), rotation_deg=7.5, keystone=(0.045, 0.11),
+        vertical=0.075, occluders=(1, 3), day_occluder=0.5, style_share=0.9,
+        repeat_facades=0.45, facade_pool=5, night_ambient=(0.3, 0.5), night_gamma=1.15,
         lit_windows=0.35, glow=0.45, noise=(0.025, 0.045), blur=(0.6, 1.1),
     ),
     "hard": SyntheticDifficulty(
