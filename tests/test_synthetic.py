@@ -165,6 +165,16 @@ PIXEL_SHA256 = {
     ("easy", (360, 640), 1): (
         "5d79f1abcf5336a57b2ee9e2197ae7d4633563c8192b5b07f9ad0993c61c1ee2",
         "a12070c81b0aa0fdb6b72f5ba274cebbf4ee3485bf6995d2d16ee5ae7521fed7"),
+    # the study's default (calibrated for issue 9) and the hard preset
+    ("default", (64, 112), 0): (
+        "e5bf5a6040d5f29b5e1ff2b2aeab16aa90dd1609b58c5f8c88c6438e29e556c1",
+        "9c64e992eb9c64cd33e7a2ee9dd30d1fb280992e1cb1e6aac184ecb0f2cc0eb1"),
+    ("default", (360, 640), 2): (
+        "7326bcb373b5d8054efa85838bc7646ca80b078da9e1f40083c9e126ba375d2e",
+        "6ba12b87e5ca7e254bf5eb8e6f9775babcc12de03dd66bf716a53f3591f920a7"),
+    ("hard", (64, 112), 1): (
+        "c10a721796bc24778604897acec42b38bab8ebd35169e22ec0e47c206f6e1dff",
+        "98ebe7587d5e37973af9f29fdc07a6bcb0998b83658b3b76bca286f36e77f33d"),
 }
 
 
