@@ -1,7 +1,7 @@
 """Which landmark descriptor? Speed and accuracy of the backbone options on real data.
 
 Run: ``VPR_CACHE_DIR=/tmp/desc_cache .venv/bin/python benchmarks/bench_descriptors.py
-[--nordland-step 200] [--options NAME ...] [--bootstrap 1000]``.
+[--nordland-step 50] [--nordland-tolerance 0] [--options NAME ...] [--bootstrap 1000]``.
 
 For each option (a backbone spec, see :mod:`vpr_core.backbones`, and a pooling mode):
 
@@ -11,11 +11,13 @@ For each option (a backbone spec, see :mod:`vpr_core.backbones`, and a pooling m
 * R@1 and AUC (ratio protocol) with 95% bootstrap intervals over queries
   (``vpr_core.evaluation.bootstrap_metrics``, 1,000 resamples, seed 0) for the ``classical`` and
   ``dense`` methods on ``gardens_point_mini`` (10 Gardens Point day/night pairs, exact ground
-  truth) and a Nordland subset (winter vs summer, every ``step``-th place, tolerance 1).
+  truth) and a Nordland subset (winter vs summer, every ``step``-th place, tolerance 0 by
+  default: with step 50 neighbouring kept places are 500 original frames apart).
 
-``crop`` options run through ``vpr_core.pipeline.run_method(method, dataset, backbone=spec)``;
-``roi`` options (not a ``run_method`` argument yet) through the same landmark and feature stages
-(``extract_landmarks`` / ``extract_features``) with a ``LandmarkEncoder(pooling="roi")``. The
+``crop`` and ``roi`` options run through ``vpr_core.pipeline.run_method(method, dataset,
+backbone=spec, pooling=...)``; ``roi@N`` (another working size, not a ``run_method`` argument)
+through the same landmark and feature stages with a ``LandmarkEncoder(pooling="roi",
+working_size=N)``. The
 table is printed and written to ``results/descriptor_choice.csv`` (``vpr_core.paths``) after
 each option, so an interrupted run keeps what it measured.
 """
@@ -49,7 +51,7 @@ METHODS = ("classical", "dense")
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
 
-def datasets(step: int) -> dict:
+def datasets(step: int, tolerance: int = 0) -> dict:
     """``{label: PlaceDataset}`` for the real data found beside the checkout."""
     from vpr_core.datasets import load_dataset
 
@@ -58,7 +60,7 @@ def datasets(step: int) -> dict:
         out["gardens_point_mini"] = load_dataset("folder", SHARED / "gardens_point_mini")
     if (SHARED / "nordland_64x32").is_dir():
         out[f"nordland_step{step}"] = load_dataset("nordland", SHARED / "nordland_64x32",
-                                                   step=step, tolerance=1)
+                                                   step=step, tolerance=tolerance)
     if not out:
         raise SystemExit(f"no real data under {SHARED}: nothing to measure")
     return out
@@ -97,8 +99,8 @@ def similarity(method: str, dataset, spec: str, pooling: str, encoder) -> tuple[
     """``(similarity (Nq, Nr), ground_truth (Nq, Nr))`` of one method with one option."""
     from vpr_core import pipeline
 
-    if pooling == "crop":
-        r = pipeline.run_method(method, dataset, backbone=spec)
+    if pooling in ("crop", "roi"):
+        r = pipeline.run_method(method, dataset, backbone=spec, pooling=pooling, n_bootstrap=0)
         return r.similarity, r.ground_truth
     from vpr_core.matching import similarity_matrix
     from vpr_core.methods import get_method
@@ -120,7 +122,9 @@ def fmt(v: tuple[float, float, float]) -> str:
 def main() -> None:
     """Measure every option and write the table."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--nordland-step", type=int, default=200)
+    p.add_argument("--nordland-step", type=int, default=50)
+    p.add_argument("--nordland-tolerance", type=int, default=0,
+                   help="in kept places (step 50: places 500 frames apart, so 0)")
     p.add_argument("--options", nargs="*", default=None, help="labels from OPTIONS (default all)")
     p.add_argument("--bootstrap", type=int, default=1000)
     p.add_argument("--repeats", type=int, default=3)
@@ -129,7 +133,7 @@ def main() -> None:
     from vpr_core.evaluation import bootstrap_metrics
     from vpr_core.paths import results_dir
 
-    data = datasets(args.nordland_step)
+    data = datasets(args.nordland_step, args.nordland_tolerance)
     options = [o for o in OPTIONS if args.options is None or o[0] in args.options]
     out = results_dir() / "descriptor_choice.csv"
     print(f"torch threads {torch.get_num_threads()}, load average {os.getloadavg()}; datasets: "

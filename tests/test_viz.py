@@ -63,3 +63,22 @@ def test_descriptor_matrices_and_pair_terms(tmp_path):
     assert f"{(1 - dist * shape).sum():.3f}" in title and "sqrt(10 x 12)" in title
     with pytest.raises(ValueError, match="one entry per pair"):
         viz.plot_pair_terms(dist, shape[:3], 10, 12, 0.25)
+
+
+def test_pr_legend_carries_the_interval_and_keeps_method_colours():
+    import numpy as np
+
+    from vpr_core.evaluation import pr_curve
+    from vpr_core.viz import plot_pr_curves
+    from vpr_core.viz.curves import METHOD_COLORS
+
+    rng = np.random.default_rng(0)
+    gt = np.eye(6, dtype=bool)
+    curve = pr_curve(gt + rng.random((6, 6)) * 0.9, gt)
+    fig = plot_pr_curves({"dense": curve, "x": curve}, intervals={"dense": (0.5, 0.25, 0.75)})
+    texts = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert texts[0] == "dense (AUC 0.500 [0.250, 0.750])"
+    assert texts[1].startswith("x (AUC ") and "[" not in texts[1]
+    from matplotlib.colors import to_hex
+
+    assert to_hex(fig.axes[0].lines[0].get_color()) == to_hex(METHOD_COLORS["dense"])

@@ -155,7 +155,9 @@ def cmd_eval(args: argparse.Namespace) -> int:
     import pandas as pd
 
     pd.DataFrame(rows).to_csv(out / f"{stem}.csv", index=False, float_format="%.6f")
-    fig = plot_pr_curves({r.legend(): r.curve() for r in results},
+    fig = plot_pr_curves({r.label: r.curve() for r in results},
+                         intervals={r.label: r.intervals["auc"] for r in results
+                                    if "auc" in r.intervals},
                          title=f"{dataset.name} ({n_gt} queries, tolerance {dataset.tolerance}"
                                f", {mode})")
     png = save_figure(fig, out / f"{stem}.png")

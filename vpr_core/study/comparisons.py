@@ -39,11 +39,6 @@ def dense_run(set_name: str, scales: Sequence[float], per_scale) -> tuple[str, d
             dense_set_label(set_name, scales, per_scale))
 
 
-def _legend(result) -> str:
-    """Legend entry: the label with AUC and its 95% interval when the result has one."""
-    return result.legend() if hasattr(result, "legend") else result.label
-
-
 def _check_table(table: str) -> dict:
     if table not in DENSE_TABLES:
         raise ValueError(f"Unknown table {table!r}; valid: {', '.join(DENSE_TABLES)}.")
@@ -88,7 +83,9 @@ class ComparisonFigures:
         from ..evaluation import ground_truth_coverage
 
         n_gt, n_q = ground_truth_coverage(self.dataset.ground_truth)
-        fig = plot_pr_curves({_legend(r): r.curve() for r in results},
+        fig = plot_pr_curves({r.label: r.curve() for r in results},
+                             intervals={r.label: r.intervals["auc"] for r in results
+                                        if "auc" in getattr(r, "intervals", {})},
                              title=f"{title or figure}\n{self.label} "
                                    f"({n_gt} of {n_q} queries with ground truth, "
                                    f"tolerance {self.dataset.tolerance}; AUC with 95% CI)")

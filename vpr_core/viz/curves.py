@@ -53,7 +53,8 @@ def plot_scale_distribution(hists: dict, title: str | None = None, ax=None,
 
 
 def plot_pr_curves(curves: dict, title: str | None = None, ax=None,
-                   colors: dict | None = None) -> matplotlib.figure.Figure:
+                   colors: dict | None = None, intervals: dict | None = None
+                   ) -> matplotlib.figure.Figure:
     """Precision (y) against recall (x) for several methods; the legend gives each AUC.
 
     Args:
@@ -61,6 +62,8 @@ def plot_pr_curves(curves: dict, title: str | None = None, ax=None,
         title: axes title.
         ax: axes to draw on (default: a new 6 x 4.6 in figure).
         colors: ``{label: colour}``; default :data:`METHOD_COLORS`, then the matplotlib cycle.
+        intervals: ``{label: (auc, low, high)}``: the legend shows ``AUC v [low, high]`` (95%
+            bootstrap interval) for these labels instead of the bare AUC.
 
     Returns:
         The figure.
@@ -79,8 +82,11 @@ def plot_pr_curves(curves: dict, title: str | None = None, ax=None,
                  + [plt.cm.tab20(i) for i in range(20)])
     colors.update({k: next(spare) for k in curves if k not in colors})
     for label, curve in curves.items():
+        iv = (intervals or {}).get(label)
+        text = (f"AUC {iv[0]:.3f} [{iv[1]:.3f}, {iv[2]:.3f}]" if iv is not None
+                else f"AUC {auc_pr(curve):.3f}")
         ax.plot(curve.recall, curve.precision, lw=1.6, color=colors.get(label),
-                label=f"{label} (AUC {auc_pr(curve):.3f})")
+                label=f"{label} ({text})")
     ax.set_xlim(0.0, 1.0)
     ax.set_ylim(0.0, 1.02)
     ax.set_xlabel("recall")
