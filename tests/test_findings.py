@@ -21,6 +21,8 @@ def test_verdicts_follow_the_interval_and_the_claims_direction(tmp_path, monkeyp
     res = tmp_path / "results" / "d"
     _paired(res, "03_landmark_selection", "fig05_selection", "classical",
             [("selection_scheme1", 0.2, 0.1, 0.3), ("selection_scheme2", 0.05, -0.02, 0.12)])
+    _paired(res, "06_comparison", "fig13_comparison", "dense",
+            [("classical", 0.0, 0.0, 0.0), ("global", -0.1, -0.2, -0.05)])
     _paired(res, "04_overlap", "fig07a_overlap_nms", "classical",
             [("overlap_scheme1 (IoU 0.4)", 0.1, 0.05, 0.15),
              ("overlap_scheme1 (IoU 0.7)", 0.0, -0.01, 0.02)])
@@ -33,7 +35,9 @@ def test_verdicts_follow_the_interval_and_the_claims_direction(tmp_path, monkeyp
     assert v["Fig. 7a: NMS (Alg. 3) at IoU 0.4 falls below classical"] == "does not hold"
     assert v["Fig. 7a: NMS at IoU 0.7 is on par with classical"].startswith("holds")
     assert v["Table 2: 4 scales x 25 (Set 5) beat one scale x 100 (Set 1)"] == "does not hold"
-    assert v["Fig. 13: classical is clearly worse than dense"] == "not run"
+    assert v["Fig. 13: classical is clearly worse than dense"] == "not testable (identical results)"
+    assert v["Fig. 13: Scheme 1 is slightly worse than dense"] == "not run"
+    assert v["(not in the paper) a global descriptor vs dense landmarks"] == "finding: lower"
     assert t.loc["Fig. 5: selection Scheme 1 beats classical", "d"].startswith("+0.200 [+0.100")
     md = findings.findings_markdown(["d"])
     assert md.splitlines()[0] == "| paper's claim | d |" and "**holds**" in md

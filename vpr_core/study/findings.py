@@ -12,6 +12,11 @@ Verdicts (95% intervals, 1,000 resamples, seed 0):
   it lies below 0, **inconclusive** when it contains 0;
 * claim "a ~ b" (on par): **holds** when the interval contains 0 (no difference found; this
   is absence of evidence, said so in the text), **does not hold** otherwise;
+* no claim (``"?"``, rows the paper does not make): **finding: higher / lower** or
+  **inconclusive**;
+* **not testable (identical results)**: both runs gave the same ranking for every query (e.g.
+  on 64x32 Nordland frames Edge Boxes yields ~13 proposals, all at Scale >= 6, so the
+  selection schemes keep the same boxes as classical);
 * **not run**: the dataset has no such result (e.g. notebook 02 runs on ``synthetic`` only).
 
 :func:`findings_table` reads the CSVs; ``vpr-study findings`` prints it as Markdown and the
@@ -43,7 +48,8 @@ class Claim:
         text: the claim, as the paper makes it.
         notebook, figure: where the two runs are compared.
         method, baseline: run labels (a dense ``Set N`` is matched by its ``"Set N:"`` prefix).
-        expect: ``">"`` (method better), ``"<"`` (method worse) or ``"~"`` (on par).
+        expect: ``">"`` (method better), ``"<"`` (method worse), ``"~"`` (on par) or ``"?"``
+            (no claim: the verdict only says whether there is a finding and its sign).
         metric: ``"dAUC"`` or ``"dR@1"`` (columns of the paired CSV).
     """
 
@@ -89,7 +95,7 @@ CLAIMS: tuple[Claim, ...] = (
     Claim("Fig. 13: Scheme 1 is slightly worse than dense", _NB6, "fig13_comparison",
           "selection_scheme1", "dense", "<"),
     Claim("(not in the paper) a global descriptor vs dense landmarks", _NB6, "fig13_comparison",
-          "global", "dense", ">"),
+          "global", "dense", "?"),
 )
 
 #: Observation 1 (Fig. 4): large landmarks (Scales 5-7) match correctly more often than small
@@ -98,9 +104,13 @@ OBSERVATION_1 = ("Obs. 1 / Fig. 4: large landmarks (Scales 5-7) match correctly 
                  "than small ones (Scales 1-3), CMR difference")
 
 
-def _verdict(expect: str, lo: float, hi: float) -> str:
+def _verdict(expect: str, lo: float, hi: float, delta: float | None = None) -> str:
     if not (np.isfinite(lo) and np.isfinite(hi)):
         return "not run"
+    if delta == 0 and lo == 0 and hi == 0:
+        return "not testable (identical results)"
+    if expect == "?":
+        return "finding: higher" if lo > 0 else ("finding: lower" if hi < 0 else "inconclusive")
     if expect == "~":
         return "holds (no difference found)" if lo <= 0 <= hi else "does not hold"
     above, below = lo > 0, hi < 0
@@ -130,7 +140,7 @@ def _claim_cell(folder: Path, claim: Claim) -> tuple[str, str]:
     d, lo, hi = (float(r[claim.metric]), float(r[f"{claim.metric} lo"]),
                  float(r[f"{claim.metric} hi"]))
     p = float(r[f"{claim.metric} p"])
-    return f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] p={p:.3f}", _verdict(claim.expect, lo, hi)
+    return f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] p={p:.3f}", _verdict(claim.expect, lo, hi, d)
 
 
 def cmr_difference(matches: pd.DataFrame, n: int = 1000, seed: int = 0
