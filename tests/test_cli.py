@@ -47,3 +47,28 @@ def test_run_with_missing_root_fails_fast_with_the_loaders_message(tmp_path, cap
     rc = cli.main(["run", "--dataset", "folder", "--root", str(tmp_path / "missing")])
     assert rc == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+def test_unknown_backbone_is_reported_before_any_dataset_is_generated(tmp_path, monkeypatch,
+                                                                      capsys):
+    from vpr_core import datasets
+
+    def boom(*a, **k):
+        raise AssertionError("the dataset must not be loaded before the backbone is checked")
+
+    monkeypatch.setattr(datasets, "load_dataset", boom)
+    with pytest.raises(SystemExit):
+        cli.main(["eval", "--dataset", "synthetic", "--backbone", "resnet9000"])
+    err = capsys.readouterr().err
+    assert "resnet9000" in err and "efficientnet_lite0" in err
+
+
+def test_unreadable_weights_file_is_named(tmp_path, capsys):
+    bad = tmp_path / "alexnet.pth"
+    bad.write_bytes(b"not a checkpoint")
+    rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "4", "--method", "dense",
+                   "--backbone", "alexnet_conv3", "--weights", str(bad), "--out",
+                   str(tmp_path / "o")])
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert str(bad) in err and "Traceback" not in err

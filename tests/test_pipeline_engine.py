@@ -162,3 +162,22 @@ def test_image_without_landmarks_is_excluded_and_named(tmp_path, isolated_cache,
     assert "001.png" in text and "excluded from ranking" in text
     assert "gave 0 of the 100 landmarks" in text
     assert np.isnan(res.similarity[1]).all() and not np.isnan(res.similarity[0]).any()
+
+
+def test_cli_adds_vprbench_peers_to_table_and_figure(tmp_path, capsys):
+    from test_baselines import _write
+
+    from vpr_core.baselines import PRECOMPUTED_FILE
+
+    gt = np.eye(6, dtype=bool)
+    sim = np.where(gt, 0.8, 0.2) + np.random.default_rng(1).random((6, 6)) * 0.05
+    _write(tmp_path / "vb" / "precomputed_matches" / "Synth" / "NetVLAD" / PRECOMPUTED_FILE, sim)
+    rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "dense",
+                   "--dim", "64", "--n-bootstrap", "100", "--peers", str(tmp_path / "vb"),
+                   "--peer-dataset", "Synth", "--out", str(tmp_path / "out")])
+    assert rc == 0
+    out = capsys.readouterr().out
+    assert "NetVLAD (VPR-Bench)" in out and "NetVLAD (VPR-Bench) - dense" in out
+    rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "dense",
+                   "--peers", str(tmp_path / "vb")])
+    assert rc == 2 and "--peer-dataset" in capsys.readouterr().err
