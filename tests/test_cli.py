@@ -72,3 +72,21 @@ def test_unreadable_weights_file_is_named(tmp_path, capsys):
     assert rc == 2
     err = capsys.readouterr().err
     assert str(bad) in err and "Traceback" not in err
+
+
+def test_log_output_follows_the_current_stderr(monkeypatch):
+    """The console handler must not keep a stream that was replaced and closed."""
+    import io
+    import logging
+    import sys
+
+    from vpr_core.utils import configure_logging
+
+    first = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", first)
+    configure_logging()
+    first.close()
+    second = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", second)
+    logging.getLogger("vpr_core").warning("hello %d", 1)
+    assert "[vpr_core WARNING] hello 1" in second.getvalue()

@@ -7,6 +7,7 @@ import json
 import logging
 import os
 import random
+import sys
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -40,18 +41,35 @@ def cache_root() -> Path:
     return paths.cache_root()
 
 
+class _StderrHandler(logging.StreamHandler):
+    """A StreamHandler that writes to whatever ``sys.stderr`` is when a record is emitted.
+
+    A plain StreamHandler keeps the stream it was created with; when that stream is replaced and
+    closed (pytest's capture, a notebook kernel's redirection), every later record would end in
+    "--- Logging error --- ValueError: I/O operation on closed file".
+    """
+
+    def __init__(self) -> None:
+        super().__init__(sys.stderr)
+
+    @property
+    def stream(self):  # type: ignore[override]
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value) -> None:  # the current sys.stderr is always used
+        pass
+
+
 def configure_logging(level: str | int = "INFO") -> logging.Logger:
     """Send ``vpr_core`` log records to stderr as ``[vpr_core LEVEL] message`` (idempotent).
 
     The library itself only has a NullHandler; the CLI and notebooks (``open_study``) call this.
+    Records go to the ``sys.stderr`` of the moment they are emitted.
     """
-    for h in logger.handlers:
-        if getattr(h, "_vpr_console", False):
-            break
-    else:
-        h = logging.StreamHandler()
+    if not any(isinstance(h, _StderrHandler) for h in logger.handlers):
+        h = _StderrHandler()
         h.setFormatter(logging.Formatter("[vpr_core %(levelname)s] %(message)s"))
-        h._vpr_console = True  # type: ignore[attr-defined]
         logger.addHandler(h)
     logger.setLevel(level)
     logger.propagate = False
