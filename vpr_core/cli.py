@@ -78,7 +78,7 @@ def _peer_results(args: argparse.Namespace, dataset) -> list:
 
 def _paired_rows(results: list, n_bootstrap: int) -> list[dict]:
     """Paired bootstrap of every method against the first one (same resampled queries)."""
-    from .evaluation import paired_bootstrap
+    from .evaluation import difference_verdict, paired_bootstrap
 
     rows = []
     base = results[0]
@@ -90,7 +90,7 @@ def _paired_rows(results: list, n_bootstrap: int) -> list[dict]:
             delta, lo, hi, pval = d[key]
             row[name] = f"{delta:+.3f} [{lo:+.3f}, {hi:+.3f}]"
             row[f"{name} p"] = f"{pval:.3f}"
-            row[f"{name} verdict"] = "finding" if lo > 0 or hi < 0 else "inconclusive"
+            row[f"{name} verdict"] = difference_verdict(lo, hi)
         rows.append(row)
     return rows
 
@@ -253,7 +253,6 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--labels", nargs="*", help="result folders (default: all but *_quick)")
     f.add_argument("--write", action="store_true", help="also write results/findings.md")
     f.add_argument("--out", default=None, help="output root (default: the current folder)")
-    f.add_argument("--backbone", default="efficientnet_lite0", help=argparse.SUPPRESS)
     f.set_defaults(func=cmd_findings)
     return p
 
@@ -267,6 +266,8 @@ def _check_names(parser: argparse.ArgumentParser, args: argparse.Namespace) -> N
         bad = [m for m in args.method if m not in available_methods()]
         if bad:
             parser.error(f"unknown method(s) {bad}; valid: {', '.join(available_methods())}")
+    if getattr(args, "backbone", None) is None:
+        return
     try:
         parse_backbone(args.backbone)
     except (TypeError, ValueError) as exc:

@@ -8,7 +8,13 @@
 
 from __future__ import annotations
 
-from .bootstrap import bootstrap_columns, bootstrap_metrics, format_interval, paired_bootstrap
+from .bootstrap import (
+    bootstrap_columns,
+    bootstrap_metrics,
+    difference_verdict,
+    format_interval,
+    paired_bootstrap,
+)
 from .curves import (
     PROTOCOLS,
     PRCurve,
@@ -27,6 +33,7 @@ __all__ = [
     "auc_pr",
     "bootstrap_columns",
     "bootstrap_metrics",
+    "difference_verdict",
     "evaluate",
     "format_interval",
     "ground_truth_coverage",

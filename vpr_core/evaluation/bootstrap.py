@@ -39,7 +39,8 @@ from .curves import (
     recall_at_k,
 )
 
-__all__ = ["bootstrap_columns", "bootstrap_metrics", "format_interval", "paired_bootstrap"]
+__all__ = ["bootstrap_columns", "bootstrap_metrics", "difference_verdict", "format_interval",
+           "paired_bootstrap"]
 
 #: Resamples evaluated at once (bounds memory: ``chunk x queries`` float64 per array).
 _CHUNK = 250
@@ -222,6 +223,11 @@ def paired_bootstrap(sim_a: np.ndarray, sim_b: np.ndarray, ground_truth: np.ndar
         lo, hi = np.nanpercentile(d, [2.5, 97.5])
         out[key] = (float(delta), float(lo), float(hi), _p_value(delta, d[~np.isnan(d)]))
     return out
+
+
+def difference_verdict(low: float, high: float) -> str:
+    """``"finding"`` when the 95% interval of a difference excludes 0, else ``"inconclusive"``."""
+    return "finding" if low > 0 or high < 0 else "inconclusive"
 
 
 def format_interval(value: float, low: float, high: float, digits: int = 3) -> str:

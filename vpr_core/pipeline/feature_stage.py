@@ -135,9 +135,10 @@ def _extract_side_distributed(client, boxes: list, dataset, side: str, encoder) 
     all_boxes = [np.asarray(boxes[i], dtype=np.float64).reshape(-1, 4) for i in range(n)]
     paths_ = [_store_path(encoder, dataset, side, i) for i in range(n)]
     stores = [_read_store(p, encoder.dim or 0) for p in paths_]
-    todo = [i for i in range(n) if len(_missing_boxes(stores[i][0], all_boxes[i]))]
+    missing = [_missing_boxes(stores[i][0], all_boxes[i]) for i in range(n)]
+    todo = [i for i in range(n) if len(missing[i])]
     if todo:
-        new = [_missing_boxes(stores[i][0], all_boxes[i]) for i in todo]
+        new = [missing[i] for i in todo]
         descs, secs = extract_features_distributed(client, dataset, side, encoder_kwargs(encoder),
                                                    indices=todo, boxes=new)
         for i, nb, d, s in zip(todo, new, descs, secs):

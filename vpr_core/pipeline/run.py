@@ -86,13 +86,6 @@ class MethodResult:
                     "pairs scored": float(t.get("pairs", np.nan))})
         return row
 
-    def legend(self) -> str:
-        """Legend text: the label with AUC and its 95% interval."""
-        if "auc" not in self.intervals:
-            return self.label
-        v, lo, hi = self.intervals["auc"]
-        return f"{self.label}  AUC {v:.3f} [{lo:.3f}, {hi:.3f}]"
-
     def curve(self, protocol: str = "ratio"):
         """PR curve of this result under ``protocol``."""
         from ..evaluation import pr_curve
@@ -125,7 +118,7 @@ def _check_shortlist(shortlist: Any, n_ref: int) -> int | None:
     if shortlist == 1:
         logger.warning("shortlist=1 leaves no second-best reference: the ratio protocol then "
                        "sets S2 := S1 (ratio 1); use k >= 2")
-    return int(min(shortlist, n_ref)) if shortlist < n_ref else None
+    return int(shortlist) if shortlist < n_ref else None  # k >= Nr is exhaustive
 
 
 def _features(conf: dict, boxes: dict, dataset, encoder, shortlist: int | None, client):

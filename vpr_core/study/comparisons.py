@@ -111,7 +111,7 @@ class ComparisonFigures:
             One row per other run: ``dAUC``, ``dR@100P``, ``dR@1`` with ``lo``, ``hi``, ``p``
             and a verdict per metric.
         """
-        from ..evaluation import bootstrap_columns, paired_bootstrap
+        from ..evaluation import bootstrap_columns, difference_verdict, paired_bootstrap
 
         if figure not in self._figure_results:
             raise KeyError(f"figure {figure!r} has not been compared in this study yet; drawn: "
@@ -133,7 +133,7 @@ class ComparisonFigures:
                    **bootstrap_columns(d, prefix="d")}
             for name in ("dAUC", "dR@100P", "dR@1"):
                 lo, hi = row[f"{name} lo"], row[f"{name} hi"]
-                row[f"{name} verdict"] = "finding" if lo > 0 or hi < 0 else "inconclusive"
+                row[f"{name} verdict"] = difference_verdict(lo, hi)
             rows.append(row)
         table = pd.DataFrame(rows)
         table.to_csv(self.results_dir / f"{self.notebook}_{figure}_paired.csv", index=False,
