@@ -7,7 +7,7 @@ For each option (a backbone spec, see :mod:`vpr_core.backbones`, and a pooling m
 
 * ``s/img``: median wall seconds (and process CPU seconds) to encode one 640x360 image with 100
   dense landmarks (Sec. 4 default grid), measured here after a warm-up;
-* pooling ``roi@N`` is ``roi`` at working size N (default 512);
+* pooling ``roi@N`` is ``roi`` at working size N (plain ``roi``: the default, 4 crop sides);
 * R@1 and AUC (ratio protocol) with 95% bootstrap intervals over queries
   (``vpr_core.evaluation.bootstrap_metrics``, 1,000 resamples, seed 0) for the ``classical`` and
   ``dense`` methods on ``gardens_point_mini`` (10 Gardens Point day/night pairs, exact ground
@@ -18,7 +18,7 @@ For each option (a backbone spec, see :mod:`vpr_core.backbones`, and a pooling m
 backbone=spec, pooling=...)``; ``roi@N`` (another working size, not a ``run_method`` argument)
 through the same landmark and feature stages with a ``LandmarkEncoder(pooling="roi",
 working_size=N)``. The
-table is printed and written to ``results/descriptor_choice.csv`` (``vpr_core.paths``) after
+table is printed and written to ``results/benchmarks/descriptor_choice.csv`` (``vpr_core.paths``) after
 each option, so an interrupted run keeps what it measured.
 """
 
@@ -35,11 +35,13 @@ import numpy as np
 import torch
 
 #: (label, backbone spec, pooling). Lite0 stages 4/5/6 at 96-224 px, Lite1, Lite2, HOG, roi.
+#: ``roi`` runs at the default working size (4 crop sides: 384 px at 96, 512 px at 128).
 OPTIONS: tuple[tuple[str, str, str], ...] = (
     ("lite0 s5 128 (default)", "efficientnet_lite0", "crop"),
     ("lite0 s5 128 roi", "efficientnet_lite0", "roi"),
-    ("lite0 s5 128 roi@384", "efficientnet_lite0", "roi@384"),
     ("lite0 s5 96", "efficientnet_lite0:input_size=96", "crop"),
+    ("lite0 s5 96 roi", "efficientnet_lite0:input_size=96", "roi"),
+    ("lite0 s5 96 roi@512", "efficientnet_lite0:input_size=96", "roi@512"),
     ("lite0 s5 160", "efficientnet_lite0:input_size=160", "crop"),
     ("lite0 s4 160", "efficientnet_lite0:stage=4,input_size=160", "crop"),
     ("lite0 s6 224", "efficientnet_lite0:stage=6,input_size=224", "crop"),
@@ -119,13 +121,40 @@ def fmt(v: tuple[float, float, float]) -> str:
     return f"{v[0]:.3f} [{v[1]:.2f}, {v[2]:.2f}]"
 
 
+def _kept_rows(path: Path, rerun: set[str]) -> list[dict]:
+    """Rows of an earlier table whose option is still in :data:`OPTIONS` and not re-run now
+    (``--options`` measures some options again and keeps the others' measurements)."""
+    if not path.is_file():
+        return []
+    with open(path, newline="") as f:
+        old = list(csv.DictReader(f))
+    known = {o[0]: o for o in OPTIONS}
+    return [r for r in old if r["option"] in known and r["option"] not in rerun
+            and (r["backbone"], r["pooling"]) == known[r["option"]][1:]]
+
+
+def _in_option_order(rows: list[dict]) -> list[dict]:
+    order = {o[0]: i for i, o in enumerate(OPTIONS)}
+    return sorted(rows, key=lambda r: order[r["option"]])
+
+
+def _write(path: Path, rows: list[dict]) -> None:
+    fields = list(dict.fromkeys(k for r in rows for k in r))
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields)
+        w.writeheader()
+        w.writerows(rows)
+
+
 def main() -> None:
     """Measure every option and write the table."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--nordland-step", type=int, default=50)
     p.add_argument("--nordland-tolerance", type=int, default=0,
                    help="in kept places (step 50: places 500 frames apart, so 0)")
-    p.add_argument("--options", nargs="*", default=None, help="labels from OPTIONS (default all)")
+    p.add_argument("--options", nargs="*", default=None,
+                   help="labels from OPTIONS (default all); the table keeps the other options' "
+                        "earlier rows")
     p.add_argument("--bootstrap", type=int, default=1000)
     p.add_argument("--repeats", type=int, default=3)
     args = p.parse_args()
@@ -135,11 +164,12 @@ def main() -> None:
 
     data = datasets(args.nordland_step, args.nordland_tolerance)
     options = [o for o in OPTIONS if args.options is None or o[0] in args.options]
-    out = results_dir() / "descriptor_choice.csv"
+    out = results_dir("benchmarks") / "descriptor_choice.csv"
     print(f"torch threads {torch.get_num_threads()}, load average {os.getloadavg()}; datasets: "
           + ", ".join(f"{k} ({len(v.query_paths)}q x {len(v.reference_paths)}r, tolerance "
                       f"{v.tolerance})" for k, v in data.items()))
     rows = []
+    kept = _kept_rows(out, {o[0] for o in options}) if args.options else []
     for label, spec, pooling in options:
         t_opt = time.perf_counter()
         enc = encoder_for(spec, pooling)
@@ -159,10 +189,7 @@ def main() -> None:
         print(f"{label:<24} {wall:.3f} s/img wall, {cpu:.3f} s/img cpu "
               f"({time.perf_counter() - t_opt:.0f} s for this option)", flush=True)
         rows.append(row)
-        with open(out, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=list(rows[0]))
-            w.writeheader()
-            w.writerows(rows)
+        _write(out, _in_option_order(kept + rows))
     print(f"\nwritten {out}")
     keys = [k for k in rows[0] if k.endswith(("R@1", "AUC"))]
     print(f"{'option':<24}{'s/img':>7}  " + "  ".join(k.replace('gardens_point_mini', 'gp')

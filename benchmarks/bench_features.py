@@ -81,7 +81,7 @@ def main() -> None:
     print(f"640x360 image, {N_LANDMARKS} landmarks, repeats={args.repeats}, torch "
           f"{torch.__version__}, threads {torch.get_num_threads()}, load average "
           f"{os.getloadavg()} (other processes share these cores)")
-    header = (f"{'backbone':<20}{'boxes':<15}{'crop s':>8}{'roi s':>8}{'ratio':>7}"
+    header = (f"{'backbone':<34}{'work px':>8} {'boxes':<15}{'crop s':>8}{'roi s':>8}{'ratio':>7}"
               f"{'crop cpu':>10}{'roi cpu':>9}{'ratio':>7}")
     print(header)
     print("-" * len(header))
@@ -93,9 +93,9 @@ def main() -> None:
         for kind, boxes in box_sets.items():
             t = time_interleaved(encs, image, boxes, args.repeats)
             (cw, cc), (rw, rc) = t["crop"], t["roi"]
-            print(f"{name:<20}{kind:<15}{cw:>8.3f}{rw:>8.3f}{cw / rw:>7.1f}"
+            print(f"{name:<34}{encs['roi'].working_size:>8} {kind:<15}{cw:>8.3f}{rw:>8.3f}{cw / rw:>7.1f}"
                   f"{cc:>10.3f}{rc:>9.3f}{cc / rc:>7.1f}", flush=True)
-    print(f"roi working size: {encs['roi'].working_size} px (long side)")
+    print("work px: roi working size (long side; default 4 crop sides)")
 
 
 if __name__ == "__main__":

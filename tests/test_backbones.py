@@ -57,6 +57,7 @@ def test_lite_variants_are_different_networks():
 
 @pytest.mark.parametrize("spec,shape", [
     ("efficientnet_lite0", (112, 8, 8)),
+    ("efficientnet_lite0:input_size=96", (112, 6, 6)),
     ("efficientnet_lite0:stage=4,input_size=96", (80, 6, 6)),
     ("efficientnet_lite0:stage=6,input_size=224", (192, 7, 7)),
     ("efficientnet_lite0_stage4", (80, 10, 10)),
@@ -84,6 +85,7 @@ def test_canonical_spec_and_cache_keys():
     assert canonical_backbone("efficientnet_lite0:stage=5,input_size=128") == "efficientnet_lite0"
     assert canonical_backbone("efficientnet_lite0: input_size=96 , stage=4") == (
         "efficientnet_lite0:input_size=96,stage=4")
+    assert backbone_options("efficientnet_lite0") == {"input_size": 128, "stage": 5}
     assert parse_backbone("hog:input_size=32") == ("hog", {"input_size": 32})
     assert backbone_options("efficientnet_lite1") == {"input_size": 128, "stage": 5}
     enc = LandmarkEncoder("efficientnet_lite0:stage=4,input_size=96", dim=64)

