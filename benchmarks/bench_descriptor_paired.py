@@ -21,7 +21,6 @@ Run (each row appends to / replaces its row in ``results/benchmarks/descriptor_p
 from __future__ import annotations
 
 import argparse
-import csv
 import os
 from pathlib import Path
 
@@ -36,17 +35,10 @@ def _fmt(v) -> str:
 
 def _merge(path: Path, row: dict) -> None:
     """Write ``row`` into the table, replacing an earlier row of the same comparison."""
-    rows = []
-    if path.is_file():
-        with open(path, newline="") as f:
-            rows = [r for r in csv.DictReader(f)
-                    if tuple(r[k] for k in KEY) != tuple(str(row[k]) for k in KEY)]
-    rows.append(row)
-    fields = list(dict.fromkeys(k for r in rows for k in r))
-    with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=fields)
-        w.writeheader()
-        w.writerows(rows)
+    from vpr_core.utils import read_rows, write_rows
+
+    same = tuple(str(row[k]) for k in KEY)
+    write_rows(path, [r for r in read_rows(path) if tuple(r[k] for k in KEY) != same] + [row])
 
 
 def main() -> None:

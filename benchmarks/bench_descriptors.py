@@ -25,7 +25,6 @@ each option, so an interrupted run keeps what it measured.
 from __future__ import annotations
 
 import argparse
-import csv
 import os
 import statistics
 import time
@@ -124,10 +123,9 @@ def fmt(v: tuple[float, float, float]) -> str:
 def _kept_rows(path: Path, rerun: set[str]) -> list[dict]:
     """Rows of an earlier table whose option is still in :data:`OPTIONS` and not re-run now
     (``--options`` measures some options again and keeps the others' measurements)."""
-    if not path.is_file():
-        return []
-    with open(path, newline="") as f:
-        old = list(csv.DictReader(f))
+    from vpr_core.utils import read_rows
+
+    old = read_rows(path)
     known = {o[0]: o for o in OPTIONS}
     return [r for r in old if r["option"] in known and r["option"] not in rerun
             and (r["backbone"], r["pooling"]) == known[r["option"]][1:]]
@@ -136,14 +134,6 @@ def _kept_rows(path: Path, rerun: set[str]) -> list[dict]:
 def _in_option_order(rows: list[dict]) -> list[dict]:
     order = {o[0]: i for i, o in enumerate(OPTIONS)}
     return sorted(rows, key=lambda r: order[r["option"]])
-
-
-def _write(path: Path, rows: list[dict]) -> None:
-    fields = list(dict.fromkeys(k for r in rows for k in r))
-    with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=fields)
-        w.writeheader()
-        w.writerows(rows)
 
 
 def main() -> None:
@@ -161,6 +151,7 @@ def main() -> None:
     os.environ.setdefault("TQDM_DISABLE", "1")
     from vpr_core.evaluation import bootstrap_metrics
     from vpr_core.paths import results_dir
+    from vpr_core.utils import write_rows
 
     data = datasets(args.nordland_step, args.nordland_tolerance)
     options = [o for o in OPTIONS if args.options is None or o[0] in args.options]
@@ -189,7 +180,7 @@ def main() -> None:
         print(f"{label:<24} {wall:.3f} s/img wall, {cpu:.3f} s/img cpu "
               f"({time.perf_counter() - t_opt:.0f} s for this option)", flush=True)
         rows.append(row)
-        _write(out, _in_option_order(kept + rows))
+        write_rows(out, _in_option_order(kept + rows))
     print(f"\nwritten {out}")
     keys = [k for k in rows[0] if k.endswith(("R@1", "AUC"))]
     print(f"{'option':<24}{'s/img':>7}  " + "  ".join(k.replace('gardens_point_mini', 'gp')

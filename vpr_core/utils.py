@@ -1,7 +1,8 @@
-"""Small shared helpers: logging, seeding, cache locations, config slugs, progress bars."""
+"""Small shared helpers: logging, seeding, cache locations, config slugs, progress bars, CSV rows."""
 
 from __future__ import annotations
 
+import csv
 import hashlib
 import json
 import logging
@@ -111,3 +112,26 @@ def file_fingerprint(path: str | os.PathLike) -> str:
         for chunk in iter(lambda: f.read(1 << 20), b""):
             h.update(chunk)
     return h.hexdigest()[:16]
+
+
+def read_rows(path: str | os.PathLike) -> list[dict[str, str]]:
+    """Rows of a CSV table with a header line, as dicts (``[]`` if the file does not exist)."""
+    path = Path(path)
+    if not path.is_file():
+        return []
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def write_rows(path: str | os.PathLike, rows: list[Mapping[str, Any]]) -> None:
+    """Write dict rows as a CSV table; columns are the union of the rows' keys in first-seen
+    order (a missing value is empty). Written to a temporary file and renamed, so an interrupted
+    write leaves the previous table."""
+    path = Path(path)
+    fields = list(dict.fromkeys(k for r in rows for k in r))
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields)
+        w.writeheader()
+        w.writerows(rows)
+    os.replace(tmp, path)
