@@ -416,6 +416,49 @@ def test_roi_describes_the_same_regions_as_crop(roi_encoder, encoder, input_size
     assert np.diag(nr @ nc.T).mean() > np.einsum("ij,ij->i", ns, nc).mean() + 0.1
 
 
+_UNTUNED_SCRIPT = """
+import sys, numpy as np, torch
+torch.set_num_threads(2)
+from vpr_core.features import LandmarkEncoder
+from vpr_core.utils import tune_allocator
+assert not tune_allocator()
+data = np.load(sys.argv[1])
+out = {p: LandmarkEncoder(pooling=p).encode(data["image"], data["boxes"]) for p in ("crop", "roi")}
+np.savez(sys.argv[2], **out)
+"""
+
+
+def test_allocator_tuning_changes_no_bits(tmp_path):
+    """Descriptors (both pooling modes) are the same bits in a process with glibc's default
+    allocator (VPR_TUNE_MALLOC=0) as here, where LandmarkEncoder tuned it."""
+    import os
+    import subprocess
+    import sys
+
+    from vpr_core.landmarks import dense_sampling
+    from vpr_core.utils import tune_allocator
+
+    img = _natural_image()
+    boxes = np.asarray(dense_sampling(img.shape[:2]), dtype=float)
+    here = {p: LandmarkEncoder(pooling=p).encode(img, boxes) for p in ("crop", "roi")}
+    if sys.platform.startswith("linux") and os.environ.get("VPR_TUNE_MALLOC", "1") != "0":
+        assert tune_allocator()  # glibc: the tuning is really in effect in this process
+    np.savez(tmp_path / "in.npz", image=img, boxes=boxes)
+    env = {**os.environ, "VPR_TUNE_MALLOC": "0"}
+    subprocess.run([sys.executable, "-c", _UNTUNED_SCRIPT, str(tmp_path / "in.npz"),
+                    str(tmp_path / "out.npz")], check=True, env=env, timeout=300)
+    there = np.load(tmp_path / "out.npz")
+    for p in ("crop", "roi"):
+        np.testing.assert_array_equal(here[p], there[p])
+
+
+def test_roi_config_names_pooling_version(roi_encoder, encoder):
+    from vpr_core.features.roi import ROI_VERSION
+
+    assert roi_encoder.describe()["roi_version"] == ROI_VERSION
+    assert "roi_version" not in encoder.describe()  # crop caches do not depend on it
+
+
 def test_pooling_errors():
     with pytest.raises(ValueError, match="crop, roi"):
         LandmarkEncoder(pooling="max")

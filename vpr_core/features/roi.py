@@ -26,7 +26,8 @@
 
 Determinism: the feature map depends only on the image, and boxes are pooled by batched matmuls
 of one fixed shape (chunks of ``batch_size`` boxes, padded), so a box's descriptor does not
-depend on which other boxes are encoded with it.
+depend on which other boxes are encoded with it. :data:`ROI_VERSION` (in the encoder's config,
+so in the cache key) is bumped when the pooling arithmetic changes.
 """
 
 from __future__ import annotations
@@ -37,11 +38,14 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-__all__ = ["DEFAULT_ROI_SAMPLING", "WORKING_SIZE_FACTOR", "default_working_size", "roi_pool",
+__all__ = ["DEFAULT_ROI_SAMPLING", "ROI_VERSION", "WORKING_SIZE_FACTOR", "default_working_size", "roi_pool",
            "roi_sample_points", "working_image"]
 
 #: Default long side of the image fed to the backbone in ``roi`` mode, in crop sides.
 WORKING_SIZE_FACTOR = 4
+#: Version of the pooling arithmetic (2: x contracted by one GEMM per chunk; results differ
+#: from version 1 by float rounding, ~1e-7), part of the ``roi`` cache key.
+ROI_VERSION = 2
 #: Bilinear samples per output cell and axis (RoIAlign's sampling ratio).
 DEFAULT_ROI_SAMPLING = 4
 
@@ -137,7 +141,8 @@ def roi_pool(fmap: torch.Tensor, boxes: np.ndarray, image_size: tuple[int, int],
     Bilinear interpolation on a separable sample grid factors into one weight matrix per axis:
     the average of the ``r x r`` bilinear samples of cell ``(i, j)`` is
     ``sum_{y, x} Ay[i, y] * F[c, y, x] * Ax[j, x]``, computed as two batched matmuls
-    (``Ay @ F @ Ax^T``). It equals ``grid_sample(..., mode="bilinear", padding_mode="border",
+    (``Ay @ F @ Ax^T``: one GEMM over all boxes of a chunk for x, one batched matmul for y,
+    ~9x faster than a batched matmul per channel, measured). It equals ``grid_sample(..., mode="bilinear", padding_mode="border",
     align_corners=False)`` averaged over the sub-samples (tested), at a fraction of the cost.
 
     Args:
@@ -163,14 +168,17 @@ def roi_pool(fmap: torch.Tensor, boxes: np.ndarray, image_size: tuple[int, int],
     to = {"dtype": torch.float32, "device": fmap.device}
     ax = torch.from_numpy(_axis_weights(qx, wf, n, r)).to(**to)  # (K, n, wf)
     ay = torch.from_numpy(_axis_weights(qy, hf, n, r)).to(**to)  # (K, n, hf)
-    feat = fmap[0].float().contiguous()  # (C, hf, wf)
+    feat = fmap[0].float().contiguous().reshape(c * hf, wf)  # (C*hf, wf)
     out = torch.empty((k, c, n, n), **to)
-    # Batched matmuls in chunks of exactly `chunk` boxes (the last padded by repeating its last
-    # box): CPU kernels are chosen by shape, so a fixed shape makes a box's result independent of
-    # the other boxes encoded with it (tested bit for bit).
+    # Two matmuls per chunk of exactly `chunk` boxes (the last padded by repeating its last box):
+    # one GEMM contracts x for all boxes of the chunk at once, one batched matmul contracts y.
+    # CPU kernels are chosen by shape, so a fixed shape makes a box's result independent of the
+    # other boxes encoded with it (tested bit for bit).
     for start in range(0, k, chunk):
         idx = torch.arange(start, start + chunk, device=fmap.device).clamp_(max=k - 1)
-        rows = torch.matmul(ay[idx][:, None], feat[None])  # (chunk, C, n, wf)
-        pooled = torch.matmul(rows, ax[idx].transpose(1, 2)[:, None])  # (chunk, C, n, n)
-        out[start:start + chunk] = pooled[: min(chunk, k - start)]
+        cols = feat @ ax[idx].reshape(chunk * n, wf).T  # (C*hf, chunk*n): sum_x F[c,y,x] Ax[j,x]
+        cols = cols.reshape(c, hf, chunk, n).permute(2, 1, 0, 3).reshape(chunk, hf, c * n)
+        pooled = torch.bmm(ay[idx], cols).reshape(chunk, n, c, n)  # sum_y Ay[i,y] (...)[y]
+        m = min(chunk, k - start)
+        out[start:start + m] = pooled[:m].permute(0, 2, 1, 3)
     return out.reshape(k, c * n * n)
