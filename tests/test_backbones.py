@@ -107,3 +107,36 @@ def test_spec_errors_name_the_valid_choices():
         parse_backbone("efficientnet_lite0:input_size=8")
     with pytest.raises(ValueError, match="conflicts"):
         build_backbone("efficientnet_lite0:input_size=96", input_size=128)
+
+
+@pytest.mark.parametrize("shape,pads", [((3, 8, 12, 10), (0, 1, 0, 1)), ((2, 5, 9, 7), (2, 2, 1, 2)),
+                                        ((1, 4, 6, 6), (1, 2, 1, 2))])
+@pytest.mark.parametrize("channels_last", [True, False])
+def test_relu6_padded_equals_pad_of_relu6(shape, pads, channels_last):
+    """The fused ReLU6 + "same" padding gives F.pad(clamp(y)) exactly, in y's memory format,
+    so the depthwise convolution after it sees the same tensor."""
+    from vpr_core.backbones.efficientnet_lite import relu6_padded
+
+    y = torch.randn(*shape, generator=torch.Generator().manual_seed(1)) * 8
+    if channels_last:
+        y = y.contiguous(memory_format=torch.channels_last)
+    ref = F.pad(y.clamp(0.0, 6.0), pads)
+    got = relu6_padded(y, pads)
+    assert torch.equal(got, ref) and got.stride() == ref.stride()
+    assert got.min() >= 0 and got.max() <= 6
+
+
+def test_stride2_block_fused_path_equals_unfused():
+    """MBConvBlock's stride-2 path (relu6_padded + forward_padded) gives the bits of the plain
+    expand -> ReLU6 -> F.pad -> depthwise sequence."""
+    from vpr_core.backbones.efficientnet_lite import MBConvBlock
+
+    torch.manual_seed(0)
+    block = MBConvBlock(16, 24, expand=6, kernel=3, stride=2).eval()
+    x = torch.randn(4, 16, 30, 30).contiguous(memory_format=torch.channels_last)
+    with torch.inference_mode():
+        got = block(x)
+        y = block._bn0(block._expand_conv(x)).clamp_(0.0, 6.0)
+        y = block._bn1(block._depthwise_conv(y)).clamp_(0.0, 6.0)  # F.pad inside forward
+        ref = block._bn2(block._project_conv(y))
+    assert torch.equal(got, ref)

@@ -98,3 +98,17 @@ def test_dense_efficientnet_on_real_gardens_point_mini(gardens_point_mini_root):
     r = pipeline.run_method("dense", ds)
     assert r.similarity.shape == (10, 10)
     assert r.metrics["r_at_1"] >= 0.3, r.metrics
+
+
+def test_box_keys_are_rounded_row_bytes():
+    """The vectorised cache keys equal the bytes of each row rounded to 1e-3 px, and boxes that
+    differ by more than the rounding get different keys."""
+    from vpr_core.pipeline.feature_stage import _box_keys
+
+    rng = np.random.default_rng(0)
+    boxes = rng.normal(size=(300, 4)) * 300
+    boxes[0] = [-0.0001, 0.0, 1e-9, -5e-4]
+    assert _box_keys(boxes) == [np.round(b, 3).astype(np.float64).tobytes() for b in boxes]
+    assert _box_keys(np.zeros((0, 4))) == []
+    a, b = np.array([[1.0, 2.0, 3.0, 4.0]]), np.array([[1.0, 2.0, 3.0, 4.002]])
+    assert _box_keys(a) != _box_keys(b) and _box_keys(a) == _box_keys(a + 1e-5)

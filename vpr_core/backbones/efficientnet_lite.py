@@ -114,15 +114,45 @@ class Conv2dSame(nn.Conv2d):
                          bias=bias)
         self._dynamic = not symmetric
 
+    def same_pads(self, height: int, width: int) -> tuple[int, int, int, int]:
+        """``(left, right, top, bottom)`` padding this layer applies to an input of that size."""
+        if not self._dynamic:
+            return 0, 0, 0, 0
+        top, bottom = _same_pad_amounts(height, self.kernel_size[0], self.stride[0])
+        left, right = _same_pad_amounts(width, self.kernel_size[1], self.stride[1])
+        return left, right, top, bottom
+
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        if self._dynamic:
-            kh, kw = self.kernel_size
-            sh, sw = self.stride
-            top, bottom = _same_pad_amounts(x.shape[-2], kh, sh)
-            left, right = _same_pad_amounts(x.shape[-1], kw, sw)
-            if top or bottom or left or right:
-                x = F.pad(x, (left, right, top, bottom))
+        pads = self.same_pads(x.shape[-2], x.shape[-1])
+        if any(pads):
+            x = F.pad(x, pads)
         return super().forward(x)
+
+    def forward_padded(self, x: torch.Tensor) -> torch.Tensor:
+        """The convolution of an input that already carries its :meth:`same_pads`."""
+        return super().forward(x)
+
+
+def relu6_padded(y: torch.Tensor, pads: tuple[int, int, int, int]) -> torch.Tensor:
+    """``F.pad(y.clamp(0, 6), pads)`` in one pass: ReLU6 written straight into the padded tensor.
+
+    The result has ``y``'s memory format and the same values, so the convolution after it gives
+    the same bits as after ``F.pad`` (tested); it saves a copy of the largest activations of the
+    network (the expanded input of each stride-2 depthwise layer): pad + ReLU6 take half the time
+    (10.6 -> 5.7 ms for a 50 x 96 x 64 x 64 batch here).
+    """
+    left, right, top, bottom = pads
+    n, c, h, w = y.shape
+    fmt = (torch.channels_last if y.is_contiguous(memory_format=torch.channels_last)
+           and not y.is_contiguous() else torch.contiguous_format)
+    out = torch.empty((n, c, h + top + bottom, w + left + right), dtype=y.dtype, device=y.device,
+                      memory_format=fmt)
+    out[:, :, :top].zero_()
+    out[:, :, top + h:].zero_()
+    out[:, :, top:top + h, :left].zero_()
+    out[:, :, top:top + h, left + w:].zero_()
+    torch.clamp(y, 0.0, 6.0, out=out[:, :, top:top + h, left:left + w])
+    return out
 
 
 def _bn(channels: int) -> nn.BatchNorm2d:
@@ -151,9 +181,14 @@ class MBConvBlock(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         y = x
-        if self.has_expand:
-            y = self._bn0(self._expand_conv(y)).clamp_(0.0, 6.0)
-        y = self._bn1(self._depthwise_conv(y)).clamp_(0.0, 6.0)
+        pads = self._depthwise_conv.same_pads(x.shape[-2], x.shape[-1])
+        if self.has_expand and any(pads):  # stride 2: ReLU6 + "same" padding in one pass
+            y = relu6_padded(self._bn0(self._expand_conv(y)), pads)
+            y = self._bn1(self._depthwise_conv.forward_padded(y)).clamp_(0.0, 6.0)
+        else:
+            if self.has_expand:
+                y = self._bn0(self._expand_conv(y)).clamp_(0.0, 6.0)
+            y = self._bn1(self._depthwise_conv(y)).clamp_(0.0, 6.0)
         y = self._bn2(self._project_conv(y))
         return y + x if self.skip else y
 
