@@ -50,13 +50,13 @@ def test_feature_cache_reads_second_time_and_recomputes_changed_config(tiny, iso
                                                                        monkeypatch):
     calls = []
     enc = pipeline.get_encoder()
-    orig = enc.encode
+    orig = enc.crops  # crop mode: the feature stage crops each image's missing boxes
 
     def counting(image, boxes):
         calls.append(len(boxes))
         return orig(image, boxes)
 
-    monkeypatch.setattr(enc, "encode", counting)
+    monkeypatch.setattr(enc, "crops", counting)
     pipeline.run_method("dense", tiny, scales=(0.25,), per_scale=4)
     first = sum(calls)
     assert first == 12 * 4
@@ -112,3 +112,17 @@ def test_box_keys_are_rounded_row_bytes():
     assert _box_keys(np.zeros((0, 4))) == []
     a, b = np.array([[1.0, 2.0, 3.0, 4.0]]), np.array([[1.0, 2.0, 3.0, 4.002]])
     assert _box_keys(a) != _box_keys(b) and _box_keys(a) == _box_keys(a + 1e-5)
+
+
+def test_crops_batched_across_images_give_each_images_own_bits(tiny, isolated_cache):
+    """The feature stage fills batches with the crops of consecutive images; every descriptor is
+    the same bits as encoding its image alone, also when a later config resumes a store."""
+    enc = pipeline.get_encoder()
+    r1 = pipeline.run_method("dense", tiny, scales=(0.25,), per_scale=9, keep_descriptors=True)
+    r2 = pipeline.run_method("dense", tiny, scales=(0.25, 0.49), per_scale=9,
+                             keep_descriptors=True)  # 9 new boxes per image, 9 cached
+    for r in (r1, r2):
+        for side in ("query", "reference"):
+            for i, (b, d) in enumerate(zip(r.boxes[side], r.descriptors[side])):
+                np.testing.assert_array_equal(d, enc.encode(tiny.load_image(side, i), b))
+    assert r2.timings["features_s_per_image"] > 0

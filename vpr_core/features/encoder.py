@@ -233,12 +233,33 @@ class LandmarkEncoder:
             else:
                 crops = crop_boxes(self._image_tensor(image), boxes, self.input_size,
                                    self.batch_size, self.antialias)
-                for start in range(0, len(boxes), self.batch_size):
-                    chunk = crops[start:start + self.batch_size]
-                    feats = self._forward_fixed(chunk, keep_padding=True)
-                    if self.projection is not None:
-                        feats = feats @ self.projection
-                    outs.append(feats[:len(chunk)].cpu())
+                return self.encode_crops(crops)
+        return torch.cat(outs).numpy().astype(np.float32, copy=False)
+
+    def encode_crops(self, crops: torch.Tensor) -> np.ndarray:
+        """``crop`` mode's network + projection on ready-made crops (from :meth:`crops`).
+
+        Crops go through in batches of exactly ``batch_size`` (the last padded), so a crop's
+        descriptor does not depend on which crops share its batch: crops of *several* images
+        can be batched together and give the same bits as :meth:`encode` of each image (the
+        feature stage does this to avoid padding every image's last batch).
+
+        Args:
+            crops: ``(K, 3, s, s)`` float32 normalised crops.
+
+        Returns:
+            ``(K, dim)`` float32 descriptors.
+        """
+        if len(crops) == 0:
+            return np.zeros((0, self.dim), dtype=np.float32)
+        outs = []
+        with torch.inference_mode():
+            for start in range(0, len(crops), self.batch_size):
+                chunk = crops[start:start + self.batch_size].to(self.device)
+                feats = self._forward_fixed(chunk, keep_padding=True)
+                if self.projection is not None:
+                    feats = feats @ self.projection
+                outs.append(feats[:len(chunk)].cpu())
         return torch.cat(outs).numpy().astype(np.float32, copy=False)
 
     def encode_global(self, image: np.ndarray) -> np.ndarray:
