@@ -12,8 +12,9 @@ on a shared machine wall time is inflated by other processes, CPU time much less
 crop / roi of both (target: roi >= 10x faster). ``crop0`` is ``crop`` in a child process with
 ``VPR_TUNE_MALLOC=0`` (glibc's default allocator, see :func:`vpr_core.utils.tune_allocator`),
 timed in the same interleaved rounds (crop, roi, crop0, ...): the same descriptors, bit for bit;
-the column shows what the allocator tuning buys, and ``crop0 / roi`` is the ratio against the
-crop path as it ran before that tuning. AlexNet runs with ``weights="random"`` (the
+the column shows what the allocator tuning buys. ``crop0 / roi`` approximates the ratio against
+the crop path before this round's speed-ups (``crop0`` still has the fused ReLU6 + padding of
+the stride-2 layers, a few percent). AlexNet runs with ``weights="random"`` (the
 ImageNet file is not shipped): its timing is valid, its descriptors are not. HOG has no feature
 map, so no ``roi`` mode.
 """
@@ -69,9 +70,10 @@ class UntunedCrop:
 
         old = os.environ.get("VPR_TUNE_MALLOC")
         os.environ["VPR_TUNE_MALLOC"] = "0"  # inherited by the spawned child only now
+        ctx = mp.get_context("spawn")
         try:
-            self.conn, child = mp.get_context("spawn").Pipe()
-            self.proc = mp.get_context("spawn").Process(
+            self.conn, child = ctx.Pipe()
+            self.proc = ctx.Process(
                 target=_untuned_worker, args=(child, name, weights, threads), daemon=True)
             self.proc.start()
         finally:

@@ -224,16 +224,12 @@ class LandmarkEncoder:
         boxes = check_boxes(boxes, positive=True)
         if len(boxes) == 0:
             return np.zeros((0, self.dim), dtype=np.float32)
-        outs = []
+        if self.pooling == "crop":
+            return self.encode_crops(self.crops(image, boxes))
         with torch.inference_mode():
-            if self.pooling == "roi":
-                raw = self._roi_raw(image, boxes)
-                for start in range(0, len(boxes), self.batch_size):
-                    outs.append(self._project_fixed(raw[start:start + self.batch_size]).cpu())
-            else:
-                crops = crop_boxes(self._image_tensor(image), boxes, self.input_size,
-                                   self.batch_size, self.antialias)
-                return self.encode_crops(crops)
+            raw = self._roi_raw(image, boxes)
+            outs = [self._project_fixed(raw[start:start + self.batch_size]).cpu()
+                    for start in range(0, len(boxes), self.batch_size)]
         return torch.cat(outs).numpy().astype(np.float32, copy=False)
 
     def encode_crops(self, crops: torch.Tensor) -> np.ndarray:

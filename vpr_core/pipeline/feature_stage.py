@@ -165,8 +165,9 @@ def _extract_side_crop_batched(boxes: list, dataset, side: str, encoder) -> tupl
             job = pending[i]
             job["desc"].append(desc[start:start + k])
             job["seconds"] += per_row * k
+            job["left"] -= k
             start += k
-            if sum(len(d) for d in job["desc"]) == len(job["new"]):
+            if job["left"] == 0:
                 store = _add_to_store(job["path"], job["store"], job["new"],
                                       np.concatenate(job["desc"]), job["seconds"])
                 results[i] = _rows(store, job["boxes"])
@@ -184,7 +185,7 @@ def _extract_side_crop_batched(boxes: list, dataset, side: str, encoder) -> tupl
         t0 = time.perf_counter()
         crops = encoder.crops(image, new_boxes)
         pending[i] = {"path": path, "store": store, "new": new_boxes, "boxes": all_boxes,
-                      "desc": [], "seconds": time.perf_counter() - t0}
+                      "desc": [], "left": len(new_boxes), "seconds": time.perf_counter() - t0}
         queue.append((i, crops))
         run(final=False)
     run(final=True)
@@ -239,7 +240,7 @@ def extract_features(boxes: dict[str, Any], dataset, encoder, client=None) -> di
     for side in SIDES:
         if client is not None:
             descs, secs = _extract_side_distributed(client, boxes[side], dataset, side, encoder)
-        elif getattr(encoder, "pooling", None) == "crop" and hasattr(encoder, "encode_crops"):
+        elif encoder.pooling == "crop":
             descs, secs = _extract_side_crop_batched(boxes[side], dataset, side, encoder)
         else:
             descs, secs = [], []
