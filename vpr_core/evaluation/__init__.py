@@ -9,6 +9,7 @@
 from __future__ import annotations
 
 from .bootstrap import (
+    N_BOOTSTRAP,
     bootstrap_columns,
     bootstrap_metrics,
     difference_verdict,
@@ -28,6 +29,7 @@ from .curves import (
 )
 
 __all__ = [
+    "N_BOOTSTRAP",
     "PROTOCOLS",
     "PRCurve",
     "auc_pr",

@@ -39,8 +39,11 @@ from .curves import (
     recall_at_k,
 )
 
-__all__ = ["bootstrap_columns", "bootstrap_metrics", "difference_verdict", "format_interval",
+__all__ = ["N_BOOTSTRAP", "bootstrap_columns", "bootstrap_metrics", "difference_verdict", "format_interval",
            "paired_bootstrap"]
+
+#: Bootstrap resamples of every interval and paired difference (the one home of this count).
+N_BOOTSTRAP = 1000
 
 #: Resamples evaluated at once (bounds memory: ``chunk x queries`` float64 per array).
 _CHUNK = 250
@@ -144,7 +147,7 @@ def _prepare(similarity, ground_truth, protocol: str, ks, n: int):
     return s, gt, ks
 
 
-def bootstrap_metrics(similarity: np.ndarray, ground_truth: np.ndarray, n: int = 1000,
+def bootstrap_metrics(similarity: np.ndarray, ground_truth: np.ndarray, n: int = N_BOOTSTRAP,
                       seed: int = 0, protocol: str = "ratio", ks: Sequence[int] = (1, 5)
                       ) -> dict[str, tuple[float, float, float]]:
     """95% bootstrap intervals of AUC, R@100P and R@K, resampling queries.
@@ -186,7 +189,7 @@ def _p_value(delta: float, deltas: np.ndarray) -> float:
 
 
 def paired_bootstrap(sim_a: np.ndarray, sim_b: np.ndarray, ground_truth: np.ndarray,
-                     n: int = 1000, seed: int = 0, protocol: str = "ratio",
+                     n: int = N_BOOTSTRAP, seed: int = 0, protocol: str = "ratio",
                      ks: Sequence[int] = (1, 5)) -> dict[str, tuple[float, float, float, float]]:
     """Paired bootstrap of the difference ``a - b`` of two methods on the same queries.
 

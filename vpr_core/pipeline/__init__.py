@@ -8,6 +8,7 @@ written atomically and a damaged one is recomputed (:mod:`.cache`).
 
 from __future__ import annotations
 
+from ..evaluation.bootstrap import N_BOOTSTRAP
 from ..methods import method_label
 from .cache import SIDES, atomic_savez, dataset_fingerprint, load_npz
 from .feature_stage import (
@@ -23,7 +24,8 @@ from .landmark_stage import (
     extract_landmarks,
     landmarks_for_image,
 )
-from .run import INTERVAL_COLUMNS, N_BOOTSTRAP, MethodResult, peer_result, run_method
+from .result import INTERVAL_COLUMNS, MethodResult, peer_result
+from .run import run_method
 
 __all__ = [
     "INTERVAL_COLUMNS",

@@ -10,87 +10,20 @@ drops a query whose row is all NaN), and a warning names the image. It is never 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from ..evaluation.bootstrap import N_BOOTSTRAP
 from ..methods import get_method, landmark_config, method_label
 from ..paper import PROJECTION_DIM
 from ..utils import cache_dir, config_slug, logger
 from .cache import SIDES, atomic_savez, dataset_fingerprint, load_npz, n_images
 from .feature_stage import extract_features, get_encoder
 from .landmark_stage import extract_landmarks
+from .result import MethodResult
 
-__all__ = ["INTERVAL_COLUMNS", "N_BOOTSTRAP", "MethodResult", "peer_result", "run_method"]
-
-
-#: Bootstrap resamples of the metric intervals (``evaluation.bootstrap_metrics``).
-N_BOOTSTRAP = 1000
-
-#: Interval columns of :meth:`MethodResult.row` (95% bootstrap over queries).
-INTERVAL_COLUMNS = ["AUC lo", "AUC hi", "R@100P lo", "R@100P hi", "R@1 lo", "R@1 hi"]
-
-
-@dataclass
-class MethodResult:
-    """Everything one method produced on one dataset.
-
-    Attributes:
-        method: preset name; ``label``: a display label (e.g. ``"overlap_scheme1 (IoU 0.4)"``).
-        config: the full method config; ``encoder``: the encoder config.
-        similarity: ``(Nq, Nr)`` Eq. (1) similarities (NaN = not ranked: off the shortlist, or an
-            image without landmarks).
-        ground_truth: ``(Nq, Nr)`` bool.
-        boxes: ``{"query": [(K_i, 4)], "reference": [...]}``.
-        metrics: AUC (ratio protocol), R@100P, R@1, R@5.
-        intervals: ``{"auc", "r@100p", "r@1", "r@5": (value, low, high)}``, 95% bootstrap over
-            queries (:func:`~vpr_core.evaluation.bootstrap_metrics`, ``N_BOOTSTRAP`` resamples,
-            seed 0).
-        timings: seconds per image for landmarks and features (recorded compute costs), seconds
-            per image pair for matching (measured when the matrix was computed) and the number
-            of image pairs scored by Eq. (1).
-        shortlist: None (exhaustive) or the k of shortlist + re-rank.
-        queries_with_gt: ``(queries with ground truth, all queries)``.
-    """
-
-    method: str
-    label: str
-    dataset: str
-    config: dict
-    encoder: dict
-    similarity: np.ndarray
-    ground_truth: np.ndarray
-    boxes: dict
-    metrics: dict
-    timings: dict
-    descriptors: dict | None = field(default=None, repr=False)
-    intervals: dict = field(default_factory=dict)
-    shortlist: int | None = None
-    queries_with_gt: tuple[int, int] = (0, 0)
-
-    def row(self) -> dict:
-        """One table row: label, metrics with their 95% intervals, coverage and costs."""
-        t, iv = self.timings, self.intervals
-        row = {"method": self.label, "AUC(ratio)": float(self.metrics["auc"]),
-               "R@100P": float(self.metrics["r_at_100p"]), "R@1": float(self.metrics["r_at_1"]),
-               "R@5": float(self.metrics["r_at_5"])}
-        for key, name in (("auc", "AUC"), ("r@100p", "R@100P"), ("r@1", "R@1")):
-            lo, hi = (iv[key][1], iv[key][2]) if key in iv else (np.nan, np.nan)
-            row[f"{name} lo"], row[f"{name} hi"] = float(lo), float(hi)
-        row.update({"queries": int(self.queries_with_gt[0]),
-                    "landmarks/img": float(t["landmarks_per_image"]),
-                    "landmarks s/img": float(t["landmarks_s_per_image"]),
-                    "features s/img": float(t["features_s_per_image"]),
-                    "matching s/pair": float(t["matching_s_per_pair"]),
-                    "pairs scored": float(t.get("pairs", np.nan))})
-        return row
-
-    def curve(self, protocol: str = "ratio"):
-        """PR curve of this result under ``protocol``."""
-        from ..evaluation import pr_curve
-
-        return pr_curve(self.similarity, self.ground_truth, protocol=protocol, warn=False)
+__all__ = ["run_method"]
 
 
 def _exclude_empty(sim: np.ndarray, boxes: dict, dataset) -> np.ndarray:
@@ -212,34 +145,3 @@ def run_method(method: str | dict, dataset, backbone: str = "efficientnet_lite0"
         descriptors={s: feats[s] for s in SIDES} if keep_descriptors else None,
         intervals=intervals, shortlist=k, queries_with_gt=ground_truth_coverage(gt),
     )
-
-
-def peer_result(peer, dataset, n_bootstrap: int = N_BOOTSTRAP) -> MethodResult:
-    """A VPR-Bench peer (:class:`~vpr_core.baselines.PeerResult`) as a result beside ours.
-
-    Its similarity matrix is checked against ``dataset`` (shape, query order) and evaluated with
-    the same metrics and intervals. Costs: ``features s/img`` is VPR-Bench's stored encode time
-    and ``matching s/pair`` its stored match time, as VPR-Bench recorded them on its machine
-    (not comparable with ours to more than an order of magnitude); landmark columns are NaN.
-
-    Args:
-        peer: a loaded peer (:func:`~vpr_core.baselines.load_vprbench_precomputed`).
-        dataset: the :class:`~vpr_core.datasets.PlaceDataset` it was computed on.
-        n_bootstrap: resamples of the metric intervals.
-    """
-    from ..baselines import peer_similarity_for
-    from ..evaluation import bootstrap_metrics, evaluate, ground_truth_coverage
-
-    sim = peer_similarity_for(dataset, peer)
-    gt = np.asarray(dataset.ground_truth, dtype=bool)
-    nq, nr = gt.shape
-    timings = {"landmarks_s_per_image": float("nan"), "landmarks_per_image": float("nan"),
-               "features_s_per_image": float(peer.encode_seconds),
-               "matching_s_per_pair": float(peer.match_seconds), "pairs": float(nq * nr)}
-    return MethodResult(
-        method=f"peer:{peer.name}", label=f"{peer.name} (VPR-Bench)", dataset=dataset.name,
-        config={"name": f"peer:{peer.name}", "source": str(peer.source)}, encoder={},
-        similarity=sim, ground_truth=gt, boxes={"query": [], "reference": []},
-        metrics=evaluate(sim, gt), timings=timings,
-        intervals=bootstrap_metrics(sim, gt, n=n_bootstrap, seed=0) if n_bootstrap else {},
-        queries_with_gt=ground_truth_coverage(gt))
