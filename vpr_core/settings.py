@@ -1,0 +1,167 @@
+"""The environment, read in one place: every ``VPR_*`` variable the workbench honours.
+
+Library functions take parameters; where a parameter is left at ``None`` they may fall back to
+the setting named here. Nothing in ``vpr_core`` reads ``os.environ`` anywhere else, and only
+:func:`kernel_environment` (used by the study runner for the notebook kernels it starts)
+writes it.
+
+=============================  ==============================================================
+``VPR_OUTPUT_DIR``             output root of figures/, results/, runs/ (default: the cwd)
+``VPR_CACHE_DIR``              cache root (default: ``<output root>/.cache``)
+``VPR_DASK_SCHEDULER``         Dask scheduler address; read by the CLI only
+``VPR_SCHEDULER_TIMEOUT``      seconds to wait for a Dask scheduler (default 15)
+``VPR_SED_MODEL``              structured-edge model file of Edge Boxes
+``VPR_ALEXNET_WEIGHTS``        AlexNet weights file (``alexnet_conv3``)
+``VPR_EFFICIENTNET_<V>_WEIGHTS``  weights file of EfficientNet-Lite variant V (LITE0...)
+``VPR_BENCH_ROOT``             a VPR-Bench checkout (precomputed peers)
+``VPR_DATASETS``               extra study datasets, ``name=root;name=root``
+``VPR_TUNE_MALLOC``            ``0`` leaves glibc's allocator alone in the CLI / runner
+``TQDM_DISABLE``               any value: no progress bars
+=============================  ==============================================================
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+
+__all__ = [
+    "ALEXNET_ENV",
+    "BENCH_ROOT_ENV",
+    "CACHE_ENV",
+    "DATASETS_ENV",
+    "OUTPUT_ENV",
+    "SCHEDULER_ENV",
+    "SCHEDULER_TIMEOUT_ENV",
+    "SED_MODEL_ENV",
+    "TUNE_MALLOC_ENV",
+    "alexnet_weights",
+    "bench_root",
+    "cache_dir",
+    "dask_scheduler",
+    "efficientnet_weights",
+    "extra_datasets",
+    "kernel_environment",
+    "output_dir",
+    "progress_disabled",
+    "scheduler_timeout",
+    "sed_model",
+    "tune_malloc",
+]
+
+OUTPUT_ENV = "VPR_OUTPUT_DIR"
+CACHE_ENV = "VPR_CACHE_DIR"
+SCHEDULER_ENV = "VPR_DASK_SCHEDULER"
+SCHEDULER_TIMEOUT_ENV = "VPR_SCHEDULER_TIMEOUT"
+SED_MODEL_ENV = "VPR_SED_MODEL"
+ALEXNET_ENV = "VPR_ALEXNET_WEIGHTS"
+BENCH_ROOT_ENV = "VPR_BENCH_ROOT"
+DATASETS_ENV = "VPR_DATASETS"
+TUNE_MALLOC_ENV = "VPR_TUNE_MALLOC"
+
+
+def _get(name: str) -> str | None:
+    value = os.environ.get(name)
+    return value if value and value.strip() else None
+
+
+def output_dir() -> str | None:
+    """``$VPR_OUTPUT_DIR`` or None."""
+    return _get(OUTPUT_ENV)
+
+
+def cache_dir() -> str | None:
+    """``$VPR_CACHE_DIR`` or None."""
+    return _get(CACHE_ENV)
+
+
+def dask_scheduler() -> str | None:
+    """``$VPR_DASK_SCHEDULER`` or None (the CLI's default for ``--scheduler``)."""
+    return _get(SCHEDULER_ENV)
+
+
+def scheduler_timeout(default: float = 15.0) -> float:
+    """``$VPR_SCHEDULER_TIMEOUT`` in seconds (default 15).
+
+    Raises:
+        ValueError: not a positive number.
+    """
+    raw = _get(SCHEDULER_TIMEOUT_ENV)
+    if raw is None:
+        return default
+    try:
+        value = float(raw)
+    except ValueError:
+        value = -1.0
+    if not value > 0:
+        raise ValueError(f"{SCHEDULER_TIMEOUT_ENV}={raw!r} is not a positive number of seconds; "
+                         f"set e.g. {SCHEDULER_TIMEOUT_ENV}=15 or unset it.")
+    return value
+
+
+def sed_model() -> str | None:
+    """``$VPR_SED_MODEL`` (structured-edge model file) or None."""
+    return _get(SED_MODEL_ENV)
+
+
+def alexnet_weights() -> str | None:
+    """``$VPR_ALEXNET_WEIGHTS`` or None."""
+    return _get(ALEXNET_ENV)
+
+
+def efficientnet_weights(variant: str) -> str | None:
+    """``$VPR_EFFICIENTNET_<VARIANT>_WEIGHTS`` (e.g. ``LITE1``) or None."""
+    return _get(efficientnet_weights_env(variant))
+
+
+def efficientnet_weights_env(variant: str) -> str:
+    """The variable name of :func:`efficientnet_weights`."""
+    return f"VPR_EFFICIENTNET_{variant.upper()}_WEIGHTS"
+
+
+def bench_root() -> str | None:
+    """``$VPR_BENCH_ROOT`` (a VPR-Bench checkout) or None."""
+    return _get(BENCH_ROOT_ENV)
+
+
+def extra_datasets() -> dict[str, str]:
+    """``$VPR_DATASETS`` as ``{name: root}`` (entries ``name=root`` separated by ``;``).
+
+    Raises:
+        ValueError: a malformed entry (the message shows the expected form).
+    """
+    found: dict[str, str] = {}
+    for item in filter(None, (os.environ.get(DATASETS_ENV) or "").split(";")):
+        name, sep, root = item.partition("=")
+        if not sep or not name.strip() or not root.strip():
+            raise ValueError(f"{DATASETS_ENV} entry {item!r} is not 'name=root'; write entries "
+                             "as 'gardens_point=/data/gp;folder=/data/x'.")
+        found[name.strip()] = root.strip()
+    return found
+
+
+def tune_malloc() -> bool:
+    """False when ``$VPR_TUNE_MALLOC`` is ``0`` / ``false`` / ``no`` / ``off``."""
+    return (_get(TUNE_MALLOC_ENV) or "1").strip().lower() not in ("0", "false", "no", "off")
+
+
+def progress_disabled() -> bool:
+    """True when ``$TQDM_DISABLE`` is set (tqdm's own convention)."""
+    return bool(os.environ.get("TQDM_DISABLE"))
+
+
+@contextmanager
+def kernel_environment(values: Mapping[str, str]) -> Iterator[None]:
+    """Set ``values`` in the environment for child processes (notebook kernels) and restore
+    the previous values afterwards. Used by the study runner only."""
+    saved = {k: os.environ.get(k) for k in values}
+    try:
+        os.environ.update({k: str(v) for k, v in values.items()})
+        yield
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
