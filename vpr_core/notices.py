@@ -1,0 +1,34 @@
+"""Warnings that change what a number means: logged on ``vpr_core`` AND raised with ``warnings.warn``.
+
+A Python user sees them without configuring logging (DESIGN habit 12); the CLI and notebooks see
+them in their log. Filter them with ``warnings.simplefilter("ignore", VPRWarning)``.
+"""
+
+from __future__ import annotations
+
+import logging
+import warnings
+
+__all__ = ["VPRWarning", "notice"]
+
+logger = logging.getLogger("vpr_core")
+
+
+class VPRWarning(UserWarning):
+    """A library warning that changes what a reported number means."""
+
+
+def notice(message: str, stacklevel: int = 3) -> str:
+    """Log ``message`` as a warning on the ``vpr_core`` logger and raise it as a :class:`VPRWarning`.
+
+    Args:
+        message: the full sentence (what happened, what it changes, the fix).
+        stacklevel: passed to ``warnings.warn``; the default 3 points at the caller of the function
+            that calls ``notice``.
+
+    Returns:
+        ``message``, so a caller can also record it (e.g. on a result's ``.warnings``).
+    """
+    logger.warning(message)
+    warnings.warn(message, VPRWarning, stacklevel=stacklevel)
+    return message
