@@ -56,6 +56,7 @@ __all__ = [
     "get_method",
     "landmark_config",
     "method_label",
+    "run_key",
 ]
 
 EDGE_BOX_SCHEMES = ("edge_boxes", "selection_scheme1", "selection_scheme2", "overlap_scheme1")
@@ -154,13 +155,14 @@ def _validate(name: str, key: str, value: Any) -> Any:
             return tuple(int(v) for v in value)
         raise bad("a positive integer (a square, e.g. 25) or one per scale")
     if key in ("n", "n_candidates", "min_index"):
-        if not (_is_int(value) and value >= (1 if key != "n" else 0)):
-            raise bad("a positive integer")
+        if not (_is_int(value) and value >= 1):
+            raise bad("a positive integer (at least 1)")
         return int(value)
     if key == "order":
         if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)) or not all(
-                _is_int(v) for v in value):
-            raise bad("a sequence of Table-1 scale indices, e.g. (5, 6, 7, 8, 9, 4)")
+                _is_int(v) and 1 <= v <= 9 for v in value) or not value:
+            raise bad("a non-empty sequence of Table-1 scale indices 1..9, e.g. "
+                      "(5, 6, 7, 8, 9, 4)")
         return tuple(int(v) for v in value)
     if key in ("iou_threshold", "soft_nms_iou"):
         if value is None and key == "soft_nms_iou":
@@ -221,16 +223,46 @@ def landmark_config(conf: dict[str, Any]) -> dict[str, Any]:
 
 
 def method_label(conf: dict[str, Any]) -> str:
-    """Short human label of a method config (used in legends and tables)."""
-    name = conf["name"]
-    lconf, mconf = conf["landmarks"], conf["matching"]
+    """Short human label of a method config (legends and tables), derived from the same options
+    as :func:`run_key`: ``"overlap_scheme1 (IoU 0.4)"``, ``"dense (0.25/0.49 x 49)"``."""
+    name, opts = conf["name"], _options(conf)
     if name == "overlap_scheme1":
-        return f"{name} (IoU {lconf['iou_threshold']:g})"
+        return f"{name} (IoU {conf['landmarks']['iou_threshold']:g})"
     if name == "overlap_scheme2":
-        return f"{name} (IoU {mconf['soft_nms_iou']:g})"
-    if name == "dense" and (tuple(lconf["scales"]) != DENSE_SCALES
-                            or lconf["per_scale"] != DENSE_PER_SCALE):
-        ps = lconf["per_scale"]
-        ps = "/".join(str(p) for p in ps) if isinstance(ps, tuple) else str(ps)
-        return f"dense ({'/'.join(f'{s:g}' for s in lconf['scales'])} x {ps})"
+        return f"{name} (IoU {conf['matching']['soft_nms_iou']:g})"
+    if name == "dense" and opts:
+        lconf = conf["landmarks"]
+        return f"dense ({_text(tuple(lconf['scales']))} x {_text(lconf['per_scale'])})"
     return name
+
+def _options(conf: dict[str, Any]) -> dict[str, Any]:
+    """The options of a config that differ from its preset (flat, as :func:`get_method` takes)."""
+    name = conf["name"]
+    if name not in METHODS:
+        return {}
+    base = get_method(name)
+    out = {}
+    for part in ("landmarks", "matching"):
+        for key, value in conf.get(part, {}).items():
+            if key in METHOD_OPTIONS[name] and base[part].get(key) != value:
+                out[key] = value
+    return dict(sorted(out.items()))
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, tuple):
+        return "/".join(_text(v) for v in value)
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def run_key(conf: dict[str, Any]) -> str:
+    """The identity of a run's configuration: the preset name and every option that differs
+    from the preset, e.g. ``"overlap_scheme1(iou_threshold=0.4)"`` or
+    ``"dense(per_scale=49, scales=0.25/0.49)"``; just ``"classical"`` at the defaults.
+
+    Tables carry it in their ``run`` column and the paper's claims are matched on it (never on
+    a legend text); :func:`method_label` derives the legend from the same options.
+    """
+    opts = _options(conf)
+    inner = ", ".join(f"{k}={_text(v)}" for k, v in opts.items())
+    return f"{conf['name']}({inner})" if inner else conf["name"]

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -13,7 +14,8 @@ __all__ = ["INTERVAL_COLUMNS", "MethodResult", "peer_result"]
 
 
 #: Interval columns of :meth:`MethodResult.row` (95% bootstrap over queries).
-INTERVAL_COLUMNS = ["AUC lo", "AUC hi", "R@100P lo", "R@100P hi", "R@1 lo", "R@1 hi"]
+INTERVAL_COLUMNS = ["AUC lo", "AUC hi", "R@100P lo", "R@100P hi", "R@1 lo", "R@1 hi", "R@5 lo",
+                    "R@5 hi"]
 
 
 @dataclass
@@ -36,6 +38,11 @@ class MethodResult:
             of image pairs scored by Eq. (1).
         shortlist: None (exhaustive) or the k of shortlist + re-rank.
         queries_with_gt: ``(queries with ground truth, all queries)``.
+        tolerance, root: the dataset's ground-truth tolerance and folder (tables and titles
+            print them beside every number).
+        protocol: the PR protocol of ``metrics`` and ``intervals``.
+        warnings: the warnings that change what the numbers mean (also raised with
+            ``warnings.warn`` when they happened).
     """
 
     method: str
@@ -43,25 +50,47 @@ class MethodResult:
     dataset: str
     config: dict
     encoder: dict
-    similarity: np.ndarray
-    ground_truth: np.ndarray
-    boxes: dict
-    metrics: dict
-    timings: dict
+    similarity: np.ndarray = field(repr=False)
+    ground_truth: np.ndarray = field(repr=False)
+    boxes: dict = field(repr=False)
+    metrics: dict = field(repr=False)
+    timings: dict = field(repr=False)
     descriptors: dict | None = field(default=None, repr=False)
-    intervals: dict = field(default_factory=dict)
+    intervals: dict = field(default_factory=dict, repr=False)
     shortlist: int | None = None
     queries_with_gt: tuple[int, int] = (0, 0)
+    tolerance: Any = None
+    root: str | None = None
+    protocol: str = "ratio"
+    warnings: list = field(default_factory=list)
+
+    @property
+    def run(self) -> str:
+        """The configuration's identity (:func:`~vpr_core.methods.run_key`), e.g.
+        ``"overlap_scheme1(iou_threshold=0.4)"``; peers: ``"peer:<name>"``."""
+        from ..methods import METHODS, run_key
+
+        return run_key(self.config) if self.config.get("name") in METHODS else self.method
+
+    def __repr__(self) -> str:
+        """Method, dataset, metrics with intervals and the matrix shape (never the arrays)."""
+        from ..evaluation import format_interval
+
+        iv = ", ".join(f"{k} {format_interval(*v)}" for k, v in self.intervals.items())
+        nq, nr = np.shape(self.similarity)
+        return (f"MethodResult({self.label!r} on {self.dataset!r}, tolerance {self.tolerance}, "
+                f"{self.protocol}: {iv or 'no intervals'}; {self.queries_with_gt[0]} of "
+                f"{self.queries_with_gt[1]} queries with ground truth, similarity {nq}x{nr}"
+                + (f"; {len(self.warnings)} warning(s)" if self.warnings else "") + ")")
 
     def row(self) -> dict:
-        """One table row: label, metrics with their 95% intervals, coverage and costs."""
-        t, iv = self.timings, self.intervals
-        row = {"method": self.label, "AUC(ratio)": float(self.metrics["auc"]),
-               "R@100P": float(self.metrics["r_at_100p"]), "R@1": float(self.metrics["r_at_1"]),
-               "R@5": float(self.metrics["r_at_5"])}
-        for key, name in (("auc", "AUC"), ("r@100p", "R@100P"), ("r@1", "R@1")):
+        """One table row: label, run key, metrics with their 95% intervals, coverage, costs."""
+        t, iv, m = self.timings, self.intervals, self.metrics
+        row: dict = {"method": self.label, "run": self.run}
+        for key, name in (("auc", "AUC"), ("r@100p", "R@100P"), ("r@1", "R@1"), ("r@5", "R@5")):
+            value = m.get(key, m.get(key.replace("@", "_at_")))
             lo, hi = (iv[key][1], iv[key][2]) if key in iv else (np.nan, np.nan)
-            row[f"{name} lo"], row[f"{name} hi"] = float(lo), float(hi)
+            row[name], row[f"{name} lo"], row[f"{name} hi"] = float(value), float(lo), float(hi)
         row.update({"queries": int(self.queries_with_gt[0]),
                     "landmarks/img": float(t["landmarks_per_image"]),
                     "landmarks s/img": float(t["landmarks_s_per_image"]),
@@ -100,9 +129,10 @@ def peer_result(peer, dataset, n_bootstrap: int = N_BOOTSTRAP) -> MethodResult:
                "features_s_per_image": float(peer.encode_seconds),
                "matching_s_per_pair": float(peer.match_seconds), "pairs": float(nq * nr)}
     return MethodResult(
-        method=f"peer:{peer.name}", label=f"{peer.name} (VPR-Bench)", dataset=dataset.name,
+        method=f"peer:{peer.name}", label=getattr(peer, "label", f"{peer.name} (VPR-Bench)"), dataset=dataset.name,
         config={"name": f"peer:{peer.name}", "source": str(peer.source)}, encoder={},
         similarity=sim, ground_truth=gt, boxes={"query": [], "reference": []},
         metrics=evaluate(sim, gt), timings=timings,
         intervals=bootstrap_metrics(sim, gt, n=n_bootstrap, seed=0) if n_bootstrap else {},
-        queries_with_gt=ground_truth_coverage(gt))
+        queries_with_gt=ground_truth_coverage(gt), tolerance=dataset.tolerance,
+        root=None if dataset.root is None else str(dataset.root))

@@ -144,4 +144,5 @@ def run_method(method: str | dict, dataset, backbone: str = "efficientnet_lite0"
         boxes={s: boxes[s] for s in SIDES}, metrics=metrics, timings=timings,
         descriptors={s: feats[s] for s in SIDES} if keep_descriptors else None,
         intervals=intervals, shortlist=k, queries_with_gt=ground_truth_coverage(gt),
+        tolerance=dataset.tolerance, root=None if dataset.root is None else str(dataset.root),
     )
