@@ -15,20 +15,28 @@ and the matching time in seconds, as VPR-Bench stored them (not rescaled here).
 checks a peer against a :class:`~vpr_core.datasets.PlaceDataset` and returns its ``(Nq, Nr)``
 matrix in the dataset's query order, ready for the same metrics as ours.
 
-The files are pickles: loading one can run code from it, so load only files from a source you
-trust (the VPR-Bench release).
+The files are pickles; they are read with the restricted unpickler of
+:mod:`vpr_core.datasets.safe_pickle` (arrays, lists, numbers and strings only: a file that asks to
+run anything else is refused before it runs).
+
+A user's own method enters the same comparisons through :func:`peer_from_matrix` (an ``(Nq, Nr)``
+similarity or distance matrix) or :func:`peer_from_descriptors` (``(N, D)`` query and database
+descriptors, as VPR-methods-evaluation's ``--save_descriptors`` writes them); both read ``.npy``
+files with ``allow_pickle=False``.
 """
 
 from __future__ import annotations
 
 import logging
 import os
-import pickle
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from .datasets.safe_pickle import read_npy
+from .settings import BENCH_ROOT_ENV, bench_root
 
 __all__ = [
     "PRECOMPUTED_FILE",
@@ -36,20 +44,24 @@ __all__ = [
     "PeerResult",
     "find_vprbench_peers",
     "load_vprbench_precomputed",
+    "peer_from_descriptors",
+    "peer_from_matrix",
     "peer_similarity_for",
 ]
 
 log = logging.getLogger("vpr_core")
 
 PRECOMPUTED_FILE = "precomputed_data_corrected.npy"
-VPR_BENCH_ROOT_ENV = "VPR_BENCH_ROOT"
+VPR_BENCH_ROOT_ENV = BENCH_ROOT_ENV
 _ITEMS = ("query indices", "top-1 reference indices", "top-1 scores", "similarity matrix",
           "encode seconds", "match seconds")
 
 
 @dataclass(frozen=True)
 class PeerResult:
-    """One VPR-Bench technique's precomputed result on one dataset.
+    """One peer's result on one dataset: a VPR-Bench technique's precomputed file or a user's
+    method (:func:`peer_from_matrix`, :func:`peer_from_descriptors`; their ``dataset`` is ``""``,
+    times NaN, ``source`` the file or None for an array).
 
     Attributes:
         name: Technique (its folder name, e.g. ``"NetVLAD"``).
@@ -57,7 +69,7 @@ class PeerResult:
         similarity: ``float64 (Nq, Nr)``; row ``k`` belongs to query ``query_indices[k]``.
         encode_seconds: Encoding time as stored by VPR-Bench.
         match_seconds: Matching time as stored by VPR-Bench.
-        source: The file it was read from.
+        source: The file it was read from (None: given as an array).
         query_indices: ``int64 (Nq,)`` query index of each row.
         top1_reference: ``int64 (Nq,)`` VPR-Bench's best reference per row.
         top1_score: ``float64 (Nq,)`` its score.
@@ -68,7 +80,7 @@ class PeerResult:
     similarity: np.ndarray = field(repr=False)
     encode_seconds: float
     match_seconds: float
-    source: Path
+    source: Path | None
     query_indices: np.ndarray = field(repr=False)
     top1_reference: np.ndarray = field(repr=False)
     top1_score: np.ndarray = field(repr=False)
@@ -87,10 +99,8 @@ def _bad(path: Path, what: str) -> ValueError:
 
 
 def _items(path: Path) -> list:
-    try:
-        data = np.load(path, allow_pickle=True, encoding="latin1")
-    except (OSError, ValueError, EOFError, pickle.UnpicklingError) as exc:
-        raise _bad(path, f"unreadable ({type(exc).__name__}: {exc}); download it again") from None
+    data = read_npy(path, f"a VPR-Bench {PRECOMPUTED_FILE} (6 items: {', '.join(_ITEMS)}); "
+                          "download it again")
     if isinstance(data, np.ndarray) and data.dtype == object and data.ndim == 0:
         data = data.item()
     if isinstance(data, np.ndarray) and (data.dtype != object or data.ndim != 1):
@@ -177,9 +187,112 @@ def load_vprbench_precomputed(path: str | os.PathLike) -> PeerResult:
                       query_indices=queries, top1_reference=top1, top1_score=scores)
 
 
+def _user_array(value: Any, name: str, what: str, ndim: int) -> tuple[np.ndarray, Path | None]:
+    """A finite float64 array of ``ndim`` dims from an array or a ``.npy`` path (no pickles)."""
+    source = None
+    if isinstance(value, (str, os.PathLike)):
+        source = Path(value).expanduser()
+        if not source.is_file():
+            raise FileNotFoundError(f"peer {name!r}: {what} file not found: {source}.")
+        try:
+            value = np.load(source, allow_pickle=False)
+        except (OSError, ValueError, EOFError) as exc:
+            raise ValueError(f"peer {name!r}: {source} is not a numeric .npy array ({exc}); save "
+                             f"the {what} with np.save(path, array).") from None
+        if not isinstance(value, np.ndarray):
+            raise ValueError(f"peer {name!r}: {source} is a .npz archive; save the {what} alone "  # noqa: TRY004
+                             "with np.save(path, array).")
+    where = source or "the array"
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"peer {name!r}: the {what} in {where} is not numeric.") from None
+    if arr.ndim != ndim or 0 in arr.shape:
+        shape = "(Nq, Nr)" if what.endswith("matrix") else "(N, D)"
+        raise ValueError(f"peer {name!r}: the {what} in {where} has shape {arr.shape}; it must be a "
+                         f"non-empty {ndim}-d {shape} array.")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"peer {name!r}: the {what} in {where} holds "
+                         f"{int(np.sum(~np.isfinite(arr)))} NaN or inf values; fix the method's "
+                         "output (every entry must be a finite number).")
+    return arr, source
+
+
+def _user_peer(name: str, sim: np.ndarray, source: Path | None) -> PeerResult:
+    if not isinstance(name, str) or not name.strip():
+        raise ValueError(f"a peer needs a non-empty name, got {name!r}.")
+    top1 = np.argmax(sim, axis=1)
+    return PeerResult(name=name, dataset="", similarity=sim, encode_seconds=float("nan"),
+                      match_seconds=float("nan"), source=source,
+                      query_indices=np.arange(sim.shape[0]), top1_reference=top1,
+                      top1_score=sim[np.arange(sim.shape[0]), top1])
+
+
+def peer_from_matrix(matrix_or_path: np.ndarray | str | os.PathLike, name: str,
+                     distance: bool = False) -> PeerResult:
+    """A user's method as a peer, from its query x reference matrix.
+
+    Args:
+        matrix_or_path: ``(Nq, Nr)`` array or ``.npy`` file (read with ``allow_pickle=False``);
+            row ``q`` = query ``q`` in the dataset's order, higher = more similar.
+        name: The method's name in tables and figures.
+        distance: True when the matrix holds distances (lower = more similar); it is negated.
+
+    Returns:
+        A :class:`PeerResult` (``similarity`` ``float64 (Nq, Nr)``, times NaN); check it against a
+        dataset with :func:`peer_similarity_for`.
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: not a 2-d numeric matrix, NaN / inf entries, empty name.
+    """
+    sim, source = _user_array(matrix_or_path, name, "distance matrix" if distance
+                              else "similarity matrix", 2)
+    return _user_peer(name, -sim if distance else sim, source)
+
+
+def peer_from_descriptors(query_path_or_array: np.ndarray | str | os.PathLike,
+                          database_path_or_array: np.ndarray | str | os.PathLike, name: str,
+                          metric: str = "cosine") -> PeerResult:
+    """A user's method as a peer, from its global descriptors.
+
+    Args:
+        query_path_or_array: ``(Nq, D)`` array or ``.npy`` file (e.g. VPR-methods-evaluation's
+            ``queries_descriptors.npy``), rows in the dataset's query order.
+        database_path_or_array: ``(Nr, D)`` array or file (``database_descriptors.npy``).
+        name: The method's name in tables and figures.
+        metric: ``"cosine"`` (similarity = cosine) or ``"l2"`` (similarity = minus the Euclidean
+            distance).
+
+    Returns:
+        A :class:`PeerResult` with ``similarity`` ``float64 (Nq, Nr)``.
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: unknown metric, not 2-d numeric arrays, NaN / inf, different ``D``, an
+            all-zero descriptor under ``cosine``.
+    """
+    metric = str(metric).lower()
+    if metric not in ("cosine", "l2"):
+        raise ValueError(f"peer {name!r}: metric must be 'cosine' or 'l2', got {metric!r}.")
+    q, q_src = _user_array(query_path_or_array, name, "query descriptors", 2)
+    r, _ = _user_array(database_path_or_array, name, "database descriptors", 2)
+    if q.shape[1] != r.shape[1]:
+        raise ValueError(f"peer {name!r}: query descriptors are {q.shape[1]}-d but database "
+                         f"descriptors {r.shape[1]}-d; give both files of the same method run.")
+    if metric == "l2":
+        sq = (q * q).sum(1)[:, None] + (r * r).sum(1)[None, :] - 2 * q @ r.T
+        return _user_peer(name, -np.sqrt(np.maximum(sq, 0.0)), q_src)
+    nq, nr = np.linalg.norm(q, axis=1), np.linalg.norm(r, axis=1)
+    if not (nq > 0).all() or not (nr > 0).all():
+        raise ValueError(f"peer {name!r}: some descriptors are all zero, so their cosine is "
+                         "undefined; use metric='l2' or fix the descriptors.")
+    return _user_peer(name, (q / nq[:, None]) @ (r / nr[:, None]).T, q_src)
+
+
 def _precomputed_dir(root: str | os.PathLike | None) -> Path:
     if root is None:
-        root = os.environ.get(VPR_BENCH_ROOT_ENV)
+        root = bench_root()
         if not root:
             raise ValueError(f"no VPR-Bench folder given: pass root=<VPR-Bench checkout> or set "
                              f"{VPR_BENCH_ROOT_ENV}.")
@@ -237,10 +350,12 @@ def peer_similarity_for(dataset: Any, peer: PeerResult) -> np.ndarray:
     """
     nq, nr = dataset.ground_truth.shape
     if peer.similarity.shape != (nq, nr):
+        pq, pr = peer.similarity.shape
         raise ValueError(
-            f"peer {peer.name!r} ({peer.source}) has a {peer.similarity.shape} similarity matrix "
-            f"but dataset {dataset.name!r} has {nq} queries and {nr} references: it belongs to "
-            "another dataset or another subset of it."
+            f"peer {peer.name!r} ({peer.source or 'array'}): the peer has {pq} x {pr} (queries x "
+            f"references) but the dataset {dataset.name!r} has {nq} x {nr}: compute the peer on "
+            "exactly this dataset's query and reference images, in its order (same subset, "
+            "same step), or load the dataset the peer was computed on."
         )
     order = np.argsort(peer.query_indices, kind="stable")
     if not np.array_equal(peer.query_indices[order], np.arange(nq)):

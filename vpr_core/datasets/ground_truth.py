@@ -3,7 +3,7 @@
 Ground-truth files accepted by the file-based loaders:
 
 * ``*.npy``: a ``(Nq, Nr)`` matrix of bools or 0/1 numbers.
-* ``*.csv``: rows ``query,reference`` (an optional header row ``query,reference``; ``#``
+* ``*.csv`` (UTF-8, a byte-order mark allowed): rows ``query,reference`` (an optional header row ``query,reference``; ``#``
   comments allowed). Each cell is a 0-based index into the naturally sorted image list
   (when it is all digits) or an image file name (``12.jpg``), a stem (``12`` is read as an
   index, so use the file name for numeric stems) or a path relative to the traverse folder.
@@ -21,13 +21,16 @@ reference sequence by ``tolerance`` frames (:func:`widen`; ``0``: exactly the li
 from __future__ import annotations
 
 import csv
-import logging
+import io
 import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from ..notices import notice
+from .safe_pickle import read_npy
 
 __all__ = [
     "check_ground_truth",
@@ -37,9 +40,6 @@ __all__ = [
     "read_ground_truth",
     "widen",
 ]
-
-log = logging.getLogger("vpr_core")
-
 
 def check_tolerance(tolerance: Any) -> int:
     """Return ``tolerance`` as an int >= 0 (frames); ValueError otherwise."""
@@ -106,8 +106,8 @@ def check_ground_truth(gt: np.ndarray, source: str) -> tuple[int, int]:
             "tolerance."
         )
     if covered < nq:
-        log.warning("ground truth from %s covers %d of %d queries; the other %d are dropped "
-                    "from every metric", source, covered, nq, nq - covered)
+        notice(f"ground truth from {source} covers {covered} of {nq} queries; the other "
+               f"{nq - covered} are dropped from every metric")
     return covered, nq
 
 
@@ -134,13 +134,8 @@ def _name_index(paths: Sequence[Path], base: Path | None) -> dict[str, int]:
 
 
 def _read_npy(path: Path, nq: int, nr: int) -> np.ndarray:
-    try:
-        arr = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, EOFError) as exc:  # what np.load raises on bad files
-        raise ValueError(
-            f"ground-truth file {path} is not a readable .npy array ({exc}); "
-            "save it with np.save(path, matrix)."
-        ) from None
+    arr = np.asarray(read_npy(path, f"a ({nq}, {nr}) bool or 0/1 matrix saved with "
+                                    "np.save(path, matrix)"))
     if arr.shape != (nq, nr):
         raise ValueError(
             f"ground truth {path} has shape {arr.shape} but the dataset has {nq} query and "
@@ -160,19 +155,28 @@ def _read_npy(path: Path, nq: int, nr: int) -> np.ndarray:
 def _csv_rows(path: Path) -> list[tuple[int, str, str]]:
     """``(line, query cell, reference cell)`` of every data row of a correspondence CSV."""
     rows: list[tuple[int, str, str]] = []
-    with open(path, newline="", encoding="utf-8") as f:
-        for line, row in enumerate(csv.reader(f), start=1):
-            cells = [c.strip() for c in row]
-            if not cells or all(not c for c in cells) or cells[0].startswith("#"):
-                continue
-            if not rows and [c.lower() for c in cells] == ["query", "reference"]:
-                continue
-            if len(cells) != 2:
-                raise ValueError(
-                    f"{path}, line {line}: expected 2 columns 'query,reference', got {len(cells)} "
-                    f"({row!r}); write one query,reference pair per row."
-                )
-            rows.append((line, cells[0], cells[1]))
+    data = path.read_bytes()
+    try:
+        text = data.decode("utf-8-sig")  # a UTF-8 byte-order mark (Excel's "CSV UTF-8") is fine
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise ValueError(
+            f"{path}, line {line}: not UTF-8 text (byte 0x{data[exc.start]:02x} cannot be "
+            "decoded); ground-truth CSVs are read as UTF-8: save the file as UTF-8 (e.g. "
+            "'CSV UTF-8' in a spreadsheet, or `iconv -f latin1 -t utf-8`)."
+        ) from None
+    for line, row in enumerate(csv.reader(io.StringIO(text, newline="")), start=1):
+        cells = [c.strip() for c in row]
+        if not cells or all(not c for c in cells) or cells[0].startswith("#"):
+            continue
+        if not rows and [c.lower() for c in cells] == ["query", "reference"]:
+            continue
+        if len(cells) != 2:
+            raise ValueError(
+                f"{path}, line {line}: expected 2 columns 'query,reference', got {len(cells)} "
+                f"({row!r}); write one query,reference pair per row."
+            )
+        rows.append((line, cells[0], cells[1]))
     if not rows:
         raise ValueError(
             f"ground-truth file {path} has no query,reference rows; add one row per matching pair."
@@ -186,11 +190,11 @@ def _looks_one_based(path: Path, cells: list[str], paths: Sequence[Path], side: 
     if len(values) < 2 or 0 in values or max(values) != len(values):
         return False
     first = paths[1].name if len(paths) > 1 else "(none)"
-    log.warning(
-        "%s: the %s cells are numbers 1..%d with no 0, which looks 1-based; they were read as "
-        "0-based indices into the naturally sorted %s images (cell '1' = %s). If they are 1-based "
-        "numbers or file stems, subtract 1 or write file names.", path, side, max(values), side,
-        first)
+    notice(
+        f"{path}: the {side} cells are numbers 1..{max(values)} with no 0, which looks 1-based; "
+        f"they were read as 0-based indices into the naturally sorted {side} images (cell '1' = "
+        f"{first}). If they are 1-based numbers or file stems, subtract 1 or write file names.",
+        stacklevel=5)
     return True
 
 

@@ -15,15 +15,16 @@ by default; ``order="lexicographic"`` reads them against plain string order inst
 orders differ for a folder, loading says so. Names that are zero-padded (``Image000.jpg``) sort
 the same either way.
 
-The ``.npy`` is a pickle: ``np.load(..., allow_pickle=True)`` can run code from the file, so load
-only files from a source you trust (the VPR-Bench release).
+The ``.npy`` is a pickle: it is read with the restricted unpickler of :mod:`.safe_pickle`, which
+rebuilds arrays, lists and numbers only and refuses a file that asks to run anything else. A row's
+references may also be a boolean mask over the references (``[q, array([True, False, ...])]``): it is
+read as a mask when its length is the number of references, and refused otherwise.
 """
 
 from __future__ import annotations
 
 import logging
 import os
-import pickle
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +33,7 @@ import numpy as np
 from .base import PlaceDataset, list_images
 from .ground_truth import check_ground_truth, check_tolerance, widen
 from .layout import check_root, resolve_file, traverse_dir
+from .safe_pickle import read_npy
 
 __all__ = ["VPR_BENCH_LAYOUT", "load_vpr_bench", "read_vprbench_ground_truth"]
 
@@ -59,15 +61,23 @@ def _as_index(value: Any, path: Path, row: int, what: str) -> np.ndarray:
     return out.astype(np.int64)
 
 
+def _mask_or_index(value: Any, path: Path, row: int, nr: int) -> np.ndarray:
+    """Reference indices of a row, read from a boolean mask of length ``nr`` or from indices."""
+    arr = np.asarray(value, dtype=object).ravel()
+    if arr.size and all(isinstance(v, (bool, np.bool_)) for v in arr):
+        if arr.size != nr:
+            raise ValueError(
+                f"{path}, row {row}: the references are a boolean mask of length {arr.size}, but "
+                f"the ref folder has {nr} images; a mask needs one entry per reference (or write "
+                "reference indices). Is this the file of another dataset, or are images missing?"
+            )
+        return np.flatnonzero(arr.astype(bool))
+    return _as_index(value, path, row, "reference indices")
+
+
 def _rows(path: Path) -> list:
-    try:
-        arr = np.load(path, allow_pickle=True, encoding="latin1")
-    except (OSError, ValueError, EOFError, pickle.UnpicklingError) as exc:
-        raise ValueError(
-            f"{path} is not a readable VPR-Bench ground-truth file ({type(exc).__name__}: {exc}); "
-            "it must be a numpy .npy object array of rows [query index, [reference indices]]. "
-            "Download it again."
-        ) from None
+    arr = read_npy(path, "a VPR-Bench ground-truth file: a numpy .npy object array of rows "
+                         "[query index, [reference indices]] (download it again)")
     if isinstance(arr, np.ndarray) and arr.dtype == object and arr.ndim == 0:
         arr = arr.item()
     if isinstance(arr, np.ndarray) and arr.ndim not in (1, 2):
@@ -106,7 +116,7 @@ def read_vprbench_ground_truth(path: str | os.PathLike, nq: int, nr: int) -> np.
                 f"{path}, row {k}: expected [query index, [reference indices]], got {row!r}."
             )
         q = _as_index(row[0], path, k, "query index")
-        refs = _as_index(row[1], path, k, "reference indices")
+        refs = _mask_or_index(row[1], path, k, nr)
         if q.size != 1:
             raise ValueError(f"{path}, row {k}: the query index must be one number, got {row[0]!r}.")
         qi = int(q[0])

@@ -10,7 +10,9 @@ import cv2
 import numpy as np
 
 from ...utils import cache_dir, logger, progress, short_hash
-from ..core import PlaceDataset, _check_tolerance, _frame_aligned
+from ..base import PlaceDataset
+from ..ground_truth import check_tolerance as _check_tolerance
+from ..ground_truth import frame_aligned as _frame_aligned
 from .camera import synthetic_homography
 from .difficulty import SyntheticDifficulty, resolve_difficulty
 
