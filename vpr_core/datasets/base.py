@@ -21,6 +21,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ..notices import notice
 from ..utils import file_fingerprint
 
 __all__ = [
@@ -32,10 +33,14 @@ __all__ = [
     "list_images",
     "natural_key",
     "read_image",
+    "scan_images",
 ]
 
 SIDES = ("query", "reference")
-IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".ppm")
+#: Every 8-bit format OpenCV's ``imread`` decodes (other files in an image folder are skipped
+#: with a warning naming them).
+IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".jpe", ".png", ".bmp", ".dib", ".tif", ".tiff", ".webp",
+                    ".gif", ".jp2", ".avif", ".ppm", ".pgm", ".pbm", ".pnm", ".sr", ".ras")
 
 #: Smallest accepted short side of an image, in pixels. Below it the landmark stages degenerate
 #: (Edge Boxes finds no boxes on 8x8 images; dense sampling makes 3-pixel boxes that blank images
@@ -128,10 +133,65 @@ def natural_key(name: str) -> list:
     return [(0, int(t), t) if t.isdigit() else (1, 0, t.lower()) for t in re.split(r"(\d+)", name)]
 
 
+def _broken_link(p: Path) -> str | None:
+    """How a symlink is broken (``"a symlink loop"`` / ``"a dangling symlink ..."``), or None."""
+    if not p.is_symlink():
+        return None
+    try:
+        p.resolve(strict=True)
+    except FileNotFoundError:
+        return f"a dangling symlink (it points to {os.readlink(p)}, which does not exist)"
+    except (RuntimeError, OSError):  # RuntimeError: Python < 3.13's "Symlink loop"
+        return "a symlink loop (following it leads back to itself)"
+    return None
+
+
+def scan_images(folder: str | os.PathLike, what: str = "image folder"
+                ) -> tuple[list[Path], list[Path]]:
+    """Image files directly inside ``folder`` (naturally sorted) and the other files it skipped.
+
+    Images are files with an extension of :data:`IMAGE_EXTENSIONS` (any case); hidden files and
+    sub-folders are ignored; every other file is returned as skipped.
+
+    Raises:
+        FileNotFoundError: ``folder`` does not exist or is not a folder.
+        ValueError: it holds no image file, or an image name is a broken symlink (named as a
+            symlink loop or a dangling symlink).
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        broken = _broken_link(folder)
+        raise FileNotFoundError(
+            f"{what} not found: {folder} " + (f"is {broken}" if broken else "does not exist or is "
+            "not a folder") + "; create it and put the images there, or point `root` at the "
+            "folder that contains it."
+        )
+    files, skipped = [], []
+    for p in folder.iterdir():
+        if p.name.startswith("."):
+            continue
+        is_image = p.suffix.lower() in IMAGE_EXTENSIONS
+        broken = _broken_link(p)
+        if broken and is_image:
+            raise ValueError(f"{what}: {p} is {broken}; fix or remove the link.")
+        if p.is_file() and is_image:
+            files.append(p)
+        elif p.is_file() or broken:
+            skipped.append(p)
+    if not files:
+        raise ValueError(
+            f"{what} {folder} contains no images (looked for {', '.join(IMAGE_EXTENSIONS)}, "
+            "any case); copy the images there or point `root` at the right folder."
+        )
+    key = lambda p: natural_key(p.name)
+    return sorted(files, key=key), sorted(skipped, key=key)
+
+
 def list_images(folder: str | os.PathLike, what: str = "image folder") -> list[Path]:
     """Image files directly inside ``folder``, naturally sorted (``2.jpg`` before ``10.jpg``).
 
-    Extensions (case-insensitive): jpg, jpeg, png, bmp, tif, tiff, ppm. Hidden files are skipped.
+    Extensions (case-insensitive): :data:`IMAGE_EXTENSIONS`. Hidden files are ignored; any other
+    file is skipped with a warning naming it (:func:`~vpr_core.notices.notice`).
 
     Args:
         folder: The folder.
@@ -142,24 +202,14 @@ def list_images(folder: str | os.PathLike, what: str = "image folder") -> list[P
 
     Raises:
         FileNotFoundError: ``folder`` does not exist or is not a folder.
-        ValueError: it holds no image file.
+        ValueError: it holds no image file, or an image name is a broken symlink.
     """
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise FileNotFoundError(
-            f"{what} not found: {folder} does not exist or is not a folder; create it and put "
-            "the images there, or point `root` at the folder that contains it."
-        )
-    files = [
-        p for p in folder.iterdir()
-        if p.is_file() and not p.name.startswith(".") and p.suffix.lower() in IMAGE_EXTENSIONS
-    ]
-    if not files:
-        raise ValueError(
-            f"{what} {folder} contains no images (looked for {', '.join(IMAGE_EXTENSIONS)}, "
-            "any case); copy the images there or point `root` at the right folder."
-        )
-    return sorted(files, key=lambda p: natural_key(p.name))
+    files, skipped = scan_images(folder, what)
+    if skipped:
+        names = ", ".join(p.name for p in skipped[:10]) + (" ..." if len(skipped) > 10 else "")
+        notice(f"{what} {folder}: skipped {len(skipped)} file(s) that are not images OpenCV "
+               f"reads ({names}); they are not part of the dataset.")
+    return files
 
 
 # ----------------------------------------------------------------------------------------------
@@ -177,22 +227,27 @@ class PlaceDataset:
         reference_paths: ``Nr`` reference image files, in traverse order.
         ground_truth: ``bool (Nq, Nr)``; ``ground_truth[q, r]`` is True when reference ``r``
             shows the place of query ``q`` (tolerance already applied).
-        tolerance: Frame tolerance used to build ``ground_truth`` (None when not applicable).
+        tolerance: Tolerance used to build ``ground_truth``: frames (int), a distance such as
+            ``"25 m"`` (``utm``), or None when not applicable.
         root: Folder the dataset was read from (or generated into).
         homographies: ``float64 (Nq, 3, 3)`` or None. ``homographies[i]`` maps query-``i``
             pixel coordinates ``(x, y, 1)`` to reference-``i`` pixel coordinates (known on
             ``synthetic`` only; None on real data).
         meta: Free-form details (layout, traverse names, generator parameters, ...).
+        ground_truth_soft: ``bool (Nq, Nr)`` or None: VPR_Tutorial's GTsoft, a superset of
+            ``ground_truth`` (GThard). Pairs that are soft but not hard positives are neither right
+            nor wrong: an evaluation ignores them, e.g. with :meth:`ignore_soft`.
     """
 
     name: str
     query_paths: list[Path]
     reference_paths: list[Path]
     ground_truth: np.ndarray
-    tolerance: int | None
+    tolerance: int | str | None
     root: Path | None = None
     homographies: np.ndarray | None = None
     meta: dict = field(default_factory=dict)
+    ground_truth_soft: np.ndarray | None = field(default=None, repr=False)
     _keys: dict = field(default_factory=dict, init=False, repr=False, compare=False)
     _sizes: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
@@ -218,6 +273,13 @@ class PlaceDataset:
                 f"PlaceDataset {self.name!r}: ground_truth has shape {gt.shape} but there are "
                 f"{nq} query and {nr} reference images, so it must be ({nq}, {nr}); "
                 "fix the ground-truth file or the image folders so they agree."
+            )
+        soft = self.ground_truth_soft
+        if soft is not None and (not isinstance(soft, np.ndarray) or soft.dtype != np.bool_
+                                 or soft.shape != gt.shape or (gt & ~soft).any()):
+            raise ValueError(
+                f"PlaceDataset {self.name!r}: ground_truth_soft must be a bool ({nq}, {nr}) array "
+                "holding every ground_truth pair (GTsoft is a superset of GThard), or None."
             )
         if self.homographies is not None:
             h = np.asarray(self.homographies, dtype=np.float64)
@@ -285,6 +347,19 @@ class PlaceDataset:
         if key not in self._keys:
             self._keys[key] = file_fingerprint(path)
         return self._keys[key]
+
+    def ignore_soft(self, similarity: np.ndarray) -> np.ndarray:
+        """``similarity (Nq, Nr)`` with soft-only pairs set to its minimum (VPR_Tutorial's rule).
+
+        A pair in ``ground_truth_soft`` but not in ``ground_truth`` is neither a true nor a false
+        match; lowering its score to the minimum keeps it from being anyone's best match. Returns
+        a copy (the input itself when there is no soft ground truth).
+        """
+        if self.ground_truth_soft is None:
+            return similarity
+        out = np.array(similarity, dtype=np.float64)
+        out[self.ground_truth_soft & ~self.ground_truth] = out.min()
+        return out
 
     def gt_pairs(self) -> list[tuple[int, int]]:
         """All ``(q, r)`` with ``ground_truth[q, r]`` True, row-major order."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 from typing import Any
 
-from .base import PlaceDataset, list_images
+from .base import PlaceDataset, list_images, scan_images
 from .ground_truth import (
     check_ground_truth,
     check_tolerance,
@@ -22,6 +22,11 @@ FOLDER_LAYOUT = (
     "<root>/query/*, <root>/reference/*, optional <root>/ground_truth.npy ((Nq, Nr) bool) or "
     "<root>/ground_truth.csv (query,reference rows); without one, query i <-> reference i"
 )
+
+#: Skipped files that cannot be a frame (notes, lists, arrays): they do not block the
+#: frame-aligned rule; any other skipped file (an unreadable image format, a broken link) does.
+_NOT_FRAMES = {".txt", ".csv", ".json", ".md", ".xml", ".yaml", ".yml", ".log", ".npy", ".npz",
+               ".mat", ".ini", ".db", ".pdf"}
 
 
 def load_folder(
@@ -42,7 +47,8 @@ def load_folder(
 
     Ground truth: ``ground_truth=`` (a path) if given, else ``ground_truth.npy`` or
     ``ground_truth.csv`` in root (not both), else frame-aligned ``|q - r| <= tolerance``, which
-    needs as many query as reference images. A file with no positive pair is refused; one that
+    needs as many query as reference images and no skipped file that could be a frame (an
+    unreadable image format, a broken symlink). A file with no positive pair is refused; one that
     covers only some queries gives a warning with the count (see :func:`check_ground_truth`).
 
     Args:
@@ -54,8 +60,9 @@ def load_folder(
     """
     tolerance = check_tolerance(tolerance)
     root = check_root(root, "folder", FOLDER_LAYOUT)
-    qp = list_images(traverse_dir(root, query, "folder", FOLDER_LAYOUT), "query folder")
-    rp = list_images(traverse_dir(root, reference, "folder", FOLDER_LAYOUT), "reference folder")
+    qdir = traverse_dir(root, query, "folder", FOLDER_LAYOUT)
+    rdir = traverse_dir(root, reference, "folder", FOLDER_LAYOUT)
+    qp, rp = list_images(qdir, "query folder"), list_images(rdir, "reference folder")
     if ground_truth is None:
         found = [root / f for f in ("ground_truth.npy", "ground_truth.csv") if (root / f).is_file()]
         if len(found) > 1:
@@ -78,6 +85,15 @@ def load_folder(
                 f"folder: {len(qp)} query but {len(rp)} reference images in {root}, so the "
                 "frame-aligned rule (query i <-> reference i) does not apply; supply a ground-"
                 "truth file (ground_truth.npy or ground_truth.csv in root, or ground_truth=<path>)."
+            )
+        skipped = [p for p in scan_images(qdir)[1] + scan_images(rdir)[1]
+                   if p.suffix.lower() not in _NOT_FRAMES]
+        if skipped:
+            raise ValueError(
+                f"folder: {len(skipped)} file(s) in the image folders were skipped as not images "
+                f"({', '.join(str(p) for p in skipped[:5])}), so query i <-> reference i would "
+                "pair images of different places; give a ground-truth file (ground_truth.npy / "
+                ".csv in root, or ground_truth=<path>) or remove those files."
             )
         gt = frame_aligned(len(qp), len(rp), tolerance)
         meta["ground_truth_rule"] = f"frame-aligned |q-r|<={tolerance}"
