@@ -7,7 +7,7 @@ Where things live:
 * :mod:`.ground_truth`: ground-truth files, the frame-aligned rule, tolerance widening, coverage
   checks (:func:`check_ground_truth`);
 * one module per loader: :mod:`.gardens_point`, :mod:`.mapillary_berlin`, :mod:`.freiburg`,
-  :mod:`.folder`, :mod:`.nordland`, :mod:`.vpr_bench`, and :mod:`.synthetic` (the embedded default);
+  :mod:`.folder`, :mod:`.nordland`, :mod:`.vpr_bench`, :mod:`.utm`, and :mod:`.synthetic` (the embedded default);
 * :mod:`.download`: :func:`download_dataset`;
 * here: the registry :data:`DATASETS` and :func:`load_dataset`.
 """
@@ -28,6 +28,7 @@ from .ground_truth import check_ground_truth, ground_truth_coverage, read_ground
 from .mapillary_berlin import load_mapillary_berlin
 from .nordland import load_nordland
 from .synthetic import load_synthetic, render_synthetic_place, synthetic_homography
+from .utm import load_utm
 from .vpr_bench import load_vpr_bench, read_vprbench_ground_truth
 
 __all__ = [
@@ -47,6 +48,7 @@ __all__ = [
     "load_mapillary_berlin",
     "load_nordland",
     "load_synthetic",
+    "load_utm",
     "load_vpr_bench",
     "read_ground_truth",
     "read_image",
@@ -63,6 +65,7 @@ DATASETS: dict[str, Callable[..., PlaceDataset]] = {
     "folder": load_folder,
     "nordland": load_nordland,
     "vpr_bench": load_vpr_bench,
+    "utm": load_utm,
 }
 
 
@@ -71,10 +74,11 @@ def load_dataset(name: str, root: str | os.PathLike | None = None, **options: An
 
     Args:
         name: One of :data:`DATASETS` (``synthetic``, ``gardens_point``, ``mapillary_berlin``,
-            ``freiburg_across_seasons``, ``folder``, ``nordland``, ``vpr_bench``).
+            ``freiburg_across_seasons``, ``folder``, ``nordland``, ``vpr_bench``, ``utm``).
         root: Dataset folder (not needed for ``synthetic``).
         **options: Loader options, e.g. ``tolerance``; ``synthetic`` takes ``n_places``,
-            ``seed``, ``image_size``; ``nordland`` takes ``query``, ``reference``, ``step``.
+            ``seed``, ``image_size``; ``nordland`` takes ``query``, ``reference``, ``step``;
+            ``utm`` takes ``positive_dist_threshold``, ``soft_dist_threshold`` (metres).
 
     Returns:
         A :class:`PlaceDataset`.

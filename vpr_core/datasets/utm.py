@@ -1,0 +1,134 @@
+"""The layout of today's VPR datasets: ``database/`` + ``queries/`` with UTM coordinates in the names.
+
+As VPR-datasets-downloader and VPR-methods-evaluation write Pitts30k, MSLS, Tokyo 24/7, St Lucia,
+SF-XL, Nordland, ...::
+
+    <root>/database/**/@<utm_easting>@<utm_northing>@...@.jpg
+    <root>/queries/**/@<utm_easting>@<utm_northing>@...@.jpg
+    <root>/database_images_paths.txt     # optional: one path per line, relative to database/
+    <root>/queries_images_paths.txt      # optional, likewise
+
+A file name's ``@``-separated fields 1 and 2 are the UTM easting and northing in metres. Without a
+paths list the images are found recursively and sorted by path (as ``sorted(glob(...))`` does);
+with one, its order is kept. Ground truth: reference ``r`` is a positive of query ``q`` when their
+Euclidean UTM distance is ``<= positive_dist_threshold`` metres (GThard). With
+``soft_dist_threshold`` (VPR_Tutorial's GTsoft) the pairs within it but beyond the hard threshold
+are stored in :attr:`PlaceDataset.ground_truth_soft` (a superset of ``ground_truth``): they count
+neither right nor wrong (see :meth:`PlaceDataset.ignore_soft`).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .base import IMAGE_EXTENSIONS, PlaceDataset, natural_key
+from .ground_truth import check_ground_truth
+from .layout import check_root, traverse_dir
+
+__all__ = ["UTM_LAYOUT", "load_utm", "utm_coordinates"]
+
+UTM_LAYOUT = (
+    "<root>/database/**/@<utm_easting>@<utm_northing>@...@.jpg, <root>/queries/**/@...@.jpg, "
+    "optional <root>/database_images_paths.txt and <root>/queries_images_paths.txt"
+)
+_PATTERN = "@<utm_easting>@<utm_northing>@...@.jpg (e.g. @0543256.96@4178906.93@10@S@@.jpg)"
+
+
+def _paths(folder: Path, what: str) -> list[Path]:
+    listing = folder.parent / f"{folder.name}_images_paths.txt"
+    if listing.is_file():
+        lines = [s.strip() for s in listing.read_text(encoding="utf-8-sig").splitlines()]
+        paths = [folder / s for s in lines if s]
+        missing = [p for p in paths if not p.is_file()]
+        if missing:
+            raise FileNotFoundError(
+                f"utm: {listing} lists {len(missing)} file(s) that do not exist under {folder} "
+                f"(first: {missing[0]}); paths in it are relative to {folder}. Fix or delete the "
+                "list (without it the images are found by searching the folder)."
+            )
+    else:
+        paths = sorted((p for p in folder.rglob("*") if p.is_file()
+                        and p.suffix.lower() in IMAGE_EXTENSIONS and not p.name.startswith(".")),
+                       key=lambda p: natural_key(p.as_posix()))
+    if not paths:
+        raise ValueError(f"utm: {what} folder {folder} contains no images. Expected layout: "
+                         f"{UTM_LAYOUT}")
+    return paths
+
+
+def utm_coordinates(paths: list[Path]) -> np.ndarray:
+    """``float64 (N, 2)`` UTM (easting, northing) of each file, from fields 1 and 2 of its name.
+
+    Raises:
+        ValueError: a name without two numeric coordinates (the message names the file).
+    """
+    out = np.empty((len(paths), 2))
+    for i, p in enumerate(paths):
+        fields = p.name.split("@")
+        try:
+            out[i] = float(fields[1]), float(fields[2])
+        except (IndexError, ValueError):
+            raise ValueError(
+                f"utm: {p} has no UTM coordinates in its name; names must be {_PATTERN} "
+                "(fields split by '@': 1 = easting, 2 = northing, in metres)."
+            ) from None
+        if not np.isfinite(out[i]).all():
+            raise ValueError(f"utm: {p}: the coordinates in its name are not finite numbers.")
+    return out
+
+
+def _threshold(value: object, what: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) \
+            or not np.isfinite(value) or value < 0:
+        raise ValueError(f"utm: {what} must be a number of metres >= 0, got {value!r}.")
+    return float(value)
+
+
+def load_utm(
+    root: str | os.PathLike | None = None,
+    positive_dist_threshold: float = 25,
+    soft_dist_threshold: float | None = None,
+    database: str = "database",
+    queries: str = "queries",
+) -> PlaceDataset:
+    """A dataset in the UTM-named layout (see the module docstring).
+
+    Args:
+        root: The folder holding ``database/`` and ``queries/``.
+        positive_dist_threshold: Metres; positives are within it (VPR-methods-evaluation's
+            default 25).
+        soft_dist_threshold: Metres (>= the hard threshold) or None: pairs within it but beyond
+            the hard threshold are soft positives, ignored by the evaluation.
+        database: Reference folder name.
+        queries: Query folder name.
+
+    Returns:
+        PlaceDataset named ``utm`` with ``tolerance`` ``"<threshold> m"``, ``meta["utm_query"]``
+        / ``meta["utm_reference"]`` the coordinates, and ``ground_truth_soft`` when asked.
+
+    Raises:
+        ValueError: bad thresholds, names without coordinates, no positive pair.
+        FileNotFoundError: missing root or folders, a paths list naming missing files.
+    """
+    hard = _threshold(positive_dist_threshold, "positive_dist_threshold")
+    soft = None if soft_dist_threshold is None else _threshold(soft_dist_threshold,
+                                                                "soft_dist_threshold")
+    if soft is not None and soft < hard:
+        raise ValueError(f"utm: soft_dist_threshold ({soft:g} m) must be >= "
+                         f"positive_dist_threshold ({hard:g} m).")
+    root = check_root(root, "utm", UTM_LAYOUT)
+    qp = _paths(traverse_dir(root, queries, "utm", UTM_LAYOUT), "query")
+    rp = _paths(traverse_dir(root, database, "utm", UTM_LAYOUT), "database")
+    uq, ur = utm_coordinates(qp), utm_coordinates(rp)
+    dist = np.hypot(uq[:, None, 0] - ur[None, :, 0], uq[:, None, 1] - ur[None, :, 1])
+    gt = dist <= hard
+    rule = f"UTM distance <= {hard:g} m"
+    check_ground_truth(gt, f"utm file names ({rule})")
+    meta = {"layout": UTM_LAYOUT, "query_traverse": queries, "reference_traverse": database,
+            "ground_truth_rule": rule + (f" (soft <= {soft:g} m)" if soft is not None else ""),
+            "utm_query": uq, "utm_reference": ur}
+    return PlaceDataset("utm", qp, rp, gt, f"{hard:g} m", root=root, meta=meta,
+                        ground_truth_soft=None if soft is None else dist <= soft)
