@@ -9,8 +9,9 @@ SF-XL, Nordland, ...::
     <root>/queries_images_paths.txt      # optional, likewise
 
 A file name's ``@``-separated fields 1 and 2 are the UTM easting and northing in metres. Without a
-paths list the images are found recursively and sorted by path (as ``sorted(glob(...))`` does);
-with one, its order is kept. Ground truth: reference ``r`` is a positive of query ``q`` when their
+paths list the images are found recursively and sorted by their path strings (as ``sorted(glob(...))`` does);
+with one, its order is kept. Either way the order is VPR-methods-evaluation's, so descriptor files it
+saved (``--save_descriptors``) line up with this dataset as a peer. Ground truth: reference ``r`` is a positive of query ``q`` when their
 Euclidean UTM distance is ``<= positive_dist_threshold`` metres (GThard). With
 ``soft_dist_threshold`` (VPR_Tutorial's GTsoft) the pairs within it but beyond the hard threshold
 are stored in :attr:`PlaceDataset.ground_truth_soft` (a superset of ``ground_truth``): they count
@@ -24,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .base import IMAGE_EXTENSIONS, PlaceDataset, natural_key
+from .base import IMAGE_EXTENSIONS, PlaceDataset
 from .ground_truth import check_ground_truth
 from .layout import check_root, traverse_dir
 
@@ -52,7 +53,7 @@ def _paths(folder: Path, what: str) -> list[Path]:
     else:
         paths = sorted((p for p in folder.rglob("*") if p.is_file()
                         and p.suffix.lower() in IMAGE_EXTENSIONS and not p.name.startswith(".")),
-                       key=lambda p: natural_key(p.as_posix()))
+                       key=str)
     if not paths:
         raise ValueError(f"utm: {what} folder {folder} contains no images. Expected layout: "
                          f"{UTM_LAYOUT}")
