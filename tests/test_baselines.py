@@ -12,6 +12,8 @@ from vpr_core.baselines import (
     PRECOMPUTED_FILE,
     find_vprbench_peers,
     load_vprbench_precomputed,
+    peer_from_descriptors,
+    peer_from_matrix,
     peer_similarity_for,
 )
 from vpr_core.datasets import PlaceDataset
@@ -140,3 +142,50 @@ def test_find_peers(tmp_path, monkeypatch):
         find_vprbench_peers(None, "SPEDTEST")
     with pytest.raises(FileNotFoundError, match="neither a VPR-Bench checkout"):
         find_vprbench_peers(tmp_path, "SPEDTEST")
+
+
+def test_peer_from_matrix_and_distance(tmp_path):
+    sim = np.array([[0.9, 0.1, 0.2], [0.3, 0.8, 0.1]])
+    np.save(tmp_path / "sim.npy", sim)
+    peer = peer_from_matrix(tmp_path / "sim.npy", "mine")
+    assert peer.name == "mine" and peer.source == tmp_path / "sim.npy"
+    assert np.isnan(peer.encode_seconds) and np.isnan(peer.match_seconds)
+    assert np.array_equal(peer_similarity_for(_dataset(2, 3), peer), sim)
+    dist = peer_from_matrix(1 - sim, "mine_d", distance=True)
+    assert dist.source is None and np.array_equal(dist.top1_reference, [0, 1])
+    assert np.allclose(dist.similarity, sim - 1)
+    with pytest.raises(ValueError, match=r"the peer has 2 x 3 .*has 3 x 3: compute the peer on"):
+        peer_similarity_for(_dataset(3, 3), peer)
+    bad = sim.copy()
+    bad[0, 1] = np.nan
+    with pytest.raises(ValueError, match=r"peer 'x': the similarity matrix in the array holds 1 NaN"):
+        peer_from_matrix(bad, "x")
+    with pytest.raises(ValueError, match=r"has shape \(3,\); it must be a non-empty 2-d \(Nq, Nr\)"):
+        peer_from_matrix(np.ones(3), "x")
+    np.save(tmp_path / "obj.npy", np.array([[1, "a"]], dtype=object), allow_pickle=True)
+    with pytest.raises(ValueError, match="obj.npy is not a numeric .npy array"):
+        peer_from_matrix(tmp_path / "obj.npy", "x")
+    with pytest.raises(FileNotFoundError, match="similarity matrix file not found"):
+        peer_from_matrix(tmp_path / "none.npy", "x")
+
+
+def test_peer_from_descriptors_cosine_and_l2(tmp_path):
+    rng = np.random.default_rng(0)
+    q, r = rng.normal(size=(3, 8)), rng.normal(size=(5, 8))
+    np.save(tmp_path / "queries_descriptors.npy", q.astype(np.float32))
+    np.save(tmp_path / "database_descriptors.npy", r.astype(np.float32))
+    peer = peer_from_descriptors(tmp_path / "queries_descriptors.npy",
+                                 tmp_path / "database_descriptors.npy", "mine")
+    want = np.array([[a @ b / np.linalg.norm(a) / np.linalg.norm(b) for b in r] for a in q])
+    assert peer.similarity.shape == (3, 5) and np.allclose(peer.similarity, want, atol=1e-6)
+    l2 = peer_from_descriptors(q, r, "mine", metric="L2")
+    want = -np.array([[np.linalg.norm(a - b) for b in r] for a in q])
+    assert np.allclose(l2.similarity, want)
+    with pytest.raises(ValueError, match="query descriptors are 8-d but database descriptors 4-d"):
+        peer_from_descriptors(q, r[:, :4], "x")
+    with pytest.raises(ValueError, match="metric must be 'cosine' or 'l2'"):
+        peer_from_descriptors(q, r, "x", metric="dot")
+    with pytest.raises(ValueError, match="all zero"):
+        peer_from_descriptors(np.zeros((1, 8)), r, "x")
+    with pytest.raises(ValueError, match=r"query descriptors in the array has shape \(3, 2, 4\)"):
+        peer_from_descriptors(q.reshape(3, 2, 4), r, "x")
