@@ -113,7 +113,7 @@ def test_unreadable_image_is_a_clear_error(tmp_path):
 
 def test_registry_and_unknown_name():
     assert set(DATASETS) == {"synthetic", "gardens_point", "mapillary_berlin",
-                             "freiburg_across_seasons", "folder", "nordland", "vpr_bench"}
+                             "freiburg_across_seasons", "folder", "nordland", "vpr_bench", "utm"}
     with pytest.raises(ValueError) as e:
         load_dataset("oxford")
     for n in DATASETS:
