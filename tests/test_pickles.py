@@ -100,6 +100,10 @@ def test_legitimate_pickles_still_load(tmp_path):
         assert out[:1][0].tolist() == [0, 1, 2] and out[1] == 2.5 and out[2] == 7
         assert out[3:8] == ["s", b"b", None, True, (1, 2.0)]
         assert out[8].dtype == np.float32 and out[9].tolist() == ["x"]
+    # numpy 1 / Python 2 files (VPR-Bench's) name numpy.core.multiarray, GLOBAL opcode
+    old = pickle.dumps(data[:3], protocol=2).replace(b"numpy._core.", b"numpy.core.")
+    assert b"numpy.core.multiarray" in old
+    assert restricted_loads(old, "mem")[1] == 2.5
     path = tmp_path / "plain.npy"
     np.save(path, np.eye(2))
     assert np.array_equal(read_npy(path, "x"), np.eye(2))
