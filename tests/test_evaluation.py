@@ -64,8 +64,9 @@ def test_metrics_known_answer():
     assert recall_at_k(S, GT, 2) == pytest.approx(0.75)
     assert recall_at_k(S, GT, 3) == recall_at_k(S, GT, 99) == 1.0
     m = evaluate(S, GT)
-    assert set(m) == {"auc", "r_at_100p", "r_at_1", "r_at_5"}
-    assert m["auc"] == pytest.approx(5 / 6) and m["r_at_5"] == 1.0
+    assert set(m) == {"auc", "r@100p", "r@1", "r@5"}
+    assert m["auc"] == pytest.approx(5 / 6) and m["r@5"] == 1.0
+    assert list(evaluate(S, GT, ks=(1, 2, 3))) == ["auc", "r@100p", "r@1", "r@2", "r@3"]
 
 
 def test_ratio_ties_accepted_together_and_clipping():
@@ -92,10 +93,11 @@ def test_nothing_correct():
 
 def test_best_match_protocol():
     c = pr_curve(S, GT, protocol="best_match")
-    # S1: q0 .9 TP, q1 .8 TP, q2 .5 FP, q3 0 FP -> same order as ratio here
+    # S1: q0 .9 TP, q1 .8 TP, q2 .5 FP, q3 0 FP; VPR_Tutorial: recall = TP / 4 kept queries
     np.testing.assert_allclose(c.thresholds, [np.inf, 0.9, 0.8, 0.5, 0.0])
-    np.testing.assert_allclose(c.recall, R_WANT)
+    np.testing.assert_allclose(c.recall, [0, 1 / 4, 1 / 2, 1 / 2, 1 / 2])
     np.testing.assert_allclose(c.precision, P_WANT)
+    np.testing.assert_array_equal(c.fn, [4, 3, 2, 2, 2])
 
 
 def test_multi_match_protocol():
@@ -108,7 +110,7 @@ def test_multi_match_protocol():
 
 
 def test_bad_inputs():
-    with pytest.raises(ValueError, match="valid: ratio, best_match, multi_match"):
+    with pytest.raises(ValueError, match="valid: ratio, best_match, vpr_bench, multi_match"):
         pr_curve(S, GT, protocol="nope")
     with pytest.raises(ValueError, match="shape"):
         pr_curve(S, GT[:4])
@@ -130,10 +132,10 @@ def test_metrics_table_and_perfect_matrix():
     rng = np.random.default_rng(0)
     s = rng.uniform(0, 0.5, (20, 20)) + np.eye(20)
     perfect = evaluate(s, np.eye(20, dtype=bool))
-    assert perfect == {"auc": 1.0, "r_at_100p": 1.0, "r_at_1": 1.0, "r_at_5": 1.0}
+    assert perfect == {"auc": 1.0, "r@100p": 1.0, "r@1": 1.0, "r@5": 1.0}
     df = metrics_table({"dense": perfect, "classical": evaluate(S, GT)})
     assert list(df.index) == ["dense", "classical"]
-    assert list(df.columns) == ["auc", "r_at_100p", "r_at_1", "r_at_5"]
+    assert list(df.columns) == ["auc", "r@100p", "r@1", "r@5"]
     assert df.loc["classical", "auc"] == pytest.approx(5 / 6)
 
 
@@ -190,16 +192,19 @@ def test_bootstrap_resample_equals_metrics_of_repeated_rows():
     gt = np.eye(60, dtype=bool)
     s[4] = np.nan
     s[9, 1:] = np.nan  # one ranked reference: S2 := S1
-    pq = _per_query(s, gt, "ratio", (1, 5))
-    for seed in range(5):
-        idx = np.random.default_rng(seed).integers(0, 60, 60)
-        w = np.bincount(idx, minlength=60)[None].astype(float)
-        got = {k: float(v[0]) for k, v in _resample_metrics(pq, w).items()}
-        want = evaluate(s[idx], gt[idx])
-        assert got["auc"] == pytest.approx(want["auc"], abs=1e-12)
-        assert got["r@100p"] == pytest.approx(want["r_at_100p"], abs=1e-12)
-        assert got["r@1"] == pytest.approx(want["r_at_1"], abs=1e-12)
-        assert got["r@5"] == pytest.approx(want["r_at_5"], abs=1e-12)
+    gt[20] = False  # vpr_bench resamples it too (a negative); the others never see it
+    for protocol in ("ratio", "best_match", "vpr_bench"):
+        rows = np.ones(60, bool) if protocol == "vpr_bench" else gt.any(axis=1)
+        pq = _per_query(s[rows], gt[rows], protocol, (1, 5))
+        n = int(rows.sum())
+        for seed in range(5):
+            idx = np.flatnonzero(rows)[np.random.default_rng(seed).integers(0, n, n)]
+            w = np.bincount(np.searchsorted(np.flatnonzero(rows), idx), minlength=n)[None]
+            got = {k: float(v[0]) for k, v in _resample_metrics(pq, w.astype(float)).items()}
+            want = evaluate(s[idx], gt[idx], protocol)
+            assert set(got) == set(want)
+            for key in want:
+                assert got[key] == pytest.approx(want[key], abs=1e-12), (protocol, key)
 
 
 def test_bootstrap_seeds_reproduce_and_differ():
@@ -253,7 +258,7 @@ def test_format_interval_and_columns():
 
 def test_bootstrap_bad_arguments():
     with pytest.raises(ValueError, match="resamples"):
-        bootstrap_metrics(S, GT, n=0)
+        bootstrap_metrics(S, GT, n=-1)
     with pytest.raises(ValueError, match="protocol"):
         bootstrap_metrics(S, GT, protocol="multi_match")
     with pytest.raises(ValueError, match="ks"):

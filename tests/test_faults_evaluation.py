@@ -106,7 +106,7 @@ def test_nan_is_never_in_the_top_k():
     gt = np.array([[1, 0, 0, 0], [0, 1, 0, 0]], dtype=bool)
     # the true reference of query 0 is unranked: a miss even with k = Nr
     assert recall_at_k(s, gt, 4) == 0.5
-    assert evaluate(s, gt)["r_at_5"] == 0.5
+    assert evaluate(s, gt)["r@5"] == 0.5
 
 
 def test_all_nan_query_is_dropped_and_counted(warnings_log):

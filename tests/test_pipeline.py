@@ -24,7 +24,7 @@ def test_dense_run_shapes_metrics_and_timings(tiny):
     assert r.similarity.shape == (6, 6)
     assert all(b.shape == (100, 4) for b in r.boxes["query"])
     assert all(d.shape == (100, 1024) for d in r.descriptors["reference"])
-    assert set(r.metrics) >= {"auc", "r_at_100p", "r_at_1", "r_at_5"}
+    assert set(r.metrics) >= {"auc", "r@100p", "r@1", "r@5"}
     assert 0.0 <= r.metrics["auc"] <= 1.0
     assert r.timings["features_s_per_image"] > 0
     # the matrix is Eq. (1) pair by pair
@@ -97,7 +97,7 @@ def test_dense_efficientnet_on_real_gardens_point_mini(gardens_point_mini_root):
     ds = load_dataset("folder", root=gardens_point_mini_root)
     r = pipeline.run_method("dense", ds)
     assert r.similarity.shape == (10, 10)
-    assert r.metrics["r_at_1"] >= 0.3, r.metrics
+    assert r.metrics["r@1"] >= 0.3, r.metrics
 
 
 def test_box_keys_are_rounded_row_bytes():

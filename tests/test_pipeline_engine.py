@@ -119,7 +119,7 @@ def test_peer_result_sits_beside_ours(small, tmp_path):
     sim = np.where(gt, 0.9, 0.1) + np.random.default_rng(0).random(gt.shape) * 0.01
     peer = load_vprbench_precomputed(_write(tmp_path / "NetVLAD" / "x.npy", sim))
     res = pipeline.peer_result(peer, small)
-    assert res.metrics["r_at_1"] == 1.0 and res.intervals["auc"][1] <= 1.0
+    assert res.metrics["r@1"] == 1.0 and res.intervals["auc"][1] <= 1.0
     assert res.row()["method"].startswith("NetVLAD")
 
 

@@ -1,12 +1,14 @@
 """Bootstrap confidence intervals over queries for the table metrics, and paired differences.
 
 Resampling unit: the query. Only queries with ground truth are resampled (with replacement, as
-many as there are); a resampled query counts as often as it was drawn. Each method then evaluates
+many as there are; ``vpr_bench``: every query, since its queries without ground truth are
+negatives); a resampled query counts as often as it was drawn. Each method then evaluates
 the resample exactly as :func:`~vpr_core.evaluation.curves.pr_curve` /
 :func:`~vpr_core.evaluation.curves.recall_at_k` would evaluate the matrix with those rows repeated
 (its own unranked, all-NaN queries left out). Per-query quantities (score, correctness of the best
 match, top-k hit) are computed once; every resample's PR curve is then a weighted cumulative sum
-over the queries sorted once by score, so 1,000 resamples of thousands of queries take seconds.
+over the queries sorted once by score, so ``N_BOOTSTRAP`` resamples of thousands of queries
+take seconds.
 
 * Interval: 95% percentile interval (``np.percentile``, linear interpolation) of the resampled
   metric; the point value is the metric on all queries (not the resample mean).
@@ -15,6 +17,13 @@ over the queries sorted once by score, so 1,000 resamples of thousands of querie
   the other side of 0 from the observed difference, or on 0 (``delta_b <= 0`` when the observed
   difference is > 0, ``delta_b >= 0`` when < 0); an observed difference of exactly 0 gives
   ``p = 1``. The ``+1`` keeps p above 0: the smallest reportable p is ``2 / (n + 1)``.
+* Queries a verdict needs: ``se`` = standard deviation (ddof 1) of the resampled differences;
+  ``queries_needed = ceil(n_q * (1.96 * se / |delta|)^2)`` (at least 1; ``inf`` when
+  ``delta = 0``), ``n_q`` the resampled queries: the count at which a normal-approximation 95%
+  interval ``delta +- 1.96 se`` would exclude 0 if the effect and the per-query spread stayed as
+  measured (``se`` scales as ``1 / sqrt(n_q)``).
+* ``n = 0`` resamples: intervals, p, ``se`` and ``queries_needed`` are NaN and every verdict is
+  ``"not computed"``.
 
 Metric keys: ``"auc"`` (area under the PR curve of ``protocol``), ``"r@100p"``, and ``"r@K"`` for each
 K in ``ks``.
@@ -22,6 +31,7 @@ K in ``ks``.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -39,11 +49,33 @@ from .curves import (
     recall_at_k,
 )
 
-__all__ = ["N_BOOTSTRAP", "bootstrap_columns", "bootstrap_metrics", "difference_verdict", "format_interval",
-           "paired_bootstrap"]
+__all__ = ["N_BOOTSTRAP", "Difference", "bootstrap_columns", "bootstrap_metrics",
+           "difference_verdict", "format_interval", "needs_text", "paired_bootstrap"]
 
 #: Bootstrap resamples of every interval and paired difference (the one home of this count).
 N_BOOTSTRAP = 1000
+
+#: ``queries_needed`` beyond this: "not decidable on any realistic set" (:func:`needs_text`).
+REALISTIC_QUERIES = 100_000
+
+
+class Difference(tuple):
+    """A paired difference: unpacks as ``(delta, low, high, p)`` like a 4-tuple, and carries
+    ``.se`` (standard error of the difference) and ``.queries_needed`` (float; inf when
+    ``delta = 0``; NaN without resamples)."""
+
+    def __new__(cls, delta: float, low: float, high: float, p: float, se: float = np.nan,
+                queries_needed: float = np.nan):
+        self = super().__new__(cls, (float(delta), float(low), float(high), float(p)))
+        self.se, self.queries_needed = float(se), float(queries_needed)
+        return self
+
+    def __getnewargs__(self):
+        return (*self, self.se, self.queries_needed)
+
+    def __repr__(self) -> str:
+        return ("Difference(delta={:.4g}, low={:.4g}, high={:.4g}, p={:.4g}, ".format(*self)
+                + f"se={self.se:.4g}, queries_needed={self.queries_needed:.4g})")
 
 #: Resamples evaluated at once (bounds memory: ``chunk x queries`` float64 per array).
 _CHUNK = 250
@@ -53,7 +85,9 @@ _CHUNK = 250
 class _PerQuery:
     """One method's per-query quantities on the queries with ground truth (``n`` of them)."""
 
+    protocol: str
     keep: np.ndarray  # (n,) bool: has a ranked reference (else left out)
+    rk: np.ndarray  # (n,) bool: counted by R@K (kept and with ground truth)
     order: np.ndarray  # (m,) indices into the n queries, kept ones sorted by acceptance order
     correct: np.ndarray  # (m,) float64 best match correct, in `order`
     run_end: np.ndarray  # (m,) bool: last query of a run of equal scores, in `order`
@@ -61,11 +95,12 @@ class _PerQuery:
 
 
 def _check_args(n: int, protocol: str, ks: Sequence[int]) -> tuple[int, ...]:
-    if int(n) < 1:
-        raise ValueError(f"n (number of resamples) must be >= 1, got {n}")
-    if protocol not in ("ratio", "best_match"):
-        raise ValueError(f"bootstrap supports protocol 'ratio' or 'best_match' (per-query "
-                         f"decisions), got {protocol!r}; valid protocols: {', '.join(PROTOCOLS)}")
+    if int(n) < 0:
+        raise ValueError(f"n (number of resamples) must be >= 0 (0: no intervals), got {n}")
+    if protocol not in ("ratio", "best_match", "vpr_bench"):
+        raise ValueError(f"bootstrap supports protocol 'ratio', 'best_match' or 'vpr_bench' "
+                         f"(per-query decisions), got {protocol!r}; valid protocols: "
+                         f"{', '.join(PROTOCOLS)}")
     ks = tuple(int(k) for k in ks)
     if any(k < 1 for k in ks):
         raise ValueError(f"ks must be >= 1, got {ks}")
@@ -73,7 +108,7 @@ def _check_args(n: int, protocol: str, ks: Sequence[int]) -> tuple[int, ...]:
 
 
 def _per_query(s: np.ndarray, gt: np.ndarray, protocol: str, ks: tuple[int, ...]) -> _PerQuery:
-    """Per-query quantities of one method; ``s``, ``gt``: rows of the queries with ground truth."""
+    """Per-query quantities of one method; ``s``, ``gt``: the resampled rows."""
     keep = ~np.isnan(s).all(axis=1)
     idx = np.flatnonzero(keep)
     score, correct = _query_scores(s[keep], gt[keep], protocol)
@@ -83,7 +118,8 @@ def _per_query(s: np.ndarray, gt: np.ndarray, protocol: str, ks: tuple[int, ...]
     run_end = np.r_[sc[1:] != sc[:-1], True] if sc.size else np.zeros(0, dtype=bool)
     rank = _true_rank(s, gt)
     hits = {k: ((rank < k) & keep).astype(np.float64) for k in ks}
-    return _PerQuery(keep, idx[o], correct[o].astype(np.float64), run_end, hits)
+    return _PerQuery(protocol, keep, keep & gt.any(axis=1), idx[o], correct[o].astype(np.float64),
+                     run_end, hits)
 
 
 def _resample_metrics(pq: _PerQuery, w: np.ndarray) -> dict[str, np.ndarray]:
@@ -100,20 +136,25 @@ def _resample_metrics(pq: _PerQuery, w: np.ndarray) -> dict[str, np.ndarray]:
     ws = w[:, pq.order]  # (B, m) in acceptance order
     tp = np.cumsum(ws * pq.correct, axis=1)[:, pq.run_end]  # (B, T) at each distinct score
     acc = np.cumsum(ws, axis=1)[:, pq.run_end]
-    fn = total[:, None] - acc
+    if pq.protocol == "ratio":
+        fn = total[:, None] - acc
+    else:  # best_match: recall = TP / kept queries; vpr_bench: TP / correct top-1s (tp[:, -1])
+        fn = (total[:, None] if pq.protocol == "best_match" else tp[:, -1:]) - tp
     with np.errstate(invalid="ignore", divide="ignore"):
         recall = np.where(tp + fn > 0, tp / np.maximum(tp + fn, 1), 0.0)
         precision = np.where(acc > 0, tp / np.maximum(acc, 1), 1.0)
     b = w.shape[0]
     recall = np.concatenate([np.zeros((b, 1)), recall], axis=1)
     precision = np.concatenate([np.ones((b, 1)), precision], axis=1)
+    # vpr_bench's truncation at full recall drops only zero-width trapezoids: same AUC, R@100P
     out = {
         "auc": np.trapezoid(precision, recall, axis=1),
         "r@100p": np.where(precision >= 1.0, recall, 0.0).max(axis=1),
     }
+    total_k = total if pq.protocol != "vpr_bench" else (w * pq.rk).sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         for k, h in pq.hits.items():
-            out[f"r@{k}"] = (w * h).sum(axis=1) / total
+            out[f"r@{k}"] = (w * h).sum(axis=1) / total_k
     for v in out.values():
         v[total == 0] = np.nan  # a resample of only unranked queries: no value (nanpercentile)
     return out
@@ -138,46 +179,54 @@ def _draws(n_boot: int, n_queries: int, seed: int):
         yield np.bincount(flat, minlength=b * n_queries).reshape(b, n_queries).astype(np.float64)
 
 
-def _prepare(similarity, ground_truth, protocol: str, ks, n: int):
+def _prepare(similarity, ground_truth, protocol: str, ks, n: int, ignore=None):
+    """Checked ``(s, gt, ks, rows)``; ``rows``: the resampled queries (``(Nq,)`` bool)."""
     ks = _check_args(n, protocol, ks)
-    s, gt = _check(similarity, ground_truth)
+    s, gt = _check(similarity, ground_truth, ignore)
     if s.shape[1] < 2 and protocol == "ratio":
         raise ValueError(f"the ratio protocol needs at least 2 references, got {s.shape[1]}")
-    _kept_queries(s, gt)  # raises without ground truth; warns once when queries are left out
-    return s, gt, ks
+    # raises without ground truth; warns once when queries are left out
+    _kept_queries(s, gt, need_gt=protocol != "vpr_bench")
+    rows = np.ones(s.shape[0], dtype=bool) if protocol == "vpr_bench" else gt.any(axis=1)
+    return s, gt, ks, rows
+
+
+def _interval(vals: list[np.ndarray]) -> tuple[float, float]:
+    """95% percentile interval of the resampled values (NaN, NaN without resamples)."""
+    if not vals:
+        return np.nan, np.nan
+    lo, hi = np.nanpercentile(np.concatenate(vals), [2.5, 97.5])
+    return float(lo), float(hi)
 
 
 def bootstrap_metrics(similarity: np.ndarray, ground_truth: np.ndarray, n: int = N_BOOTSTRAP,
-                      seed: int = 0, protocol: str = "ratio", ks: Sequence[int] = (1, 5)
-                      ) -> dict[str, tuple[float, float, float]]:
+                      seed: int = 0, protocol: str = "ratio", ks: Sequence[int] = (1, 5),
+                      ignore: np.ndarray | None = None) -> dict[str, tuple[float, float, float]]:
     """95% bootstrap intervals of AUC, R@100P and R@K, resampling queries.
 
     Args:
         similarity: ``(Nq, Nr)`` float; NaN = not ranked.
         ground_truth: ``(Nq, Nr)`` bool.
-        n: number of resamples.
+        n: number of resamples (0: no interval, low = high = NaN).
         seed: seed of the resampling (same seed, same intervals).
-        protocol: ``"ratio"`` (paper) or ``"best_match"``.
+        protocol: ``"ratio"`` (paper), ``"best_match"`` or ``"vpr_bench"``.
         ks: the K of R@K.
+        ignore: optional ``(Nq, Nr)`` bool soft ground truth (neither right nor wrong).
 
     Returns:
-        ``{"auc", "r@100p", "r@K"...: (value on all queries, low, high)}``.
+        ``{"auc", "r@100p", "r@K"...: (value on all queries, low, high)}`` (the keys of
+        :func:`~vpr_core.evaluation.curves.evaluate`).
 
     Raises:
         ValueError: no query with ground truth, bad ``n`` / ``protocol`` / ``ks`` / shapes.
     """
-    s, gt, ks = _prepare(similarity, ground_truth, protocol, ks, n)
-    has_gt = gt.any(axis=1)
-    s, gt = s[has_gt], gt[has_gt]
+    s, gt, ks, rows = _prepare(similarity, ground_truth, protocol, ks, n, ignore)
+    s, gt = s[rows], gt[rows]
     point = _point(s, gt, protocol, ks)
     pq = _per_query(s, gt, protocol, ks)
     draws = [_resample_metrics(pq, w) for w in _draws(n, s.shape[0], seed)]
-    out = {}
-    for key, value in point.items():
-        vals = np.concatenate([d[key] for d in draws])
-        lo, hi = np.nanpercentile(vals, [2.5, 97.5])
-        out[key] = (float(value), float(lo), float(hi))
-    return out
+    return {key: (float(value), *_interval([d[key] for d in draws]))
+            for key, value in point.items()}
 
 
 def _p_value(delta: float, deltas: np.ndarray) -> float:
@@ -188,30 +237,42 @@ def _p_value(delta: float, deltas: np.ndarray) -> float:
     return float(min(1.0, 2.0 * (1 + other) / (1 + deltas.size)))
 
 
+def _queries_needed(delta: float, se: float, n_queries: int) -> float:
+    """Queries at which ``delta +- 1.96 se`` would exclude 0 (formula: module docstring)."""
+    if not np.isfinite(se):
+        return np.nan
+    if delta == 0:
+        return np.inf
+    return float(max(1, math.ceil(n_queries * (1.96 * se / abs(delta)) ** 2)))
+
+
 def paired_bootstrap(sim_a: np.ndarray, sim_b: np.ndarray, ground_truth: np.ndarray,
                      n: int = N_BOOTSTRAP, seed: int = 0, protocol: str = "ratio",
-                     ks: Sequence[int] = (1, 5)) -> dict[str, tuple[float, float, float, float]]:
+                     ks: Sequence[int] = (1, 5), ignore: np.ndarray | None = None
+                     ) -> dict[str, Difference]:
     """Paired bootstrap of the difference ``a - b`` of two methods on the same queries.
 
     Args:
         sim_a: ``(Nq, Nr)`` similarities of method a; NaN = not ranked.
         sim_b: ``(Nq, Nr)`` similarities of method b.
         ground_truth: ``(Nq, Nr)`` bool.
-        n: number of resamples (the same query resample for both methods).
+        n: number of resamples (the same query resample for both methods; 0: no interval,
+            low = high = p = NaN).
         seed: seed of the resampling.
-        protocol: ``"ratio"`` (paper) or ``"best_match"``.
+        protocol: ``"ratio"`` (paper), ``"best_match"`` or ``"vpr_bench"``.
         ks: the K of R@K.
+        ignore: optional ``(Nq, Nr)`` bool soft ground truth (neither right nor wrong).
 
     Returns:
-        ``{"auc", "r@100p", "r@K"...: (delta on all queries, low, high, p)}``; identical inputs
-        give ``(0, 0, 0, 1)``.
+        ``{"auc", "r@100p", "r@K"...: Difference(delta on all queries, low, high, p)}``: each
+        unpacks as a 4-tuple and has ``.se`` and ``.queries_needed`` (module docstring);
+        identical inputs give ``(0, 0, 0, 1)``.
     """
-    a, gt, ks = _prepare(sim_a, ground_truth, protocol, ks, n)
-    b, _, _ = _prepare(sim_b, ground_truth, protocol, ks, n)
+    a, gt, ks, rows = _prepare(sim_a, ground_truth, protocol, ks, n, ignore)
+    b, _, _, _ = _prepare(sim_b, ground_truth, protocol, ks, n, ignore)
     if a.shape != b.shape:
         raise ValueError(f"sim_a and sim_b differ in shape: {a.shape} vs {b.shape}")
-    has_gt = gt.any(axis=1)
-    a, b, gt = a[has_gt], b[has_gt], gt[has_gt]
+    a, b, gt = a[rows], b[rows], gt[rows]
     pa, pb = _point(a, gt, protocol, ks), _point(b, gt, protocol, ks)
     qa, qb = _per_query(a, gt, protocol, ks), _per_query(b, gt, protocol, ks)
     deltas: dict[str, list[np.ndarray]] = {key: [] for key in pa}
@@ -221,20 +282,43 @@ def paired_bootstrap(sim_a: np.ndarray, sim_b: np.ndarray, ground_truth: np.ndar
             parts.append(ma[key] - mb[key])
     out = {}
     for key in pa:
-        d = np.concatenate(deltas[key])
         delta = pa[key] - pb[key]
+        if n == 0:
+            out[key] = Difference(delta, np.nan, np.nan, np.nan)
+            continue
+        d = np.concatenate(deltas[key])
         lo, hi = np.nanpercentile(d, [2.5, 97.5])
-        out[key] = (float(delta), float(lo), float(hi), _p_value(delta, d[~np.isnan(d)]))
+        d = d[~np.isnan(d)]
+        se = float(np.std(d, ddof=1)) if d.size > 1 else np.nan
+        out[key] = Difference(delta, lo, hi, _p_value(delta, d), se,
+                              _queries_needed(delta, se, a.shape[0]))
     return out
 
 
 def difference_verdict(low: float, high: float) -> str:
-    """``"finding"`` when the 95% interval of a difference excludes 0, else ``"inconclusive"``."""
+    """``"finding"`` when the 95% interval of a difference excludes 0, ``"inconclusive"`` when it
+    does not, ``"not computed"`` when a bound is not finite (no resamples)."""
+    if not (np.isfinite(low) and np.isfinite(high)):
+        return "not computed"
     return "finding" if low > 0 or high < 0 else "inconclusive"
 
 
+def needs_text(queries_needed: float) -> str:
+    """``"needs ~1,200 queries"`` (2 significant digits); beyond ``REALISTIC_QUERIES``
+    ``"> 100,000 queries: not decidable on any realistic set"``; NaN: ``"not computed"``."""
+    q = float(queries_needed)
+    if np.isnan(q):
+        return "not computed"
+    if q > REALISTIC_QUERIES:
+        return f"> {REALISTIC_QUERIES:,} queries: not decidable on any realistic set"
+    return f"needs ~{int(float(f'{math.ceil(q):.2g}')):,} queries"
+
+
 def format_interval(value: float, low: float, high: float, digits: int = 3) -> str:
-    """``"0.812 [0.751, 0.866]"``: a value with its interval."""
+    """``"0.812 [0.751, 0.866]"``: a value with its interval; ``"0.812 [not computed]"`` when a
+    bound is not finite (no resamples)."""
+    if not (np.isfinite(low) and np.isfinite(high)):
+        return f"{value:.{digits}f} [not computed]"
     return f"{value:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]"
 
 
@@ -251,7 +335,8 @@ def bootstrap_columns(result: Mapping[str, Sequence[float]], prefix: str = "") -
 
     Returns:
         Ordered ``{"AUC": v, "AUC lo": l, "AUC hi": h, "R@100P": ..., "R@1": ...}``, plus
-        ``"<name> p"`` for paired results.
+        ``"<name> p"`` for paired results and ``"<name> se"``, ``"<name> needed"`` (queries a
+        verdict needs) for :class:`Difference` values.
     """
     cols: dict[str, float] = {}
     for key, vals in result.items():
@@ -262,4 +347,6 @@ def bootstrap_columns(result: Mapping[str, Sequence[float]], prefix: str = "") -
         cols[name], cols[f"{name} lo"], cols[f"{name} hi"] = (float(v) for v in vals[:3])
         if len(vals) == 4:
             cols[f"{name} p"] = float(vals[3])
+        if isinstance(vals, Difference):
+            cols[f"{name} se"], cols[f"{name} needed"] = vals.se, vals.queries_needed
     return cols

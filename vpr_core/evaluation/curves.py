@@ -11,14 +11,30 @@ Protocols (``pr_curve(..., protocol=...)``):
     are accepted together). Recall denominator: ``TP + FN`` = kept queries minus the accepted
     wrong ones (a wrongly accepted query is an FP, not an FN), so once every query is accepted
     recall is 1 if any TP exists. Precision ``TP / (TP + FP)``, 1 when nothing is accepted.
-``best_match``
-    Same rules, thresholding ``S1`` instead: accepted when ``S1 >= tau``; ``tau`` takes every
-    distinct ``S1`` (descending). Same recall denominator ``TP + FN``.
+``best_match`` (VPR_Tutorial's ``createPR(..., matching="single")``, Schubert et al. 2023)
+    Same queries and decisions, thresholding ``S1`` instead: accepted when ``S1 >= tau``;
+    ``tau`` takes every distinct ``S1`` (descending). Recall denominator: all kept queries
+    (``recall = TP / n``, so the last point is ``(R@1, R@1)``, not recall 1).
+``vpr_bench`` (VPR-Bench's AUC-PR, Zaffar et al. IJCV 2021, as its code computes it)
+    Every query with a ranked reference is kept, *with or without* ground truth (a query without
+    ground truth is a negative); per query the top-1 ``b1`` and ``S1``; ``y = gt[q, b1]``;
+    scikit-learn's ``precision_recall_curve(y, S1)``: ``tau`` = every distinct ``S1``
+    (descending), accepted when ``S1 >= tau``. Recall denominator: the queries whose top-1 is
+    correct (``recall = TP / sum(y)``: VPR-Bench's known quirk, recall is relative to the
+    correctly retrieved queries and always reaches 1). The curve stops at the first point of full
+    recall (scikit-learn < 1.1, the versions of VPR-Bench's time) and starts at ``(0, 1)``.
+    AUC: trapezoids over recall (= ``sklearn.metrics.auc(recall, precision)``). When no top-1 is
+    correct the curve is ``(0, 1), (0, 0)...`` and the AUC 0 (VPR-Bench's code gives NaN).
 ``multi_match``
     Every (query, reference) pair is a decision: accepted when ``S[q, r] >= tau`` (``tau``: every
     distinct similarity, descending); accepted and ground truth -> TP, accepted otherwise -> FP;
     ground-truth pairs not accepted -> FN. Recall denominator: all ground-truth pairs. All queries
     are kept (pairs of queries without ground truth can only be FPs).
+
+Soft ground truth (``ignore=``, VPR_Tutorial's GTsoft)
+    ``ignore[q, r]`` and not ``gt[q, r]``: reference r is neither right nor wrong for q; it is
+    treated as unranked (NaN) in every protocol and in R@K. (VPR_Tutorial sets these entries to
+    ``min(S)`` instead; the two differ only for a query whose hard references are all unranked.)
 
 Every curve starts at ``(recall 0, precision 1)`` with a sentinel threshold (``-inf`` for
 ``ratio``, ``+inf`` for the others) meaning "nothing accepted".
@@ -42,7 +58,7 @@ Ground-truth coverage
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -59,11 +75,12 @@ __all__ = [
     "pr_curve",
     "recall_at_100_precision",
     "recall_at_k",
+    "recall_rate_at_n",
 ]
 
 logger = logging.getLogger("vpr_core")
 
-PROTOCOLS = ("ratio", "best_match", "multi_match")
+PROTOCOLS = ("ratio", "best_match", "vpr_bench", "multi_match")
 
 
 @dataclass
@@ -75,8 +92,8 @@ class PRCurve:
         precision: ``(T + 1,)`` precision, ``precision[0] = 1``.
         thresholds: ``(T + 1,)`` the ``tau`` of each point (``thresholds[0]`` is the sentinel).
         protocol: protocol name.
-        n_queries: queries (``ratio``/``best_match``: kept queries) or pairs (``multi_match``)
-            the curve is computed on.
+        n_queries: queries (``ratio``/``best_match``/``vpr_bench``: kept queries) or pairs
+            (``multi_match``) the curve is computed on.
         tp, fp, fn: ``(T + 1,)`` int counts at each point.
     """
 
@@ -94,8 +111,11 @@ class PRCurve:
         return iter((self.recall, self.precision, self.thresholds))
 
 
-def _check(similarity, ground_truth) -> tuple[np.ndarray, np.ndarray]:
-    """Validate shapes and dtypes; NaN similarities are allowed (unranked), inf is not."""
+def _check(similarity, ground_truth, ignore=None) -> tuple[np.ndarray, np.ndarray]:
+    """Validate shapes and dtypes; NaN similarities are allowed (unranked), inf is not.
+
+    ``ignore`` ``(Nq, Nr)`` bool (soft ground truth): entries ``ignore & ~gt`` become NaN.
+    """
     s = np.asarray(similarity, dtype=np.float64)
     gt = np.asarray(ground_truth)
     if s.ndim != 2:
@@ -108,14 +128,21 @@ def _check(similarity, ground_truth) -> tuple[np.ndarray, np.ndarray]:
         gt = gt.astype(bool)
     if np.isinf(s).any():
         raise ValueError("similarity contains inf; use NaN to mark a pair that is not ranked")
+    if ignore is not None:
+        ig = np.asarray(ignore)
+        if ig.shape != s.shape or not np.isin(ig, (0, 1)).all():
+            raise ValueError(f"ignore must be a bool matrix of shape {s.shape} (soft ground "
+                             f"truth), got shape {ig.shape} dtype {ig.dtype}")
+        s = np.where(ig.astype(bool) & ~gt, np.nan, s)
     return s, gt
 
 
-def _kept_queries(s: np.ndarray, gt: np.ndarray, warn: bool = True) -> np.ndarray:
-    """``(Nq,)`` bool: queries with ground truth and at least one ranked (non-NaN) reference.
+def _kept_queries(s: np.ndarray, gt: np.ndarray, warn: bool = True, need_gt: bool = True
+                  ) -> np.ndarray:
+    """``(Nq,)`` bool: queries with ground truth (if ``need_gt``) and a ranked (non-NaN) reference.
 
-    Raises a ValueError when none is left; logs one warning with the counts when some are left
-    out (``warn``).
+    Raises a ValueError when no query has ground truth or none is left; logs one warning with
+    the counts when some are left out (``warn``).
     """
     has_gt = gt.any(axis=1)
     ranked = ~np.isnan(s).all(axis=1) if s.shape[1] else np.zeros(s.shape[0], dtype=bool)
@@ -130,7 +157,12 @@ def _kept_queries(s: np.ndarray, gt: np.ndarray, warn: bool = True) -> np.ndarra
         raise ValueError(
             f"every query with ground truth ({n_gt} of {n_total}) has no ranked reference (all "
             "similarities NaN: images without landmarks). Check the landmark settings.")
-    if warn and n_kept < n_total:
+    if not need_gt:  # vpr_bench: a query without ground truth is a negative, not left out
+        keep = ranked
+        if warn and not ranked.all():
+            logger.warning("metrics use %d of %d queries: %d have no ranked reference (all NaN)",
+                           int(ranked.sum()), n_total, int((~ranked).sum()))
+    elif warn and n_kept < n_total:
         logger.warning(
             "metrics use %d of %d queries: %d have no ground-truth reference%s", n_kept, n_total,
             n_total - n_gt, f", {n_gt - n_kept} have no ranked reference (all NaN)"
@@ -164,14 +196,14 @@ def _query_scores(s: np.ndarray, gt: np.ndarray, protocol: str) -> tuple[np.ndar
     Args:
         s: ``(n, Nr)`` similarities of kept queries; gt: ``(n, Nr)`` bool.
         protocol: ``"ratio"`` (score ``r = S2 / S1`` in ``[0, 1]``, accept ``r <= tau``) or
-            ``"best_match"`` (score ``S1``, accept ``S1 >= tau``).
+            ``"best_match"`` / ``"vpr_bench"`` (score ``S1``, accept ``S1 >= tau``).
 
     Returns:
         ``(score (n,), correct (n,) bool)``.
     """
     b1, s1, s2 = _best_two(s)
     correct = gt[np.arange(s.shape[0]), b1]
-    if protocol == "best_match":
+    if protocol != "ratio":
         return s1, correct
     with np.errstate(invalid="ignore", divide="ignore"):
         r = np.where(s1 > 0, s2 / np.where(s1 > 0, s1, 1.0), 1.0)
@@ -210,14 +242,16 @@ def _curve_from_scores(score: np.ndarray, correct: np.ndarray, ascending: bool, 
 
 
 def pr_curve(similarity: np.ndarray, ground_truth: np.ndarray, protocol: str = "ratio",
-             warn: bool = True) -> PRCurve:
+             warn: bool = True, ignore: np.ndarray | None = None) -> PRCurve:
     """Precision-recall curve of a similarity matrix (see the module docstring for protocols).
 
     Args:
         similarity: ``(Nq, Nr)`` float, higher = more similar; NaN = not ranked.
         ground_truth: ``(Nq, Nr)`` bool, True where reference r shows query q's place.
-        protocol: ``"ratio"`` (paper), ``"best_match"`` or ``"multi_match"``.
+        protocol: ``"ratio"`` (paper), ``"best_match"`` (VPR_Tutorial), ``"vpr_bench"``
+            (VPR-Bench) or ``"multi_match"``.
         warn: log a warning when queries are left out (no ground truth / nothing ranked).
+        ignore: optional ``(Nq, Nr)`` bool soft ground truth: neither right nor wrong (NaN).
 
     Returns:
         :class:`PRCurve` starting at ``(R=0, P=1)``.
@@ -228,7 +262,7 @@ def pr_curve(similarity: np.ndarray, ground_truth: np.ndarray, protocol: str = "
     """
     if protocol not in PROTOCOLS:
         raise ValueError(f"unknown protocol {protocol!r}; valid: {', '.join(PROTOCOLS)}")
-    s, gt = _check(similarity, ground_truth)
+    s, gt = _check(similarity, ground_truth, ignore)
     if protocol == "multi_match":
         if not gt.any():
             _kept_queries(s, gt)  # raises: no ground truth
@@ -239,9 +273,16 @@ def pr_curve(similarity: np.ndarray, ground_truth: np.ndarray, protocol: str = "
         raise ValueError(f"the ratio protocol needs at least 2 references, got {s.shape[1]}")
     if s.shape[1] < 1:
         raise ValueError("similarity has no reference column")
-    keep = _kept_queries(s, gt, warn)
+    keep = _kept_queries(s, gt, warn, need_gt=protocol != "vpr_bench")
     score, correct = _query_scores(s[keep], gt[keep], protocol)
-    return _curve_from_scores(score, correct, protocol == "ratio", protocol)
+    # recall denominators: ratio TP + FN (None), best_match all kept queries, vpr_bench sum(y)
+    n_pos = {"ratio": None, "best_match": score.size, "vpr_bench": int(correct.sum())}[protocol]
+    curve = _curve_from_scores(score, correct, protocol == "ratio", protocol, n_pos)
+    if protocol == "vpr_bench" and n_pos:  # stop at the first point of full recall
+        end = int(np.searchsorted(curve.tp, n_pos)) + 1
+        curve = PRCurve(curve.recall[:end], curve.precision[:end], curve.thresholds[:end],
+                        protocol, curve.n_queries, curve.tp[:end], curve.fp[:end], curve.fn[:end])
+    return curve
 
 
 def auc_pr(curve: PRCurve) -> float:
@@ -280,7 +321,7 @@ def _topk_hits(s: np.ndarray, gt: np.ndarray, k: int) -> np.ndarray:
 
 
 def recall_at_k(similarity: np.ndarray, ground_truth: np.ndarray, k: int,
-                warn: bool = True) -> float:
+                warn: bool = True, ignore: np.ndarray | None = None) -> float:
     """Fraction of queries (with ground truth) whose top-k references include a true one.
 
     Args:
@@ -288,6 +329,7 @@ def recall_at_k(similarity: np.ndarray, ground_truth: np.ndarray, k: int,
         ground_truth: ``(Nq, Nr)`` bool.
         k: list length (>= 1; capped at Nr). Ties: stable by reference index.
         warn: log a warning when queries are left out.
+        ignore: optional ``(Nq, Nr)`` bool soft ground truth (treated as unranked).
 
     Returns:
         Recall@k in ``[0, 1]``.
@@ -297,24 +339,58 @@ def recall_at_k(similarity: np.ndarray, ground_truth: np.ndarray, k: int,
     """
     if int(k) < 1:
         raise ValueError(f"k must be >= 1, got {k}")
-    s, gt = _check(similarity, ground_truth)
+    s, gt = _check(similarity, ground_truth, ignore)
     keep = _kept_queries(s, gt, warn)
     return float(_topk_hits(s[keep], gt[keep], k).mean())
 
 
-def evaluate(similarity: np.ndarray, ground_truth: np.ndarray, protocol: str = "ratio"
-             ) -> dict[str, float]:
-    """Table metrics: ``{"auc", "r_at_100p", "r_at_1", "r_at_5"}`` (PR metrics per ``protocol``).
+def recall_rate_at_n(similarity: np.ndarray, ground_truth: np.ndarray, n_max: int = 20,
+                     ignore: np.ndarray | None = None) -> np.ndarray:
+    """VPR-Bench's RecallRate@N for N = 1..n_max (its ``compute_RecallRateAtN``).
 
-    Logs at most one coverage warning; raises a ValueError when no query has ground truth.
+    The share of *all* queries whose top-N references contain a ground-truth one: VPR-Bench
+    divides by every query, so a query without ground truth counts as a miss (a warning says
+    how many); :func:`recall_at_k` leaves such queries out. Ties: stable by reference index
+    (VPR-Bench's ``argpartition`` breaks them arbitrarily); NaN is never in the top N.
+    VPR-Bench's own loop stops at N = 19 (``range(1, 20)``); the values agree up to there.
+
+    Args:
+        similarity: ``(Nq, Nr)``; NaN = not ranked.
+        ground_truth: ``(Nq, Nr)`` bool.
+        n_max: largest N (>= 1).
+        ignore: optional ``(Nq, Nr)`` bool soft ground truth (treated as unranked).
+
+    Returns:
+        ``(n_max,)`` float, entry ``N - 1`` is RecallRate@N (non-decreasing).
     """
-    curve = pr_curve(similarity, ground_truth, protocol)
-    return {
-        "auc": auc_pr(curve),
-        "r_at_100p": recall_at_100_precision(curve),
-        "r_at_1": recall_at_k(similarity, ground_truth, 1, warn=protocol == "multi_match"),
-        "r_at_5": recall_at_k(similarity, ground_truth, 5, warn=False),
-    }
+    if int(n_max) < 1:
+        raise ValueError(f"n_max must be >= 1, got {n_max}")
+    s, gt = _check(similarity, ground_truth, ignore)
+    _kept_queries(s, gt, warn=False)  # raises without ground truth
+    rank = _true_rank(s, gt)
+    never = int((rank == np.iinfo(np.int64).max).sum())
+    if never:
+        logger.warning("RecallRate@N divides by all %d queries as VPR-Bench does: %d of them "
+                       "have no ranked ground-truth reference and count as misses",
+                       s.shape[0], never)
+    return (rank[:, None] < np.arange(1, int(n_max) + 1)).mean(axis=0)
+
+
+def evaluate(similarity: np.ndarray, ground_truth: np.ndarray, protocol: str = "ratio",
+             ks: Sequence[int] = (1, 5), ignore: np.ndarray | None = None) -> dict[str, float]:
+    """Table metrics ``{"auc", "r@100p", "r@K" for K in ks}`` (the keys of ``bootstrap_metrics``).
+
+    ``auc`` and ``r@100p`` follow ``protocol``; R@K is protocol-free (:func:`recall_at_k`).
+    ``ignore``: optional ``(Nq, Nr)`` bool soft ground truth (see the module docstring). Logs at
+    most one coverage warning; raises a ValueError when no query has ground truth.
+    """
+    s, gt = _check(similarity, ground_truth, ignore)
+    curve = pr_curve(s, gt, protocol)
+    out = {"auc": auc_pr(curve), "r@100p": recall_at_100_precision(curve)}
+    for i, k in enumerate(ks):
+        out[f"r@{int(k)}"] = recall_at_k(s, gt, k, warn=i == 0 and protocol in ("multi_match",
+                                                                               "vpr_bench"))
+    return out
 
 
 def metrics_table(results: Mapping[str, Mapping[str, float]]):
