@@ -1,0 +1,45 @@
+"""VPR-Bench's RecallRate@N curve (N = 1..20) for several methods."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+
+__all__ = ["plot_recall_at_n"]
+
+
+def plot_recall_at_n(results_or_curves: Sequence | Mapping, title: str | None = None,
+                     n_max: int = 20) -> matplotlib.figure.Figure:
+    """RecallRate@N (y) against N (x), one line per method; legend outside the axes, right.
+
+    Args:
+        results_or_curves: objects with ``.label``, ``.similarity (Nq, Nr)``, ``.ground_truth``
+            (e.g. :class:`~vpr_core.pipeline.MethodResult`), or ``{label: (n,) RecallRate@N}``.
+        title: axes title (the caller names dataset, tolerance and protocol).
+        n_max: largest N for results (:func:`~vpr_core.evaluation.recall_rate_at_n`).
+
+    Returns:
+        The Figure (not saved).
+    """
+    from ..evaluation import recall_rate_at_n
+
+    if isinstance(results_or_curves, Mapping):
+        curves = {str(k): np.asarray(v, dtype=float) for k, v in results_or_curves.items()}
+    else:
+        curves = {r.label: recall_rate_at_n(r.similarity, r.ground_truth, n_max)
+                  for r in results_or_curves}
+    fig, ax = plt.subplots(figsize=(7.0, 3.8), constrained_layout=True)
+    for label, y in curves.items():
+        ax.plot(np.arange(1, y.size + 1), y, marker="o", ms=3, lw=1.5, label=label)
+    ax.set_xlabel("N")
+    ax.set_ylabel("RecallRate@N (VPR-Bench)")
+    ax.set_ylim(0.0, 1.02)
+    ax.grid(alpha=0.3)
+    if title:
+        ax.set_title(title)
+    if curves:
+        ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
+    return fig
