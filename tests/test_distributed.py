@@ -87,8 +87,6 @@ def test_features_on_cluster_equal_in_process(client, small_set, conf):
 
 
 def test_global_features_on_cluster_equal_in_process(client, small_set):
-    if not hasattr(LandmarkEncoder, "encode_global"):
-        pytest.skip("LandmarkEncoder.encode_global not available yet")
     enc = LandmarkEncoder(**ENCODER_ROI)
     got, _ = extract_features_distributed(client, small_set, "reference", ENCODER_ROI,
                                           kind="global")
@@ -149,12 +147,11 @@ def test_in_process_fallback_equals_direct_call():
 
 
 def test_scheduler_address_resolution(monkeypatch):
-    monkeypatch.delenv(SCHEDULER_ENV, raising=False)
+    # None is in-process, always: the library never reads $VPR_DASK_SCHEDULER (the CLI does)
+    monkeypatch.setenv(SCHEDULER_ENV, "tcp://127.0.0.1:8786")
     assert scheduler_address(None) is None
     assert get_client(None) is None
-    monkeypatch.setenv(SCHEDULER_ENV, " tcp://127.0.0.1:8786 ")
-    assert scheduler_address(None) == "tcp://127.0.0.1:8786"
-    assert scheduler_address("tcp://127.0.0.1:9000") == "tcp://127.0.0.1:9000"
+    assert scheduler_address(" tcp://127.0.0.1:9000 ") == "tcp://127.0.0.1:9000"
     with pytest.raises(ValueError, match="non-empty string"):
         scheduler_address("  ")
 

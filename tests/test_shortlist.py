@@ -117,7 +117,7 @@ def test_rerank_validates_inputs():
 
 
 def test_match_stage_exhaustive_and_full_shortlist_agree():
-    from vpr_core.engine.stages import match
+    from vpr_core.pipeline.run import match
 
     rng = np.random.default_rng(4)
     qd, qb = _landmark_sets(rng, 5)
@@ -136,7 +136,7 @@ def test_match_stage_exhaustive_and_full_shortlist_agree():
 
 
 def test_whole_image_boxes_round_trip(tiny_synthetic):
-    from vpr_core.engine.stages import split_whole_image, with_whole_image_boxes
+    from vpr_core.engine.shortlist import split_whole_image, with_whole_image_boxes
 
     n = len(tiny_synthetic.query_paths)
     boxes = {"query": [np.zeros((0, 4))] + [np.ones((2, 4))] * (n - 1),

@@ -1,29 +1,26 @@
 """Connecting to a Dask cluster: the scheduler address and the client (used by the engine).
 
-The address comes from the ``scheduler`` argument (``--scheduler``), else from
-``$VPR_DASK_SCHEDULER``, else there is none and everything runs in-process (Dask is then never
-imported).
+The address comes from the ``scheduler`` argument only (the CLI fills it from ``--scheduler`` or
+``$VPR_DASK_SCHEDULER`` via :func:`vpr_core.settings.dask_scheduler`); without one everything
+runs in-process and Dask is never imported.
 """
 
 from __future__ import annotations
 
-import os
-
+from .. import settings
+from ..settings import SCHEDULER_ENV
 from ..utils import logger, progress
 
 __all__ = ["SCHEDULER_ENV", "gather_in_order", "get_client", "scheduler_address"]
 
-#: Environment variable holding the scheduler address (``tcp://host:8786``).
-SCHEDULER_ENV = "VPR_DASK_SCHEDULER"
-
 
 def scheduler_address(scheduler: str | None = None) -> str | None:
-    """The scheduler to use: ``scheduler`` if given, else ``$VPR_DASK_SCHEDULER``, else None.
+    """``scheduler`` stripped, or None (in-process). The environment is not read here.
 
     Raises:
         ValueError: the address is blank or not a string.
     """
-    addr = scheduler if scheduler is not None else os.environ.get(SCHEDULER_ENV)
+    addr = scheduler
     if addr is None:
         return None
     if not isinstance(addr, str) or not addr.strip():
@@ -33,12 +30,13 @@ def scheduler_address(scheduler: str | None = None) -> str | None:
     return addr.strip()
 
 
-def get_client(scheduler: str | None = None, timeout: float = 30.0):
+def get_client(scheduler: str | None = None, timeout: float | None = None):
     """A ``dask.distributed.Client`` connected to the scheduler, or None to run in-process.
 
     Args:
-        scheduler: address (``tcp://host:port``); None: ``$VPR_DASK_SCHEDULER``; neither: None.
-        timeout: seconds to wait for the scheduler.
+        scheduler: address (``tcp://host:port``); None: None (in-process).
+        timeout: seconds to wait for the scheduler; None:
+            :func:`vpr_core.settings.scheduler_timeout` (``$VPR_SCHEDULER_TIMEOUT``, 15 s).
 
     Returns:
         A connected ``Client`` (close it when done, e.g. ``with get_client(...) as c``) or None.
@@ -50,6 +48,7 @@ def get_client(scheduler: str | None = None, timeout: float = 30.0):
     addr = scheduler_address(scheduler)
     if addr is None:
         return None
+    timeout = settings.scheduler_timeout() if timeout is None else float(timeout)
     try:
         from distributed import Client
     except ImportError as e:  # pragma: no cover - dask[distributed] is a dependency

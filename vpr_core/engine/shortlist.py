@@ -29,7 +29,10 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["global_cosine", "rerank", "shortlist_pairs", "topk_lowest_index"]
+__all__ = ["global_cosine", "rerank", "shortlist_pairs", "split_whole_image", "topk_lowest_index",
+           "whole_image_box", "with_whole_image_boxes"]
+
+SIDES = ("query", "reference")
 
 #: Queries per chunk of the global cosine matrix (bounds the temporary memory to
 #: ``CHUNK_QUERIES * Nr`` float64 values per step).
@@ -186,3 +189,49 @@ def rerank(similarity_pairs_values: np.ndarray, pairs: np.ndarray, nq: int, nr: 
     if not np.array_equal(out[pr[:, 0], pr[:, 1]], vals):
         raise ValueError("a (query, reference) pair is listed twice with different values")
     return out
+
+
+def whole_image_box(image_size: tuple[int, int]) -> np.ndarray:
+    """``(1, 4)`` float64 box ``(0, 0, W, H)`` of an image of size ``(H, W)``."""
+    h, w = image_size
+    return np.array([[0.0, 0.0, float(w), float(h)]])
+
+
+def with_whole_image_boxes(boxes: dict, dataset) -> dict:
+    """Landmarks with the whole-image box appended as each image's last row.
+
+    The whole-image descriptor of a shortlist is then computed in the same encoder call as the
+    landmarks (one backbone pass per image with ``pooling="roi"``) and cached in the same
+    per-image store; :func:`split_whole_image` separates them again.
+
+    Args:
+        boxes: ``{"query": [(K_i, 4)], "reference": [...], ...}`` (other keys are kept).
+        dataset: the :class:`~vpr_core.datasets.PlaceDataset` the boxes belong to.
+
+    Returns:
+        The same dict layout with ``(K_i + 1, 4)`` arrays.
+    """
+    out = dict(boxes)
+    for side in SIDES:
+        out[side] = [np.concatenate([np.asarray(b, dtype=np.float64).reshape(-1, 4),
+                                     whole_image_box(dataset.image_size(side, i))])
+                     for i, b in enumerate(boxes[side])]
+    return out
+
+
+def split_whole_image(feats: dict) -> tuple[dict, dict[str, np.ndarray]]:
+    """Undo :func:`with_whole_image_boxes` on descriptors.
+
+    Args:
+        feats: ``{"query": [(K_i + 1, D)], "reference": [...], "seconds": ...}``.
+
+    Returns:
+        ``(landmark feats in the same layout with (K_i, D) arrays, {side: (N, D) whole-image
+        descriptors})``.
+    """
+    out = dict(feats)
+    glob = {}
+    for side in SIDES:
+        out[side] = [d[:-1] for d in feats[side]]
+        glob[side] = np.stack([d[-1] for d in feats[side]]).astype(np.float32)
+    return out, glob

@@ -10,13 +10,15 @@ drops a query whose row is all NaN), and a warning names the image. It is never 
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 import numpy as np
 
 from ..evaluation.bootstrap import N_BOOTSTRAP
+from ..matching import similarity_matrix
 from ..methods import get_method, landmark_config, method_label
-from ..paper import PROJECTION_DIM
+from ..paper import PROJECTION_DIM, SOFT_NMS_SIGMA
 from ..utils import cache_dir, config_slug, logger
 from .cache import SIDES, atomic_savez, dataset_fingerprint, load_npz, n_images
 from .feature_stage import extract_features, get_encoder
@@ -54,15 +56,67 @@ def _check_shortlist(shortlist: Any, n_ref: int) -> int | None:
     return int(shortlist) if shortlist < n_ref else None  # k >= Nr is exhaustive
 
 
-def _features(conf: dict, boxes: dict, dataset, encoder, shortlist: int | None, client):
+def _features(boxes: dict, dataset, encoder, shortlist: int | None, client):
     """Landmark descriptors (and whole-image descriptors when a shortlist needs them)."""
-    from ..engine.stages import split_whole_image, with_whole_image_boxes
-
     if shortlist is None:
         return extract_features(boxes, dataset, encoder, client=client), None
+    from ..engine.shortlist import split_whole_image, with_whole_image_boxes
+
     feats = extract_features(with_whole_image_boxes(boxes, dataset), dataset, encoder,
                              client=client)
     return split_whole_image(feats)
+
+
+def match(boxes: dict[str, Any], feats: dict[str, Any], soft_nms_iou: float | None = None,
+          sigma: float = SOFT_NMS_SIGMA, shortlist: int | None = None,
+          global_desc: dict[str, np.ndarray] | None = None, client=None
+          ) -> tuple[np.ndarray, dict[str, float]]:
+    """Eq. (1) similarities: exhaustive in-process (the paper's path: one
+    :func:`~vpr_core.matching.similarity_matrix` call), or on each query's shortlist, or on a
+    Dask client (:mod:`vpr_core.engine`, imported only then).
+
+    Args:
+        boxes: ``{"query": [(K_i, 4)], "reference": [...]}`` landmarks.
+        feats: ``{"query": [(K_i, D)], "reference": [...]}`` descriptors.
+        soft_nms_iou, sigma: Algorithm 4 settings.
+        shortlist: None (exhaustive) or k: Eq. (1) only on each query's top-k references by
+            the cosine of ``global_desc``.
+        global_desc: ``{"query": (Nq, D'), "reference": (Nr, D')}`` whole-image descriptors
+            (needed with ``shortlist``).
+        client: a ``dask.distributed.Client`` or None (in-process).
+
+    Returns:
+        ``(similarity (Nq, Nr) float64, info)``: NaN off the shortlist; ``info`` has
+        ``pairs`` (image pairs scored by Eq. (1)), ``shortlist_s`` (global ranking seconds) and
+        ``matching_s`` (Eq. (1) seconds).
+    """
+    args = (feats["query"], boxes["query"], feats["reference"], boxes["reference"])
+    nq, nr = len(feats["query"]), len(feats["reference"])
+    t0 = time.perf_counter()
+    if shortlist is None:
+        if client is None:
+            sim = similarity_matrix(*args, soft_nms_iou=soft_nms_iou, sigma=sigma)
+        else:
+            from ..engine.blocks import similarity_blocks_distributed
+
+            sim = similarity_blocks_distributed(client, *args, soft_nms_iou=soft_nms_iou,
+                                                sigma=sigma)
+        return sim, {"pairs": float(nq * nr), "shortlist_s": 0.0,
+                     "matching_s": time.perf_counter() - t0}
+    if global_desc is None:
+        raise ValueError("shortlist=k needs the whole-image descriptors (global_desc)")
+    from ..engine.blocks import similarity_pairs_distributed
+    from ..engine.shortlist import rerank, shortlist_pairs
+
+    pairs, _ = shortlist_pairs(global_desc["query"], global_desc["reference"], shortlist)
+    t1 = time.perf_counter()
+    vals = similarity_pairs_distributed(client, *args, pairs, soft_nms_iou=soft_nms_iou,
+                                        sigma=sigma)  # client None: one similarity_pairs call
+    sim = rerank(vals, pairs, nq, nr)
+    t2 = time.perf_counter()
+    logger.info("shortlist k=%d: Eq. (1) on %d of %d pairs (%.1f s ranking, %.1f s matching)",
+                shortlist, len(pairs), nq * nr, t1 - t0, t2 - t1)
+    return sim, {"pairs": float(len(pairs)), "shortlist_s": t1 - t0, "matching_s": t2 - t1}
 
 
 def run_method(method: str | dict, dataset, backbone: str = "efficientnet_lite0",
@@ -84,8 +138,9 @@ def run_method(method: str | dict, dataset, backbone: str = "efficientnet_lite0"
             cosine of whole-image descriptors (same backbone and pooling) are re-ranked by
             Eq. (1); all other pairs are NaN ("not ranked"; the ratio protocol's S2 is the
             second best inside the shortlist). k >= the number of references is exhaustive.
-        scheduler: a Dask scheduler address (or ``$VPR_DASK_SCHEDULER``): features and
-            matching run as tasks on that cluster; None: in-process.
+        scheduler: a Dask scheduler address: features and matching run as tasks on that
+            cluster; None: in-process, always (the environment is not read here: the CLI reads
+            ``$VPR_DASK_SCHEDULER`` through :func:`vpr_core.settings.dask_scheduler`).
         n_bootstrap: resamples of the metric intervals.
         **overrides: the method's own options, e.g. ``iou_threshold=0.4``; an option the
             method does not take is an error.
@@ -93,18 +148,20 @@ def run_method(method: str | dict, dataset, backbone: str = "efficientnet_lite0"
     Returns:
         A :class:`MethodResult`.
     """
-    from ..engine import get_client
-    from ..engine.stages import match
     from ..evaluation import bootstrap_metrics, evaluate, ground_truth_coverage
 
     conf = get_method(method, **overrides) if isinstance(method, str) else dict(method)
     nq, nr = n_images(dataset, "query"), n_images(dataset, "reference")
     k = _check_shortlist(shortlist, nr)
     encoder = get_encoder(backbone, dim, seed, weights, pooling=pooling, device=device)
-    client = get_client(scheduler)
+    client = None
+    if scheduler is not None:
+        from ..engine.client import get_client
+
+        client = get_client(scheduler)
     try:
         boxes = extract_landmarks(conf, dataset)
-        feats, glob = _features(conf, boxes, dataset, encoder, k, client)
+        feats, glob = _features(boxes, dataset, encoder, k, client)
         key = {"dataset": dataset_fingerprint(dataset), "landmarks": landmark_config(conf),
                "matching": conf["matching"], "encoder": dict(encoder.config)}
         if k is not None:
