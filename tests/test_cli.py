@@ -17,9 +17,51 @@ def test_eval_prints_table_and_writes_plot(tmp_path, capsys):
         assert col in out
     assert "AUC(ratio) [95% CI]" in out and "queries with ground truth: 6 of 6" in out
     res = tmp_path / "results" / "synthetic"
-    assert (res / "eval_dense_efficientnet_lite0.png").stat().st_size > 0
+    png = tmp_path / "figures" / "synthetic" / "eval_dense_efficientnet_lite0.png"
+    assert png.stat().st_size > 0 and str(png) in out  # the closing lines list every file
     csv = (res / "eval_dense_efficientnet_lite0.csv").read_text()
-    assert csv.startswith("method,") and "AUC lo" in csv
+    assert csv.startswith("method,run,") and "AUC lo" in csv
+    for col in ("dataset", "root", "tolerance", "protocol", "backbone", "pooling", "version"):
+        assert f",{col}," in csv.splitlines()[0] + ","
+
+
+def test_eval_label_keeps_two_folder_datasets_apart(tmp_path, gardens_point_mini_root, capsys):
+    import shutil
+
+    roots = []
+    for name in ("site_a", "site_b"):
+        root = tmp_path / name
+        for side in ("query", "reference"):
+            (root / side).mkdir(parents=True)
+            for i in range(3):
+                shutil.copy(gardens_point_mini_root / side / f"{i}.jpg", root / side)
+        roots.append(root)
+    for root in roots:
+        assert cli.main(["eval", "--dataset", "folder", "--root", str(root), "--method",
+                         "dense", "--out", str(tmp_path / "out")]) == 0
+    for name in ("site_a", "site_b"):
+        assert (tmp_path / "out" / "results" / name / "eval_dense_efficientnet_lite0.csv"
+                ).is_file()
+
+
+def test_seed_must_be_non_negative(capsys):
+    with pytest.raises(SystemExit):
+        cli.main(["eval", "--seed", "-1"])
+    assert "--seed must be an integer >= 0" in capsys.readouterr().err
+
+
+def test_user_peer_from_a_matrix_enters_the_table(tmp_path, capsys):
+    import numpy as np
+
+    sim = np.eye(6) + 0.01 * np.arange(36).reshape(6, 6)
+    np.save(tmp_path / "mine.npy", sim)
+    rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "dense",
+                   "--peer", f"MyNet={tmp_path / 'mine.npy'}", "--out", str(tmp_path)])
+    assert rc == 0
+    out = capsys.readouterr().out
+    line = next(ln for ln in out.splitlines() if ln.startswith("MyNet"))
+    assert "1.000 [1.000, 1.000]" in line  # the diagonal is always top-1
+    assert "finding" in line or "inconclusive" in line
     assert os.environ.get("VPR_OUTPUT_DIR") != str(tmp_path)  # --out is per command
 
 

@@ -140,17 +140,9 @@ def test_metrics_table_and_perfect_matrix():
     assert df.loc["classical", "auc"] == pytest.approx(5 / 6)
 
 
-def test_plot_pr_curves():
+def test_plot_metric_bars():
     from vpr_core import viz
 
-    if not hasattr(viz, "plot_pr_curves"):
-        pytest.skip("viz.plot_pr_curves not present")
-    fig = viz.plot_pr_curves({"a": pr_curve(S, GT), "b": pr_curve(S, GT, "best_match")},
-                             title="t")
-    ax = fig.axes[0]
-    assert ax.get_xlim() == (0.0, 1.0) and ax.get_ylim() == (0.0, 1.02)
-    labels = [t.get_text() for t in ax.get_legend().get_texts()]
-    assert labels[0].startswith("a") and "0.83" in labels[0]
     fig2 = viz.plot_metric_bars(metrics_table({"a": evaluate(S, GT)}), metric="auc")
     assert fig2.axes
 

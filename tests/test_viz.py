@@ -65,20 +65,39 @@ def test_descriptor_matrices_and_pair_terms(tmp_path):
         viz.plot_pair_terms(dist, shape[:3], 10, 12, 0.25)
 
 
-def test_pr_legend_carries_the_interval_and_keeps_method_colours():
-    import numpy as np
+def _result(label, sim, gt, auc=None):
+    from types import SimpleNamespace
 
     from vpr_core.evaluation import pr_curve
+
+    return SimpleNamespace(label=label, similarity=sim, ground_truth=gt, dataset="toy",
+                           tolerance=0, protocol="ratio",
+                           intervals={} if auc is None else {"auc": auc},
+                           curve=lambda: pr_curve(sim, gt, warn=False))
+
+
+def test_pr_curves_legend_outside_identical_curves_said_and_dataset_named():
+    import numpy as np
+    from matplotlib.colors import to_hex
+
     from vpr_core.viz import plot_pr_curves
     from vpr_core.viz.curves import METHOD_COLORS
 
     rng = np.random.default_rng(0)
     gt = np.eye(6, dtype=bool)
-    curve = pr_curve(gt + rng.random((6, 6)) * 0.9, gt)
-    fig = plot_pr_curves({"dense": curve, "x": curve}, intervals={"dense": (0.5, 0.25, 0.75)})
-    texts = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    a, b = gt + rng.random((6, 6)) * 0.9, gt + rng.random((6, 6)) * 0.9
+    results = [_result("dense", a, gt, (0.5, 0.25, 0.75)), _result("x", b, gt),
+               _result("y", a.copy(), gt)]
+    fig = plot_pr_curves(results, title="Fig. T")
+    ax = fig.axes[0]
+    texts = [t.get_text() for t in ax.get_legend().get_texts()]
     assert texts[0] == "dense (AUC 0.500 [0.250, 0.750])"
     assert texts[1].startswith("x (AUC ") and "[" not in texts[1]
-    from matplotlib.colors import to_hex
+    assert texts[2].startswith("y (= dense")  # same matrix: drawn once, said in the legend
+    assert len([ln for ln in ax.lines if len(ln.get_xdata())]) == 2
+    assert to_hex(ax.lines[0].get_color()) == to_hex(METHOD_COLORS["dense"])
+    assert "toy: 6 of 6 queries with ground truth, tolerance 0" in ax.get_title(loc="left")
+    fig.canvas.draw()
+    legend = ax.get_legend().get_window_extent()
+    assert legend.x0 >= ax.get_window_extent().x1  # beside the axes, never over the curves
 
-    assert to_hex(fig.axes[0].lines[0].get_color()) == to_hex(METHOD_COLORS["dense"])

@@ -14,9 +14,11 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
+from pathlib import Path
 
-from . import paths
+from . import paths, settings
 from .utils import configure_logging
 
 INTERRUPTED = "interrupted; cached work is kept, rerun to resume"
@@ -45,6 +47,16 @@ def _dataset_options(args: argparse.Namespace) -> dict:
             raise ValueError(f"--opt {item!r} is not KEY=VALUE (e.g. --opt query=winter)")
         opts[key.strip()] = _parse_value(value.strip())
     return opts
+
+
+def _non_negative(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"--seed must be an integer >= 0, got {text!r}")
+    return value
 
 
 def format_table(rows: list[dict], columns: list[str] | None = None, floatfmt: str = ".3f") -> str:
@@ -76,92 +88,95 @@ def _peer_results(args: argparse.Namespace, dataset) -> list:
             for p in find_vprbench_peers(args.peers, args.peer_dataset)]
 
 
-def _paired_rows(results: list, n_bootstrap: int) -> list[dict]:
-    """Paired bootstrap of every method against the first one (same resampled queries)."""
-    from .evaluation import difference_verdict, paired_bootstrap
+def _user_peers(args: argparse.Namespace, dataset) -> list:
+    """``--peer NAME=PATH``: a user's method from a similarity (or, with ``--peer-distance``,
+    distance) matrix ``.npy``, or from a folder with ``queries_descriptors.npy`` and
+    ``database_descriptors.npy``."""
+    from pathlib import Path
 
-    rows = []
-    base = results[0]
-    for r in results[1:]:
-        d = paired_bootstrap(r.similarity, base.similarity, base.ground_truth,
-                             n=max(n_bootstrap, 1), seed=0)
-        row = {"difference": f"{r.label} - {base.label}"}
-        for key, name in (("auc", "dAUC"), ("r@1", "dR@1")):
-            delta, lo, hi, pval = d[key]
-            row[name] = f"{delta:+.3f} [{lo:+.3f}, {hi:+.3f}]"
-            row[f"{name} p"] = f"{pval:.3f}"
-            row[f"{name} verdict"] = difference_verdict(lo, hi)
-        rows.append(row)
-    return rows
+    from .baselines import peer_from_descriptors, peer_from_matrix
+    from .pipeline import peer_result
+
+    out = []
+    for item in args.peer or []:
+        name, sep, path = item.partition("=")
+        if not sep or not name.strip() or not path.strip():
+            raise ValueError(f"--peer {item!r} is not NAME=PATH (e.g. --peer MyNet=sim.npy or "
+                             "--peer MyNet=descriptors_folder/)")
+        p = Path(path.strip()).expanduser()
+        if p.is_dir():
+            peer = peer_from_descriptors(p / "queries_descriptors.npy",
+                                         p / "database_descriptors.npy", name.strip(),
+                                         metric=args.peer_metric)
+        else:
+            peer = peer_from_matrix(p, name.strip(), distance=args.peer_distance)
+        result = peer_result(peer, dataset, n_bootstrap=args.n_bootstrap)
+        result.label = name.strip()
+        out.append(result)
+    return out
 
 
-def _display_rows(results: list) -> list[dict]:
+def _display(table) -> list[dict]:
+    """The comparison table as printable rows: value [interval], paired verdicts."""
     from .evaluation import format_interval
 
     rows = []
-    for r in results:
-        row = r.row()
-        iv = r.intervals
-        out = {"method": row["method"]}
-        for key, name, col in (("auc", "AUC(ratio) [95% CI]", "AUC(ratio)"),
-                               ("r@100p", "R@100P [95% CI]", "R@100P"),
-                               ("r@1", "R@1 [95% CI]", "R@1")):
-            out[name] = format_interval(*iv[key]) if key in iv else f"{row[col]:.3f}"
-        out["R@5"] = row["R@5"]
-        for col in ("landmarks/img", "landmarks s/img", "features s/img", "matching s/pair",
-                    "pairs scored"):
-            out[col] = row[col]
-        rows.append(out)
+    for label, r in table.iterrows():
+        row = {"method": label}
+        for name in ("AUC", "R@100P", "R@1", "R@5"):
+            head = f"AUC({r['protocol']})" if name == "AUC" else name
+            row[f"{head} [95% CI]"] = format_interval(r[name], r[f"{name} lo"], r[f"{name} hi"])
+        for name in ("dAUC", "dR@1"):
+            row[name] = ""
+            if name in table.columns and isinstance(r.get(f"{name} verdict"), str):
+                row[name] = (f"{r[name]:+.3f} [{r[f'{name} lo']:+.3f}, {r[f'{name} hi']:+.3f}] "
+                             f"{r[f'{name} verdict']}")
+        row["queries"] = str(int(r["queries"]))
+        row["landmarks/img"] = f"{r['landmarks/img']:.0f}"
+        for col in ("landmarks s/img", "features s/img", "matching s/pair"):
+            row[col] = f"{r[col]:.4f}"
+        row["note"] = f"= {r['identical to']}" if isinstance(r.get("identical to"), str) else ""
+        rows.append(row)
     return rows
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
     from .datasets import load_dataset
-    from .evaluation import ground_truth_coverage
+    from .evaluation import compare, ground_truth_coverage
     from .pipeline import run_method
-    from .viz import plot_pr_curves, save_figure
+    from .utils import tune_allocator
+    from .viz import plot_pr_curves, save
 
+    tune_allocator()  # process-wide, here at the boundary: crop features ~1.7x faster
     dataset = load_dataset(args.dataset, root=args.root, **_dataset_options(args))
+    label = args.label or (Path(args.root).expanduser().resolve().name
+                           if args.root and args.dataset == "folder" else dataset.name)
     n_gt, n_q = ground_truth_coverage(dataset.ground_truth)
-    print(f"dataset: {dataset.name}  queries={len(dataset.query_paths)} "
+    print(f"dataset: {dataset.name} ({label})  queries={len(dataset.query_paths)} "
           f"references={len(dataset.reference_paths)} tolerance={dataset.tolerance}")
     print(f"queries with ground truth: {n_gt} of {n_q}")
     mode = "exhaustive" if args.shortlist is None else f"shortlist k={args.shortlist}"
+    scheduler = args.scheduler or settings.dask_scheduler()
     results = [run_method(m, dataset, backbone=args.backbone, dim=args.dim, seed=args.seed,
                           weights=args.weights, pooling=args.pooling, device=args.device,
-                          shortlist=args.shortlist, scheduler=args.scheduler,
+                          shortlist=args.shortlist, scheduler=scheduler,
                           n_bootstrap=args.n_bootstrap) for m in args.method]
-    results += _peer_results(args, dataset)
-    rows = [r.row() for r in results]
+    results += _peer_results(args, dataset) + _user_peers(args, dataset)
     print(f"backbone: {results[0].encoder.get('backbone')} "
           f"(weights: {results[0].encoder.get('weights')}, pooling: {args.pooling}, {mode}; "
-          f"95% bootstrap intervals over queries, {args.n_bootstrap} resamples)")
-    table = format_table(_display_rows(results), floatfmt=".4f")
-    print(table)
-    paired = _paired_rows(results, args.n_bootstrap) if len(results) > 1 else []
-    if paired:
-        print("\npaired bootstrap (same resampled queries); a finding only where the interval "
-              "excludes 0:")
-        print(format_table(paired))
-    out = paths.results_dir(dataset.name)
+          f"95% bootstrap intervals over queries, {args.n_bootstrap} resamples; paired "
+          f"differences against {results[0].label}: a finding only where the interval "
+          "excludes 0)")
+    table = compare(results, n_bootstrap=args.n_bootstrap)
+    print(format_table(_display(table)))
     stem = "eval_" + "+".join(args.method) + f"_{args.backbone.replace(':', '_')}"
     if args.pooling != "crop":
         stem += f"_{args.pooling}"
     if args.shortlist is not None:
         stem += f"_k{args.shortlist}"
-    (out / f"{stem}.txt").write_text(
-        f"queries with ground truth: {n_gt} of {n_q}; tolerance {dataset.tolerance}; {mode}\n"
-        + table + "\n" + ("\n" + format_table(paired) + "\n" if paired else ""))
-    import pandas as pd
-
-    pd.DataFrame(rows).to_csv(out / f"{stem}.csv", index=False, float_format="%.6f")
-    fig = plot_pr_curves({r.label: r.curve() for r in results},
-                         intervals={r.label: r.intervals["auc"] for r in results
-                                    if "auc" in r.intervals},
-                         title=f"{dataset.name} ({n_gt} queries, tolerance {dataset.tolerance}"
-                               f", {mode})")
-    png = save_figure(fig, out / f"{stem}.png")
-    print(f"wrote {out / (stem + '.csv')} and {png}")
+    fig = plot_pr_curves(results, title=f"{label} ({mode})")
+    written = [save(table, stem, label, out=args.out), save(fig, stem, label, out=args.out)]
+    print("wrote:\n" + "\n".join(f"  {p}" for p in written))
     return 0
 
 
@@ -200,7 +215,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="synthetic | gardens_point | mapillary_berlin | "
                              "freiburg_across_seasons | nordland | vpr_bench | folder")
         sp.add_argument("--root", default=None, help="dataset folder (real datasets)")
-        sp.add_argument("--backbone", default="efficientnet_lite0")
+        sp.add_argument("--backbone", default="efficientnet_lite0",
+                        help="landmark descriptor: efficientnet_lite0 (default, ImageNet "
+                             "weights shipped), efficientnet_lite1/2, alexnet_conv3 (the "
+                             "paper's; needs a weights file), hog, sift")
         sp.add_argument("--out", default=None,
                         help="output root: figures/, results/, runs/ (and .cache/ unless "
                              "VPR_CACHE_DIR is set) go under it; default the current folder "
@@ -210,8 +228,15 @@ def build_parser() -> argparse.ArgumentParser:
     common(e)
     e.add_argument("--method", nargs="+", default=["dense"],
                    help=f"one or more of: {', '.join(available_methods())}")
-    e.add_argument("--dim", type=int, default=PROJECTION_DIM)
-    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--label", default=None,
+                   help="output subfolder and the dataset's name in tables and titles "
+                        "(default: the root folder's name for folder datasets, else the "
+                        "dataset name)")
+    e.add_argument("--dim", type=int, default=PROJECTION_DIM,
+                   help=f"descriptor dimension after the random projection (default "
+                        f"{PROJECTION_DIM})")
+    e.add_argument("--seed", type=_non_negative, default=0,
+                   help="seed of the random projection (default 0)")
     e.add_argument("--weights", default=None, help="AlexNet weights file (alexnet_conv3)")
     e.add_argument("--pooling", default="crop", choices=("crop", "roi"),
                    help="crop: the paper's per-landmark crops (default); roi: one backbone "
@@ -231,6 +256,14 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--peer-dataset", default=None, metavar="NAME",
                    help="VPR-Bench dataset folder under precomputed_matches/ "
                         "(e.g. GardensPointWalking)")
+    e.add_argument("--peer", action="append", metavar="NAME=PATH",
+                   help="your own method as a peer: a (Nq, Nr) similarity matrix .npy, or a "
+                        "folder with queries_descriptors.npy + database_descriptors.npy "
+                        "(repeatable)")
+    e.add_argument("--peer-distance", action="store_true",
+                   help="--peer matrices are distances (lower = more similar)")
+    e.add_argument("--peer-metric", default="cosine", choices=("cosine", "l2"),
+                   help="metric of --peer descriptor folders (default cosine)")
     e.add_argument("--step", type=int, default=None, help="nordland: keep every step-th place")
     e.add_argument("--opt", action="append", metavar="KEY=VALUE",
                    help="any other loader option, e.g. --opt query=winter (repeatable)")
@@ -274,10 +307,20 @@ def _check_names(parser: argparse.ArgumentParser, args: argparse.Namespace) -> N
         parser.error(str(exc))
 
 
+class _Terminated(Exception):
+    """SIGTERM, turned into an exception so that it unwinds like Ctrl-C."""
+
+
+def _terminated(signum, frame):
+    raise _Terminated()
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``vpr-study``; returns the exit code (2 on a user error, 130 on Ctrl-C)."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    previous = signal.getsignal(signal.SIGTERM)
+    signal.signal(signal.SIGTERM, _terminated)
     _check_names(parser, args)
     configure_logging()
     saved = os.environ.get(paths.OUTPUT_ENV)
@@ -288,11 +331,15 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(INTERRUPTED, file=sys.stderr)
         return 130
+    except _Terminated:
+        print(INTERRUPTED.replace("interrupted", "terminated"), file=sys.stderr)
+        return 143
     except (ValueError, TypeError, FileNotFoundError, IndexError, RuntimeError, OSError,
             ConnectionError, ImportError) as exc:
         print(f"vpr-study: error: {exc}", file=sys.stderr)
         return 2
     finally:  # --out applies to this command only (callers in the same process keep theirs)
+        signal.signal(signal.SIGTERM, previous)
         if saved is None:
             os.environ.pop(paths.OUTPUT_ENV, None)
         else:

@@ -19,6 +19,7 @@ from .bootstrap import (
     needs_text,
     paired_bootstrap,
 )
+from .compare import compare
 from .curves import (
     PROTOCOLS,
     PRCurve,
@@ -40,6 +41,7 @@ __all__ = [
     "auc_pr",
     "bootstrap_columns",
     "bootstrap_metrics",
+    "compare",
     "difference_verdict",
     "evaluate",
     "format_interval",

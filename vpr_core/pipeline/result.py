@@ -129,8 +129,8 @@ def peer_result(peer, dataset, n_bootstrap: int = N_BOOTSTRAP) -> MethodResult:
                "features_s_per_image": float(peer.encode_seconds),
                "matching_s_per_pair": float(peer.match_seconds), "pairs": float(nq * nr)}
     return MethodResult(
-        method=f"peer:{peer.name}", label=getattr(peer, "label", f"{peer.name} (VPR-Bench)"), dataset=dataset.name,
-        config={"name": f"peer:{peer.name}", "source": str(peer.source)}, encoder={},
+        method=f"peer:{peer.name}", label=f"{peer.name} (VPR-Bench)", dataset=dataset.name,
+        config={"name": f"peer:{peer.name}", "source": None if peer.source is None else str(peer.source)}, encoder={},
         similarity=sim, ground_truth=gt, boxes={"query": [], "reference": []},
         metrics=evaluate(sim, gt), timings=timings,
         intervals=bootstrap_metrics(sim, gt, n=n_bootstrap, seed=0) if n_bootstrap else {},

@@ -80,15 +80,7 @@ class ComparisonFigures:
         from ..viz import plot_pr_curves
 
         results = [self.resolve_run(item) for item in runs]
-        from ..evaluation import ground_truth_coverage
-
-        n_gt, n_q = ground_truth_coverage(self.dataset.ground_truth)
-        fig = plot_pr_curves({r.label: r.curve() for r in results},
-                             intervals={r.label: r.intervals["auc"] for r in results
-                                        if "auc" in getattr(r, "intervals", {})},
-                             title=f"{title or figure}\n{self.label} "
-                                   f"({n_gt} of {n_q} queries with ground truth, "
-                                   f"tolerance {self.dataset.tolerance}; AUC with 95% CI)")
+        fig = plot_pr_curves(results, title=f"{title or figure} ({self.label})")
         table = self.record(figure, results)
         self._figure_results[figure] = results
         if len(results) > 1:

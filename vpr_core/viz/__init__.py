@@ -1,8 +1,9 @@
 """Plot helpers (``plot_*``) and one deterministic :func:`save_figure`.
 
-Every figure of the study is drawn here; notebooks and :mod:`vpr_core.study` only call these.
+Every figure of the study is drawn here; notebooks call these and save with :func:`save`.
 
-- :mod:`~vpr_core.viz.base`: :func:`save_figure` (byte-identical PNGs), :func:`draw_boxes`.
+- :mod:`~vpr_core.viz.base`: :func:`save` (figures and tables), :func:`save_figure`
+  (byte-identical PNGs), :func:`draw_boxes`.
 - :mod:`~vpr_core.viz.images`: dataset examples, landmarks, dense scales (Fig. 9), coverage
   (Fig. 14).
 - :mod:`~vpr_core.viz.curves`: PR curves (Fig. 5, 7, 10-13), metric bars, scale distributions
@@ -14,15 +15,8 @@ Every figure of the study is drawn here; notebooks and :mod:`vpr_core.study` onl
 
 from __future__ import annotations
 
-import os
-
-import matplotlib
-
-if not os.environ.get("MPLBACKEND"):
-    matplotlib.use("Agg")
-
-from .base import METHOD_COLORS, SAVE_DPI, draw_boxes, save_figure
-from .curves import plot_metric_bars, plot_pr_curves, plot_scale_distribution
+from .base import METHOD_COLORS, SAVE_DPI, draw_boxes, save, save_figure
+from .curves import dataset_line, plot_metric_bars, plot_pr_curves, plot_scale_distribution
 from .images import (
     plot_coverage,
     plot_dataset_overview,
@@ -41,6 +35,7 @@ from .statistics import plot_asl, plot_cls, plot_cmr, plot_scale_statistics
 __all__ = [
     "METHOD_COLORS",
     "SAVE_DPI",
+    "dataset_line",
     "draw_boxes",
     "plot_asl",
     "plot_cls",
@@ -58,5 +53,6 @@ __all__ = [
     "plot_pr_curves",
     "plot_scale_distribution",
     "plot_scale_statistics",
+    "save",
     "save_figure",
 ]

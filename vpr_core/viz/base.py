@@ -8,9 +8,9 @@ import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ..paths import figures_dir
+from ..paths import figures_dir, results_dir
 
-__all__ = ["METHOD_COLORS", "SAVE_DPI", "draw_boxes", "save_figure"]
+__all__ = ["METHOD_COLORS", "SAVE_DPI", "draw_boxes", "save", "save_figure"]
 
 #: Resolution of every saved study figure (dots per inch).
 SAVE_DPI = 110
@@ -54,6 +54,47 @@ def save_figure(fig: matplotlib.figure.Figure, name: str | Path, dataset: str | 
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=dpi, metadata=png_metadata(path.suffix), bbox_inches=None)
     return path
+
+
+def save(obj, name: str, label: str, out: str | Path | None = None) -> Path:
+    """Write a figure or a table of the study under its dataset label (the one output writer).
+
+    A matplotlib Figure goes to ``figures/<label>/<name>.png`` (byte-identical for identical
+    inputs, :func:`save_figure`); a pandas DataFrame to ``results/<label>/<name>.csv`` (floats
+    with 6 decimals, the index kept). Both folders are under the output root
+    (:func:`vpr_core.paths.output_root`) or under ``out`` when given.
+
+    Args:
+        obj: ``matplotlib.figure.Figure`` or ``pandas.DataFrame``.
+        name: file stem, e.g. ``"fig05_selection"``.
+        label: the dataset label (subfolder), e.g. ``"synthetic"``, ``"gardens_point_mini"``.
+        out: another output root.
+
+    Returns:
+        The written path.
+
+    Raises:
+        TypeError: ``obj`` is neither a Figure nor a DataFrame.
+    """
+    import pandas as pd
+
+    if not label or not isinstance(label, str):
+        raise ValueError(f"save(): label must name the dataset (a non-empty string), got "
+                         f"{label!r}")
+    root = None if out is None else Path(out).expanduser().resolve()
+    if isinstance(obj, matplotlib.figure.Figure):
+        folder = figures_dir(label) if root is None else root / "figures" / label
+        return save_figure(obj, folder / f"{name}.png")
+    if isinstance(obj, pd.DataFrame):
+        folder = results_dir(label) if root is None else root / "results" / label
+        folder.mkdir(parents=True, exist_ok=True)
+        path = folder / f"{name}.csv"
+        tmp = path.with_name(path.name + ".tmp")
+        obj.to_csv(tmp, float_format="%.6f", index=not isinstance(obj.index, pd.RangeIndex))
+        tmp.replace(path)
+        return path
+    raise TypeError(f"save() writes a matplotlib Figure or a pandas DataFrame, got "
+                    f"{type(obj).__name__}")
 
 
 def draw_boxes(ax, boxes: np.ndarray, color="yellow", lw: float = 1.0, alpha: float = 0.9) -> None:

@@ -10,7 +10,7 @@ import numpy as np
 from ..paper import SCALE_LABELS
 from .base import METHOD_COLORS
 
-__all__ = ["plot_metric_bars", "plot_pr_curves", "plot_scale_distribution"]
+__all__ = ["dataset_line", "plot_metric_bars", "plot_pr_curves", "plot_scale_distribution"]
 
 
 def plot_scale_distribution(hists: dict, title: str | None = None, ax=None,
@@ -52,50 +52,66 @@ def plot_scale_distribution(hists: dict, title: str | None = None, ax=None,
     return fig
 
 
-def plot_pr_curves(curves: dict, title: str | None = None, ax=None,
-                   colors: dict | None = None, intervals: dict | None = None
+def dataset_line(results) -> str:
+    """``"<dataset>: 18 of 20 queries with ground truth, tolerance 0, protocol ratio"``: the line
+    every PR / statistics figure carries under its title."""
+    from ..evaluation import ground_truth_coverage
+
+    r = results[0]
+    n_gt, n_q = ground_truth_coverage(r.ground_truth)
+    return (f"{r.dataset}: {n_gt} of {n_q} queries with ground truth, tolerance {r.tolerance}, "
+            f"protocol {getattr(r, 'protocol', 'ratio')}")
+
+
+def plot_pr_curves(results, title: str | None = None, colors: dict | None = None
                    ) -> matplotlib.figure.Figure:
-    """Precision (y) against recall (x) for several methods; the legend gives each AUC.
+    """Precision (y) against recall (x) of several results; the legend (beside the axes, never
+    over the curves) gives each AUC with its 95% bootstrap interval.
+
+    A result whose similarity matrix equals an earlier one's has the same curve: it is drawn
+    once and its legend entry reads ``= <earlier label>``.
 
     Args:
-        curves: ``{label: PRCurve}`` (``vpr_core.evaluation.pr_curve`` results).
-        title: axes title.
-        ax: axes to draw on (default: a new 6 x 4.6 in figure).
-        colors: ``{label: colour}``; default :data:`METHOD_COLORS`, then the matplotlib cycle.
-        intervals: ``{label: (auc, low, high)}``: the legend shows ``AUC v [low, high]`` (95%
-            bootstrap interval) for these labels instead of the bare AUC.
+        results: :class:`~vpr_core.pipeline.MethodResult` objects (``.label``, ``.curve()``,
+            ``.intervals``, ``.similarity``, ``.ground_truth``, ``.dataset``, ``.tolerance``).
+        title: the figure's title; the dataset line (:func:`dataset_line`) goes below it.
+        colors: ``{label: colour}``; default :data:`METHOD_COLORS` by method, then the cycle.
 
     Returns:
         The figure.
     """
     from ..evaluation import auc_pr
+    from ..evaluation.compare import identical_to
 
-    if ax is None:
-        fig, ax = plt.subplots(figsize=(6.0, 4.6))
-    else:
-        fig = ax.figure
-    colors = {**METHOD_COLORS, **(colors or {})}
-    from matplotlib.colors import to_hex
-
-    used = {to_hex(colors[k]) for k in curves if k in colors}
-    spare = iter([c for c in (f"C{i}" for i in range(10)) if to_hex(c) not in used]
-                 + [plt.cm.tab20(i) for i in range(20)])
-    colors.update({k: next(spare) for k in curves if k not in colors})
-    for label, curve in curves.items():
-        iv = (intervals or {}).get(label)
-        text = (f"AUC {iv[0]:.3f} [{iv[1]:.3f}, {iv[2]:.3f}]" if iv is not None
-                else f"AUC {auc_pr(curve):.3f}")
-        ax.plot(curve.recall, curve.precision, lw=1.6, color=colors.get(label),
-                label=f"{label} ({text})")
+    results = list(results)
+    if not results:
+        raise ValueError("plot_pr_curves needs at least one result")
+    fig, ax = plt.subplots(figsize=(8.6, 4.4), constrained_layout=True)
+    colors = dict(colors or {})
+    spare = iter([f"C{i}" for i in range(10)] + [plt.cm.tab20(i) for i in range(20)])
+    used = set()
+    for r, twin in zip(results, identical_to(results)):
+        iv = getattr(r, "intervals", {}).get("auc")
+        auc = (f"AUC {iv[0]:.3f} [{iv[1]:.3f}, {iv[2]:.3f}]" if iv is not None
+               else f"AUC {auc_pr(r.curve()):.3f}")
+        if twin is not None:  # same matrix: same curve; say so instead of hiding it
+            ax.plot([], [], lw=0, label=f"{r.label} (= {twin}, {auc})")
+            continue
+        color = colors.get(r.label) or METHOD_COLORS.get(r.label)
+        if color is None or color in used:
+            color = next(c for c in spare if c not in used)
+        used.add(color)
+        curve = r.curve()
+        ax.plot(curve.recall, curve.precision, lw=1.6, color=color, label=f"{r.label} ({auc})")
     ax.set_xlim(0.0, 1.0)
     ax.set_ylim(0.0, 1.02)
     ax.set_xlabel("recall")
     ax.set_ylabel("precision")
-    if title:
-        ax.set_title(title, fontsize=10)
     ax.grid(alpha=0.3)
-    ax.legend(loc="lower left", fontsize=7.5, frameon=True, framealpha=0.8)
-    fig.tight_layout()
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8, frameon=False,
+              title="AUC with 95% CI", title_fontsize=8)
+    head = f"{title}\n" if title else ""
+    ax.set_title(head + dataset_line(results), fontsize=9, loc="left")
     return fig
 
 
@@ -105,7 +121,7 @@ def plot_metric_bars(table, metric: str = "auc", title: str | None = None, ax=No
 
     Args:
         table: ``pandas.DataFrame`` indexed by method, one column per metric.
-        metric: column to plot (``auc``, ``r_at_100p``, ``r_at_1``, ``r_at_5``).
+        metric: column to plot (``auc``, ``r@100p``, ``r@1``, ``r@5``).
         title: axes title; ax: axes to draw on; colors: ``{method: colour}``.
 
     Returns:
