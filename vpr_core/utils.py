@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from . import paths
+from . import paths, settings
 
 logger = logging.getLogger("vpr_core")
 logger.addHandler(logging.NullHandler())  # library convention: the application configures output
@@ -52,14 +52,14 @@ def tune_allocator() -> bool:
     the OS), process-wide. It changes where memory lives, never what is computed: descriptors
     are the same bits (tested). The cost: the process's resident memory stays near its peak.
 
-    Called by :class:`~vpr_core.features.LandmarkEncoder` (so in every process that encodes,
-    Dask workers included). No-op off glibc (macOS, Windows, musl) and when
+    Process-wide, so the library never calls it: the CLI, the study runner and a notebook's
+    first cell call it explicitly. No-op off glibc (macOS, Windows, musl) and when
     ``$VPR_TUNE_MALLOC=0``.
 
     Returns:
         True when the tuning is in effect in this process after the call.
     """
-    if os.environ.get(ALLOCATOR_ENV, "1").strip().lower() in ("0", "false", "no", "off"):
+    if not settings.tune_malloc():
         return False
     try:
         import ctypes
@@ -140,7 +140,7 @@ def progress(iterable: Iterable, **kwargs: Any):
     """``tqdm.auto`` progress bar (disabled by ``TQDM_DISABLE=1``)."""
     from tqdm.auto import tqdm
 
-    kwargs.setdefault("disable", bool(os.environ.get("TQDM_DISABLE")))
+    kwargs.setdefault("disable", settings.progress_disabled())
     kwargs.setdefault("leave", False)
     return tqdm(iterable, **kwargs)
 

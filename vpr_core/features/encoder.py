@@ -36,7 +36,6 @@ import torch
 from ..backbones import DEFAULT_INPUT_SIZE, available_backbones, build_backbone, canonical_backbone
 from ..boxes import check_boxes, check_image
 from ..paper import PROJECTION_DIM
-from ..utils import tune_allocator
 from .crops import crop_boxes, pyramid_levels
 from .projection import random_projection
 from .roi import DEFAULT_ROI_SAMPLING, ROI_VERSION, default_working_size, roi_pool, working_image
@@ -113,7 +112,6 @@ class LandmarkEncoder:
         self.device = torch.device(device)
         if self.device.type == "cuda" and not torch.cuda.is_available():
             raise ValueError(f"device={device!r} but torch sees no CUDA GPU; use device='cpu'")
-        tune_allocator()  # large activations reuse freed heap memory (same bits, ~2x faster)
         self.backbone_name = spec
         self.seed = int(seed)
         self.pooling = pooling

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import settings
 from ..boxes import check_image
 from ..paper import N_LANDMARKS
 from ._checks import check_count
@@ -81,7 +82,7 @@ def _resolve_model(model: str | os.PathLike | None) -> Path | None:
     if model is not None and str(model).lower() == "gradient":
         return None
     if model is None:
-        env = os.environ.get("VPR_SED_MODEL")
+        env = settings.sed_model()
         if not env:
             return None
         model = env

@@ -8,13 +8,13 @@ Dense grids and the whole-image box are computed on the fly (they cost microseco
 
 from __future__ import annotations
 
-import os
 import time
 from typing import Any
 
 import numpy as np
 
 from .. import landmarks as lm
+from .. import settings
 from ..methods import EDGE_BOX_SCHEMES
 from ..paper import N_CANDIDATES
 from ..utils import cache_dir, config_slug, logger, progress
@@ -34,7 +34,7 @@ def edge_box_candidates(dataset, side: str, i: int, n_candidates: int = N_CANDID
         ``(boxes (K, 4), seconds)``: proposals in proposal order (descending score) and the
         seconds the extraction took when it was computed.
     """
-    params = {"n_candidates": int(n_candidates), "sed": os.environ.get("VPR_SED_MODEL", "")}
+    params = {"n_candidates": int(n_candidates), "sed": settings.sed_model() or ""}
     folder = cache_dir("landmarks", config_slug("edge_boxes", params))
     path = folder / f"{dataset.image_key(side, i)}.npz"
     cached = None if overwrite else load_npz(path, ("boxes", "seconds"))
