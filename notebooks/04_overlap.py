@@ -25,6 +25,10 @@
 
 # %%
 from vpr_core.study import FIG7_NMS_THRESHOLDS, FIG7_SOFT_NMS_THRESHOLDS, open_study
+from vpr_core.utils import tune_allocator
+
+# Process-wide settings, made here where you see them (the library never changes them):
+tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits
 
 # %% tags=["parameters"]
 dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | folder

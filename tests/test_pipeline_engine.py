@@ -56,7 +56,7 @@ def test_bad_shortlist_is_refused(small):
 def test_every_row_carries_its_interval(small):
     res = _run(small)
     row = res.row()
-    for value, prefix in (("AUC(ratio)", "AUC"), ("R@100P", "R@100P"), ("R@1", "R@1")):
+    for value, prefix in (("AUC", "AUC"), ("R@100P", "R@100P"), ("R@1", "R@1")):
         lo, hi = row[f"{prefix} lo"], row[f"{prefix} hi"]
         assert lo <= row[value] + 1e-12 and row[value] <= hi + 1e-12
         assert lo < hi  # 6 queries with mixed outcomes cannot give a zero-width interval

@@ -81,12 +81,12 @@ def test_compare_returns_figure_result_under_output_root(tiny, out_root):
     assert isinstance(res, FigureResult)
     assert res.path == out_root / "figures" / "synthetic_quick" / "figx.png"
     assert list(res.table.index) == ["tiny"]
-    assert 0 <= res.table.loc["tiny", "AUC(ratio)"] <= 1
+    assert 0 <= res.table.loc["tiny", "AUC"] <= 1
     first = res.path.read_bytes()
     # the inline picture is the saved file, byte for byte
     assert res.png() == first and res._repr_png_()[:8] == PNG
     csv = (out_root / "results" / "synthetic_quick" / "nbx.csv").read_text()
-    assert csv.splitlines()[0].startswith("figure,method,AUC(ratio)")
+    assert csv.splitlines()[0].startswith("figure,method,run,AUC,")
     again = tiny.compare([("dense", {"scales": (0.25,), "per_scale": 4}, "tiny")], figure="figx")
     assert again.path.read_bytes() == first
     # a finished result can be passed again (peers, results from elsewhere)
@@ -186,7 +186,7 @@ def test_compare_writes_paired_differences_with_verdicts(out_root):
             ("dense", {"scales": (0.49,), "per_scale": 4}, "b"), "global"]
     res = s.compare(runs, "figp")
     assert {"AUC lo", "AUC hi", "R@1 lo", "R@1 hi", "queries"} <= set(res.table.columns)
-    assert (res.table["AUC lo"] <= res.table["AUC(ratio)"] + 1e-12).all()
+    assert (res.table["AUC lo"] <= res.table["AUC"] + 1e-12).all()
     paired = pd.read_csv(out_root / "results" / "synthetic_quick" / "nbp_figp_paired.csv")
     assert list(paired["method"]) == ["b", "global"] and set(paired["baseline"]) == {"a"}
     for name in ("dAUC", "dR@1"):

@@ -80,7 +80,7 @@ def summary_table(label: str) -> pd.DataFrame:
     frames = []
     for csv in sorted(paths.results_dir(label).glob("0[0-9]_*.csv")):
         df = pd.read_csv(csv)
-        if "figure" in df.columns and "AUC(ratio)" in df.columns:
+        if "figure" in df.columns and "AUC" in df.columns:
             df.insert(0, "notebook", csv.stem)
             frames.append(df)
     if not frames:
@@ -121,7 +121,7 @@ def _unwritten(folder: Path, stems: Sequence[str], since: float) -> list[str]:
 def _print_summary(table: pd.DataFrame, label: str, backbone: str) -> None:
     with pd.option_context("display.width", 200, "display.max_rows", 200,
                            "display.float_format", "{:.3f}".format):
-        cols = [c for c in ("notebook", "figure", "method", "AUC(ratio)", "AUC lo", "AUC hi",
+        cols = [c for c in ("notebook", "figure", "method", "AUC", "AUC lo", "AUC hi",
                             "R@100P", "R@1", "R@1 lo", "R@1 hi") if c in table.columns]
         print(f"\nSummary ({label}, backbone {backbone}):")
         print(table[cols].to_string(index=False))

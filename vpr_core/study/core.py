@@ -45,9 +45,9 @@ QUICK_IMAGES = 20
 #: Columns of ``results/<label>/<notebook>.csv``.
 #: ``lo`` / ``hi``: 95% bootstrap interval over queries (1,000 resamples, seed 0); ``queries``:
 #: queries with ground truth.
-RESULT_COLUMNS = ["figure", "method", "AUC(ratio)", "AUC lo", "AUC hi", "R@100P", "R@100P lo",
-                  "R@100P hi", "R@1", "R@1 lo", "R@1 hi", "R@5", "queries", "landmarks/img",
-                  "landmarks s/img", "features s/img", "matching s/pair"]
+RESULT_COLUMNS = ["figure", "method", "run", "AUC", "AUC lo", "AUC hi", "R@100P", "R@100P lo",
+                  "R@100P hi", "R@1", "R@1 lo", "R@1 hi", "R@5", "R@5 lo", "R@5 hi", "queries",
+                  "landmarks/img", "landmarks s/img", "features s/img", "matching s/pair"]
 
 
 def table1() -> pd.DataFrame:
