@@ -164,9 +164,10 @@ def cmd_eval(args: argparse.Namespace) -> int:
     results += _peer_results(args, dataset) + _user_peers(args, dataset)
     print(f"backbone: {results[0].encoder.get('backbone')} "
           f"(weights: {results[0].encoder.get('weights')}, pooling: {args.pooling}, {mode}; "
-          f"95% bootstrap intervals over queries, {args.n_bootstrap} resamples; paired "
-          f"differences against {results[0].label}: a finding only where the interval "
-          "excludes 0)")
+          f"95% bootstrap intervals over queries, {args.n_bootstrap} resamples)")
+    if len(results) > 1:
+        print(f"paired bootstrap (same resampled queries): dAUC and dR@1 = method - "
+              f"{results[0].label}; a finding only where the interval excludes 0")
     table = compare(results, n_bootstrap=args.n_bootstrap)
     print(format_table(_display(table)))
     stem = "eval_" + "+".join(args.method) + f"_{args.backbone.replace(':', '_')}"

@@ -112,6 +112,8 @@ def plot_pr_curves(results, title: str | None = None, colors: dict | None = None
               title="AUC with 95% CI", title_fontsize=8)
     head = f"{title}\n" if title else ""
     ax.set_title(head + dataset_line(results), fontsize=9, loc="left")
+    fig.draw_without_rendering()  # lay out once, then freeze: every later render is the same
+    fig.set_layout_engine("none")
     return fig
 
 
