@@ -12,7 +12,6 @@ notebook must exist in ``figures/<label>/``, else a clear error lists the missin
 from __future__ import annotations
 
 import logging
-import os
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -20,7 +19,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from . import paths
+from . import paths, settings
 
 __all__ = ["notebook_paths", "notebooks_dir", "output_label", "run_study", "source_checkout",
            "summary_table"]
@@ -92,18 +91,15 @@ def summary_table(label: str) -> pd.DataFrame:
 def _kernel_environment() -> Iterator[Path]:
     """Absolute ``VPR_OUTPUT_DIR`` (and ``VPR_CACHE_DIR`` when set) for the notebook kernels,
     which run with cwd ``notebooks/``; the caller's environment is restored afterwards."""
-    saved = {k: os.environ.get(k) for k in (paths.OUTPUT_ENV, paths.CACHE_ENV)}
-    try:
-        root = paths.set_output_root(paths.output_root())
-        if saved[paths.CACHE_ENV]:
-            os.environ[paths.CACHE_ENV] = str(paths.cache_root())
+    from .settings import kernel_environment
+
+    root = paths.output_root()
+    values = {paths.OUTPUT_ENV: str(root)}
+    if settings.cache_dir():
+        values[paths.CACHE_ENV] = str(paths.cache_root())
+    root.mkdir(parents=True, exist_ok=True)
+    with kernel_environment(values):
         yield root
-    finally:
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
 
 
 def _unwritten(folder: Path, stems: Sequence[str], since: float) -> list[str]:
@@ -140,7 +136,7 @@ def _execute(nb: Path, out: Path, params: dict, kernel: str) -> None:
     logger.info("executing %s -> %s", nb.name, out)
     try:
         pm.execute_notebook(str(nb), str(out), parameters=params, cwd=str(nb.parent),
-                            kernel_name=kernel, progress_bar=not os.environ.get("TQDM_DISABLE"),
+                            kernel_name=kernel, progress_bar=not settings.progress_disabled(),
                             log_output=False)
     except Exception as exc:  # papermill raises PapermillExecutionError with the cell
         raise RuntimeError(f"notebook {nb.name} failed; open {out} to see the failing "

@@ -1,7 +1,7 @@
 """Pickled inputs read as data, never as code: one restricted unpickler for every pickle we read.
 
 VPR-Bench's ``ground_truth_new.npy`` and ``precomputed_data_corrected.npy`` are numpy object arrays,
-i.e. a ``.npy`` header followed by a pickle. ``np.load(allow_pickle=True)`` would let such a file run
+i.e. a ``.npy`` header followed by a pickle. numpy's pickle-enabled loading would let such a file run
 any code (a pickle can ask to call ``os.system``). :func:`read_npy` parses the ``.npy`` header itself
 and unpickles the rest with :class:`RestrictedUnpickler`, which rebuilds only what those formats
 contain: numpy arrays, dtypes and scalars, lists, tuples, dicts, numbers, strings, bytes, None and
