@@ -24,46 +24,82 @@
 # sampling: 4 normalised scales (0.16, 0.25, 0.36, 0.49) x 25 landmarks on a 5 x 5 grid.
 #
 # All logic lives in `vpr_core`; this notebook only calls it. Every figure cell shows the
-# figure and the numbers behind it; the files are in `figures/<dataset>/`.
 
 # %%
-from vpr_core.study import open_study
-from vpr_core.utils import tune_allocator
+import numpy as np
+
+from vpr_core import paper
+from vpr_core.datasets import load_dataset
+from vpr_core.features import LandmarkEncoder
+from vpr_core.landmarks import dense_sampling, edge_boxes, normalized_scale
+from vpr_core.matching import cosine_distance, image_similarity, reciprocal_matches, shape_penalty
+from vpr_core.pipeline import run_method
+from vpr_core.statistics import ground_truth_references
+from vpr_core.utils import configure_logging, tune_allocator
+from vpr_core.viz import (plot_coverage_comparison, plot_dense_scales, plot_descriptor_matrices,
+                          plot_examples, plot_labelled_matches, plot_landmark_panels, plot_pair,
+                          plot_pair_terms, save)
 
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits
+configure_logging(stream="stdout")  # vpr_core's log lines as cell output
 
 # %% tags=["parameters"]
-dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | folder
-root = None  # dataset folder for the real datasets
+dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | nordland | vpr_bench | utm | folder
+root = None  # the dataset's folder (all but synthetic)
+options = {}  # loader options: {"n_places": 8} (synthetic), {"step": 50, "tolerance": 0} (nordland), {"positive_dist_threshold": 25} (utm)
+limit = None  # keep only the first N queries and references (quick runs)
+label = None  # subfolder of figures/ and results/ (default: the dataset's name)
 backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
-quick = False  # small run (8 synthetic places / 20 images) used by the tests
-label = None  # output subfolder of figures/ and results/ (default: the dataset name)
-options = {}  # loader options, e.g. {"step": 50, "tolerance": 0} for nordland
 pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass per image
-pair = 0  # the query of the pair walked through the pipeline (with its ground-truth reference)
+pair = 0  # the query walked through the pipeline (with its ground-truth reference)
 
 # %%
-study = open_study(dataset, root=root, backbone=backbone, quick=quick,
-                   notebook="01_pipeline_tour", label=label, pooling=pooling, **options)
-print(study.describe())
+ds = load_dataset(dataset, root=root, **options)
+if limit:
+    ds = ds.subset(limit)
+label = label or ds.name
+encoder = {"backbone": backbone, "pooling": pooling}  # the landmark encoder of every run below
+ds
 
 # %% [markdown]
 # Three places of the dataset: reference (left) and query (right) with the 25 dense landmarks
 # of the smallest scale.
 
 # %%
-study.examples()
+smallest = paper.DENSE_SCALES[0]
+fig = plot_examples(ds, indices=(0, 1, 2),
+                    boxes=lambda side, i, size: dense_sampling(size, scales=(smallest,)),
+                    title=f"{ds.name}: reference (left) / query (right), dense landmarks of "
+                          f"scale {smallest:g}")
+save(fig, "examples", label);
 
 # %% [markdown]
 # ## The pipeline, step by step, on one pair
-# ### 1. `dense_sampling`: 4 scales x 25 boxes on each image
-# A box of area ratio *a* is `sqrt(a)*W` wide and `sqrt(a)*H` high; 25 boxes per scale sit on a
-# 5 x 5 grid from the top-left corner to the far edges. The table checks Eq. (3): each level's
-# normalised scale (box area / image area) equals the requested one.
+# ### 1. Landmarks: `edge_boxes` (classical) and `dense_sampling` (proposed)
+# The classical method keeps the 100 best Edge Box proposals. Dense sampling puts 25 boxes
+# per scale on a 5 x 5 grid from the top-left corner to the far edges; a box of area ratio *a*
+# is `sqrt(a)*W` wide and `sqrt(a)*H` high, so its normalised scale (Eq. 3) is *a*.
 
 # %%
-study.tour_dense_sampling(pair)
+q, r = pair, ground_truth_references(ds.ground_truth, pair)[0]
+images = {"query": ds.load_image("query", q), "reference": ds.load_image("reference", r)}
+proposals = {s: edge_boxes(im, max_boxes=paper.N_LANDMARKS) for s, im in images.items()}
+fig = plot_landmark_panels({s: (images[s], proposals[s].boxes) for s in images},
+                           title=f"step 1a, edge_boxes ({proposals['query'].edge_source} "
+                                 f"edges): query {q} / reference {r}")
+save(fig, "tour1_edge_boxes", label);
+
+# %%
+boxes = {s: dense_sampling(im.shape[:2], scales=paper.DENSE_SCALES,
+                           per_scale=paper.DENSE_PER_SCALE) for s, im in images.items()}
+level = np.repeat(np.arange(len(paper.DENSE_SCALES)), paper.DENSE_PER_SCALE)
+fig = plot_landmark_panels({s: (images[s], boxes[s]) for s in images}, colors_by=level,
+                           group_labels={k: f"scale {a:g}" for k, a in enumerate(paper.DENSE_SCALES)},
+                           title=f"step 1b, dense_sampling: query {q} / reference {r}")
+save(fig, "tour1_dense_sampling", label)
+scale = normalized_scale(boxes["query"], images["query"].shape[:2])
+{f"scale {a:g}": round(float(scale[level == k].mean()), 4) for k, a in enumerate(paper.DENSE_SCALES)}
 
 # %% [markdown]
 # ### 2. `LandmarkEncoder.encode`: one descriptor per landmark
@@ -71,7 +107,12 @@ study.tour_dense_sampling(pair)
 # flattened and randomly projected to 1,024 dimensions. One row per landmark.
 
 # %%
-study.tour_descriptors(pair)
+landmark_encoder = LandmarkEncoder(backbone, dim=paper.PROJECTION_DIM, seed=0, pooling=pooling)
+desc = {s: landmark_encoder.encode(images[s], boxes[s]) for s in images}
+fig = plot_descriptor_matrices(desc, title=f"step 2, LandmarkEncoder.encode ({backbone}, "
+                                           f"weights: {landmark_encoder.config['weights']})")
+save(fig, "tour2_descriptors", label)
+{s: d.shape for s, d in desc.items()}
 
 # %% [markdown]
 # ### 3. `reciprocal_matches`: mutual nearest neighbours on cosine distance
@@ -79,41 +120,52 @@ study.tour_descriptors(pair)
 # and *i* is *j*'s.
 
 # %%
-study.tour_reciprocal_matches(pair)
+matches = reciprocal_matches(desc["query"], desc["reference"])
+d = cosine_distance(desc["query"], desc["reference"])[matches[:, 0], matches[:, 1]]
+fig = plot_labelled_matches(images["query"], images["reference"], boxes["query"],
+                            boxes["reference"], matches, None,
+                            title=f"step 3, reciprocal_matches: {len(matches)} mutual nearest "
+                                  f"neighbours of {len(boxes['query'])} x {len(boxes['reference'])}")
+save(fig, "tour3_reciprocal_matches", label);
 
 # %% [markdown]
 # ### 4. `image_similarity`: Eq. (1) with the shape penalty of Eq. (2)
-# `S = sum over the matched pairs of (1 - d*s) / sqrt(na*nb)`; the table lists every pair's
-# cosine distance *d*, shape penalty *s* and term.
+# `S = sum over the matched pairs of (1 - d*s) / sqrt(na*nb)`; the figure shows every pair's
+# cosine distance *d*, shape penalty *s* and term; the last line recomputes Eq. (1) from them.
 
 # %%
-study.tour_image_similarity(pair)
+S = image_similarity(desc["query"], boxes["query"], desc["reference"], boxes["reference"])
+s = shape_penalty(boxes["query"], boxes["reference"])[matches[:, 0], matches[:, 1]]
+fig = plot_pair_terms(d, s, len(boxes["query"]), len(boxes["reference"]), S,
+                      title=f"step 4, image_similarity (Eq. 1): query {q} / reference {r}")
+save(fig, "tour4_image_similarity", label)
+print(f"image_similarity: {S:.6f}; from the terms: "
+      f"{(1 - d * s).sum() / np.sqrt(len(boxes['query']) * len(boxes['reference'])):.6f}")
 
 # %% [markdown]
-# ## Fig. 3 — the classical pipeline on one pair
-# Reciprocal landmark matches between a query and its ground-truth reference; green boxes are
-# correct matches, red ones incorrect (labelled exactly from the generator's geometry on
-# `synthetic`, by SIFT + RANSAC verification on real images).
+# ## Fig. 3 and 8 — the classical and the dense pipeline on the same pair, over the dataset
+# `run_method` runs every image; the figure draws this pair's reciprocal matches, green when
+# correct and red when not (labelled exactly from the generator's geometry on `synthetic`, by
+# SIFT + RANSAC verification on real images).
 
 # %%
-study.fig03_classical_pipeline(pair)
-
-# %% [markdown]
-# ## Fig. 8 — the dense-sampling pipeline on the same pair
-
-# %%
-study.fig08_dense_pipeline(pair)
+classical = run_method("classical", ds, keep_descriptors=True, **encoder)
+dense = run_method("dense", ds, keep_descriptors=True, **encoder)
+save(plot_pair(ds, classical, query=q), "fig03_classical_pipeline", label)
+save(plot_pair(ds, dense, query=q), "fig08_dense_pipeline", label);
 
 # %% [markdown]
 # ## Fig. 9 — the four dense sampling scales (25 landmarks each, image aspect kept)
 
 # %%
-study.fig09_dense_scales()
+save(plot_dense_scales(ds.load_image("reference", 0)), "fig09_dense_scales", label);
 
 # %% [markdown]
 # ## Fig. 14 — landmark coverage: top-100 Edge Boxes vs dense sampling
-# Darker = covered by more landmarks. The table gives the share of the image covered by at
+# Darker = covered by more landmarks; the table gives the share of the image covered by at
 # least one landmark.
 
 # %%
-study.fig14_coverage()
+fig, coverage = plot_coverage_comparison(ds, [classical, dense], index=0, side="reference")
+save(fig, "fig14_coverage", label), save(coverage, "fig14_coverage", label)
+coverage

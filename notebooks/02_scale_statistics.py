@@ -30,57 +30,75 @@
 # of manual labels (`vpr_core.statistics.label_matches(..., method="file")`).
 
 # %%
-from vpr_core.study import open_study, table1
-from vpr_core.utils import tune_allocator
+from vpr_core import paper
+from vpr_core.datasets import load_dataset
+from vpr_core.pipeline import run_method
+from vpr_core.statistics import scale_statistics
+from vpr_core.utils import configure_logging, tune_allocator
+from vpr_core.viz import plot_asl, plot_cls, plot_cmr, plot_pair, plot_scale_statistics, save
 
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits
+configure_logging(stream="stdout")  # vpr_core's log lines as cell output
 
 # %% tags=["parameters"]
-dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | folder
-root = None  # dataset folder for the real datasets
+dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | nordland | vpr_bench | utm | folder
+root = None  # the dataset's folder (all but synthetic)
+options = {}  # loader options: {"n_places": 8} (synthetic), {"step": 50, "tolerance": 0} (nordland), {"positive_dist_threshold": 25} (utm)
+limit = None  # keep only the first N queries and references (quick runs)
+label = None  # subfolder of figures/ and results/ (default: the dataset's name)
 backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
-quick = False  # small run (8 synthetic places / 20 images) used by the tests
-label = None  # output subfolder of figures/ and results/ (default: the dataset name)
-options = {}  # loader options, e.g. {"step": 50, "tolerance": 0} for nordland
 pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass per image
-
 method = "classical"  # landmark method whose matches are studied
 n_irrelevant = 5  # query-irrelevant references sampled per query
 
 # %%
-study = open_study(dataset, root=root, backbone=backbone, quick=quick,
-                   notebook="02_scale_statistics", label=label, pooling=pooling, **options)
-print(study.describe())
+ds = load_dataset(dataset, root=root, **options)
+if limit:
+    ds = ds.subset(limit)
+label = label or ds.name
+encoder = {"backbone": backbone, "pooling": pooling}  # the landmark encoder of every run below
+ds
 
 # %% [markdown]
 # ## Table 1 — nine landmark scales (normalised scale = landmark area / image area)
 
 # %%
-table1()
+paper.table1()
 
 # %% [markdown]
 # ## Fig. 1 — matched landmarks between a query and its ground-truth reference
+# One run of the method over the dataset, kept with its descriptors for the statistics below.
 
 # %%
-study.fig01_labelled_matches(pair=0, method=method)
+run = run_method(method, ds, keep_descriptors=True, **encoder)
+save(plot_pair(ds, run, query=0), "fig01_labelled_matches", label);
 
 # %% [markdown]
 # ## Fig. 2 — matches between two irrelevant images (all wrong by definition; note the overlap)
 
 # %%
-study.fig02_irrelevant_matches(pair=0, method=method)
+save(plot_pair(ds, run, query=0, reference=ds.n_reference // 2), "fig02_irrelevant_matches",
+     label);
 
 # %% [markdown]
 # ## Fig. 4 — CMR, CLS and ASL per scale
-# The panels are also saved one by one (`fig04a_cmr`, `fig04b_cls`, `fig04c_asl`); the table
-# holds every number plotted.
+# Every query against its ground-truth reference (labelled matches) and `n_irrelevant`
+# irrelevant references. The panels are also saved one by one (`fig04a_cmr`, `fig04b_cls`,
+# `fig04c_asl`); the table holds every number plotted, `fig04_matches.csv` every match.
 
 # %%
-study.fig04_scale_statistics(method=method, n_irrelevant=n_irrelevant)
+stats = scale_statistics(ds, run.boxes["query"], run.boxes["reference"],
+                         run.descriptors["query"], run.descriptors["reference"],
+                         n_irrelevant=n_irrelevant)
+for stem, plot in (("fig04a_cmr", plot_cmr), ("fig04b_cls", plot_cls), ("fig04c_asl", plot_asl)):
+    save(plot(stats), stem, label)
+save(plot_scale_statistics(stats), "fig04_scale_statistics", label)
+save(stats.to_frame(), "fig04_scale_statistics", label), save(stats.matches_frame(), "fig04_matches", label)
+stats.to_frame()
 
 # %% [markdown]
 # ### Labelling by hand (optional, interactive only)
-# `vpr_core.labels.label_widget(study.dataset, q, r, ...)` shows one pair's matches and
-# writes a CSV usable with `label_matches(..., method="file")`. It needs `ipywidgets`
-# (`pip install ipywidgets`) and is not used by the headless run.
+# `vpr_core.labels.label_widget(ds, q, r, ...)` shows one pair's matches and writes a CSV
+# usable with `label_matches(..., method="file")`. It needs `ipywidgets` (`pip install
+# ipywidgets`) and is not used by the headless run.

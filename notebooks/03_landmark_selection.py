@@ -23,37 +23,54 @@
 # scales, Scheme 2 concentrates on one.
 
 # %%
-from vpr_core.study import open_study
-from vpr_core.utils import tune_allocator
+from vpr_core.datasets import load_dataset
+from vpr_core.evaluation import compare
+from vpr_core.pipeline import run_method
+from vpr_core.statistics import scale_distribution
+from vpr_core.utils import configure_logging, tune_allocator
+from vpr_core.viz import plot_pr_curves, plot_scale_distribution, save
 
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits
+configure_logging(stream="stdout")  # vpr_core's log lines as cell output
 
 # %% tags=["parameters"]
-dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | folder
-root = None  # dataset folder for the real datasets
+dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | nordland | vpr_bench | utm | folder
+root = None  # the dataset's folder (all but synthetic)
+options = {}  # loader options: {"n_places": 8} (synthetic), {"step": 50, "tolerance": 0} (nordland), {"positive_dist_threshold": 25} (utm)
+limit = None  # keep only the first N queries and references (quick runs)
+label = None  # subfolder of figures/ and results/ (default: the dataset's name)
 backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
-quick = False  # small run (8 synthetic places / 20 images) used by the tests
-label = None  # output subfolder of figures/ and results/ (default: the dataset name)
-options = {}  # loader options, e.g. {"step": 50, "tolerance": 0} for nordland
 pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass per image
 
 # %%
-study = open_study(dataset, root=root, backbone=backbone, quick=quick,
-                   notebook="03_landmark_selection", label=label, pooling=pooling, **options)
-print(study.describe())
+ds = load_dataset(dataset, root=root, **options)
+if limit:
+    ds = ds.subset(limit)
+label = label or ds.name
+encoder = {"backbone": backbone, "pooling": pooling}  # the landmark encoder of every run below
+ds
 
 # %% [markdown]
 # ## Fig. 5 — PR curves: classical vs Scheme 1 vs Scheme 2 (ratio protocol)
+# Three runs of `run_method`, then `compare` (metrics with 95% bootstrap intervals and the
+# paired difference of each run against classical: a finding only when its interval excludes
+# 0), then the PR curves.
 
 # %%
-study.fig05_selection()
+methods = ("classical", "selection_scheme1", "selection_scheme2")
+runs = [run_method(m, ds, **encoder) for m in methods]
+table = compare(runs, baseline="classical")
+fig = plot_pr_curves(runs, title="Fig. 5: landmark selection schemes")
+save(fig, "fig05_selection", label), save(table, "fig05_selection", label)
+table
 
 # %% [markdown]
 # ## Fig. 6 — scale distribution of the selected landmarks (query and reference)
 
 # %%
-study.fig06a_scheme1_scales()
-
-# %%
-study.fig06b_scheme2_scales()
+for run, stem in zip(runs[1:], ("fig06a_scheme1_scales", "fig06b_scheme2_scales")):
+    counts = scale_distribution(run, ds)
+    fig = plot_scale_distribution(counts, title=f"{run.label}: landmarks per scale ({ds.name})")
+    save(fig, stem, label), save(counts, stem, label)
+    display(counts.T)

@@ -23,35 +23,55 @@
 # min of the query-box and reference-box IoUs) by `exp(-IoU^2 / 0.5)` (t = 0.3 ... 0.7).
 # The paper: both match the classical method at 0.7 and fall as t decreases.
 
+
 # %%
-from vpr_core.study import FIG7_NMS_THRESHOLDS, FIG7_SOFT_NMS_THRESHOLDS, open_study
-from vpr_core.utils import tune_allocator
+from vpr_core import paper
+from vpr_core.datasets import load_dataset
+from vpr_core.evaluation import compare
+from vpr_core.pipeline import run_method
+from vpr_core.utils import configure_logging, tune_allocator
+from vpr_core.viz import plot_pr_curves, save
 
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits
+configure_logging(stream="stdout")  # vpr_core's log lines as cell output
 
 # %% tags=["parameters"]
-dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | folder
-root = None  # dataset folder for the real datasets
+dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | nordland | vpr_bench | utm | folder
+root = None  # the dataset's folder (all but synthetic)
+options = {}  # loader options: {"n_places": 8} (synthetic), {"step": 50, "tolerance": 0} (nordland), {"positive_dist_threshold": 25} (utm)
+limit = None  # keep only the first N queries and references (quick runs)
+label = None  # subfolder of figures/ and results/ (default: the dataset's name)
 backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
-quick = False  # small run (8 synthetic places / 20 images) used by the tests
-label = None  # output subfolder of figures/ and results/ (default: the dataset name)
-options = {}  # loader options, e.g. {"step": 50, "tolerance": 0} for nordland
 pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass per image
 
 # %%
-study = open_study(dataset, root=root, backbone=backbone, quick=quick,
-                   notebook="04_overlap", label=label, pooling=pooling, **options)
-print(study.describe())
+ds = load_dataset(dataset, root=root, **options)
+if limit:
+    ds = ds.subset(limit)
+label = label or ds.name
+encoder = {"backbone": backbone, "pooling": pooling}  # the landmark encoder of every run below
+ds
 
 # %% [markdown]
-# ## Fig. 7 (a) — overlap reduction Scheme 1 (NMS on the landmarks)
+# ## Fig. 7 (a) — overlap reduction Scheme 1: NMS on the landmarks, one run per IoU threshold
 
 # %%
-study.fig07a_overlap_nms(FIG7_NMS_THRESHOLDS)
+classical = run_method("classical", ds, **encoder)
+runs = [classical] + [run_method("overlap_scheme1", ds, iou_threshold=t, **encoder)
+                      for t in paper.FIG7_NMS_THRESHOLDS]
+table = compare(runs, baseline="classical")
+fig = plot_pr_curves(runs, title="Fig. 7a: NMS on landmarks (Alg. 3)")
+save(fig, "fig07a_overlap_nms", label), save(table, "fig07a_overlap_nms", label)
+table
 
 # %% [markdown]
-# ## Fig. 7 (b) — overlap reduction Scheme 2 (soft-NMS on the match scores)
+# ## Fig. 7 (b) — overlap reduction Scheme 2: soft-NMS on the match scores
 
 # %%
-study.fig07b_overlap_soft_nms(FIG7_SOFT_NMS_THRESHOLDS)
+runs = [classical] + [run_method("overlap_scheme2", ds, soft_nms_iou=t, **encoder)
+                      for t in paper.FIG7_SOFT_NMS_THRESHOLDS]
+table = compare(runs, baseline="classical")
+fig = plot_pr_curves(runs, title="Fig. 7b: soft-NMS on matches (Alg. 4)")
+save(fig, "fig07b_overlap_soft_nms", label), save(table, "fig07b_overlap_soft_nms", label)
+table

@@ -21,49 +21,76 @@
 # The paper ran these on Mapillary Berlin; here they run on the dataset chosen below.
 
 # %%
-from vpr_core.study import open_study
-from vpr_core.utils import tune_allocator
+from vpr_core import paper
+from vpr_core.datasets import load_dataset
+from vpr_core.evaluation import compare
+from vpr_core.pipeline import run_method
+from vpr_core.utils import configure_logging, tune_allocator
+from vpr_core.viz import plot_pr_curves, save
 
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits
+configure_logging(stream="stdout")  # vpr_core's log lines as cell output
 
 # %% tags=["parameters"]
-dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | folder
-root = None  # dataset folder for the real datasets
+dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | nordland | vpr_bench | utm | folder
+root = None  # the dataset's folder (all but synthetic)
+options = {}  # loader options: {"n_places": 8} (synthetic), {"step": 50, "tolerance": 0} (nordland), {"positive_dist_threshold": 25} (utm)
+limit = None  # keep only the first N queries and references (quick runs)
+label = None  # subfolder of figures/ and results/ (default: the dataset's name)
 backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
-quick = False  # small run (8 synthetic places / 20 images) used by the tests
-label = None  # output subfolder of figures/ and results/ (default: the dataset name)
-options = {}  # loader options, e.g. {"step": 50, "tolerance": 0} for nordland
 pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass per image
 
 # %%
-study = open_study(dataset, root=root, backbone=backbone, quick=quick,
-                   notebook="05_dense_sampling_parameters", label=label, pooling=pooling, **options)
-print(study.describe())
+ds = load_dataset(dataset, root=root, **options)
+if limit:
+    ds = ds.subset(limit)
+label = label or ds.name
+encoder = {"backbone": backbone, "pooling": pooling}  # the landmark encoder of every run below
+ds
+
+# %% [markdown]
+# Each figure below: one `run_method("dense", ...)` per row of the paper's table (edit the
+# table's line to try another setting), `compare` against the table's Set 1, the PR curves.
 
 # %% [markdown]
 # ## Table 2 / Fig. 10 — single vs multiple scale levels
 
 # %%
-study.dense_settings("table2")
+def dense_runs(table):
+    return [run_method("dense", ds, scales=scales, per_scale=n, **encoder,
+                       label=paper.dense_set_label(name, scales, n))
+            for name, (scales, n) in table.items()]
 
-# %%
-study.fig10_scale_levels()
+
+settings = paper.TABLE2
+runs = dense_runs(settings)
+table = compare(runs)  # baseline: the first run, Set 1
+fig = plot_pr_curves(runs, title="Fig. 10: scale levels (Table 2)")
+save(fig, "fig10_scale_levels", label), save(table, "fig10_scale_levels", label)
+display(paper.dense_settings(settings))
+table
 
 # %% [markdown]
 # ## Table 3 / Fig. 11 — landmarks per scale at scales 0.16, 0.25, 0.36, 0.49
 
 # %%
-study.dense_settings("table3")
-
-# %%
-study.fig11_landmarks_per_scale()
+settings = paper.TABLE3
+runs = dense_runs(settings)
+table = compare(runs)
+fig = plot_pr_curves(runs, title="Fig. 11: landmarks per scale (Table 3)")
+save(fig, "fig11_landmarks_per_scale", label), save(table, "fig11_landmarks_per_scale", label)
+display(paper.dense_settings(settings))
+table
 
 # %% [markdown]
 # ## Table 4 / Fig. 12 — normalised scales, 25 landmarks per scale
 
 # %%
-study.dense_settings("table4")
-
-# %%
-study.fig12_normalized_scales()
+settings = paper.TABLE4
+runs = dense_runs(settings)
+table = compare(runs)
+fig = plot_pr_curves(runs, title="Fig. 12: normalised scales (Table 4)")
+save(fig, "fig12_normalized_scales", label), save(table, "fig12_normalized_scales", label)
+display(paper.dense_settings(settings))
+table

@@ -25,46 +25,61 @@
 # (`figures/<dataset>/`). Then the cost of each stage measured on this machine (Table 5).
 
 # %%
-from vpr_core.study import open_study
-from vpr_core.utils import tune_allocator
+from vpr_core.baselines import find_vprbench_peers, peer_from_matrix
+from vpr_core.cost import cost_table
+from vpr_core.datasets import load_dataset
+from vpr_core.evaluation import compare
+from vpr_core.pipeline import peer_result, run_method
+from vpr_core.utils import configure_logging, tune_allocator
+from vpr_core.viz import plot_coverage_comparison, plot_pr_curves, save
 
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits
+configure_logging(stream="stdout")  # vpr_core's log lines as cell output
 
 # %% tags=["parameters"]
-dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | folder
-root = None  # dataset folder for the real datasets
+dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | nordland | vpr_bench | utm | folder
+root = None  # the dataset's folder (all but synthetic)
+options = {}  # loader options: {"n_places": 8} (synthetic), {"step": 50, "tolerance": 0} (nordland), {"positive_dist_threshold": 25} (utm)
+limit = None  # keep only the first N queries and references (quick runs)
+label = None  # subfolder of figures/ and results/ (default: the dataset's name)
 backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
-quick = False  # small run (8 synthetic places / 20 images) used by the tests
-label = None  # output subfolder of figures/ and results/ (default: the dataset name)
-options = {}  # loader options, e.g. {"step": 50, "tolerance": 0} for nordland
 pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass per image
-peers = None  # VPR-Bench checkout with precomputed_matches/ (default: $VPR_BENCH_ROOT)
-peer_dataset = None  # its dataset folder, e.g. "GardensPointWalking" (None: no peers)
+peers = None  # a VPR-Bench checkout with precomputed_matches/ (None: $VPR_BENCH_ROOT)
+peer_dataset = None  # its dataset folder, e.g. "GardensPointWalking" (None: no VPR-Bench peers)
+my_method = None  # your method's (Nq, Nr) similarity matrix .npy on this dataset (None: none)
 
 # %%
-study = open_study(dataset, root=root, backbone=backbone, quick=quick,
-                   notebook="06_comparison", label=label, pooling=pooling, **options)
-print(study.describe())
+ds = load_dataset(dataset, root=root, **options)
+if limit:
+    ds = ds.subset(limit)
+label = label or ds.name
+encoder = {"backbone": backbone, "pooling": pooling}  # the landmark encoder of every run below
+ds
 
 # %% [markdown]
-# ## Fig. 13 — dense sampling vs Scheme 1 vs classical
+# ## Fig. 13 — dense sampling vs Scheme 1 vs classical (and peers)
+# `compare` puts every run beside dense sampling: the paired bootstrap resamples the same
+# queries for both methods, and a difference is a finding only when its interval excludes 0.
 
 # %%
-study.fig13_comparison(extra=["global", *study.vprbench_peers(peers, peer_dataset)])
+runs = [run_method(m, ds, **encoder) for m in ("dense", "selection_scheme1", "classical", "global")]
+if peer_dataset:
+    runs += [peer_result(p, ds) for p in find_vprbench_peers(peers, peer_dataset)]
+if my_method:
+    runs.append(peer_result(peer_from_matrix(my_method, "my method"), ds, label="my method"))
+table = compare(runs, baseline="dense")
+fig = plot_pr_curves(runs, title="Fig. 13: dense vs selection vs classical")
+save(fig, "fig13_comparison", label), save(table, "fig13_comparison", label)
+table
 
 # %% [markdown]
-# Paired bootstrap of each method against dense sampling (same resampled queries): a
-# difference is a finding only when its interval excludes 0.
+# ## Fig. 14 — coverage of the image by the landmarks (top-100 Edge Boxes vs dense)
 
 # %%
-study.paired_differences("fig13_comparison", baseline="dense")
-
-# %% [markdown]
-# ## Fig. 14 — coverage of the image by the landmarks
-
-# %%
-study.fig14_coverage(figure="fig14_coverage_comparison")
+fig, coverage = plot_coverage_comparison(ds, [runs[2], runs[0]], index=0, side="reference")
+save(fig, "fig14_coverage_comparison", label), save(coverage, "fig14_coverage_comparison", label)
+coverage
 
 # %% [markdown]
 # ## Table 5 — cost per stage, measured here (fresh computation, no cache)
@@ -74,4 +89,7 @@ study.fig14_coverage(figure="fig14_coverage_comparison")
 # matching two new images.
 
 # %%
-study.cost_table(n_images=2 if quick else 6)
+cost = cost_table(ds, methods=("classical", "dense"), n_images=2 if limit or len(ds) < 10 else 6,
+                  **encoder)
+save(cost, "table5_cost", label)
+cost

@@ -110,9 +110,7 @@ def _user_peers(args: argparse.Namespace, dataset) -> list:
                                          metric=args.peer_metric)
         else:
             peer = peer_from_matrix(p, name.strip(), distance=args.peer_distance)
-        result = peer_result(peer, dataset, n_bootstrap=args.n_bootstrap)
-        result.label = name.strip()
-        out.append(result)
+        out.append(peer_result(peer, dataset, n_bootstrap=args.n_bootstrap, label=name.strip()))
     return out
 
 
@@ -190,7 +188,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_findings(args: argparse.Namespace) -> int:
-    from .study.findings import findings_markdown
+    from .findings import findings_markdown
 
     labels = args.labels or sorted(p.name for p in (paths.output_root() / "results").iterdir()
                                    if p.is_dir() and not p.name.endswith("_quick"))

@@ -58,6 +58,9 @@ __all__ = [
     "TABLE2",
     "TABLE3",
     "TABLE4",
+    "dense_set_label",
+    "dense_settings",
+    "table1",
 ]
 
 # ---- landmark counts (Sec. 2.1, 3.2) ----------------------------------------------------------
@@ -136,3 +139,40 @@ PROJECTION_DIM: int = 1024
 ALEXNET_INPUT: int = 227
 #: AlexNet conv3 descriptor length (13 x 13 x 384).
 ALEXNET_CONV3_DIM: int = 13 * 13 * 384
+
+
+# ---- the tables as a reader sees them -----------------------------------------------------------
+def table1():
+    """Table 1: the nine landmark scales and their normalised-scale ranges.
+
+    Returns:
+        ``(9, 3)`` pandas DataFrame indexed ``Scale 1`` .. ``Scale 9``: the range label and the
+        lower (inclusive) and upper edges.
+    """
+    import pandas as pd
+
+    return pd.DataFrame({
+        "scale index": list(SCALE_LABELS),
+        "normalized scale": list(SCALE_RANGE_LABELS),
+        "lower (incl.)": [lo for lo, _ in SCALE_RANGES],
+        "upper": [hi for _, hi in SCALE_RANGES],
+    }).set_index("scale index")
+
+
+def dense_settings(table: dict):
+    """One of :data:`TABLE2`, :data:`TABLE3`, :data:`TABLE4` as a DataFrame (setting, scales,
+    landmarks per scale, total)."""
+    import pandas as pd
+
+    rows = []
+    for name, (scales, per_scale) in table.items():
+        counts = per_scale if isinstance(per_scale, tuple) else (per_scale,) * len(scales)
+        rows.append({"setting": name, "normalized scales": scales,
+                     "landmarks per scale": counts, "total": int(sum(counts))})
+    return pd.DataFrame(rows).set_index("setting")
+
+
+def dense_set_label(name: str, scales, per_scale) -> str:
+    """Legend label of a dense setting, e.g. ``"Set 3: 0.25/0.49 x 49"``."""
+    n = "/".join(map(str, per_scale)) if isinstance(per_scale, tuple) else str(per_scale)
+    return f"{name}: {'/'.join(f'{s:g}' for s in scales)} x {n}"

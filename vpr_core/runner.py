@@ -2,11 +2,15 @@
 
 ``vpr-study run`` and ``make study`` call :func:`run_study`. Each notebook of the source
 checkout's ``notebooks/`` is executed with its ``parameters`` cell overridden (dataset, root,
-backbone, quick), with the working directory ``notebooks/``, into
+backbone, label, options, limit), with the working directory ``notebooks/``, into
 ``<output root>/runs/<label>/<notebook>.ipynb``. The kernels inherit the absolute output and
 cache roots (``VPR_OUTPUT_DIR``, ``VPR_CACHE_DIR``), so they write where the caller works, not
-into ``notebooks/``. Afterwards every figure that :data:`vpr_core.study.FIGURES` lists for the
-notebook must exist in ``figures/<label>/``, else a clear error lists the missing ones.
+into ``notebooks/``. Afterwards every figure that :data:`FIGURES` lists for the notebook must
+exist in ``figures/<label>/``, else a clear error lists the missing ones.
+
+The orchestration lives here, outside the pipeline packages: the list of figures
+(:data:`FIGURES`), the real datasets of ``make study`` (:func:`study_datasets`) and the quick
+settings of the headless tests (:data:`QUICK_PLACES`, :data:`QUICK_IMAGES`).
 """
 
 from __future__ import annotations
@@ -15,16 +19,148 @@ import logging
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
 
 from . import paths, settings
 
-__all__ = ["notebook_paths", "notebooks_dir", "output_label", "run_study", "source_checkout",
+__all__ = ["FIGURES", "NORDLAND_STUDY", "QUICK_IMAGES", "QUICK_PLACES", "FigureSpec",
+           "expected_figures", "figure_spec", "notebook_parameters", "notebook_paths",
+           "notebooks_dir", "output_label", "run_study", "source_checkout", "study_datasets",
            "summary_table"]
 
 logger = logging.getLogger("vpr_core")
+
+#: Places of the ``synthetic`` dataset in quick mode (the headless notebook tests).
+QUICK_PLACES = 8
+#: Images per side kept from a real dataset in quick mode (``PlaceDataset.subset``).
+QUICK_IMAGES = 20
+
+
+@dataclass(frozen=True)
+class FigureSpec:
+    """One expected figure file.
+
+    Attributes:
+        stem: file stem under ``figures/<label>/`` (``.png``).
+        notebook: the notebook (stem) that writes it.
+        paper: the paper item it reproduces (``"Fig. 5"``), or what it shows when the paper has
+            no such figure.
+    """
+
+    stem: str
+    notebook: str
+    paper: str
+
+
+_NB1, _NB2, _NB3 = "01_pipeline_tour", "02_scale_statistics", "03_landmark_selection"
+_NB4, _NB5, _NB6 = "04_overlap", "05_dense_sampling_parameters", "06_comparison"
+
+#: Every figure the notebooks write, in notebook order.
+FIGURES: tuple[FigureSpec, ...] = (
+    FigureSpec("examples", _NB1, "Sec. 5.2: example reference/query pairs"),
+    FigureSpec("tour1_edge_boxes", _NB1, "Sec. 2.1: edge_boxes on one pair"),
+    FigureSpec("tour1_dense_sampling", _NB1, "Sec. 4: dense_sampling on one pair"),
+    FigureSpec("tour2_descriptors", _NB1, "Sec. 2.1: LandmarkEncoder.encode, descriptors"),
+    FigureSpec("tour3_reciprocal_matches", _NB1, "Sec. 2.1: reciprocal_matches"),
+    FigureSpec("tour4_image_similarity", _NB1, "Eq. 1-2: image_similarity, per-pair terms"),
+    FigureSpec("fig03_classical_pipeline", _NB1, "Fig. 3"),
+    FigureSpec("fig08_dense_pipeline", _NB1, "Fig. 8"),
+    FigureSpec("fig09_dense_scales", _NB1, "Fig. 9"),
+    FigureSpec("fig14_coverage", _NB1, "Fig. 14"),
+    FigureSpec("fig01_labelled_matches", _NB2, "Fig. 1"),
+    FigureSpec("fig02_irrelevant_matches", _NB2, "Fig. 2"),
+    FigureSpec("fig04a_cmr", _NB2, "Fig. 4a"),
+    FigureSpec("fig04b_cls", _NB2, "Fig. 4b"),
+    FigureSpec("fig04c_asl", _NB2, "Fig. 4c"),
+    FigureSpec("fig04_scale_statistics", _NB2, "Fig. 4"),
+    FigureSpec("fig05_selection", _NB3, "Fig. 5"),
+    FigureSpec("fig06a_scheme1_scales", _NB3, "Fig. 6a"),
+    FigureSpec("fig06b_scheme2_scales", _NB3, "Fig. 6b"),
+    FigureSpec("fig07a_overlap_nms", _NB4, "Fig. 7a"),
+    FigureSpec("fig07b_overlap_soft_nms", _NB4, "Fig. 7b"),
+    FigureSpec("fig10_scale_levels", _NB5, "Fig. 10 / Table 2"),
+    FigureSpec("fig11_landmarks_per_scale", _NB5, "Fig. 11 / Table 3"),
+    FigureSpec("fig12_normalized_scales", _NB5, "Fig. 12 / Table 4"),
+    FigureSpec("fig13_comparison", _NB6, "Fig. 13"),
+    FigureSpec("fig14_coverage_comparison", _NB6, "Fig. 14"),
+)
+
+
+def figure_spec(stem: str) -> FigureSpec:
+    """The :data:`FIGURES` entry of a figure stem.
+
+    Raises:
+        KeyError: unknown stem (the message lists the valid ones).
+    """
+    for spec in FIGURES:
+        if spec.stem == stem:
+            return spec
+    raise KeyError(f"Unknown figure {stem!r}; registered: {', '.join(s.stem for s in FIGURES)}.")
+
+
+def expected_figures() -> dict[str, list[str]]:
+    """``{notebook stem: [figure stems]}`` in notebook order."""
+    out: dict[str, list[str]] = {}
+    for spec in FIGURES:
+        out.setdefault(spec.notebook, []).append(spec.stem)
+    return out
+
+
+#: The Nordland subset of ``make study``: every 50th of the 3,576 places of
+#: ``../shared/data/nordland_64x32`` (72 places, 500 original frames apart, so tolerance 0),
+#: winter queries against summer references, ``roi`` pooling (one backbone pass per image: the
+#: 64x32 frames make per-landmark crops as slow as full-size images for no extra detail).
+NORDLAND_STUDY = {"dataset": "nordland", "options": {"step": 50, "tolerance": 0},
+                  "pooling": "roi"}
+
+
+def study_datasets() -> dict[str, dict]:
+    """Real datasets found beside the project, for the comparison notebooks (03-06).
+
+    ``../shared/data/gardens_point_mini`` next to the source checkout (10 Gardens Point
+    day/night pairs, crop pooling), ``../shared/data/nordland_64x32`` (the
+    :data:`NORDLAND_STUDY` subset) when present, and any ``VPR_DATASETS`` entries
+    (:func:`vpr_core.settings.extra_datasets`; loader defaults, crop pooling).
+
+    Returns:
+        ``{label: {"dataset": loader name, "root": folder, "options": {...}, "pooling": ...}}``.
+    """
+    found: dict[str, dict] = {}
+    checkout = source_checkout()
+    if checkout is not None:
+        data = checkout.parent / "shared" / "data"
+        if (data / "gardens_point_mini").is_dir():
+            found["gardens_point_mini"] = {"dataset": "folder",
+                                           "root": str(data / "gardens_point_mini"),
+                                           "options": {}, "pooling": "crop"}
+        if (data / "nordland_64x32").is_dir():
+            found["nordland_step50"] = {**NORDLAND_STUDY, "root": str(data / "nordland_64x32")}
+    for name, root in settings.extra_datasets().items():
+        found[name] = {"dataset": name, "root": root, "options": {}, "pooling": "crop"}
+    return found
+
+
+def notebook_parameters(dataset: str, root: str | None = None,
+                        backbone: str = "efficientnet_lite0", quick: bool = False,
+                        label: str | None = None, options: dict | None = None,
+                        pooling: str = "crop") -> dict:
+    """The ``parameters`` cell values papermill injects into a study notebook.
+
+    Quick mode: ``synthetic`` with :data:`QUICK_PLACES` places, a real dataset cut to its first
+    :data:`QUICK_IMAGES` images (``limit``); the label gets ``_quick`` appended.
+    """
+    options = dict(options or {})
+    limit = None
+    if quick and dataset == "synthetic":
+        options.setdefault("n_places", QUICK_PLACES)
+    elif quick:
+        limit = QUICK_IMAGES
+    return {"dataset": dataset, "root": root, "backbone": backbone,
+            "label": output_label(label or dataset, quick), "options": options,
+            "pooling": pooling, "limit": limit}
 
 
 def source_checkout() -> Path | None:
@@ -71,16 +207,19 @@ def notebook_paths(names: Sequence[str] | None = None) -> list[Path]:
 
 def output_label(dataset: str, quick: bool) -> str:
     """The ``figures/`` and ``results/`` subfolder of a run."""
-    return f"{dataset}_quick" if quick else dataset
+    return f"{dataset}_quick" if quick and not dataset.endswith("_quick") else dataset
 
 
 def summary_table(label: str) -> pd.DataFrame:
-    """All metrics rows written by the notebooks for ``label`` (``results/<label>/NN_*.csv``)."""
+    """Every comparison table the notebooks saved for ``label`` (``results/<label>/fig*.csv``
+    with an ``AUC`` column), one row per run, with the figure's notebook and stem."""
+    notebook = {spec.stem: spec.notebook for spec in FIGURES}
     frames = []
-    for csv in sorted(paths.results_dir(label).glob("0[0-9]_*.csv")):
+    for csv in sorted(paths.results_dir(label).glob("fig*.csv")):
         df = pd.read_csv(csv)
-        if "figure" in df.columns and "AUC" in df.columns:
-            df.insert(0, "notebook", csv.stem)
+        if "AUC" in df.columns and "run" in df.columns:
+            df.insert(0, "figure", csv.stem)
+            df.insert(0, "notebook", notebook.get(csv.stem, "?"))
             frames.append(df)
     if not frames:
         return pd.DataFrame()
@@ -124,7 +263,7 @@ def _print_summary(table: pd.DataFrame, label: str, backbone: str) -> None:
 
 
 #: The comparison notebooks that ``make study`` also runs on the real datasets beside the
-#: project (:func:`vpr_core.study.extra_datasets`).
+#: project (:func:`study_datasets`).
 REAL_DATA_NOTEBOOKS = ("03_landmark_selection", "04_overlap", "05_dense_sampling_parameters",
                        "06_comparison")
 
@@ -146,8 +285,6 @@ def _execute(nb: Path, out: Path, params: dict, kernel: str) -> None:
 
 def _run_label(label: str, selected: Sequence[Path], params: dict, kernel: str) -> list[str]:
     """Execute ``selected`` notebooks for one output label; the expected figures not written."""
-    from .study import expected_figures
-
     expected = expected_figures()
     out_dir = paths.runs_dir(label)
     missing: list[str] = []
@@ -160,7 +297,7 @@ def _run_label(label: str, selected: Sequence[Path], params: dict, kernel: str) 
 
 def _write_findings(labels: Sequence[str]) -> None:
     """``results/findings.md``: the paper's claims against these labels' paired differences."""
-    from .study.findings import findings_markdown
+    from .findings import findings_markdown
 
     text = findings_markdown(list(labels))
     out = paths.results_dir() / "findings.md"
@@ -182,7 +319,7 @@ def run_study(dataset: str = "synthetic", root: str | None = None,
         notebooks: subset of notebook stems (default: all, in order).
         kernel: Jupyter kernel name.
         real_data: also run :data:`REAL_DATA_NOTEBOOKS` (of those selected) on every real
-            dataset of :func:`vpr_core.study.extra_datasets` (outputs under
+            dataset of :func:`study_datasets` (outputs under
             ``figures/<label>/``, ``results/<label>/``); default: on for the full
             ``synthetic`` study, off otherwise.
 
@@ -194,7 +331,6 @@ def run_study(dataset: str = "synthetic", root: str | None = None,
             or expected figures are missing.
     """
     from .datasets import load_dataset
-    from .study import QUICK_PLACES, extra_datasets
 
     if root is not None:
         root = str(Path(root).expanduser().resolve())
@@ -204,9 +340,9 @@ def run_study(dataset: str = "synthetic", root: str | None = None,
     if real_data is None:
         real_data = dataset == "synthetic" and not quick
     label = output_label(dataset, quick)
-    params = {"dataset": dataset, "root": root, "backbone": backbone, "quick": quick}
+    params = notebook_parameters(dataset, root, backbone, quick)
     selected = notebook_paths(notebooks)
-    extra = extra_datasets() if real_data else {}
+    extra = study_datasets() if real_data else {}
     with _kernel_environment() as out_root:
         logger.info("study outputs under %s", out_root)
         missing = _run_label(label, selected, params, kernel)
@@ -214,10 +350,9 @@ def run_study(dataset: str = "synthetic", root: str | None = None,
         for name, spec in extra.items():
             sub = output_label(name, quick)
             logger.info("real data: %s (%s, %s)", sub, spec["dataset"], spec["root"])
-            missing += _run_label(sub, real_selected, {
-                "dataset": spec["dataset"], "root": spec["root"], "backbone": backbone,
-                "quick": quick, "label": sub, "options": spec.get("options", {}),
-                "pooling": spec.get("pooling", "crop")}, kernel)
+            missing += _run_label(sub, real_selected, notebook_parameters(
+                spec["dataset"], spec["root"], backbone, quick, label=name,
+                options=spec.get("options", {}), pooling=spec.get("pooling", "crop")), kernel)
         if missing:
             raise RuntimeError("expected figures were not written: " + ", ".join(missing))
         table = summary_table(label)

@@ -82,36 +82,46 @@ def cache_root() -> Path:
     return paths.cache_root()
 
 
-class _StderrHandler(logging.StreamHandler):
-    """A StreamHandler that writes to whatever ``sys.stderr`` is when a record is emitted.
+class _LiveStreamHandler(logging.StreamHandler):
+    """A StreamHandler that writes to whatever ``sys.stderr`` (or ``sys.stdout``) is when a
+    record is emitted.
 
     A plain StreamHandler keeps the stream it was created with; when that stream is replaced and
     closed (pytest's capture, a notebook kernel's redirection), every later record would end in
     "--- Logging error --- ValueError: I/O operation on closed file".
     """
 
-    def __init__(self) -> None:
-        super().__init__(sys.stderr)
+    def __init__(self, to: str = "stderr") -> None:
+        self.to = to
+        super().__init__(getattr(sys, to))
 
     @property
     def stream(self):  # type: ignore[override]
-        return sys.stderr
+        return getattr(sys, self.to)
 
     @stream.setter
-    def stream(self, value) -> None:  # the current sys.stderr is always used
+    def stream(self, value) -> None:  # StreamHandler.__init__ assigns it
         pass
 
 
-def configure_logging(level: str | int = "INFO") -> logging.Logger:
-    """Send ``vpr_core`` log records to stderr as ``[vpr_core LEVEL] message`` (idempotent).
+def configure_logging(level: str | int = "INFO", stream: str = "stderr") -> logging.Logger:
+    """Send ``vpr_core`` log records to ``stream`` as ``[vpr_core LEVEL] message`` (idempotent).
 
-    The library itself only has a NullHandler; the CLI and notebooks (``open_study``) call this.
-    Records go to the ``sys.stderr`` of the moment they are emitted.
+    The library itself only has a NullHandler (and raises :class:`~vpr_core.notices.VPRWarning`
+    for what changes a number's meaning); the CLI calls this with ``stream="stderr"``, the
+    notebooks with ``stream="stdout"`` (Jupyter draws stderr as error boxes).
+
+    Raises:
+        ValueError: ``stream`` is neither ``"stderr"`` nor ``"stdout"``.
     """
-    if not any(isinstance(h, _StderrHandler) for h in logger.handlers):
-        h = _StderrHandler()
-        h.setFormatter(logging.Formatter("[vpr_core %(levelname)s] %(message)s"))
-        logger.addHandler(h)
+    if stream not in ("stderr", "stdout"):
+        raise ValueError(f"configure_logging(stream=...) takes 'stderr' or 'stdout', got "
+                         f"{stream!r}")
+    for h in [h for h in logger.handlers if isinstance(h, _LiveStreamHandler)]:
+        logger.removeHandler(h)
+    h = _LiveStreamHandler(stream)
+    h.setFormatter(logging.Formatter("[vpr_core %(levelname)s] %(message)s"))
+    logger.addHandler(h)
     logger.setLevel(level)
     logger.propagate = False
     return logger

@@ -361,6 +361,23 @@ class PlaceDataset:
         out[self.ground_truth_soft & ~self.ground_truth] = out.min()
         return out
 
+    def subset(self, n: int) -> PlaceDataset:
+        """The first ``n`` queries and references (quick runs); the ground truth is cut to match.
+
+        Raises:
+            ValueError: ``n`` is not a positive integer.
+        """
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise ValueError(f"subset(n): n must be a positive integer, got {n!r}")
+        nq, nr = min(int(n), self.n_query), min(int(n), self.n_reference)
+        soft = None if self.ground_truth_soft is None else self.ground_truth_soft[:nq, :nr].copy()
+        homs = None if self.homographies is None else self.homographies[:nq].copy()
+        return PlaceDataset(name=self.name, query_paths=self.query_paths[:nq],
+                            reference_paths=self.reference_paths[:nr],
+                            ground_truth=self.ground_truth[:nq, :nr].copy(),
+                            tolerance=self.tolerance, root=self.root, homographies=homs,
+                            meta={**self.meta, "subset": (nq, nr)}, ground_truth_soft=soft)
+
     def gt_pairs(self) -> list[tuple[int, int]]:
         """All ``(q, r)`` with ``ground_truth[q, r]`` True, row-major order."""
         return [(int(q), int(r)) for q, r in np.argwhere(self.ground_truth)]

@@ -106,7 +106,8 @@ class MethodResult:
         return pr_curve(self.similarity, self.ground_truth, protocol=protocol, warn=False)
 
 
-def peer_result(peer, dataset, n_bootstrap: int = N_BOOTSTRAP) -> MethodResult:
+def peer_result(peer, dataset, n_bootstrap: int = N_BOOTSTRAP, label: str | None = None
+                ) -> MethodResult:
     """A VPR-Bench peer (:class:`~vpr_core.baselines.PeerResult`) as a result beside ours.
 
     Its similarity matrix is checked against ``dataset`` (shape, query order) and evaluated with
@@ -118,6 +119,7 @@ def peer_result(peer, dataset, n_bootstrap: int = N_BOOTSTRAP) -> MethodResult:
         peer: a loaded peer (:func:`~vpr_core.baselines.load_vprbench_precomputed`).
         dataset: the :class:`~vpr_core.datasets.PlaceDataset` it was computed on.
         n_bootstrap: resamples of the metric intervals.
+        label: its name in tables and legends (default ``"<name> (VPR-Bench)"``).
     """
     from ..baselines import peer_similarity_for
     from ..evaluation import bootstrap_metrics, evaluate, ground_truth_coverage
@@ -129,7 +131,7 @@ def peer_result(peer, dataset, n_bootstrap: int = N_BOOTSTRAP) -> MethodResult:
                "features_s_per_image": float(peer.encode_seconds),
                "matching_s_per_pair": float(peer.match_seconds), "pairs": float(nq * nr)}
     return MethodResult(
-        method=f"peer:{peer.name}", label=f"{peer.name} (VPR-Bench)", dataset=dataset.name,
+        method=f"peer:{peer.name}", label=label or f"{peer.name} (VPR-Bench)", dataset=dataset.name,
         config={"name": f"peer:{peer.name}", "source": None if peer.source is None else str(peer.source)}, encoder={},
         similarity=sim, ground_truth=gt, boxes={"query": [], "reference": []},
         metrics=evaluate(sim, gt), timings=timings,

@@ -19,6 +19,7 @@ from .base import METHOD_COLORS, SAVE_DPI, draw_boxes, save, save_figure
 from .curves import dataset_line, plot_metric_bars, plot_pr_curves, plot_scale_distribution
 from .images import (
     plot_coverage,
+    plot_coverage_comparison,
     plot_dataset_overview,
     plot_dense_scales,
     plot_examples,
@@ -28,8 +29,10 @@ from .images import (
 from .matches import (
     plot_descriptor_matrices,
     plot_labelled_matches,
+    plot_pair,
     plot_pair_terms,
 )
+from .recall import plot_recall_at_n
 from .statistics import plot_asl, plot_cls, plot_cmr, plot_scale_statistics
 
 __all__ = [
@@ -41,6 +44,7 @@ __all__ = [
     "plot_cls",
     "plot_cmr",
     "plot_coverage",
+    "plot_coverage_comparison",
     "plot_dataset_overview",
     "plot_dense_scales",
     "plot_descriptor_matrices",
@@ -49,8 +53,10 @@ __all__ = [
     "plot_landmark_panels",
     "plot_landmarks",
     "plot_metric_bars",
+    "plot_pair",
     "plot_pair_terms",
     "plot_pr_curves",
+    "plot_recall_at_n",
     "plot_scale_distribution",
     "plot_scale_statistics",
     "save",

@@ -6,12 +6,13 @@ from __future__ import annotations
 import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
+import pandas as pd
 
 from ..paper import DENSE_PER_SCALE, DENSE_SCALES
 from .base import draw_boxes, landmark_canvas, show_canvas
 
-__all__ = ["plot_coverage", "plot_dataset_overview", "plot_dense_scales", "plot_examples",
-           "plot_landmark_panels", "plot_landmarks"]
+__all__ = ["plot_coverage", "plot_coverage_comparison", "plot_dataset_overview",
+           "plot_dense_scales", "plot_examples", "plot_landmark_panels", "plot_landmarks"]
 
 
 def plot_examples(dataset, indices=(0, 1, 2), boxes=None,
@@ -169,8 +170,33 @@ def plot_coverage(image: np.ndarray, boxes: np.ndarray, ax=None, cmap: str = "vi
 
 
 
+def plot_coverage_comparison(dataset, results, index: int = 0, side: str = "reference"):
+    """Fig. 14: coverage heatmaps of several runs' landmarks on one image, side by side.
+
+    Returns:
+        ``(figure, table)``: per run, the share of the image covered by at least one landmark
+        for this image and averaged over the dataset's images of that side.
+    """
+    from ..landmarks import landmark_coverage
+
+    image = dataset.load_image(side, index)
+    fig, axes = plt.subplots(1, len(results), figsize=(5.5 * len(results), 3.4), squeeze=False)
+    rows = []
+    for k, (ax, res) in enumerate(zip(axes[0], results)):
+        plot_coverage(image, res.boxes[side][index], ax=ax)
+        ax.set_title(f"({chr(ord('a') + k)}) {res.label}: {len(res.boxes[side][index])} "
+                     "landmarks")
+        shares = [float((landmark_coverage(b, dataset.image_size(side, i)) > 0).mean())
+                  for i, b in enumerate(res.boxes[side])]
+        rows.append({"method": res.label, "covered share (this image)": shares[index],
+                     "covered share (mean)": float(np.mean(shares))})
+    fig.tight_layout()
+    return fig, pd.DataFrame(rows).set_index("method")
+
+
 def plot_landmark_panels(panels: dict, colors_by: np.ndarray | None = None,
-                         title: str | None = None) -> matplotlib.figure.Figure:
+                         title: str | None = None, group_labels: dict | None = None
+                         ) -> matplotlib.figure.Figure:
     """Several images side by side, each with its landmark boxes (pipeline tour, step 1).
 
     Args:
@@ -178,6 +204,8 @@ def plot_landmark_panels(panels: dict, colors_by: np.ndarray | None = None,
         colors_by: optional ``(K,)`` integer group of each box (e.g. its dense scale level);
             boxes of one group share a colour. Applies to every panel (same K each).
         title: optional suptitle.
+        group_labels: ``{group: legend text}`` (e.g. ``{1: "scale 0.16"}``); with ``colors_by``
+            a legend below the panels says which colour is which (default: ``"group N"``).
 
     Returns:
         A ``1 x len(panels)`` figure.
@@ -203,4 +231,14 @@ def plot_landmark_panels(panels: dict, colors_by: np.ndarray | None = None,
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
+    if colors_by is not None:
+        from matplotlib.patches import Patch
+
+        groups = np.unique(np.asarray(colors_by).reshape(-1))
+        names = group_labels or {}
+        handles = [Patch(facecolor="none", edgecolor=palette[int(g) % len(palette)], lw=1.5,
+                         label=names.get(int(g), f"group {int(g)}")) for g in groups]
+        fig.subplots_adjust(bottom=0.16)
+        fig.legend(handles=handles, loc="lower center", ncol=len(handles), frameon=False,
+                   fontsize=9)
     return fig

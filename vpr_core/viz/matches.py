@@ -10,7 +10,7 @@ import numpy as np
 
 from .base import draw_boxes
 
-__all__ = ["plot_descriptor_matrices", "plot_labelled_matches", "plot_pair_terms"]
+__all__ = ["plot_descriptor_matrices", "plot_labelled_matches", "plot_pair", "plot_pair_terms"]
 
 
 def plot_labelled_matches(img_q: np.ndarray, img_r: np.ndarray, boxes_q: np.ndarray,
@@ -151,4 +151,27 @@ def plot_pair_terms(distances: np.ndarray, shape: np.ndarray, n_a: int, n_b: int
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
+    return fig
+
+
+def plot_pair(dataset, result, query: int = 0, reference: int | None = None
+              ) -> matplotlib.figure.Figure:
+    """Fig. 1-3, 8: the matched landmarks of one pair of a run, coloured correct / incorrect.
+
+    Labels from :func:`vpr_core.statistics.pair_matches` (``exact`` on ``synthetic``, SIFT +
+    RANSAC on real images; an unverifiable pair is drawn unlabelled and the title says why).
+
+    Args:
+        dataset: the run's dataset. result: a run with ``keep_descriptors=True``.
+        query: query index. reference: None for its ground-truth reference.
+    """
+    from ..statistics import pair_matches
+
+    pm = pair_matches(dataset, result, query, reference)
+    fig = plot_labelled_matches(dataset.load_image("query", pm.query),
+                                dataset.load_image("reference", pm.reference),
+                                result.boxes["query"][pm.query],
+                                result.boxes["reference"][pm.reference], pm.matches, pm.labels)
+    note = f"\n(labels unavailable: {pm.note[:90]})" if pm.note else ""
+    fig.suptitle(f"{result.label} on {dataset.name}: {pm.summary()}{note}", fontsize=10)
     return fig

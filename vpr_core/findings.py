@@ -1,0 +1,247 @@
+"""The paper's claims against the study's numbers: one row per claim, one column per dataset.
+
+Every claim is a signed difference between two runs of one figure, each named by its
+configuration (method and options, :func:`vpr_core.methods.run_key`), never by a legend text.
+The numbers are ``dAUC`` of the ratio protocol from the comparison table that a notebook saves
+as ``results/<label>/<figure>.csv`` (:func:`vpr_core.evaluation.compare`: paired bootstrap
+against the figure's baseline). The first observation is the difference of correct-match rates
+between large (Table-1 Scales 5-7) and small (Scales 1-3) landmarks, bootstrapped over query
+images from the labelled matches notebook 02 saves as ``results/<label>/fig04_matches.csv``.
+
+Verdicts (95% intervals, :data:`~vpr_core.evaluation.N_BOOTSTRAP` resamples, seed 0):
+
+* claim "a > b": **holds** when the interval of ``a - b`` lies above 0, **does not hold** when
+  it lies below 0, **inconclusive** when it contains 0 (with the queries that would decide it
+  if effect and spread stayed as measured: "needs ~N queries");
+* claim "a ~ b" (on par): **holds** when the interval contains 0 (no difference found; this is
+  absence of evidence, said so in the text), **does not hold** otherwise;
+* no claim (``"?"``): **finding: higher / lower** or **inconclusive**;
+* **not testable (identical results)**: both runs gave the same ranking for every query (e.g.
+  on 64x32 Nordland frames Edge Boxes yields ~13 proposals, all at Scale >= 6, so the selection
+  schemes keep the same boxes as classical);
+* **not run**: the dataset has no such result.
+
+``vpr-study findings`` prints :func:`findings_markdown`; the runner writes
+``results/findings.md`` after ``make study``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import paths
+from .evaluation.bootstrap import N_BOOTSTRAP, needs_text
+from .methods import get_method, run_key
+from .paper import TABLE2, TABLE3, TABLE4
+
+__all__ = ["CLAIMS", "OBSERVATION_1", "Claim", "cmr_difference", "findings_markdown",
+           "findings_table"]
+
+
+@dataclass(frozen=True)
+class Claim:
+    """One claim of the paper as a signed difference ``method - baseline`` of ``metric``.
+
+    Attributes:
+        text: the claim, as the paper makes it.
+        figure: the figure (and saved table ``results/<label>/<figure>.csv``) comparing the runs.
+        method, baseline: ``(preset name, {options})`` of the two runs.
+        expect: ``">"`` (method better), ``"<"`` (method worse), ``"~"`` (on par) or ``"?"``
+            (no claim: the verdict only says whether there is a finding and its sign).
+        metric: ``"dAUC"`` or ``"dR@1"`` (columns of the comparison table).
+    """
+
+    text: str
+    figure: str
+    method: tuple[str, dict] = field(hash=False)
+    baseline: tuple[str, dict] = field(hash=False)
+    expect: str
+    metric: str = "dAUC"
+
+    @property
+    def keys(self) -> tuple[str, str]:
+        """The run keys of method and baseline (the ``run`` column of the tables)."""
+        return tuple(run_key(get_method(name, **opts)) for name, opts in (self.method,
+                                                                           self.baseline))
+
+
+def _dense(table: dict, name: str) -> tuple[str, dict]:
+    scales, per_scale = table[name]
+    return "dense", {"scales": scales, "per_scale": per_scale}
+
+
+_C = ("classical", {})
+_D = ("dense", {})
+
+#: The paper's claims, in paper order (observation 1 is handled by :func:`cmr_difference`).
+CLAIMS: tuple[Claim, ...] = (
+    Claim("Fig. 5: selection Scheme 1 beats classical", "fig05_selection",
+          ("selection_scheme1", {}), _C, ">"),
+    Claim("Fig. 5: selection Scheme 2 lags behind classical", "fig05_selection",
+          ("selection_scheme2", {}), _C, "<"),
+    Claim("Fig. 7a: NMS (Alg. 3) at IoU 0.4 falls below classical", "fig07a_overlap_nms",
+          ("overlap_scheme1", {"iou_threshold": 0.4}), _C, "<"),
+    Claim("Fig. 7a: NMS at IoU 0.7 is on par with classical", "fig07a_overlap_nms",
+          ("overlap_scheme1", {"iou_threshold": 0.7}), _C, "~"),
+    Claim("Fig. 7b: soft-NMS (Alg. 4) at IoU 0.3 falls below classical",
+          "fig07b_overlap_soft_nms", ("overlap_scheme2", {"soft_nms_iou": 0.3}), _C, "<"),
+    Claim("Fig. 7b: soft-NMS at IoU 0.7 is on par with classical", "fig07b_overlap_soft_nms",
+          ("overlap_scheme2", {"soft_nms_iou": 0.7}), _C, "~"),
+    Claim("Table 2: 4 scales x 25 (Set 5) beat one scale x 100 (Set 1)", "fig10_scale_levels",
+          _dense(TABLE2, "Set 5"), _dense(TABLE2, "Set 1"), ">"),
+    Claim("Table 2: one large scale (Set 2, 0.49) is worse than Set 1", "fig10_scale_levels",
+          _dense(TABLE2, "Set 2"), _dense(TABLE2, "Set 1"), "<"),
+    Claim("Table 2: six scales x 16 (Set 6) are worse even than one scale (Set 1)",
+          "fig10_scale_levels", _dense(TABLE2, "Set 6"), _dense(TABLE2, "Set 1"), "<"),
+    Claim("Table 3: the most uneven split (Set 4) is worse than uniform 25 each (Set 1)",
+          "fig11_landmarks_per_scale", _dense(TABLE3, "Set 4"), _dense(TABLE3, "Set 1"), "<"),
+    Claim("Table 4: similar scales (Set 2) are on par with Set 1", "fig12_normalized_scales",
+          _dense(TABLE4, "Set 2"), _dense(TABLE4, "Set 1"), "~"),
+    Claim("Table 4: small scales (Set 3) are worse than Set 1", "fig12_normalized_scales",
+          _dense(TABLE4, "Set 3"), _dense(TABLE4, "Set 1"), "<"),
+    Claim("Table 4: oversize scales (Set 4) are worse than Set 1", "fig12_normalized_scales",
+          _dense(TABLE4, "Set 4"), _dense(TABLE4, "Set 1"), "<"),
+    Claim("Fig. 13: classical is clearly worse than dense", "fig13_comparison", _C, _D, "<"),
+    Claim("Fig. 13: Scheme 1 is slightly worse than dense", "fig13_comparison",
+          ("selection_scheme1", {}), _D, "<"),
+    Claim("(not in the paper) a global descriptor vs dense landmarks", "fig13_comparison",
+          ("global", {}), _D, "?"),
+)
+
+#: Observation 1 (Fig. 4): large landmarks (Scales 5-7) match correctly more often than small
+#: ones (Scales 1-3).
+OBSERVATION_1 = ("Obs. 1 / Fig. 4: large landmarks (Scales 5-7) match correctly more often "
+                 "than small ones (Scales 1-3), CMR difference")
+
+#: The file of labelled matches that observation 1 reads (``results/<label>/<name>.csv``).
+MATCHES_TABLE = "fig04_matches"
+
+
+def _verdict(expect: str, lo: float, hi: float, delta: float | None = None) -> str:
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return "not run"
+    if delta == 0 and lo == 0 and hi == 0:
+        return "not testable (identical results)"
+    if expect == "?":
+        return "finding: higher" if lo > 0 else ("finding: lower" if hi < 0 else "inconclusive")
+    if expect == "~":
+        return "holds (no difference found)" if lo <= 0 <= hi else "does not hold"
+    above, below = lo > 0, hi < 0
+    if not (above or below):
+        return "inconclusive"
+    return "holds" if (above if expect == ">" else below) else "does not hold"
+
+
+def _claim_cell(folder: Path, claim: Claim) -> tuple[str, str]:
+    csv = folder / f"{claim.figure}.csv"
+    if not csv.is_file():
+        return "-", "not run"
+    df = pd.read_csv(csv)
+    if "run" not in df.columns or "baseline" not in df.columns:
+        raise ValueError(f"{csv} is not a comparison table (no 'run' / 'baseline' column); "
+                         "write it with save(compare(runs), figure, label)")
+    method_key, base_key = claim.keys
+    base = df[df["run"] == base_key]
+    rows = df[(df["run"] == method_key) & df["baseline"].isin(base["method"])]
+    if base.empty or rows.empty:
+        return "-", "not run"
+    r = rows.iloc[0]
+    m = claim.metric
+    d, lo, hi, p = (float(r[m]), float(r[f"{m} lo"]), float(r[f"{m} hi"]), float(r[f"{m} p"]))
+    verdict = _verdict(claim.expect, lo, hi, d)
+    if verdict == "inconclusive" and f"{m} needs" in df.columns:
+        verdict += f" ({needs_text(float(r[f'{m} needs']))})"
+    return f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] p={p:.3f}", verdict
+
+
+def cmr_difference(matches: pd.DataFrame, n: int = N_BOOTSTRAP, seed: int = 0
+                   ) -> tuple[float, float, float]:
+    """CMR(Scales 5-7) - CMR(Scales 1-3) of labelled ground-truth matches, bootstrapped over
+    query images (all matches of a drawn query count).
+
+    Args:
+        matches: :meth:`~vpr_core.statistics.ScaleStats.matches_frame` (columns ``query``,
+            ``pair``, ``scale``, ``correct``); only ``pair == "gt"`` rows are used.
+        n: resamples. seed: their seed.
+
+    Returns:
+        ``(difference, low, high)``: 95% percentile interval.
+
+    Raises:
+        ValueError: no labelled ground-truth match at Scales 1-3 or 5-7.
+    """
+    m = matches[(matches["pair"] == "gt") & matches["correct"].notna()]
+    groups = {"small": m["scale"].between(1, 3), "large": m["scale"].between(5, 7)}
+    if not all(g.any() for g in groups.values()):
+        raise ValueError("cmr_difference needs labelled ground-truth matches at Scales 1-3 "
+                         "and 5-7")
+    queries = np.unique(m["query"].to_numpy())
+    qi = np.searchsorted(queries, m["query"].to_numpy())
+    sums = {}
+    for name, mask in groups.items():
+        mask = mask.to_numpy()
+        sums[name] = (np.bincount(qi[mask], weights=m["correct"].to_numpy()[mask],
+                                  minlength=len(queries)),
+                      np.bincount(qi[mask], minlength=len(queries)).astype(float))
+
+    def diff(w: np.ndarray) -> np.ndarray:
+        rates = {k: (w @ c) / np.maximum(w @ t, 1e-12) for k, (c, t) in sums.items()}
+        return rates["large"] - rates["small"]
+
+    point = float(diff(np.ones((1, len(queries))))[0])
+    rng = np.random.default_rng(seed)
+    draws = rng.integers(0, len(queries), size=(n, len(queries)))
+    w = np.zeros((n, len(queries)))
+    np.add.at(w, (np.repeat(np.arange(n), len(queries)), draws.ravel()), 1.0)
+    lo, hi = np.percentile(diff(w), [2.5, 97.5])
+    return point, float(lo), float(hi)
+
+
+def _observation_1(folder: Path) -> tuple[str, str]:
+    csv = folder / f"{MATCHES_TABLE}.csv"
+    if not csv.is_file():
+        return "-", "not run"
+    d, lo, hi = cmr_difference(pd.read_csv(csv))
+    return f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}]", _verdict(">", lo, hi)
+
+
+def findings_table(labels: Sequence[str], out: str | Path | None = None) -> pd.DataFrame:
+    """One row per claim, two columns per dataset label (``<label>`` value and verdict).
+
+    Args:
+        labels: result folders under ``<output root>/results/`` (e.g. ``["synthetic",
+            "gardens_point_mini", "nordland_step50"]``).
+        out: another output root (default :func:`vpr_core.paths.output_root`).
+
+    Returns:
+        DataFrame indexed by claim text.
+    """
+    root = paths.output_root() if out is None else Path(out)
+    rows = []
+    for claim in (None, *CLAIMS):
+        row = {"claim": OBSERVATION_1 if claim is None else claim.text}
+        for label in labels:
+            folder = root / "results" / label
+            value, verdict = (_observation_1(folder) if claim is None
+                              else _claim_cell(folder, claim))
+            row[label], row[f"{label} verdict"] = value, verdict
+        rows.append(row)
+    return pd.DataFrame(rows).set_index("claim")
+
+
+def findings_markdown(labels: Sequence[str], out: str | Path | None = None) -> str:
+    """:func:`findings_table` as a Markdown table (value and verdict in one cell)."""
+    table = findings_table(labels, out=out)
+    head = "| paper's claim | " + " | ".join(labels) + " |"
+    sep = "|---" * (len(labels) + 1) + "|"
+    lines = [head, sep]
+    for claim, r in table.iterrows():
+        cells = [f"{r[lab]} **{r[lab + ' verdict']}**" if r[lab] != "-" else
+                 f"**{r[lab + ' verdict']}**" for lab in labels]
+        lines.append(f"| {claim} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
