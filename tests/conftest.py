@@ -1,17 +1,22 @@
 """Shared pytest fixtures: a tiny synthetic dataset and the real Gardens Point mini subset.
 
-Caches stay at their default location (``<repo>/.cache``) so repeated test runs reuse the
-generated synthetic images; tests that check caching use their own tmp dirs (monkeypatch).
+The tests run on a cache of their own: a new temporary folder per session (never the
+repository's ``.cache``, which a user's runs fill), unless ``VPR_CACHE_DIR`` is set by whoever
+runs the tests (e.g. to reuse one between local runs). Tests that check caching use their own
+tmp dirs (monkeypatch).
 """
 
 from __future__ import annotations
 
 import os
+import tempfile
 from pathlib import Path
 
 import pytest
 
 os.environ.setdefault("TQDM_DISABLE", "1")
+if not os.environ.get("VPR_CACHE_DIR"):
+    os.environ["VPR_CACHE_DIR"] = tempfile.mkdtemp(prefix="vpr-test-cache-")
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 REPO_DIR = Path(__file__).resolve().parents[1]

@@ -1,4 +1,5 @@
-"""The paper's claims against paired differences (vpr_core.study.findings)."""
+"""The paper's claims against the saved comparison tables (vpr_core.findings), keyed by
+configuration (run key), never by legend text."""
 
 from __future__ import annotations
 
@@ -6,41 +7,72 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from vpr_core.study import findings
+from vpr_core import findings
+from vpr_core.methods import get_method, run_key
 
 
-def _paired(folder, notebook, figure, baseline, rows):
+def _table(folder, figure, rows, baseline_run, baseline_label="base"):
+    """A compare() table: the baseline row first, then (run, label, d, lo, hi) rows."""
     folder.mkdir(parents=True, exist_ok=True)
-    recs = [{"figure": figure, "method": m, "baseline": baseline, "dAUC": d, "dAUC lo": lo,
-             "dAUC hi": hi, "dAUC p": 0.01} for m, d, lo, hi in rows]
-    pd.DataFrame(recs).to_csv(folder / f"{notebook}_{figure}_paired.csv", index=False)
+    recs = [{"method": baseline_label, "run": baseline_run, "baseline": None}]
+    for run, label, d, lo, hi in rows:
+        recs.append({"method": label, "run": run, "baseline": baseline_label, "dAUC": d,
+                     "dAUC lo": lo, "dAUC hi": hi, "dAUC p": 0.01, "dAUC needs": 1234.0})
+    pd.DataFrame(recs).to_csv(folder / f"{figure}.csv", index=False)
 
 
-def test_verdicts_follow_the_interval_and_the_claims_direction(tmp_path, monkeypatch):
-    monkeypatch.setenv("VPR_OUTPUT_DIR", str(tmp_path))
+def test_verdicts_follow_the_interval_and_the_claims_direction(tmp_path):
     res = tmp_path / "results" / "d"
-    _paired(res, "03_landmark_selection", "fig05_selection", "classical",
-            [("selection_scheme1", 0.2, 0.1, 0.3), ("selection_scheme2", 0.05, -0.02, 0.12)])
-    _paired(res, "06_comparison", "fig13_comparison", "dense",
-            [("classical", 0.0, 0.0, 0.0), ("global", -0.1, -0.2, -0.05)])
-    _paired(res, "04_overlap", "fig07a_overlap_nms", "classical",
-            [("overlap_scheme1 (IoU 0.4)", 0.1, 0.05, 0.15),
-             ("overlap_scheme1 (IoU 0.7)", 0.0, -0.01, 0.02)])
-    _paired(res, "05_dense_sampling_parameters", "fig10_scale_levels", "Set 1: 0.25 x 100",
-            [("Set 5: 0.16/0.25/0.36/0.49 x 25", -0.2, -0.3, -0.1)])
-    t = findings.findings_table(["d"])
+    _table(res, "fig05_selection", [("selection_scheme1", "any legend", 0.2, 0.1, 0.3),
+                                    ("selection_scheme2", "S2", 0.05, -0.02, 0.12)],
+           "classical")
+    _table(res, "fig13_comparison", [("classical", "c", 0.0, 0.0, 0.0),
+                                     ("global", "g", -0.1, -0.2, -0.05)], "dense")
+    _table(res, "fig07a_overlap_nms",
+           [("overlap_scheme1(iou_threshold=0.4)", "renamed", 0.1, 0.05, 0.15),
+            ("overlap_scheme1(iou_threshold=0.7)", "x", 0.0, -0.01, 0.02)], "classical")
+    set1 = run_key(get_method("dense", scales=(0.25,), per_scale=100))
+    _table(res, "fig10_scale_levels", [("dense", "Set 5 whatever", -0.2, -0.3, -0.1)], set1)
+    t = findings.findings_table(["d"], out=tmp_path)
     v = t["d verdict"]
     assert v["Fig. 5: selection Scheme 1 beats classical"] == "holds"
-    assert v["Fig. 5: selection Scheme 2 lags behind classical"] == "inconclusive"
+    assert v["Fig. 5: selection Scheme 2 lags behind classical"] == \
+        "inconclusive (needs ~1,200 queries)"
     assert v["Fig. 7a: NMS (Alg. 3) at IoU 0.4 falls below classical"] == "does not hold"
     assert v["Fig. 7a: NMS at IoU 0.7 is on par with classical"].startswith("holds")
     assert v["Table 2: 4 scales x 25 (Set 5) beat one scale x 100 (Set 1)"] == "does not hold"
+    assert v["Table 2: one large scale (Set 2, 0.49) is worse than Set 1"] == "not run"
     assert v["Fig. 13: classical is clearly worse than dense"] == "not testable (identical results)"
     assert v["Fig. 13: Scheme 1 is slightly worse than dense"] == "not run"
     assert v["(not in the paper) a global descriptor vs dense landmarks"] == "finding: lower"
     assert t.loc["Fig. 5: selection Scheme 1 beats classical", "d"].startswith("+0.200 [+0.100")
-    md = findings.findings_markdown(["d"])
+    md = findings.findings_markdown(["d"], out=tmp_path)
     assert md.splitlines()[0] == "| paper's claim | d |" and "**holds**" in md
+
+
+def test_a_run_against_another_baseline_is_not_the_claim(tmp_path):
+    res = tmp_path / "results" / "d"
+    # scheme 1 compared against scheme 2, not classical: the claim has no number
+    _table(res, "fig05_selection", [("selection_scheme1", "s1", 0.2, 0.1, 0.3)],
+           "selection_scheme2")
+    v = findings.findings_table(["d"], out=tmp_path)["d verdict"]
+    assert v["Fig. 5: selection Scheme 1 beats classical"] == "not run"
+
+
+def test_a_table_without_run_keys_is_refused(tmp_path):
+    res = tmp_path / "results" / "d"
+    res.mkdir(parents=True)
+    pd.DataFrame({"method": ["a"], "AUC": [0.5]}).to_csv(res / "fig05_selection.csv")
+    with pytest.raises(ValueError, match="comparison table"):
+        findings.findings_table(["d"], out=tmp_path)
+
+
+def test_claims_name_configurations():
+    keys = {c.text: c.keys for c in findings.CLAIMS}
+    assert keys["Fig. 7a: NMS (Alg. 3) at IoU 0.4 falls below classical"] == \
+        ("overlap_scheme1(iou_threshold=0.4)", "classical")
+    assert keys["Table 2: 4 scales x 25 (Set 5) beat one scale x 100 (Set 1)"] == \
+        ("dense", "dense(per_scale=100, scales=0.25)")
 
 
 def test_cmr_difference_bootstraps_over_queries():

@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from vpr_core import runner
-from vpr_core.study import FIGURES, expected_figures
+from vpr_core.runner import FIGURES, expected_figures
 
 REPO = Path(__file__).resolve().parents[1]
 NB_DIR = REPO / "notebooks"
@@ -45,14 +45,23 @@ def test_notebook_is_clean_paired_and_parametrised(path):
         "commit notebooks without outputs (nbstripout)"
     tagged = [c for c in code if "parameters" in c.get("metadata", {}).get("tags", [])]
     assert len(tagged) == 1
-    for name in ("dataset", "root", "backbone", "quick"):
-        assert f"{name} =" in "".join(tagged[0]["source"])
+    params = "".join(tagged[0]["source"])
+    for name in ("dataset", "root", "options", "limit", "label", "backbone", "pooling"):
+        assert f"\n{name} =" in "\n" + params, name
+    from vpr_core.datasets import DATASETS
+
+    listed = params.split("\n")[0].split("#")[1].replace("|", " ").split()
+    assert set(listed) == set(DATASETS), listed  # the dataset line names every loader
     # the .py twin holds the same cells (jupytext pairing)
     twin = jupytext.read(path.with_suffix(".py"))
     assert [c.source for c in twin.cells] == ["".join(c["source"]) for c in nb["cells"]]
-    # figures are shown from the FigureResult, never re-read from disk by file name
+    # the notebook is the experiment: it calls the pipeline, no facade, and stays thin
     source = "".join("".join(c["source"]) for c in code)
     assert "Image(filename" not in source and ".png" not in source
+    assert "open_study" not in source and "vpr_core.study" not in source
+    lines = [ln for ln in source.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    assert len(lines) <= 80, f"{path.name}: {len(lines)} code lines"
+    assert "save(" in source
 
 
 def test_quick_study_runs_headless_and_writes_every_figure(tmp_path, monkeypatch):
@@ -68,12 +77,21 @@ def test_quick_study_runs_headless_and_writes_every_figure(tmp_path, monkeypatch
     assert not (NB_DIR / "figures").exists() and not (NB_DIR / "results").exists()
     for nb in expected_figures():
         assert (out / "runs" / "synthetic_quick" / f"{nb}.ipynb").exists()
-    for nb in ("03_landmark_selection", "04_overlap", "05_dense_sampling_parameters",
-               "06_comparison"):
-        assert (out / "results" / "synthetic_quick" / f"{nb}.csv").exists()
-    assert (out / "results" / "synthetic_quick" / "06_comparison_table5_cost.csv").exists()
+    results = out / "results" / "synthetic_quick"
+    for stem in ("fig05_selection", "fig07a_overlap_nms", "fig07b_overlap_soft_nms",
+                 "fig10_scale_levels", "fig11_landmarks_per_scale", "fig12_normalized_scales",
+                 "fig13_comparison"):
+        saved = pd.read_csv(results / f"{stem}.csv")
+        assert {"run", "AUC", "AUC lo", "baseline", "dAUC verdict", "dataset"} <= set(saved)
+    assert (results / "table5_cost.csv").exists() and (results / "fig04_matches.csv").exists()
     assert {"AUC", "R@100P", "R@1"} <= set(table.columns)
-    assert len(table) >= 3 + 5 + 6 + 15 + 3
+    assert len(table) == 3 + 5 + 6 + 6 + 5 + 4 + 4  # runs of Fig. 5, 7a, 7b, 10, 11, 12, 13
+    # the pinned quick numbers (same as tests/test_pipeline.py's end-to-end test)
+    fig13 = table[table["figure"] == "fig13_comparison"].set_index("run")
+    assert round(fig13.loc["classical", "AUC"], 4) == 0.3752
+    assert round(fig13.loc["dense", "AUC"], 4) == 0.9643
+    findings = (out / "results" / "findings.md").read_text()
+    assert "selection Scheme 1 beats classical" in findings
     assert os.environ["VPR_OUTPUT_DIR"] == str(out)  # the runner restored the environment
     # executed again (features now cached): byte-identical figures
     before = {p.name: p.read_bytes() for p in figures.glob("fig0[56]*.png")}
@@ -83,9 +101,7 @@ def test_quick_study_runs_headless_and_writes_every_figure(tmp_path, monkeypatch
 
 
 def test_real_datasets_beside_the_project_get_the_comparison(tmp_path, monkeypatch):
-    from vpr_core.study import extra_datasets
-
-    found = extra_datasets()
+    found = runner.study_datasets()
     if not found:
         pytest.skip("no real datasets beside the project (../shared/data)")
     out = tmp_path / "out"
@@ -96,7 +112,9 @@ def test_real_datasets_beside_the_project_get_the_comparison(tmp_path, monkeypat
     for name in found:
         label = f"{name}_quick"
         assert (out / "figures" / label / "fig13_comparison.png").stat().st_size > 1000
-        table = pd.read_csv(out / "results" / label / "06_comparison.csv")
-        assert {"dense", "selection_scheme1", "classical", "global"} <= set(table["method"])
+        table = pd.read_csv(out / "results" / label / "fig13_comparison.csv")
+        assert {"dense", "selection_scheme1", "classical", "global"} <= set(table["run"])
+        assert table["dataset"].nunique() == 1 and table["root"].nunique() == 1
         assert (table["AUC lo"] <= table["AUC"] + 1e-9).all()
-        assert (out / "results" / label / "06_comparison_fig13_comparison_paired.csv").exists()
+        assert set(table["baseline"].dropna()) == {"dense"}
+        assert table["dAUC verdict"].notna().sum() == len(table) - 1

@@ -6,6 +6,7 @@ import pytest
 from vpr_core import pipeline
 from vpr_core.datasets import load_dataset
 from vpr_core.matching import image_similarity
+from vpr_core.pipeline import run_method
 
 
 @pytest.fixture(scope="module")
@@ -126,3 +127,14 @@ def test_crops_batched_across_images_give_each_images_own_bits(tiny, isolated_ca
             for i, (b, d) in enumerate(zip(r.boxes[side], r.descriptors[side])):
                 np.testing.assert_array_equal(d, enc.encode(tiny.load_image(side, i), b))
     assert r2.timings["features_s_per_image"] > 0
+
+
+def test_end_to_end_metrics_are_pinned(tiny_synthetic):
+    """The paper's two methods on 8 synthetic places with the default backbone: the numbers the
+    quick study reproduces (a change anywhere in the pipeline that moves them shows here)."""
+    classical = run_method("classical", tiny_synthetic)
+    dense = run_method("dense", tiny_synthetic)
+    assert round(classical.metrics["auc"], 4) == 0.3752
+    assert round(classical.metrics["r@1"], 4) == 0.375
+    assert round(dense.metrics["auc"], 4) == 0.9643
+    assert round(dense.metrics["r@1"], 4) == 0.75

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 
 import numpy as np
 import pytest
@@ -166,12 +165,9 @@ def test_plots_deterministic(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------
-# end to end on `synthetic` (needs the datasets / landmarks / matching / features modules)
+# end to end on `synthetic`
 # ---------------------------------------------------------------------------------------------
 
-_HAVE_PIPELINE = all(importlib.util.find_spec(f"vpr_core.{m}") is not None
-                     for m in ("datasets", "landmarks", "matching", "features"))
-needs_pipeline = pytest.mark.skipif(not _HAVE_PIPELINE, reason="pipeline modules not available")
 
 
 @pytest.fixture(scope="module")
@@ -194,7 +190,6 @@ def synthetic_small():
     return out
 
 
-@needs_pipeline
 def test_scale_statistics_end_to_end(synthetic_small):
     from vpr_core.matching import match_landmarks
     from vpr_core.statistics import scale_statistics
@@ -232,7 +227,6 @@ def test_scale_statistics_end_to_end(synthetic_small):
                          s["desc_reference"])
 
 
-@needs_pipeline
 def test_geometric_agrees_with_exact_on_synthetic(synthetic_small):
     """``benchmarks/bench_labelling.py --pairs 20 --seed 11`` measured, geometric vs exact:
     auto rule accuracy 1.000 (dense, 728 matches; edge_boxes, 169 matches), point rule forced
@@ -259,7 +253,6 @@ def test_geometric_agrees_with_exact_on_synthetic(synthetic_small):
     assert agree_pts / n >= 0.96 - 0.08
 
 
-@needs_pipeline
 def test_scale_statistics_geometric_labels(synthetic_small):
     from vpr_core.statistics import scale_statistics
 
@@ -305,3 +298,23 @@ def test_statistics_recomputed_independently_from_the_match_table(tiny_synthetic
     row = gt.iloc[0]
     box = res.boxes["query"][int(row["query"])][int(row.query_box_index)]
     assert scale_index(box[None], tiny_synthetic.image_size("query", 0))[0] == row.scale
+
+
+def test_pair_matches_and_scale_distribution_of_a_run(tiny_synthetic):
+    from vpr_core.pipeline import run_method
+    from vpr_core.statistics import pair_matches, scale_distribution
+
+    res = run_method("dense", tiny_synthetic, keep_descriptors=True, backbone="hog",
+                     n_bootstrap=0)
+    gt = pair_matches(tiny_synthetic, res, query=0)
+    assert gt.ground_truth and gt.reference == 0 and gt.labels is not None
+    assert len(gt.labels) == len(gt.matches) > 0 and 0 < gt.similarity <= 1
+    assert "matches correct" in gt.summary()
+    irr = pair_matches(tiny_synthetic, res, query=0, reference=4)
+    assert not irr.ground_truth and not irr.labels.any()  # every match of an irrelevant pair
+    counts = scale_distribution(res, tiny_synthetic)
+    assert list(counts.columns) == ["query", "reference"] and len(counts) == 9
+    assert (counts.sum() == 100 * tiny_synthetic.n_query).all()
+    no_desc = run_method("dense", tiny_synthetic, backbone="hog", n_bootstrap=0)
+    with pytest.raises(ValueError, match="keep_descriptors=True"):
+        pair_matches(tiny_synthetic, no_desc)

@@ -101,3 +101,28 @@ def test_pr_curves_legend_outside_identical_curves_said_and_dataset_named():
     legend = ax.get_legend().get_window_extent()
     assert legend.x0 >= ax.get_window_extent().x1  # beside the axes, never over the curves
 
+
+
+def test_landmark_panels_say_which_colour_is_which_scale():
+    img = np.zeros((60, 80, 3), np.uint8)
+    boxes = np.array([[0, 0, 10, 10], [5, 5, 20, 20], [30, 30, 10, 10]], float)
+    fig = viz.plot_landmark_panels({"q": (img, boxes)}, colors_by=[0, 0, 1],
+                                   group_labels={0: "scale 0.16", 1: "scale 0.25"})
+    texts = [t.get_text() for leg in fig.legends for t in leg.get_texts()]
+    assert texts == ["scale 0.16", "scale 0.25"]
+
+
+def test_pair_and_coverage_figures_of_runs(tiny_synthetic):
+    import matplotlib.pyplot as plt
+
+    from vpr_core.pipeline import run_method
+
+    runs = [run_method(m, tiny_synthetic, keep_descriptors=True, backbone="hog", n_bootstrap=0)
+            for m in ("dense", "global")]
+    fig = viz.plot_pair(tiny_synthetic, runs[0], query=1)
+    assert "query 1 vs reference 1 (ground truth)" in fig._suptitle.get_text()
+    fig, table = viz.plot_coverage_comparison(tiny_synthetic, runs, index=0)
+    assert list(table.index) == ["dense", "global"] and len(fig.axes) >= 2
+    assert table.loc["global", "covered share (mean)"] == 1.0  # the whole-image box
+    assert 0 < table.loc["dense", "covered share (this image)"] <= 1
+    plt.close("all")

@@ -155,6 +155,38 @@ def progress(iterable: Iterable, **kwargs: Any):
     return tqdm(iterable, **kwargs)
 
 
+#: The source files each cached stage's results depend on (folders of ``vpr_core``, or files).
+STAGE_SOURCES: dict[str, tuple[str, ...]] = {
+    "landmarks": ("landmarks", "boxes.py", "pipeline/landmark_stage.py"),
+    "features": ("features", "backbones", "pipeline/feature_stage.py"),
+    "matching": ("matching", "pipeline/run.py", "engine"),
+}
+_CODE_VERSIONS: dict[str, str] = {}
+
+
+def code_version(stage: str) -> str:
+    """A short hash of the source code a cached stage depends on (:data:`STAGE_SOURCES`).
+
+    Cache keys carry it, so after any change to, e.g., the matching code a stored similarity
+    matrix is never reused: it is recomputed. Computed once per process.
+
+    Raises:
+        KeyError: unknown stage (the message lists the stages).
+    """
+    if stage not in STAGE_SOURCES:
+        raise KeyError(f"unknown stage {stage!r}; stages: {', '.join(STAGE_SOURCES)}")
+    if stage not in _CODE_VERSIONS:
+        pkg = Path(__file__).resolve().parent
+        h = hashlib.sha1()
+        for entry in STAGE_SOURCES[stage]:
+            target = pkg / entry
+            for f in sorted(target.rglob("*.py")) if target.is_dir() else [target]:
+                h.update(f.relative_to(pkg).as_posix().encode())
+                h.update(f.read_bytes())
+        _CODE_VERSIONS[stage] = h.hexdigest()[:10]
+    return _CODE_VERSIONS[stage]
+
+
 def file_fingerprint(path: str | os.PathLike) -> str:
     """Content hash (sha1, 16 hex) of a file, for cache keys that survive moves and touch."""
     h = hashlib.sha1()

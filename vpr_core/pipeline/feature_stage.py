@@ -17,7 +17,7 @@ import numpy as np
 import torch
 
 from ..paper import PROJECTION_DIM
-from ..utils import cache_dir, config_slug, progress
+from ..utils import cache_dir, code_version, config_slug, progress
 from .cache import SIDES, atomic_savez, load_npz, n_images
 
 __all__ = ["encoder_kwargs", "extract_features", "features_for_image", "get_encoder"]
@@ -52,6 +52,7 @@ get_encoder.cache_clear = _cached_encoder.cache_clear  # type: ignore[attr-defin
 def _encoder_slug(encoder) -> str:
     cfg = dict(encoder.config)
     cfg.pop("device", None)  # the device does not change the cached descriptors' meaning
+    cfg["code"] = code_version("features")
     return config_slug(str(cfg.get("backbone", "encoder")), cfg)
 
 

@@ -17,7 +17,7 @@ from .. import landmarks as lm
 from .. import settings
 from ..methods import EDGE_BOX_SCHEMES
 from ..paper import N_CANDIDATES
-from ..utils import cache_dir, config_slug, logger, progress
+from ..utils import cache_dir, code_version, config_slug, logger, progress
 from .cache import SIDES, atomic_savez, load_npz, n_images
 
 __all__ = ["LANDMARK_SCHEMES", "edge_box_candidates", "extract_landmarks", "landmarks_for_image"]
@@ -34,7 +34,8 @@ def edge_box_candidates(dataset, side: str, i: int, n_candidates: int = N_CANDID
         ``(boxes (K, 4), seconds)``: proposals in proposal order (descending score) and the
         seconds the extraction took when it was computed.
     """
-    params = {"n_candidates": int(n_candidates), "sed": settings.sed_model() or ""}
+    params = {"n_candidates": int(n_candidates), "sed": settings.sed_model() or "",
+              "code": code_version("landmarks")}
     folder = cache_dir("landmarks", config_slug("edge_boxes", params))
     path = folder / f"{dataset.image_key(side, i)}.npz"
     cached = None if overwrite else load_npz(path, ("boxes", "seconds"))

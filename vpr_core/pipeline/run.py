@@ -19,7 +19,7 @@ from ..evaluation.bootstrap import N_BOOTSTRAP
 from ..matching import similarity_matrix
 from ..methods import get_method, landmark_config, method_label
 from ..paper import PROJECTION_DIM, SOFT_NMS_SIGMA
-from ..utils import cache_dir, config_slug, logger
+from ..utils import STAGE_SOURCES, cache_dir, code_version, config_slug, logger
 from .cache import SIDES, atomic_savez, dataset_fingerprint, load_npz, n_images
 from .feature_stage import extract_features, get_encoder
 from .landmark_stage import extract_landmarks
@@ -163,7 +163,8 @@ def run_method(method: str | dict, dataset, backbone: str = "efficientnet_lite0"
         boxes = extract_landmarks(conf, dataset)
         feats, glob = _features(boxes, dataset, encoder, k, client)
         key = {"dataset": dataset_fingerprint(dataset), "landmarks": landmark_config(conf),
-               "matching": conf["matching"], "encoder": dict(encoder.config)}
+               "matching": conf["matching"], "encoder": dict(encoder.config),
+               "code": {stage: code_version(stage) for stage in STAGE_SOURCES}}
         if k is not None:
             key["shortlist"] = k
         folder = cache_dir("results", f"{dataset.name}-{key['dataset']}")

@@ -1,0 +1,68 @@
+"""The orchestration (vpr_core.runner): the figure registry, the study's datasets, the
+parameters the notebooks get, and the summary of the saved comparison tables."""
+
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+from vpr_core import runner
+
+
+def test_registry_is_one_list():
+    stems = [s.stem for s in runner.FIGURES]
+    assert len(stems) == len(set(stems)), "a figure stem is registered twice"
+    by_nb = runner.expected_figures()
+    assert list(by_nb) == sorted(by_nb)
+    assert runner.figure_spec("fig05_selection").notebook == "03_landmark_selection"
+    with pytest.raises(KeyError, match="fig05_selection"):
+        runner.figure_spec("fig99")
+
+
+def test_every_registered_figure_is_saved_by_its_notebook():
+    for nb, stems in runner.expected_figures().items():
+        source = (runner.notebooks_dir() / f"{nb}.py").read_text()
+        for stem in stems:
+            assert f'"{stem}"' in source, f"{nb} does not save {stem}"
+
+
+def test_study_datasets_reads_vpr_datasets(monkeypatch):
+    monkeypatch.setenv("VPR_DATASETS", "gardens_point=/data/gp;oops")
+    with pytest.raises(ValueError, match="name=root"):
+        runner.study_datasets()
+    monkeypatch.setenv("VPR_DATASETS", "gardens_point=/data/gp")
+    assert runner.study_datasets()["gardens_point"] == {"dataset": "gardens_point",
+                                                        "root": "/data/gp", "options": {},
+                                                        "pooling": "crop"}
+
+
+def test_notebook_parameters_in_quick_mode():
+    p = runner.notebook_parameters("synthetic", quick=True)
+    assert p["options"] == {"n_places": runner.QUICK_PLACES} and p["limit"] is None
+    assert p["label"] == "synthetic_quick"
+    p = runner.notebook_parameters("folder", "/x", quick=True, label="gp", pooling="roi")
+    assert p["limit"] == runner.QUICK_IMAGES and p["options"] == {}
+    assert p["label"] == "gp_quick" and p["pooling"] == "roi" and p["root"] == "/x"
+    full = runner.notebook_parameters("nordland", "/n", options={"step": 50})
+    assert full["label"] == "nordland" and full["limit"] is None
+    assert full["options"] == {"step": 50}
+
+
+def test_summary_table_reads_the_saved_comparisons(tmp_path, monkeypatch):
+    monkeypatch.setenv("VPR_OUTPUT_DIR", str(tmp_path))
+    folder = tmp_path / "results" / "d"
+    folder.mkdir(parents=True)
+    pd.DataFrame({"method": ["a", "b"], "run": ["classical", "dense"], "AUC": [0.1, 0.2]}
+                 ).to_csv(folder / "fig05_selection.csv", index=False)
+    pd.DataFrame({"scale": [1]}).to_csv(folder / "fig06a_scheme1_scales.csv", index=False)
+    t = runner.summary_table("d")
+    assert list(t["figure"]) == ["fig05_selection"] * 2
+    assert list(t["notebook"]) == ["03_landmark_selection"] * 2
+    assert runner.summary_table("nothing").empty
+
+
+def test_runner_imports_no_study_facade():
+    import importlib
+
+    with pytest.raises(ModuleNotFoundError):
+        importlib.import_module("vpr_core.study")
