@@ -13,7 +13,6 @@ Examples::
 from __future__ import annotations
 
 import argparse
-import os
 import signal
 import sys
 from pathlib import Path
@@ -322,11 +321,12 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, _terminated)
     _check_names(parser, args)
     configure_logging()
-    saved = os.environ.get(paths.OUTPUT_ENV)
+    # --out applies to this command only; the runner's kernels inherit it (settings is the one
+    # place that reads and sets the environment)
+    out = {} if not args.out else {settings.OUTPUT_ENV: str(Path(args.out).expanduser().resolve())}
     try:
-        if args.out:
-            paths.set_output_root(args.out)
-        return args.func(args)
+        with settings.kernel_environment(out):
+            return args.func(args)
     except KeyboardInterrupt:
         print(INTERRUPTED, file=sys.stderr)
         return 130
@@ -337,12 +337,8 @@ def main(argv: list[str] | None = None) -> int:
             ConnectionError, ImportError) as exc:
         print(f"vpr-study: error: {exc}", file=sys.stderr)
         return 2
-    finally:  # --out applies to this command only (callers in the same process keep theirs)
+    finally:
         signal.signal(signal.SIGTERM, previous)
-        if saved is None:
-            os.environ.pop(paths.OUTPUT_ENV, None)
-        else:
-            os.environ[paths.OUTPUT_ENV] = saved
 
 
 if __name__ == "__main__":  # pragma: no cover

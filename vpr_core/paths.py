@@ -11,39 +11,22 @@ Nothing is ever written inside the installed package.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
+from . import settings
+
 __all__ = [
-    "CACHE_ENV",
-    "OUTPUT_ENV",
     "cache_root",
     "figures_dir",
     "output_root",
     "results_dir",
     "runs_dir",
-    "set_output_root",
 ]
-
-OUTPUT_ENV = "VPR_OUTPUT_DIR"
-CACHE_ENV = "VPR_CACHE_DIR"
-
 
 def output_root() -> Path:
     """``$VPR_OUTPUT_DIR`` or the current working directory (absolute, not created)."""
-    env = os.environ.get(OUTPUT_ENV)
+    env = settings.output_dir()
     return (Path(env).expanduser() if env else Path.cwd()).resolve()
-
-
-def set_output_root(path: str | os.PathLike) -> Path:
-    """Point every later output (and a default cache) at ``path``; returns it, absolute.
-
-    It sets ``$VPR_OUTPUT_DIR`` so that notebooks executed by the runner inherit it.
-    """
-    p = Path(path).expanduser().resolve()
-    p.mkdir(parents=True, exist_ok=True)
-    os.environ[OUTPUT_ENV] = str(p)
-    return p
 
 
 def _sub(kind: str, label: str | None) -> Path:
@@ -71,7 +54,7 @@ def runs_dir(label: str | None = None) -> Path:
 
 def cache_root() -> Path:
     """``$VPR_CACHE_DIR`` or ``<output root>/.cache``, created."""
-    env = os.environ.get(CACHE_ENV)
+    env = settings.cache_dir()
     root = Path(env).expanduser().resolve() if env else output_root() / ".cache"
     root.mkdir(parents=True, exist_ok=True)
     return root

@@ -233,9 +233,9 @@ def _kernel_environment() -> Iterator[Path]:
     from .settings import kernel_environment
 
     root = paths.output_root()
-    values = {paths.OUTPUT_ENV: str(root)}
+    values = {settings.OUTPUT_ENV: str(root)}
     if settings.cache_dir():
-        values[paths.CACHE_ENV] = str(paths.cache_root())
+        values[settings.CACHE_ENV] = str(paths.cache_root())
     root.mkdir(parents=True, exist_ok=True)
     with kernel_environment(values):
         yield root

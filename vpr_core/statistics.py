@@ -25,6 +25,7 @@ from .labels import (
     LABEL_METHODS,
     LabelUnavailableError,
     PairGeometry,
+    dataset_image_size,
     estimate_pair_geometry,
     label_matches,
     label_matches_exact,
@@ -34,21 +35,18 @@ from .labels import (
     read_label_file,
     resolve_label_method,
 )
-from .labels._pair import dataset_image_size
 from .landmarks.scales import scale_index
 from .paper import N_SCALES, SCALE_EDGES, SCALE_RANGE_LABELS
 from .utils import progress
 
 __all__ = [
     "LABEL_METHODS",
-    "PairMatches",
-    "pair_matches",
-    "scale_distribution",
     "SCALE_EDGES",
     "SCALE_RANGE_LABELS",
     "LabelUnavailableError",
     "MatchRecord",
     "PairGeometry",
+    "PairMatches",
     "ScaleStats",
     "estimate_pair_geometry",
     "ground_truth_references",
@@ -57,9 +55,11 @@ __all__ = [
     "label_matches_file",
     "label_matches_geometric",
     "map_boxes",
+    "pair_matches",
     "paired_iou",
     "read_label_file",
     "sample_irrelevant_references",
+    "scale_distribution",
     "scale_statistics",
     "scale_statistics_from_matches",
 ]

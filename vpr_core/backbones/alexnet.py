@@ -26,6 +26,7 @@ from pathlib import Path
 import torch
 from torch import nn
 
+from .. import settings
 from ..paper import ALEXNET_INPUT
 from .checkpoint import load_checkpoint
 
@@ -33,7 +34,7 @@ logger = logging.getLogger("vpr_core")
 
 ALEXNET_URL = "https://download.pytorch.org/models/alexnet-owt-7be5be79.pth"
 ALEXNET_FILENAME = "alexnet-owt-7be5be79.pth"
-ALEXNET_ENV = "VPR_ALEXNET_WEIGHTS"
+ALEXNET_ENV = settings.ALEXNET_ENV
 RANDOM_WEIGHTS_LABEL = "random (NOT pretrained)"
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
@@ -83,7 +84,7 @@ def resolve_weights(weights: str | os.PathLike | None) -> Path | str:
             raise FileNotFoundError(f"AlexNet weights file {p} does not exist.\n"
                                     + _missing_weights_message())
         return p
-    env = os.environ.get(ALEXNET_ENV)
+    env = settings.alexnet_weights()
     if env:
         p = Path(env).expanduser()
         if not p.is_file():

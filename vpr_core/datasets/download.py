@@ -10,6 +10,8 @@ import urllib.request
 import zipfile
 from pathlib import Path
 
+from .. import settings
+
 __all__ = ["DOWNLOADS", "download_dataset"]
 
 log = logging.getLogger("vpr_core")
@@ -116,7 +118,7 @@ def _stream(name: str, url: str, part: Path, root: Path) -> str:
             total = int(resp.headers.get("Content-Length") or 0) or None
             with open(part, "wb") as f, tqdm(total=total, unit="B", unit_scale=True,
                                               desc=f"download {name}", leave=False,
-                                              disable=bool(os.environ.get("TQDM_DISABLE"))) as bar:
+                                              disable=settings.progress_disabled()) as bar:
                 for chunk in iter(lambda: resp.read(1 << 20), b""):
                     f.write(chunk)
                     digest.update(chunk)

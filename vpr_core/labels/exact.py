@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..boxes import check_boxes, paired_iou
-from ._pair import LabelUnavailableError, check_matches, dataset_image_size, is_ground_truth
+from . import LabelUnavailableError, check_matches, dataset_image_size, is_ground_truth
 
 __all__ = ["label_matches_exact", "map_boxes"]
 

@@ -9,9 +9,9 @@ Two paths compute the same numbers:
   every query x reference pair, :func:`similarity_pairs` for a list of pairs, e.g. a shortlist),
   equal to the pairwise path to 1e-5 with exactly the same matches.
 
-Helpers of the batched path: :mod:`~vpr_core.matching.padding` (padded landmark sets),
-:mod:`~vpr_core.matching.ties` (float64 re-decision of float32 near-ties),
-:mod:`~vpr_core.matching.soft_nms` (Algorithm 4 on many pairs in lockstep).
+The batched path's core is :mod:`~vpr_core.matching.scoring` (padded landmark sets, float64
+re-decision of float32 near-ties, Eq. (1) per block of image pairs: what the results come from),
+with :mod:`~vpr_core.matching.soft_nms` (Algorithm 4 on many pairs in lockstep).
 """
 
 from __future__ import annotations

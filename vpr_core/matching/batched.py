@@ -3,7 +3,7 @@
 :func:`similarity_matrix` computes the same numbers as
 :func:`~vpr_core.matching.pairwise.image_similarity` for every pair: one float32 matmul per block of
 queries x references, reciprocal test by argmax both ways, and a float64 re-check of every
-near-tie (:mod:`~vpr_core.matching.ties`) so that the matches are exactly those of the pairwise
+near-tie (:func:`~vpr_core.matching.scoring.resolve_ties`) so that the matches are exactly those of the pairwise
 path. Values agree to ~1e-6 (float32 cosines), always within 1e-5.
 """
 
@@ -19,9 +19,8 @@ import torch
 
 from ..paper import SOFT_NMS_SIGMA
 from ..utils import progress
-from .padding import LandmarkSets, Side, iou_stack, prepare_side
 from .pairwise import TIE_TOL, check_soft_nms
-from .scoring import Selection, score_block
+from .scoring import LandmarkSets, Selection, Side, iou_stack, prepare_side, score_block
 
 __all__ = ["similarity_matrix", "similarity_pairs"]
 

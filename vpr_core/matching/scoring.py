@@ -1,23 +1,238 @@
-"""Eq. (1) for one block of image pairs from its landmark cosines (the batched path's core).
+"""The batched path's core: padded landmark sets, exact near-ties, and Eq. (1) for one block.
 
-A block is ``nq`` query images x ``nr`` reference images; the images are selected by a ``slice``
-(a contiguous range, as :func:`~vpr_core.matching.batched.similarity_matrix` uses) or by a 1-D
-int64 tensor of image indices (as :func:`~vpr_core.matching.batched.similarity_pairs` uses).
+* **Padded landmark sets** (:class:`Side`, :func:`prepare_side`): every image's ``(K_i, D)``
+  descriptors are zero padded to ``K = max K_i`` and stacked to ``(N * K, D)``; a mask marks the
+  real landmarks. Box sizes and per-image IoU matrices are kept for Eq. (2) and soft-NMS.
+* **Exact nearest neighbours** (:func:`resolve_ties`): the matmul runs in float32; a row (or
+  column) whose best cosines lie within the float32 error bound of each other is re-decided in
+  float64 with the pairwise rule (:data:`~vpr_core.matching.pairwise.TIE_TOL`, lowest index), so
+  the batched matches equal :func:`~vpr_core.matching.pairwise.reciprocal_matches` exactly.
+* **Eq. (1) per block** (:func:`score_block`): a block is ``nq`` query images x ``nr`` reference
+  images, selected by a ``slice`` (a contiguous range, as
+  :func:`~vpr_core.matching.batched.similarity_matrix` uses) or by a 1-D int64 tensor of image
+  indices (as :func:`~vpr_core.matching.batched.similarity_pairs` uses).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Union
 
+import numpy as np
 import torch
 
-from .padding import Side
-from .pairwise import shape_terms
+from ..boxes import box_iou, check_boxes
+from .pairwise import TIE_TOL, shape_terms
 from .soft_nms import nms_block
-from .ties import cos64, resolve_ties
 
-__all__ = ["PAD", "Selection", "score_block"]
+__all__ = ["PAD", "LandmarkSets", "Selection", "Side", "cos64", "iou_stack", "prepare_side",
+           "resolve_ties", "score_block"]
 
+
+
+# ---- padded landmark sets ----------------------------------------------------------------
+LandmarkSets = Union[np.ndarray, Sequence[np.ndarray]]  # noqa: UP007
+
+
+@dataclass
+class Side:
+    """Padded landmark sets of one side (query or reference); built by :func:`prepare_side`."""
+
+    raw: torch.Tensor  # (N*K, D) descriptors as given (float32/float64), zero padded
+    d32: torch.Tensor  # (N*K, D) normalised, matmul dtype
+    mask: torch.Tensor  # (N, K) bool valid landmark
+    count: torch.Tensor  # (N,) float64 number of landmarks
+    wh: torch.Tensor  # (N, K, 2) float64 box sizes
+    boxes: list[np.ndarray]
+    n: int
+    k: int
+    dim: int
+    padded: bool
+
+    _norm64: torch.Tensor | None = None
+    _unit64: torch.Tensor | None = None
+
+    def images(self, sel: slice | torch.Tensor) -> torch.Tensor:
+        """``(n * K, D)`` normalised matmul-dtype descriptors of the images ``sel``.
+
+        Args:
+            sel: a ``slice`` of image indices (a view, no copy) or an int64 index tensor.
+        """
+        if isinstance(sel, slice):
+            return self.d32[sel.start * self.k: sel.stop * self.k]
+        return self.d32.view(self.n, self.k, -1).index_select(0, sel).view(-1, self.dim)
+
+    def unit_images64(self, sel: slice | torch.Tensor) -> torch.Tensor:
+        """``(n * K, D)`` float64 unit descriptors of the images ``sel`` (cache built once)."""
+        if self._unit64 is None:
+            self._unit64 = self.raw.double() / self.norm64()[:, None]
+        if isinstance(sel, slice):
+            return self._unit64[sel.start * self.k: sel.stop * self.k]
+        return self._unit64.view(self.n, self.k, -1).index_select(0, sel).view(-1, self.dim)
+
+    def build_caches(self, unit64: bool) -> None:
+        """Compute the lazy float64 caches now (before worker threads share this side)."""
+        self.norm64()
+        if unit64:
+            self.unit_images64(slice(0, 0))
+
+    def norm64(self) -> torch.Tensor:
+        """``(N*K,)`` float64 descriptor norms (1 for zero rows), computed once."""
+        if self._norm64 is None:
+            n = torch.linalg.vector_norm(self.raw, dim=1, dtype=torch.float64)
+            self._norm64 = torch.where(n > 0, n, torch.ones_like(n))
+        return self._norm64
+
+
+def _as_list(x: LandmarkSets, name: str, kind: str) -> list[np.ndarray]:
+    """One array per image from a sequence or a stacked ``(N, K, kind)`` array."""
+    if isinstance(x, (np.ndarray, torch.Tensor)):
+        arr = np.asarray(x.detach().cpu() if isinstance(x, torch.Tensor) else x)
+        if arr.ndim != 3:
+            raise ValueError(f"{name} as one array must be (N, K, {kind}), got shape {arr.shape}")
+        return list(arr)
+    try:
+        return [np.asarray(v) for v in x]
+    except TypeError as e:
+        raise ValueError(f"{name} must be a sequence of arrays or one (N, K, ...) array") from e
+
+
+def prepare_side(desc: LandmarkSets, boxes: LandmarkSets, side: str, mm_dtype: torch.dtype,
+                 device: torch.device) -> Side:
+    """Check, pad and normalise one side's landmark sets.
+
+    Args:
+        desc: sequence of ``(K_i, D)`` arrays, or one ``(N, K, D)`` array / tensor.
+        boxes: sequence of ``(K_i, 4)`` ``(x, y, w, h)`` arrays, or one ``(N, K, 4)`` array.
+        side: ``"query"`` or ``"reference"`` (used in error messages).
+        mm_dtype: dtype of the normalised descriptors used in the matmul.
+        device: torch device of every tensor.
+
+    Returns:
+        :class:`Side`.
+    """
+    bl = _as_list(boxes, f"{side}_boxes", "4")
+    if isinstance(desc, (np.ndarray, torch.Tensor)) and np.ndim(desc) == 3:
+        stacked = np.asarray(desc.detach().cpu() if isinstance(desc, torch.Tensor) else desc)
+        if stacked.dtype not in (np.float32, np.float64):
+            stacked = stacked.astype(np.float64)
+        n, k, dim = stacked.shape
+        counts = [k] * n
+    else:
+        dl = _as_list(desc, f"{side}_desc", "D")
+        n = len(dl)
+        dl = [np.zeros((0, 0)) if d.ndim == 1 and d.size == 0 else d for d in dl]
+        for i, d in enumerate(dl):
+            if d.ndim != 2:
+                raise ValueError(f"{side}_desc[{i}] must be (K, D), got shape {d.shape}")
+        dims = sorted({d.shape[1] for d in dl if d.shape[0]})
+        if len(dims) > 1:
+            raise ValueError(f"{side}_desc mixes descriptor dimensions {dims}")
+        dim = dims[0] if dims else 0
+        counts = [d.shape[0] for d in dl]
+        k = max(counts + [1])
+        dtype = np.float32 if all(d.dtype == np.float32 for d in dl) else np.float64
+        stacked = np.zeros((n, k, dim), dtype=dtype)
+        for i, d in enumerate(dl):
+            if d.shape[0]:
+                stacked[i, : d.shape[0]] = d
+    if len(bl) != n:
+        raise ValueError(f"{side}_desc has {n} images but {side}_boxes has {len(bl)}")
+    if n == 0:
+        raise ValueError(f"{side}_desc is empty")
+    raw = torch.from_numpy(np.ascontiguousarray(stacked)).to(device).reshape(n * k, dim)
+    raw_mm = raw.to(mm_dtype)
+    norm = torch.linalg.vector_norm(raw_mm, dim=1)  # NaN / inf anywhere shows in the norm
+    if not bool(torch.isfinite(norm).all()):
+        raise ValueError(f"{side}_desc contains NaN or inf")
+    inv = torch.where(norm > 0, 1.0 / torch.where(norm > 0, norm, 1.0), torch.zeros_like(norm))
+    d32 = (raw_mm * inv[:, None]).contiguous()
+    wh = np.zeros((n, k, 2), dtype=np.float64)
+    mask = np.zeros((n, k), dtype=bool)
+    bs = []
+    for i, (c, b) in enumerate(zip(counts, bl)):
+        b = check_boxes(b, f"{side}_boxes[{i}]", c)
+        bs.append(b)
+        wh[i, :c] = b[:, 2:]
+        mask[i, :c] = True
+    return Side(
+        raw=raw,
+        d32=d32,
+        mask=torch.from_numpy(mask).to(device),
+        count=torch.tensor(counts, dtype=torch.float64, device=device),
+        wh=torch.from_numpy(wh).to(device),
+        boxes=bs,
+        n=n,
+        k=k,
+        dim=dim,
+        padded=bool(min(counts) != k),
+    )
+
+
+def iou_stack(side: Side, device: torch.device) -> torch.Tensor:
+    """(N, K, K) float64 per-image IoU matrices (zero padded), via :func:`vpr_core.boxes.box_iou`."""
+    out = np.zeros((side.n, side.k, side.k), dtype=np.float64)
+    for i, b in enumerate(side.boxes):
+        c = b.shape[0]
+        if c:
+            out[i, :c, :c] = box_iou(b, b)
+    return torch.from_numpy(out).to(device)
+
+
+# ---- exact nearest neighbours: float64 re-decision of float32 near-ties ------------------
+def cos64(q: Side, qrows: torch.Tensor, r: Side, rrows: torch.Tensor) -> torch.Tensor:
+    """``(t,)`` float64 cosines of flat query rows ``qrows`` and reference rows ``rrows``.
+
+    ``dot(a, b) / (|a| |b|)`` with float64 norms computed once per side: equal to the pairwise
+    path's ``(a / |a|) . (b / |b|)`` to a few ulp (far inside :data:`TIE_TOL`); 0 for zero rows.
+    """
+    norms = q.norm64().index_select(0, qrows) * r.norm64().index_select(0, rrows)
+    if q.raw.device.type == "cpu":
+        # NumPy gathers the rows and casts chunk by chunk inside einsum (no big float64
+        # temporaries); float32 products are exact in float64
+        x = q.raw.numpy()[qrows.numpy()]
+        y = r.raw.numpy()[rrows.numpy()]
+        return torch.from_numpy(np.einsum("ij,ij->i", x, y, dtype=np.float64)) / norms
+    x = q.raw.index_select(0, qrows).to(torch.float64)
+    y = r.raw.index_select(0, rrows).to(torch.float64)
+    return torch.linalg.vecdot(x, y) / norms
+
+
+def resolve_ties(vals: torch.Tensor, best: torch.Tensor, margin: float, sim64_fn):
+    """Exact (float64, TIE_TOL) nearest neighbour of near-tied rows.
+
+    Args:
+        vals: ``(n, K)`` float32 similarities of the ambiguous rows.
+        best: ``(n,)`` their float32 maxima.
+        margin: float32 error bound; every entry within it of the max is a candidate.
+        sim64_fn: ``(row_ids (t,), cols (t,)) -> (t,)`` float64 similarities.
+
+    Returns:
+        ``(nn (n,) int64, sim (n,) float64)``.
+    """
+    n, k = vals.shape
+    cand = vals >= (best - margin).unsqueeze(1)
+    rows, cols = cand.nonzero(as_tuple=True)
+    sims = torch.empty(rows.shape[0], dtype=torch.float64, device=vals.device)
+    step = 1024  # keeps the gathered float64 rows in cache
+    for s in range(0, rows.shape[0], step):
+        sims[s:s + step] = sim64_fn(rows[s:s + step], cols[s:s + step])
+    sims = sims.clamp(-1.0, 1.0)
+    mx = torch.full((n,), -math.inf, dtype=torch.float64, device=vals.device)
+    mx = mx.scatter_reduce(0, rows, sims, reduce="amax")
+    tied = sims >= mx[rows] - TIE_TOL
+    big = torch.full_like(cols, k)
+    nn = torch.full((n,), k, dtype=torch.int64, device=vals.device)
+    nn = nn.scatter_reduce(0, rows, torch.where(tied, cols, big), reduce="amin")
+    chosen = cols == nn[rows]
+    sim = torch.zeros(n, dtype=torch.float64, device=vals.device)
+    sim[rows[chosen]] = sims[chosen]
+    return nn, sim
+
+
+# ---- Eq. (1) for one block of image pairs ------------------------------------------------
 PAD = -4.0  # below any cosine: padded landmarks never win an argmax
 
 #: Images of one side in a block: a contiguous range or an int64 index tensor.
@@ -209,4 +424,3 @@ def score_block(s: torch.Tensor, q: Side, r: Side, qsel: Selection, rsel: Select
     score = nms_block(score, shp, recip, ri_p, s64, iou_q[qsel], iou_r[rsel], t, sigma)
     total = torch.where(recip, score, torch.zeros_like(score)).sum(2)
     return total / norm
-
