@@ -132,3 +132,17 @@ def test_log_output_follows_the_current_stderr(monkeypatch):
     monkeypatch.setattr(sys, "stderr", second)
     logging.getLogger("vpr_core").warning("hello %d", 1)
     assert "[vpr_core WARNING] hello 1" in second.getvalue()
+
+
+def test_eval_protocol_is_named_in_table_file_and_csv(tmp_path, capsys):
+    import pandas as pd
+
+    rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "global",
+                   "--backbone", "hog", "--protocol", "vpr_bench", "--out", str(tmp_path)])
+    assert rc == 0
+    out = capsys.readouterr().out
+    assert "AUC(vpr_bench)" in out
+    csv = tmp_path / "results" / "synthetic" / "eval_global_hog_vpr_bench.csv"
+    assert set(pd.read_csv(csv)["protocol"]) == {"vpr_bench"}
+    with pytest.raises(SystemExit):  # argparse names the valid choices
+        cli.main(["eval", "--protocol", "nope"])

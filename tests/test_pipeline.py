@@ -138,3 +138,30 @@ def test_end_to_end_metrics_are_pinned(tiny_synthetic):
     assert round(classical.metrics["r@1"], 4) == 0.375
     assert round(dense.metrics["auc"], 4) == 0.9643
     assert round(dense.metrics["r@1"], 4) == 0.75
+
+
+def test_run_records_the_warnings_that_change_a_number(tiny_synthetic):
+    import warnings
+
+    from vpr_core.notices import VPRWarning
+
+    wide = load_dataset("synthetic", n_places=8, tolerance=3)  # 7 of 8 references per query
+    with pytest.warns(VPRWarning, match="saturated ground truth"):
+        res = run_method("global", wide, backbone="hog")
+    assert any("saturated ground truth" in w and "tolerance=0" in w for w in res.warnings)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", VPRWarning)  # the plain set warns nothing
+        clean = run_method("global", tiny_synthetic, backbone="hog")
+    assert clean.warnings == []
+
+
+def test_run_method_protocols(tiny_synthetic):
+    from vpr_core.evaluation import evaluate
+
+    res = run_method("global", tiny_synthetic, backbone="hog", protocol="vpr_bench")
+    assert res.protocol == "vpr_bench"
+    assert res.metrics["auc"] == evaluate(res.similarity, res.ground_truth,
+                                          protocol="vpr_bench")["auc"]
+    assert res.intervals["auc"][0] == res.metrics["auc"]
+    with pytest.raises(ValueError, match="ratio"):
+        run_method("global", tiny_synthetic, backbone="hog", protocol="nope")

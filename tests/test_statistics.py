@@ -318,3 +318,24 @@ def test_pair_matches_and_scale_distribution_of_a_run(tiny_synthetic):
     no_desc = run_method("dense", tiny_synthetic, backbone="hog", n_bootstrap=0)
     with pytest.raises(ValueError, match="keep_descriptors=True"):
         pair_matches(tiny_synthetic, no_desc)
+
+
+def test_cmr_intervals_bootstrap_over_queries():
+    from vpr_core.statistics import MatchRecord, scale_statistics_from_matches
+
+    rng = np.random.default_rng(0)
+    recs = []
+    for q in range(40):
+        scales = np.array([1] * 5 + [6] * 5)
+        labels = np.concatenate([rng.random(5) < 0.2, rng.random(5) < 0.8])
+        recs.append(MatchRecord(q=q, r=q, is_gt_pair=True, scales=scales,
+                                scores=np.full(10, 0.5), labels=labels))
+    stats = scale_statistics_from_matches(recs)
+    iv = stats.cmr_intervals()
+    for k in (1, 6):
+        assert iv[k, 0] <= stats.cmr[k] <= iv[k, 1] and iv[k, 1] - iv[k, 0] < 0.35
+    assert iv[6, 0] > iv[1, 1]  # the two scales' intervals separate
+    assert np.isnan(iv[3]).all()  # no match at scale 3
+    assert np.array_equal(iv, stats.cmr_intervals(), equal_nan=True)  # seeded
+    frame = stats.to_frame()
+    assert frame.loc[6, "cmr lo"] == iv[6, 0] and frame.loc[6, "cmr hi"] == iv[6, 1]

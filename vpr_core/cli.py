@@ -83,7 +83,7 @@ def _peer_results(args: argparse.Namespace, dataset) -> list:
     if not args.peer_dataset:
         raise ValueError("--peers needs --peer-dataset NAME (the folder under "
                          "precomputed_matches/, e.g. GardensPointWalking)")
-    return [peer_result(p, dataset, n_bootstrap=args.n_bootstrap)
+    return [peer_result(p, dataset, n_bootstrap=args.n_bootstrap, protocol=args.protocol)
             for p in find_vprbench_peers(args.peers, args.peer_dataset)]
 
 
@@ -109,7 +109,8 @@ def _user_peers(args: argparse.Namespace, dataset) -> list:
                                          metric=args.peer_metric)
         else:
             peer = peer_from_matrix(p, name.strip(), distance=args.peer_distance)
-        out.append(peer_result(peer, dataset, n_bootstrap=args.n_bootstrap, label=name.strip()))
+        out.append(peer_result(peer, dataset, n_bootstrap=args.n_bootstrap, label=name.strip(),
+                               protocol=args.protocol))
     return out
 
 
@@ -157,7 +158,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
     results = [run_method(m, dataset, backbone=args.backbone, dim=args.dim, seed=args.seed,
                           weights=args.weights, pooling=args.pooling, device=args.device,
                           shortlist=args.shortlist, scheduler=scheduler,
-                          n_bootstrap=args.n_bootstrap) for m in args.method]
+                          n_bootstrap=args.n_bootstrap, protocol=args.protocol)
+               for m in args.method]
     results += _peer_results(args, dataset) + _user_peers(args, dataset)
     print(f"backbone: {results[0].encoder.get('backbone')} "
           f"(weights: {results[0].encoder.get('weights')}, pooling: {args.pooling}, {mode}; "
@@ -172,6 +174,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
         stem += f"_{args.pooling}"
     if args.shortlist is not None:
         stem += f"_k{args.shortlist}"
+    if args.protocol != "ratio":
+        stem += f"_{args.protocol}"
     fig = plot_pr_curves(results, title=f"{label} ({mode})")
     written = [save(table, stem, label, out=args.out), save(fig, stem, label, out=args.out)]
     print("wrote:\n" + "\n".join(f"  {p}" for p in written))
@@ -201,6 +205,7 @@ def cmd_findings(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .evaluation.curves import PROTOCOLS
     from .methods import available_methods
     from .paper import PROJECTION_DIM
 
@@ -245,6 +250,10 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="Dask scheduler (tcp://host:8786; default $VPR_DASK_SCHEDULER): run "
                         "features and matching on that cluster; unset: in-process")
+    e.add_argument("--protocol", default="ratio", choices=PROTOCOLS,
+                   help="PR protocol of AUC and R@100P: ratio (the paper's, default), vpr_bench "
+                        "(VPR-Bench's AUC-PR), best_match (VPR_Tutorial's), multi_match; see "
+                        "docs/DEFINITIONS.md")
     e.add_argument("--device", default="cpu", help="torch device: cpu (default) or cuda")
     e.add_argument("--n-bootstrap", type=int, default=1000,
                    help="bootstrap resamples of the 95%% intervals (default 1000)")

@@ -157,12 +157,51 @@ class ScaleStats:
         """``(9,)`` the scale indices 1..9."""
         return np.arange(1, N_SCALES + 1)
 
+    def cmr_intervals(self, n: int | None = None, seed: int = 0) -> np.ndarray:
+        """95% bootstrap interval of each scale's CMR, resampling query images (all labelled
+        ground-truth matches of a drawn query count, as observation 1's test does).
+
+        Args:
+            n: resamples (default :data:`~vpr_core.evaluation.N_BOOTSTRAP`). seed: their seed.
+
+        Returns:
+            ``(10, 2)`` float: ``[scale] = (low, high)``; NaN where the scale has no labelled
+            match (index 0 unused).
+        """
+        from .evaluation.bootstrap import N_BOOTSTRAP
+
+        n = N_BOOTSTRAP if n is None else int(n)
+        out = np.full((N_SCALES + 1, 2), np.nan)
+        recs = [r for r in self.records if r.is_gt_pair and r.labels is not None]
+        if not recs or n < 1:
+            return out
+        queries = sorted({r.q for r in recs})
+        qi = {q: k for k, q in enumerate(queries)}
+        correct = np.zeros((len(queries), N_SCALES + 1))
+        total = np.zeros((len(queries), N_SCALES + 1))
+        for r in recs:
+            sc = np.asarray(r.scales, dtype=np.int64)
+            np.add.at(correct[qi[r.q]], sc, np.asarray(r.labels, dtype=float))
+            np.add.at(total[qi[r.q]], sc, 1.0)
+        rng = np.random.default_rng(seed)
+        draws = rng.integers(0, len(queries), size=(n, len(queries)))
+        w = np.zeros((n, len(queries)))
+        np.add.at(w, (np.repeat(np.arange(n), len(queries)), draws.ravel()), 1.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rates = (w @ correct) / (w @ total)  # (n, 10); NaN where a resample has no match
+        for k in range(1, N_SCALES + 1):
+            if total[:, k].sum() > 0:
+                out[k] = np.nanpercentile(rates[:, k], [2.5, 97.5])
+        return out
+
     def to_frame(self) -> Any:
         """pandas DataFrame, one row per scale 1..9 (index ``scale``), with the normalised-scale
-        range (``range``) and every per-scale array as a column."""
+        range (``range``), every per-scale array as a column and the CMR's 95% interval
+        (``cmr lo``, ``cmr hi``, :meth:`cmr_intervals`)."""
         import pandas as pd
 
         s = slice(1, N_SCALES + 1)
+        iv = self.cmr_intervals()
         df = pd.DataFrame({
             "scale": self.scales,
             "range": list(SCALE_RANGE_LABELS),
@@ -170,6 +209,8 @@ class ScaleStats:
             "n_labelled": self.n_labelled[s],
             "n_correct": self.n_correct[s],
             "cmr": self.cmr[s],
+            "cmr lo": iv[s, 0],
+            "cmr hi": iv[s, 1],
             "cls_gt": self.cls_gt[s],
             "cls_irrelevant": self.cls_irrelevant[s],
             "asl_gt": self.asl_gt[s],

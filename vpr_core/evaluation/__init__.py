@@ -31,6 +31,7 @@ from .curves import (
     recall_at_100_precision,
     recall_at_k,
     recall_rate_at_n,
+    saturation_notice,
 )
 
 __all__ = [
@@ -53,4 +54,5 @@ __all__ = [
     "recall_at_100_precision",
     "recall_at_k",
     "recall_rate_at_n",
+    "saturation_notice",
 ]

@@ -103,6 +103,11 @@ def compare(results: Sequence[Any], baseline: str | int | None = None,
         if not _same(np.asarray(r.ground_truth, dtype=bool), gt):
             raise ValueError(f"compare(): {r.label!r} was evaluated on another ground truth than "
                              f"{base.label!r}; compare runs of one dataset only")
+    protocols = sorted({getattr(r, "protocol", "ratio") for r in results})
+    if len(protocols) > 1:
+        raise ValueError(f"compare(): the results use different protocols ({', '.join(protocols)});"
+                         " run them all with the same protocol=...")
+    protocol = protocols[0]
     twins = identical_to(results)
     rows = []
     for r, twin in zip(results, twins):
@@ -110,7 +115,7 @@ def compare(results: Sequence[Any], baseline: str | int | None = None,
         if r is not base:
             row["baseline"] = base.label
             diff = paired_bootstrap(r.similarity, base.similarity, gt, n=n_bootstrap,
-                                    seed=seed, ks=(1,))
+                                    seed=seed, ks=(1,), protocol=protocol)
             cols = bootstrap_columns({k: diff[k] for k in DIFFERENCES.values()}, prefix="d")
             for name, key in DIFFERENCES.items():
                 lo, hi = cols[f"{name} lo"], cols[f"{name} hi"]

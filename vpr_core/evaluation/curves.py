@@ -67,6 +67,7 @@ from ..datasets.ground_truth import ground_truth_coverage
 
 __all__ = [
     "PROTOCOLS",
+    "SATURATION_SHARE",
     "PRCurve",
     "auc_pr",
     "evaluate",
@@ -76,6 +77,7 @@ __all__ = [
     "recall_at_100_precision",
     "recall_at_k",
     "recall_rate_at_n",
+    "saturation_notice",
 ]
 
 logger = logging.getLogger("vpr_core")
@@ -391,6 +393,44 @@ def evaluate(similarity: np.ndarray, ground_truth: np.ndarray, protocol: str = "
         out[f"r@{int(k)}"] = recall_at_k(s, gt, k, warn=i == 0 and protocol in ("multi_match",
                                                                                "vpr_bench"))
     return out
+
+
+#: A ground truth where a random ranking's expected R@1 reaches this share saturates the metrics.
+SATURATION_SHARE = 0.5
+
+
+def saturation_notice(ground_truth: np.ndarray, intervals: Mapping | None = None) -> str | None:
+    """Warn (:func:`~vpr_core.notices.notice`) when the ground truth makes the metrics meaningless.
+
+    Two cases: the mean share of references that count as correct for a query (= the expected
+    R@1 of a random ranking) is at least :data:`SATURATION_SHARE`; or every interval given is
+    ``[1, 1]`` (no resample can tell methods apart).
+
+    Args:
+        ground_truth: ``bool (Nq, Nr)``.
+        intervals: ``{"auc": (value, lo, hi), ...}`` as :func:`bootstrap_metrics` returns them.
+
+    Returns:
+        The message, or None when the metrics are not saturated.
+    """
+    from ..notices import notice
+
+    gt = np.asarray(ground_truth, dtype=bool)
+    rows = gt[gt.any(axis=1)]
+    if rows.size == 0:
+        return None
+    share = float(rows.mean(axis=1).mean())
+    if share >= SATURATION_SHARE:
+        return notice(f"saturated ground truth: on average {share:.0%} of the {gt.shape[1]} "
+                      f"references count as correct for a query, so a random ranking gets R@1 "
+                      f"~{share:.2f} and AUC near 1; the metrics cannot rank methods. Use a smaller "
+                      "tolerance (e.g. tolerance=0) or a larger set.", stacklevel=4)
+    ivs = [v for v in (intervals or {}).values() if len(v) == 3 and np.isfinite(v[1])]
+    if ivs and all(lo == 1.0 and hi == 1.0 for _, lo, hi in ivs):
+        return notice("saturated result: every metric is 1.0 with interval [1.0, 1.0]; this set "
+                      "cannot tell methods apart. Use a harder set, more places, or tolerance=0.",
+                      stacklevel=4)
+    return None
 
 
 def metrics_table(results: Mapping[str, Mapping[str, float]]):

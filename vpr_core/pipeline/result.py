@@ -99,15 +99,16 @@ class MethodResult:
                     "pairs scored": float(t.get("pairs", np.nan))})
         return row
 
-    def curve(self, protocol: str = "ratio"):
-        """PR curve of this result under ``protocol``."""
+    def curve(self, protocol: str | None = None):
+        """PR curve of this result under ``protocol`` (default: the result's own)."""
         from ..evaluation import pr_curve
 
-        return pr_curve(self.similarity, self.ground_truth, protocol=protocol, warn=False)
+        return pr_curve(self.similarity, self.ground_truth, protocol=protocol or self.protocol,
+                        warn=False)
 
 
-def peer_result(peer, dataset, n_bootstrap: int = N_BOOTSTRAP, label: str | None = None
-                ) -> MethodResult:
+def peer_result(peer, dataset, n_bootstrap: int = N_BOOTSTRAP, label: str | None = None,
+                protocol: str = "ratio") -> MethodResult:
     """A VPR-Bench peer (:class:`~vpr_core.baselines.PeerResult`) as a result beside ours.
 
     Its similarity matrix is checked against ``dataset`` (shape, query order) and evaluated with
@@ -120,6 +121,7 @@ def peer_result(peer, dataset, n_bootstrap: int = N_BOOTSTRAP, label: str | None
         dataset: the :class:`~vpr_core.datasets.PlaceDataset` it was computed on.
         n_bootstrap: resamples of the metric intervals.
         label: its name in tables and legends (default ``"<name> (VPR-Bench)"``).
+        protocol: the PR protocol of its AUC and R@100P (as :func:`~vpr_core.pipeline.run_method`).
     """
     from ..baselines import peer_similarity_for
     from ..evaluation import bootstrap_metrics, evaluate, ground_truth_coverage
@@ -130,11 +132,13 @@ def peer_result(peer, dataset, n_bootstrap: int = N_BOOTSTRAP, label: str | None
     timings = {"landmarks_s_per_image": float("nan"), "landmarks_per_image": float("nan"),
                "features_s_per_image": float(peer.encode_seconds),
                "matching_s_per_pair": float(peer.match_seconds), "pairs": float(nq * nr)}
+    source = None if peer.source is None else str(peer.source)
     return MethodResult(
-        method=f"peer:{peer.name}", label=label or f"{peer.name} (VPR-Bench)", dataset=dataset.name,
-        config={"name": f"peer:{peer.name}", "source": None if peer.source is None else str(peer.source)}, encoder={},
-        similarity=sim, ground_truth=gt, boxes={"query": [], "reference": []},
-        metrics=evaluate(sim, gt), timings=timings,
-        intervals=bootstrap_metrics(sim, gt, n=n_bootstrap, seed=0) if n_bootstrap else {},
+        method=f"peer:{peer.name}", label=label or f"{peer.name} (VPR-Bench)",
+        dataset=dataset.name, config={"name": f"peer:{peer.name}", "source": source},
+        encoder={}, similarity=sim, ground_truth=gt, boxes={"query": [], "reference": []},
+        metrics=evaluate(sim, gt, protocol=protocol), timings=timings,
+        intervals=(bootstrap_metrics(sim, gt, n=n_bootstrap, seed=0, protocol=protocol)
+                   if n_bootstrap else {}),
         queries_with_gt=ground_truth_coverage(gt), tolerance=dataset.tolerance,
-        root=None if dataset.root is None else str(dataset.root))
+        root=None if dataset.root is None else str(dataset.root), protocol=protocol)

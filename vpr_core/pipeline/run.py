@@ -11,6 +11,7 @@ drops a query whose row is all NaN), and a warning names the image. It is never 
 from __future__ import annotations
 
 import time
+import warnings
 from typing import Any
 
 import numpy as np
@@ -18,6 +19,7 @@ import numpy as np
 from ..evaluation.bootstrap import N_BOOTSTRAP
 from ..matching import similarity_matrix
 from ..methods import get_method, landmark_config, method_label
+from ..notices import VPRWarning, notice
 from ..paper import PROJECTION_DIM, SOFT_NMS_SIGMA
 from ..utils import STAGE_SOURCES, cache_dir, code_version, config_slug, logger
 from .cache import SIDES, atomic_savez, dataset_fingerprint, load_npz, n_images
@@ -38,8 +40,8 @@ def _exclude_empty(sim: np.ndarray, boxes: dict, dataset) -> np.ndarray:
     sim[:, empty["reference"]] = np.nan
     names = [f"{s} {i} ({(dataset.query_paths if s == 'query' else dataset.reference_paths)[i]})"
              for s in SIDES for i in empty[s]]
-    logger.warning("no landmarks in %d image(s), excluded from ranking: %s", len(names),
-                   "; ".join(names[:10]) + (" ..." if len(names) > 10 else ""))
+    notice(f"no landmarks in {len(names)} image(s), excluded from ranking (their pairs count as "
+           f"not retrieved): {'; '.join(names[:10])}{' ...' if len(names) > 10 else ''}")
     return sim
 
 
@@ -124,7 +126,7 @@ def run_method(method: str | dict, dataset, backbone: str = "efficientnet_lite0"
                keep_descriptors: bool = False, label: str | None = None,
                pooling: str = "crop", device: str = "cpu", shortlist: int | None = None,
                scheduler: str | None = None, n_bootstrap: int = N_BOOTSTRAP,
-               **overrides: Any) -> MethodResult:
+               protocol: str = "ratio", **overrides: Any) -> MethodResult:
     """Run a named method (or a config from :func:`~vpr_core.methods.get_method`) on a dataset.
 
     Args:
@@ -142,13 +144,40 @@ def run_method(method: str | dict, dataset, backbone: str = "efficientnet_lite0"
             cluster; None: in-process, always (the environment is not read here: the CLI reads
             ``$VPR_DASK_SCHEDULER`` through :func:`vpr_core.settings.dask_scheduler`).
         n_bootstrap: resamples of the metric intervals.
+        protocol: the PR protocol of AUC and R@100P (:data:`vpr_core.evaluation.PROTOCOLS`:
+            ``ratio``, the paper's, ``best_match`` as VPR_Tutorial, ``vpr_bench`` as VPR-Bench,
+            ``multi_match``); R@K is protocol-free.
         **overrides: the method's own options, e.g. ``iou_threshold=0.4``; an option the
             method does not take is an error.
 
     Returns:
-        A :class:`MethodResult`.
+        A :class:`MethodResult`; ``.warnings`` lists every warning of the run that changes what
+        its numbers mean (each also raised as a :class:`~vpr_core.notices.VPRWarning`).
     """
-    from ..evaluation import bootstrap_metrics, evaluate, ground_truth_coverage
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", VPRWarning)
+        result = _run_method(method, dataset, backbone, dim, seed, weights, keep_descriptors,
+                             label, pooling, device, shortlist, scheduler, n_bootstrap,
+                             protocol, overrides)
+    for w in caught:  # hand every warning on to the caller's filters, and record ours
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    result.warnings = list(dict.fromkeys(str(w.message) for w in caught
+                                         if issubclass(w.category, VPRWarning)))
+    return result
+
+
+def _run_method(method, dataset, backbone, dim, seed, weights, keep_descriptors, label, pooling,
+                device, shortlist, scheduler, n_bootstrap, protocol, overrides) -> MethodResult:
+    from ..evaluation import (
+        PROTOCOLS,
+        bootstrap_metrics,
+        evaluate,
+        ground_truth_coverage,
+        saturation_notice,
+    )
+
+    if protocol not in PROTOCOLS:
+        raise ValueError(f"unknown protocol {protocol!r}; valid: {', '.join(PROTOCOLS)}")
 
     conf = get_method(method, **overrides) if isinstance(method, str) else dict(method)
     nq, nr = n_images(dataset, "query"), n_images(dataset, "reference")
@@ -186,8 +215,10 @@ def run_method(method: str | dict, dataset, backbone: str = "efficientnet_lite0"
             client.close()
     sim = _exclude_empty(np.asarray(sim, dtype=np.float64), boxes, dataset)
     gt = np.asarray(dataset.ground_truth, dtype=bool)
-    metrics = evaluate(sim, gt)
-    intervals = bootstrap_metrics(sim, gt, n=n_bootstrap, seed=0) if n_bootstrap else {}
+    metrics = evaluate(sim, gt, protocol=protocol)
+    intervals = (bootstrap_metrics(sim, gt, n=n_bootstrap, seed=0, protocol=protocol)
+                 if n_bootstrap else {})
+    saturation_notice(gt, intervals)
     n_img = nq + nr
     timings = {
         "landmarks_s_per_image": float(sum(map(sum, boxes["seconds"].values())) / n_img),
@@ -203,4 +234,5 @@ def run_method(method: str | dict, dataset, backbone: str = "efficientnet_lite0"
         descriptors={s: feats[s] for s in SIDES} if keep_descriptors else None,
         intervals=intervals, shortlist=k, queries_with_gt=ground_truth_coverage(gt),
         tolerance=dataset.tolerance, root=None if dataset.root is None else str(dataset.root),
+        protocol=protocol,
     )

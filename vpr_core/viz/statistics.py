@@ -40,22 +40,32 @@ def plot_cmr(stats, ax=None, color: str = "tab:blue") -> matplotlib.figure.Figur
         color: bar colour.
 
     Returns:
-        The figure holding ``ax``. Each bar is annotated with its number of labelled matches.
+        The figure holding ``ax``. Each bar carries its 95% bootstrap interval over query images
+        (:meth:`~vpr_core.statistics.ScaleStats.cmr_intervals`) and is annotated with its number
+        of labelled matches.
     """
     fig, ax = new_axes(ax, _PANEL_SIZE)
     scales = np.arange(1, 10)
     cmr = np.asarray(stats.cmr, dtype=float)[1:10]
     n = np.asarray(getattr(stats, "n_labelled", stats.n_matches))[1:10]
+    iv = stats.cmr_intervals()[1:10]
     ax.bar(scales, np.nan_to_num(cmr, nan=0.0), width=0.7, color=color)
-    for s, v, k in zip(scales, cmr, n):
+    ok = np.isfinite(cmr) & np.isfinite(iv).all(axis=1)
+    if ok.any():
+        err = np.vstack([cmr[ok] - iv[ok, 0], iv[ok, 1] - cmr[ok]]).clip(min=0)
+        ax.errorbar(scales[ok], cmr[ok], yerr=err, fmt="none", ecolor="0.2", elinewidth=0.9,
+                    capsize=2.5)
+    for s, v, k, top in zip(scales, cmr, n, iv[:, 1]):
         if np.isfinite(v):
-            ax.text(s, v + 0.01, f"{int(k)}", ha="center", va="bottom", fontsize=7)
-    ax.set_ylim(0, 1.08)
+            y = max(v, top) if np.isfinite(top) else v
+            ax.text(s, y + 0.01, f"{int(k)}", ha="center", va="bottom", fontsize=7)
+    ax.set_ylim(0, 1.15)
     if not np.isfinite(cmr).any():
         ax.text(5, 0.5, "no labelled matches:\nthe pairs could not be verified\n"
                 "(give manual labels: method='file')", ha="center", va="center", fontsize=8,
                 color="0.35")
-    _stats_scale_axis(ax, stats, "(a) correct matching rate (CMR)", "CMR")
+    _stats_scale_axis(ax, stats, "(a) correct matching rate (CMR)",
+                      "CMR (bars: 95% CI over queries)")
     return fig
 
 
