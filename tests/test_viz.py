@@ -70,8 +70,10 @@ def _result(label, sim, gt, auc=None):
 
     from vpr_core.evaluation import pr_curve
 
+    from vpr_core.evaluation import evaluate
+
     return SimpleNamespace(label=label, similarity=sim, ground_truth=gt, dataset="toy",
-                           tolerance=0, protocol="ratio",
+                           tolerance=0, protocol="ratio", metrics=evaluate(sim, gt),
                            intervals={} if auc is None else {"auc": auc},
                            curve=lambda: pr_curve(sim, gt, warn=False))
 
@@ -85,7 +87,7 @@ def test_pr_curves_legend_outside_identical_curves_said_and_dataset_named():
 
     rng = np.random.default_rng(0)
     gt = np.eye(6, dtype=bool)
-    a, b = gt + rng.random((6, 6)) * 0.9, gt + rng.random((6, 6)) * 0.9
+    a, b = gt + rng.random((6, 6)) * 0.9, gt + rng.random((6, 6)) * 3.0
     results = [_result("dense", a, gt, (0.5, 0.25, 0.75)), _result("x", b, gt),
                _result("y", a.copy(), gt)]
     fig = plot_pr_curves(results, title="Fig. T")
@@ -100,6 +102,26 @@ def test_pr_curves_legend_outside_identical_curves_said_and_dataset_named():
     fig.canvas.draw()
     legend = ax.get_legend().get_window_extent()
     assert legend.x0 >= ax.get_window_extent().x1  # beside the axes, never over the curves
+
+
+def test_pr_curves_same_curve_is_said_and_colours_never_repeat():
+    from matplotlib.colors import to_hex
+
+    from vpr_core.viz import plot_pr_curves
+
+    rng = np.random.default_rng(1)
+    gt = np.eye(6, dtype=bool)
+    a = gt + rng.random((6, 6)) * 3.0
+    scaled = a * 0.5  # another matrix, the same ranking: same curve and metrics
+    other = gt + rng.random((6, 6)) * 3.0
+    results = [_result("classical", a, gt), _result("s2", scaled, gt),
+               _result("global", other, gt), _result("peer", other[::-1].copy(), gt)]
+    fig = plot_pr_curves(results)
+    ax = fig.axes[0]
+    texts = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert texts[1].startswith("s2 (= classical")
+    drawn = [to_hex(ln.get_color()) for ln in ax.lines if len(ln.get_xdata())]
+    assert len(drawn) == 3 and len(set(drawn)) == 3  # classical's blue is not reused
 
 
 
@@ -126,3 +148,34 @@ def test_pair_and_coverage_figures_of_runs(tiny_synthetic):
     assert table.loc["global", "covered share (mean)"] == 1.0  # the whole-image box
     assert 0 < table.loc["dense", "covered share (this image)"] <= 1
     plt.close("all")
+
+
+def test_layout_problems_finds_cut_text_and_a_legend_over_the_curves():
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(4, 3))
+    ax.plot(np.linspace(0, 1, 50), np.linspace(1, 0, 50), label="a curve")
+    ax.set_title("a title far too long to fit on a figure this narrow, so it is cut at the edge")
+    ax.legend(loc="center")  # right over the diagonal
+    problems = viz.layout_problems(fig)
+    assert any("extends beyond the canvas" in p for p in problems)
+    assert any("legend covers" in p for p in problems)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(6, 3), constrained_layout=True)
+    ax.plot([0, 1], [1, 0], label="a curve")
+    ax.set_title("short")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    assert viz.layout_problems(fig) == []
+    plt.close(fig)
+
+
+def test_save_warns_about_a_broken_layout(tmp_path):
+    import matplotlib.pyplot as plt
+
+    from vpr_core.notices import VPRWarning
+
+    fig, ax = plt.subplots(figsize=(3, 2))
+    ax.set_title("x" * 200)
+    with pytest.warns(VPRWarning, match="layout of bad"):
+        viz.save(fig, "bad", "t", out=tmp_path)
+    plt.close(fig)

@@ -475,7 +475,8 @@ def scale_statistics(dataset: Any, boxes_q: Sequence[np.ndarray], boxes_r: Seque
     meta = {"dataset": getattr(dataset, "name", None), "label_method": method,
             "n_irrelevant": n_irrelevant, "seed": seed, "gt_pairs": gt_pairs,
             "soft_nms_iou": soft_nms_iou, "iou_threshold": iou_threshold,
-            "tolerance": getattr(dataset, "tolerance", None)}
+            "tolerance": getattr(dataset, "tolerance", None),
+            "queries_with_gt": [int(gt.any(axis=1).sum()), int(gt.shape[0])]}
     return scale_statistics_from_matches(records, meta=meta)
 
 

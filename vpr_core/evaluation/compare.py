@@ -30,14 +30,25 @@ def _same(a: np.ndarray, b: np.ndarray) -> bool:
     return a.shape == b.shape and bool(np.array_equal(a, b, equal_nan=True))
 
 
+def _same_result(a: Any, b: Any) -> bool:
+    """Same similarity matrix, or the same PR curve, metrics and per-query ranking decision
+    (then nothing a table or figure shows can tell the two apart)."""
+    if _same(np.asarray(a.similarity), np.asarray(b.similarity)):
+        return True
+    if getattr(a, "metrics", None) != getattr(b, "metrics", None):
+        return False
+    ca, cb = a.curve(), b.curve()
+    return _same(np.asarray(ca.recall), np.asarray(cb.recall)) and \
+        _same(np.asarray(ca.precision), np.asarray(cb.precision))
+
+
 def identical_to(results: Sequence[Any]) -> list[str | None]:
-    """Per result, the label of the first earlier result with the same similarity matrix
-    (then their curves and every metric are identical), else None."""
+    """Per result, the label of the first earlier result with the same similarity matrix, or
+    the same metrics and PR curve (then the figure draws one curve and the table says so),
+    else None."""
     out: list[str | None] = []
     for i, r in enumerate(results):
-        twin = next((p.label for p in results[:i] if _same(np.asarray(p.similarity),
-                                                          np.asarray(r.similarity))), None)
-        out.append(twin)
+        out.append(next((p.label for p in results[:i] if _same_result(p, r)), None))
     return out
 
 

@@ -15,7 +15,7 @@ Every figure of the study is drawn here; notebooks call these and save with :fun
 
 from __future__ import annotations
 
-from .base import METHOD_COLORS, SAVE_DPI, draw_boxes, save, save_figure
+from .base import METHOD_COLORS, SAVE_DPI, draw_boxes, layout_problems, save, save_figure
 from .curves import dataset_line, plot_metric_bars, plot_pr_curves, plot_scale_distribution
 from .images import (
     plot_coverage,
@@ -40,6 +40,7 @@ __all__ = [
     "SAVE_DPI",
     "dataset_line",
     "draw_boxes",
+    "layout_problems",
     "plot_asl",
     "plot_cls",
     "plot_cmr",

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..paths import figures_dir, results_dir
 
-__all__ = ["METHOD_COLORS", "SAVE_DPI", "draw_boxes", "save", "save_figure"]
+__all__ = ["METHOD_COLORS", "SAVE_DPI", "draw_boxes", "layout_problems", "save", "save_figure"]
 
 #: Resolution of every saved study figure (dots per inch).
 SAVE_DPI = 110
@@ -56,6 +56,67 @@ def save_figure(fig: matplotlib.figure.Figure, name: str | Path, dataset: str | 
     return path
 
 
+def _legend_boxes(fig) -> list:
+    out = list(fig.legends)
+    for ax in fig.axes:
+        leg = ax.get_legend()
+        if leg is not None:
+            out.append(leg)
+    return out
+
+
+def _data_points(ax) -> np.ndarray:
+    """Display coordinates of an axes' plotted data: line vertices and bar tops/corners."""
+    from matplotlib.patches import Rectangle
+
+    pts = []
+    for line in ax.get_lines():
+        xy = np.asarray(line.get_xydata(), dtype=float).reshape(-1, 2)
+        xy = xy[np.isfinite(xy).all(axis=1)]
+        if len(xy) and line.get_visible() and line.get_linewidth() > 0:
+            pts.append(ax.transData.transform(xy))
+    for patch in ax.patches:
+        if isinstance(patch, Rectangle) and patch.get_visible() and patch.get_height() > 0:
+            x, y, w, h = patch.get_x(), patch.get_y(), patch.get_width(), patch.get_height()
+            corners = np.array([[x, y + h], [x + w, y + h], [x + w / 2, y + h]])
+            pts.append(ax.transData.transform(corners))
+    return np.concatenate(pts) if pts else np.zeros((0, 2))
+
+
+def layout_problems(fig: matplotlib.figure.Figure) -> list[str]:
+    """What a reader would see as broken in a figure: text cut by the canvas edge, a legend
+    drawn over the plotted data (line vertices, bar tops).
+
+    Returns:
+        One sentence per problem (empty: the figure passes).
+    """
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    canvas = fig.bbox
+    problems = []
+    parts = [(f"axes {ax.get_title()[:50]!r} (its title, tick or axis labels)",
+              ax.get_tightbbox(renderer)) for ax in fig.axes if ax.get_visible()]
+    parts += [(f"text {t.get_text()[:50]!r}", t.get_window_extent(renderer))
+              for t in fig.texts if t.get_visible() and t.get_text().strip()]
+    parts += [("a figure legend", leg.get_window_extent(renderer)) for leg in fig.legends]
+    for what, bb in parts:
+        if bb is None:
+            continue
+        if bb.x0 < canvas.x0 - 1 or bb.y0 < canvas.y0 - 1 or bb.x1 > canvas.x1 + 1 or \
+                bb.y1 > canvas.y1 + 1:
+            problems.append(f"{what} extends beyond the canvas")
+    for leg in _legend_boxes(fig):
+        bb = leg.get_window_extent(renderer)
+        for ax in fig.axes:
+            pts = _data_points(ax)
+            inside = ((pts[:, 0] > bb.x0) & (pts[:, 0] < bb.x1) & (pts[:, 1] > bb.y0)
+                      & (pts[:, 1] < bb.y1))
+            if inside.any():
+                problems.append(f"the legend covers {int(inside.sum())} data point(s) of the "
+                                f"axes {ax.get_title()[:40]!r}")
+    return problems
+
+
 def save(obj, name: str, label: str, out: str | Path | None = None) -> Path:
     """Write a figure or a table of the study under its dataset label (the one output writer).
 
@@ -84,6 +145,10 @@ def save(obj, name: str, label: str, out: str | Path | None = None) -> Path:
     root = None if out is None else Path(out).expanduser().resolve()
     if isinstance(obj, matplotlib.figure.Figure):
         folder = figures_dir(label) if root is None else root / "figures" / label
+        from ..notices import notice
+
+        for problem in layout_problems(obj):
+            notice(f"layout of {name}: {problem}")
         return save_figure(obj, folder / f"{name}.png")
     if isinstance(obj, pd.DataFrame):
         folder = results_dir(label) if root is None else root / "results" / label

@@ -3,9 +3,12 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.colors import to_hex
 
 from ..paper import SCALE_LABELS
 from .base import METHOD_COLORS
@@ -59,7 +62,10 @@ def dataset_line(results) -> str:
 
     r = results[0]
     n_gt, n_q = ground_truth_coverage(r.ground_truth)
-    return (f"{r.dataset}: {n_gt} of {n_q} queries with ground truth, tolerance {r.tolerance}, "
+    name = r.dataset
+    if name == "folder" and getattr(r, "root", None):  # name the data, not the loader
+        name = f"{Path(r.root).name} (folder)"
+    return (f"{name}: {n_gt} of {n_q} queries with ground truth, tolerance {r.tolerance}, "
             f"protocol {getattr(r, 'protocol', 'ratio')}")
 
 
@@ -89,7 +95,7 @@ def plot_pr_curves(results, title: str | None = None, colors: dict | None = None
     fig, ax = plt.subplots(figsize=(8.6, 4.4), constrained_layout=True)
     colors = dict(colors or {})
     spare = iter([f"C{i}" for i in range(10)] + [plt.cm.tab20(i) for i in range(20)])
-    used = set()
+    used: set[str] = set()
     for r, twin in zip(results, identical_to(results)):
         iv = getattr(r, "intervals", {}).get("auc")
         auc = (f"AUC {iv[0]:.3f} [{iv[1]:.3f}, {iv[2]:.3f}]" if iv is not None
@@ -98,9 +104,9 @@ def plot_pr_curves(results, title: str | None = None, colors: dict | None = None
             ax.plot([], [], lw=0, label=f"{r.label} (= {twin}, {auc})")
             continue
         color = colors.get(r.label) or METHOD_COLORS.get(r.label)
-        if color is None or color in used:
-            color = next(c for c in spare if c not in used)
-        used.add(color)
+        if color is None or to_hex(color) in used:
+            color = next(c for c in spare if to_hex(c) not in used)
+        used.add(to_hex(color))
         curve = r.curve()
         ax.plot(curve.recall, curve.precision, lw=1.6, color=color, label=f"{r.label} ({auc})")
     ax.set_xlim(0.0, 1.0)

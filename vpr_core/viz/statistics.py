@@ -18,6 +18,24 @@ _STATS_IRR_COLOR = "tab:gray"
 _PANEL_SIZE = (5.0, 3.4)
 
 
+def stats_line(stats, wrap: bool = False) -> str:
+    """``"<dataset>: 18 of 20 queries with ground truth, tolerance 0; labels exact; 90 ground-truth
+    / 450 irrelevant pairs"``: the line every statistics figure carries."""
+    m = stats.meta or {}
+    n_gt, n_q = m.get("queries_with_gt", ("?", "?"))
+    return (f"{m.get('dataset', '?')}: {n_gt} of {n_q} queries with ground truth, tolerance "
+            f"{m.get('tolerance')};{chr(10) if wrap else ' '}labels {m.get('label_method', '?')}; "
+            f"{stats.n_gt_pairs} "
+            f"ground-truth / {stats.n_irrelevant_pairs} irrelevant pairs")
+
+
+def _standalone(fig, ax, stats, own: bool) -> None:
+    """A panel drawn in its own figure names its data in a suptitle."""
+    if own:
+        fig.suptitle(stats_line(stats, wrap=True), fontsize=8)
+        fig.tight_layout()
+
+
 def _stats_scale_axis(ax, stats, title: str, ylabel: str) -> None:
     """Common x axis (Table-1 scales 1..9) of the Fig. 4 panels."""
     scales = np.arange(1, 10)
@@ -44,6 +62,7 @@ def plot_cmr(stats, ax=None, color: str = "tab:blue") -> matplotlib.figure.Figur
         (:meth:`~vpr_core.statistics.ScaleStats.cmr_intervals`) and is annotated with its number
         of labelled matches.
     """
+    own = ax is None
     fig, ax = new_axes(ax, _PANEL_SIZE)
     scales = np.arange(1, 10)
     cmr = np.asarray(stats.cmr, dtype=float)[1:10]
@@ -66,6 +85,7 @@ def plot_cmr(stats, ax=None, color: str = "tab:blue") -> matplotlib.figure.Figur
                 color="0.35")
     _stats_scale_axis(ax, stats, "(a) correct matching rate (CMR)",
                       "CMR (bars: 95% CI over queries)")
+    _standalone(fig, ax, stats, own)
     return fig
 
 
@@ -76,7 +96,10 @@ def _stats_grouped(ax, gt: np.ndarray, irr: np.ndarray) -> None:
            color=_STATS_GT_COLOR, label="ground-truth pairs")
     ax.bar(scales + w / 2, np.nan_to_num(np.asarray(irr, float)[1:10], nan=0.0), width=w,
            color=_STATS_IRR_COLOR, label="query-irrelevant pairs")
-    ax.legend(fontsize=7, loc="best", frameon=True, framealpha=0.8)
+    top = np.nanmax(np.concatenate([np.asarray(gt, float)[1:10], np.asarray(irr, float)[1:10],
+                                    [0.0]]))
+    ax.set_ylim(0, (top if top > 0 else 1.0) * 1.3)  # headroom: the legend sits above the bars
+    ax.legend(fontsize=7, loc="upper center", ncol=2, frameon=False)
 
 
 def plot_cls(stats, ax=None) -> matplotlib.figure.Figure:
@@ -90,10 +113,11 @@ def plot_cls(stats, ax=None) -> matplotlib.figure.Figure:
     Returns:
         The figure holding ``ax``.
     """
+    own = ax is None
     fig, ax = new_axes(ax, _PANEL_SIZE)
     _stats_grouped(ax, stats.cls_gt, stats.cls_irrelevant)
     _stats_scale_axis(ax, stats, "(b) contribution to similarity (CLS)", "share of similarity")
-    ax.set_ylim(bottom=0)
+    _standalone(fig, ax, stats, own)
     return fig
 
 
@@ -108,9 +132,11 @@ def plot_asl(stats, ax=None) -> matplotlib.figure.Figure:
     Returns:
         The figure holding ``ax``.
     """
+    own = ax is None
     fig, ax = new_axes(ax, _PANEL_SIZE)
     _stats_grouped(ax, stats.asl_gt, stats.asl_irrelevant)
     _stats_scale_axis(ax, stats, "(c) average similarity of matches (ASL)", "mean 1 - d*s")
+    _standalone(fig, ax, stats, own)
     return fig
 
 
@@ -119,17 +145,17 @@ def plot_scale_statistics(stats, title: str | None = None) -> matplotlib.figure.
 
     Args:
         stats: ``vpr_core.statistics.ScaleStats``.
-        title: optional suptitle (e.g. dataset, landmark method, label method).
+        title: optional first line of the suptitle (e.g. the landmark method); the data line
+            (:func:`stats_line`: dataset, queries with ground truth, tolerance) follows.
 
     Returns:
         A 1x3-panel figure.
     """
-    fig, axes = plt.subplots(1, 3, figsize=(14.0, 3.8))
+    fig, axes = plt.subplots(1, 3, figsize=(14.0, 3.9))
     plot_cmr(stats, ax=axes[0])
     plot_cls(stats, ax=axes[1])
     plot_asl(stats, ax=axes[2])
-    if title:
-        fig.suptitle(title, fontsize=11)
+    fig.suptitle((f"{title}\n" if title else "") + stats_line(stats), fontsize=10)
     fig.tight_layout()
     return fig
 
