@@ -27,6 +27,7 @@
 
 # %%
 import numpy as np
+from matplotlib_inline.backend_inline import set_matplotlib_formats
 
 from vpr_core import paper
 from vpr_core.datasets import load_dataset
@@ -43,6 +44,7 @@ from vpr_core.viz import (plot_coverage_comparison, plot_dense_scales, plot_desc
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits
 configure_logging(stream="stdout")  # vpr_core's log lines as cell output
+set_matplotlib_formats("jpeg")  # inline pictures of photos as JPEG (the saved files stay PNG)
 
 # %% tags=["parameters"]
 dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | nordland | vpr_bench | utm | folder

@@ -79,6 +79,8 @@ def test_quick_study_runs_headless_and_writes_every_figure(tmp_path, monkeypatch
         executed = (out / "runs" / "synthetic_quick" / f"{nb}.ipynb").read_text()
         # every figure passed viz.layout_problems when saved (no cut text, no legend on data)
         assert "layout of " not in executed, nb
+        # the executed notebook shows its figures inline and stays small enough to share
+        assert '"image/' in executed and len(executed.encode()) < 3_000_000, nb
     results = out / "results" / "synthetic_quick"
     for stem in ("fig05_selection", "fig07a_overlap_nms", "fig07b_overlap_soft_nms",
                  "fig10_scale_levels", "fig11_landmarks_per_scale", "fig12_normalized_scales",

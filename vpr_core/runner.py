@@ -233,7 +233,10 @@ def _kernel_environment() -> Iterator[Path]:
     from .settings import kernel_environment
 
     root = paths.output_root()
-    values = {settings.OUTPUT_ENV: str(root)}
+    # the kernels draw inline (the executed notebooks hold their figures, as in Jupyter), even
+    # when the caller runs headless with MPLBACKEND=Agg
+    values = {settings.OUTPUT_ENV: str(root),
+              "MPLBACKEND": "module://matplotlib_inline.backend_inline"}
     if settings.cache_dir():
         values[settings.CACHE_ENV] = str(paths.cache_root())
     root.mkdir(parents=True, exist_ok=True)
