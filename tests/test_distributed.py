@@ -169,3 +169,65 @@ def test_feature_arguments_validated(small_set):
     with pytest.raises(ValueError, match="block_queries must be"):
         similarity_blocks_distributed(object(), [np.ones((1, 2))], [np.ones((1, 4))],
                                       [np.ones((1, 2))], [np.ones((1, 4))], block_queries=0)
+
+
+def _serve(handler, seconds: float = 30.0):
+    """A one-shot TCP server on 127.0.0.1 (a free port) whose connections ``handler(conn)``
+    answers; returns its address."""
+    import socket
+    import threading
+
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(4)
+    srv.settimeout(seconds)
+
+    def loop():
+        try:
+            while True:
+                conn, _ = srv.accept()
+                with conn:
+                    handler(conn)
+        except OSError:
+            pass
+        finally:
+            srv.close()
+
+    threading.Thread(target=loop, daemon=True).start()
+    return f"tcp://127.0.0.1:{srv.getsockname()[1]}"
+
+
+def test_a_silent_server_is_not_a_scheduler_and_fails_within_the_timeout():
+    import time
+
+    # like `python -m http.server`: accepts, then waits for a request that never comes
+    addr = _serve(lambda conn: conn.recv(1) and time.sleep(5))
+    t0 = time.perf_counter()
+    with pytest.raises(ConnectionError, match=r"sent no Dask handshake within 1 s.*not a Dask"):
+        get_client(addr, timeout=1)
+    assert time.perf_counter() - t0 < 10
+
+
+def test_a_server_speaking_another_protocol_is_refused_before_dask_reads_it():
+    addr = _serve(lambda conn: conn.sendall(b"HTTP/1.0 400 Bad request\r\n\r\n"))
+    with pytest.raises(ConnectionError, match=r"not Dask's protocol .*b'HTTP/1.0'"):
+        get_client(addr, timeout=2)
+    closed = _serve(lambda conn: None)  # accepts and closes at once
+    with pytest.raises(ConnectionError, match="closed the connection"):
+        get_client(closed, timeout=2)
+
+
+def test_a_malformed_address_is_refused_at_once(capsys):
+    import time
+
+    from vpr_core import cli
+
+    t0 = time.perf_counter()
+    with pytest.raises(ValueError, match=r"'notanaddress' is not a Dask scheduler address"):
+        get_client("notanaddress", timeout=5)
+    assert scheduler_address("127.0.0.1:8786") == "tcp://127.0.0.1:8786"
+    rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "3", "--method", "global",
+                   "--backbone", "hog", "--scheduler", "notanaddress"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "tcp://HOST:PORT" in err and "Traceback" not in err
+    assert time.perf_counter() - t0 < 30  # no stall in a client's __del__

@@ -7,11 +7,20 @@ runs in-process and Dask is never imported.
 
 from __future__ import annotations
 
+import re
+import socket
+import struct
+
 from .. import settings
 from ..settings import SCHEDULER_ENV
 from ..utils import logger, progress
 
-__all__ = ["SCHEDULER_ENV", "gather_in_order", "get_client", "scheduler_address"]
+__all__ = ["SCHEDULER_ENV", "gather_in_order", "get_client", "probe_scheduler",
+           "scheduler_address"]
+
+_ADDRESS = re.compile(r"(tcp|tls|inproc|ucx)://(\[[^\]]+\]|[^:/\[\]]+):(\d{1,5})")
+#: A Dask handshake message is a few hundred bytes; anything near this is not Dask speaking.
+_MAX_HANDSHAKE = 1 << 26
 
 
 def scheduler_address(scheduler: str | None = None) -> str | None:
@@ -27,7 +36,57 @@ def scheduler_address(scheduler: str | None = None) -> str | None:
         raise ValueError(f"Dask scheduler address must be a non-empty string such as "
                          f"'tcp://127.0.0.1:8786', got {addr!r} (check --scheduler / "
                          f"${SCHEDULER_ENV}; unset it to run in-process)")
-    return addr.strip()
+    addr = addr.strip()
+    if "://" not in addr and re.fullmatch(r"[^:/]+:\d{1,5}", addr):
+        addr = "tcp://" + addr  # host:port, as Dask itself accepts it
+    if not _ADDRESS.fullmatch(addr):
+        raise ValueError(f"{addr!r} is not a Dask scheduler address; write it as "
+                         f"tcp://HOST:PORT (e.g. tcp://127.0.0.1:8786) in --scheduler / "
+                         f"${SCHEDULER_ENV}, or unset it to run in-process")
+    return addr
+
+
+def probe_scheduler(addr: str, timeout: float) -> None:
+    """Check, within ``timeout`` seconds, that a Dask scheduler answers at a ``tcp://`` address.
+
+    A Dask server sends its handshake as soon as a connection opens: the probe reads its 8-byte
+    length prefix and closes. It never lets a foreign server's bytes reach Dask's decoder (an
+    HTTP reply read as a frame length asks for exabytes). Other schemes are left to Dask.
+
+    Raises:
+        ConnectionError: nothing listens, nothing is said within ``timeout``, or the bytes are
+            not Dask's protocol (the message names the address and the fix).
+    """
+    m = _ADDRESS.fullmatch(addr)
+    if m is None or m.group(1) != "tcp":
+        return
+    host, port = m.group(2).strip("[]"), int(m.group(3))
+    fix = (f"start a scheduler there (`dask scheduler`, see docs/DISTRIBUTED.md), or unset "
+           f"--scheduler / ${SCHEDULER_ENV} to run in-process")
+    head = b""
+    try:
+        with socket.create_connection((host, port), timeout=timeout) as sock:
+            sock.settimeout(timeout)
+            while len(head) < 8:
+                chunk = sock.recv(8 - len(head))
+                if not chunk:
+                    break
+                head += chunk
+    except TimeoutError:
+        if not head:
+            raise ConnectionError(f"{addr} accepted a connection but sent no Dask handshake "
+                                  f"within {timeout:g} s: it is not a Dask scheduler; {fix}"
+                                  ) from None
+    except OSError as e:
+        raise ConnectionError(f"could not reach the Dask scheduler at {addr} ({e}); {fix}"
+                              ) from None
+    if len(head) < 8:
+        raise ConnectionError(f"{addr} closed the connection without a Dask handshake: it is "
+                              f"not a Dask scheduler; {fix}")
+    (n,) = struct.unpack("<Q", head)
+    if not 0 < n < _MAX_HANDSHAKE:
+        raise ConnectionError(f"{addr} answered with bytes that are not Dask's protocol "
+                              f"({head!r}...): it is not a Dask scheduler; {fix}")
 
 
 def get_client(scheduler: str | None = None, timeout: float | None = None):
@@ -49,6 +108,7 @@ def get_client(scheduler: str | None = None, timeout: float | None = None):
     if addr is None:
         return None
     timeout = settings.scheduler_timeout() if timeout is None else float(timeout)
+    probe_scheduler(addr, timeout)
     try:
         from distributed import Client
     except ImportError as e:  # pragma: no cover - dask[distributed] is a dependency
@@ -56,7 +116,7 @@ def get_client(scheduler: str | None = None, timeout: float | None = None):
                           "pip install 'dask[distributed]'") from e
     try:
         client = Client(addr, timeout=timeout, set_as_default=False)
-    except (OSError, TimeoutError) as e:
+    except Exception as e:  # anything Dask raises on a bad peer becomes one clear error
         raise ConnectionError(
             f"could not reach the Dask scheduler at {addr!r} within {timeout:g} s ({e}). Start "
             f"one (`dask scheduler`, then `dask worker {addr}` on each machine; see "
