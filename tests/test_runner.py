@@ -66,3 +66,22 @@ def test_runner_imports_no_study_facade():
 
     with pytest.raises(ModuleNotFoundError):
         importlib.import_module("vpr_core.study")
+
+
+def test_a_stopped_run_says_what_finished_and_where_the_files_are(tmp_path, monkeypatch,
+                                                                  capsys):
+    monkeypatch.setenv("VPR_OUTPUT_DIR", str(tmp_path))
+    calls = []
+
+    def fake_execute(nb, out, params, kernel):
+        calls.append(nb.stem)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner, "_execute", fake_execute)
+    with pytest.raises(KeyboardInterrupt):
+        runner.run_study("synthetic", quick=True,
+                         notebooks=["01_pipeline_tour", "02_scale_statistics"])
+    out = capsys.readouterr().out
+    assert "stopped in 02_scale_statistics (synthetic_quick); finished: 01_pipeline_tour" in out
+    assert "cached work is kept" in out and str(tmp_path / "figures") in out

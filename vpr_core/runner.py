@@ -272,14 +272,20 @@ REAL_DATA_NOTEBOOKS = ("03_landmark_selection", "04_overlap", "05_dense_sampling
 
 
 def _execute(nb: Path, out: Path, params: dict, kernel: str) -> None:
+    import sys
+
     import papermill as pm
 
     t0 = time.perf_counter()
     logger.info("executing %s -> %s", nb.name, out)
     try:
+        # the kernel's own lines (vpr_core's log, on stdout in the notebooks) stream here live,
+        # so a long cell is never a silent counter
         pm.execute_notebook(str(nb), str(out), parameters=params, cwd=str(nb.parent),
                             kernel_name=kernel, progress_bar=not settings.progress_disabled(),
-                            log_output=False)
+                            stdout_file=sys.stdout, stderr_file=sys.stderr)
+    except KeyboardInterrupt:
+        raise
     except Exception as exc:  # papermill raises PapermillExecutionError with the cell
         raise RuntimeError(f"notebook {nb.name} failed; open {out} to see the failing "
                            f"cell:\n{exc}") from exc
@@ -291,9 +297,17 @@ def _run_label(label: str, selected: Sequence[Path], params: dict, kernel: str) 
     expected = expected_figures()
     out_dir = paths.runs_dir(label)
     missing: list[str] = []
+    done: list[str] = []
     for nb in selected:
         started = time.time()
-        _execute(nb, out_dir / nb.name, params, kernel)
+        try:
+            _execute(nb, out_dir / nb.name, params, kernel)
+        except BaseException:
+            print(f"\nstopped in {nb.stem} ({label}); finished: {', '.join(done) or 'none'}. "
+                  f"Figures so far in {paths.figures_dir(label)}, tables in "
+                  f"{paths.results_dir(label)}; cached work is kept, rerun to resume.")
+            raise
+        done.append(nb.stem)
         missing += _unwritten(paths.figures_dir(label), expected.get(nb.stem, []), started)
     return missing
 
