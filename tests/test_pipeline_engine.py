@@ -185,3 +185,79 @@ def test_cli_adds_vprbench_peers_to_table_and_figure(tmp_path, capsys):
     rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "dense",
                    "--peers", str(tmp_path / "vb")])
     assert rc == 2 and "--peer-dataset" in capsys.readouterr().err
+
+
+def _npz(path):
+    with np.load(path) as z:
+        return {k: z[k] for k in z.files}
+
+
+def _foreign_run(small, caplog, what):
+    pipeline.get_encoder.cache_clear()
+    with caplog.at_level(logging.WARNING, logger="vpr_core"):
+        again = _run(small)
+    msgs = [r.getMessage() for r in caplog.records if "does not hold" in r.getMessage()]
+    assert msgs and what in msgs[0], msgs
+    return again
+
+
+def test_a_store_under_another_images_name_is_not_used(small, isolated_cache, caplog):
+    ref = _run(small)
+    stores = sorted((isolated_cache / "features").rglob("*.npz"))
+    stores[1].write_bytes(stores[0].read_bytes())  # a valid store, of another image
+    for f in (isolated_cache / "results").rglob("*.npz"):
+        f.unlink()
+    again = _foreign_run(small, caplog, str(stores[1]))
+    np.testing.assert_array_equal(ref.similarity, again.similarity)
+
+
+def test_a_store_of_another_seed_or_dimension_is_not_used(small, isolated_cache, caplog):
+    ref = _run(small)
+    for f in (isolated_cache / "results").rglob("*.npz"):
+        f.unlink()
+    store = sorted((isolated_cache / "features").rglob("*.npz"))[0]
+    a = _npz(store)
+    np.savez(store, boxes=a["boxes"], desc=a["desc"][:, :7], cost=a["cost"],
+             _identity=a["_identity"])  # 7-column descriptors under the right name
+    again = _foreign_run(small, caplog, "descriptors of shape")
+    np.testing.assert_array_equal(ref.similarity, again.similarity)
+    seed1 = _run(small, seed=1)  # another encoder folder; copy its store into seed 0's
+    for f in (isolated_cache / "results").rglob("*.npz"):
+        f.unlink()
+    folders = sorted({p.parent for p in (isolated_cache / "features").rglob("*.npz")})
+    assert len(folders) == 2
+    src = next(folders[1].glob("*.npz")) if folders[0] in store.parents else \
+        next(folders[0].glob("*.npz"))
+    dst = store.parent / src.name
+    dst.write_bytes(src.read_bytes())
+    caplog.clear()
+    again = _foreign_run(small, caplog, "not 'features")
+    np.testing.assert_array_equal(ref.similarity, again.similarity)
+    assert not np.array_equal(seed1.similarity, ref.similarity)
+
+
+def test_a_results_entry_of_the_wrong_shape_is_recomputed(small, isolated_cache, caplog):
+    ref = _run(small)
+    entry = next((isolated_cache / "results").rglob("*.npz"))
+    a = _npz(entry)
+    np.savez(entry, **{**a, "similarity": a["similarity"][:, :3]})
+    again = _foreign_run(small, caplog, "expected (6, 6)")
+    np.testing.assert_array_equal(ref.similarity, again.similarity)
+
+
+def test_an_unwritable_cache_folder_is_named_with_the_fix(small, tmp_path, monkeypatch):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("VPR_CACHE_DIR", str(blocker / "cache"))
+    with pytest.raises(OSError, match=r"VPR_CACHE_DIR.*writable"):
+        _run(small)
+
+
+def test_an_unwritable_output_folder_is_named_with_the_fix(tmp_path, capsys):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "3", "--method",
+                   "global", "--backbone", "hog", "--out", str(blocker / "out")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--out / VPR_OUTPUT_DIR" in err and "a file is in the way" in err
+    assert str(blocker) in err and "Traceback" not in err

@@ -129,9 +129,7 @@ def configure_logging(level: str | int = "INFO", stream: str = "stderr") -> logg
 
 def cache_dir(*parts: str) -> Path:
     """``cache_root()/parts...``, created."""
-    p = cache_root().joinpath(*parts)
-    p.mkdir(parents=True, exist_ok=True)
-    return p
+    return paths.make_dir(cache_root().joinpath(*parts), "VPR_CACHE_DIR")
 
 
 def short_hash(obj: Any, n: int = 10) -> str:

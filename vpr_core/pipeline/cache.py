@@ -1,9 +1,13 @@
-"""On-disk cache entries: atomic writes, and reads that heal a corrupted entry.
+"""On-disk cache entries: atomic writes, and reads that heal a corrupted or foreign entry.
 
-Every stage stores ``.npz`` files under :func:`vpr_core.utils.cache_dir`. A file that cannot be
-read (truncated by a crash or a full disk, or damaged) is treated as missing: its path is
-logged once, the file is removed, and the caller recomputes it, so a damaged cache never stops a
-run and never changes a number.
+Every stage stores ``.npz`` files under :func:`vpr_core.utils.cache_dir`. Each entry records
+what it was computed from (its *identity*: stage, configuration hash, image key) and is
+checked on read against what the caller expects, with the caller's shape checks (descriptor
+dimension, box columns, matrix shape). A file that cannot be read (truncated by a crash or a
+full disk, or damaged), holds another entry (a valid ``.npz`` copied under the wrong name) or
+fails a check is treated as missing: its path and the reason are logged once, the file is
+removed, and the caller recomputes it, so a damaged cache never stops a run and never changes
+a number.
 """
 
 from __future__ import annotations
@@ -11,6 +15,7 @@ from __future__ import annotations
 import os
 import tempfile
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -18,35 +23,67 @@ import numpy as np
 
 from ..utils import logger, short_hash
 
-__all__ = ["atomic_savez", "dataset_fingerprint", "load_npz", "n_images"]
+__all__ = ["ForeignEntryError", "atomic_savez", "dataset_fingerprint", "load_npz", "n_images"]
 
 SIDES = ("query", "reference")
 _REPORTED: set[str] = set()
 _UNREADABLE = (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError)
 
 
-def atomic_savez(path: Path, **arrays: Any) -> None:
-    """Write ``arrays`` to ``path`` (``.npz``) via a temporary file and an atomic rename."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(suffix=".npz", dir=path.parent)
-    os.close(fd)
+class ForeignEntryError(ValueError):
+    """A readable cache entry that is not the one asked for (another identity, wrong shape)."""
+
+
+def _cache_folder_error(path: Path, exc: OSError) -> OSError:
+    """The error for a cache folder that cannot be written, naming it and the fix."""
+    return type(exc)(exc.errno, f"cannot write the cache entry {path} ({exc.strerror}); the "
+                     f"cache folder comes from VPR_CACHE_DIR (or <output root>/.cache): point "
+                     "VPR_CACHE_DIR at a writable folder with free space")
+
+
+def atomic_savez(path: Path, identity: str | None = None, **arrays: Any) -> None:
+    """Write ``arrays`` to ``path`` (``.npz``) via a temporary file and an atomic rename.
+
+    Args:
+        path: the entry.
+        identity: what the entry was computed from (checked by :func:`load_npz`).
+        **arrays: the arrays.
+
+    Raises:
+        OSError: the folder cannot be written (read-only, a file, full): the message names the
+            entry, ``VPR_CACHE_DIR`` and the fix; no partial file is left.
+    """
+    if identity is not None:
+        arrays["_identity"] = np.array(identity)
+    tmp = None
     try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(suffix=".npz", dir=path.parent)
+        os.close(fd)
         np.savez(tmp, **arrays)
         os.replace(tmp, path)
+    except OSError as exc:
+        raise _cache_folder_error(path, exc) from exc
     finally:
-        if os.path.exists(tmp):
+        if tmp is not None and os.path.exists(tmp):
             os.remove(tmp)
 
 
-def load_npz(path: Path, keys: tuple[str, ...]) -> dict[str, np.ndarray] | None:
-    """Read ``keys`` from a cached ``.npz``; ``None`` if it is absent or unreadable.
+def load_npz(path: Path, keys: tuple[str, ...], identity: str | None = None,
+             check: Callable[[dict[str, np.ndarray]], str | None] | None = None
+             ) -> dict[str, np.ndarray] | None:
+    """Read ``keys`` from a cached ``.npz``; ``None`` if it is absent, unreadable or foreign.
 
-    An unreadable file (``BadZipFile``, ``EOFError``, a missing key, a damaged array) is logged
-    once with its path, removed, and reported as missing so the caller recomputes it.
+    An unreadable file (``BadZipFile``, ``EOFError``, a missing key, a damaged array), one whose
+    recorded identity differs from ``identity``, or one that ``check`` rejects is logged once
+    with its path and the reason, removed, and reported as missing so the caller recomputes it.
 
     Args:
         path: the cache entry.
         keys: the arrays the caller needs (all are read eagerly, so damage surfaces here).
+        identity: what the caller expects the entry to be computed from (None: not checked).
+        check: returns why the arrays do not fit (e.g. ``"descriptors of 7 columns, expected
+            1024"``) or None.
 
     Returns:
         ``{key: array}`` or ``None``.
@@ -55,12 +92,22 @@ def load_npz(path: Path, keys: tuple[str, ...]) -> dict[str, np.ndarray] | None:
         return None
     try:
         with np.load(path, allow_pickle=False) as z:
-            return {k: np.asarray(z[k]) for k in keys}
+            out = {k: np.asarray(z[k]) for k in keys}
+            if identity is not None:
+                stored = str(z["_identity"]) if "_identity" in z.files else "no identity"
+                if stored != identity:
+                    raise ForeignEntryError(f"it holds {stored!r}, not {identity!r}")
+        problem = check(out) if check is not None else None
+        if problem:
+            raise ForeignEntryError(problem)
+        return out
     except _UNREADABLE as exc:
         if str(path) not in _REPORTED:
             _REPORTED.add(str(path))
-            logger.warning("cache entry %s is unreadable (%s: %s); removed, recomputing it",
-                           path, type(exc).__name__, exc)
+            what = "does not hold what it is named for" if isinstance(
+                exc, ForeignEntryError) else "is unreadable"
+            logger.warning("cache entry %s %s (%s: %s); removed, recomputing it",
+                           path, what, type(exc).__name__, exc)
         try:
             path.unlink()
         except FileNotFoundError:

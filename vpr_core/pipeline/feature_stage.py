@@ -70,9 +70,26 @@ def _store_path(encoder, dataset, side: str, i: int):
     return cache_dir("features", _encoder_slug(encoder)) / f"{dataset.image_key(side, i)}.npz"
 
 
+def _store_identity(path) -> str:
+    """What a per-image store holds: the encoder slug (its folder) and the image key (its name)."""
+    return f"features {path.parent.name} {path.stem}"
+
+
 def _read_store(path, dim: int, overwrite: bool = False):
     """``(boxes (S, 4), desc (S, dim), cost (S,))`` of a per-image store (empty if absent)."""
-    stored = None if overwrite else load_npz(path, ("boxes", "desc", "cost"))
+
+    def check(a: dict) -> str | None:
+        b, d, c = a["boxes"], a["desc"], a["cost"]
+        if b.ndim != 2 or b.shape[1] != 4:
+            return f"boxes of shape {b.shape}, expected (S, 4)"
+        if d.ndim != 2 or (dim and d.shape[1] != dim):
+            return f"descriptors of shape {d.shape}, expected (S, {dim or 'D'})"
+        if not len(b) == len(d) == len(c):
+            return f"{len(b)} boxes, {len(d)} descriptors and {len(c)} costs"
+        return None
+
+    stored = None if overwrite else load_npz(path, ("boxes", "desc", "cost"),
+                                             identity=_store_identity(path), check=check)
     if stored is None:
         return np.zeros((0, 4)), np.zeros((0, dim), np.float32), np.zeros((0,))
     return stored["boxes"].reshape(-1, 4), stored["desc"], stored["cost"]
@@ -94,7 +111,7 @@ def _add_to_store(path, store, new_boxes: np.ndarray, new_desc: np.ndarray, seco
     s_boxes = np.concatenate([s_boxes.reshape(-1, 4), new_boxes])
     s_desc = np.concatenate([s_desc.reshape(-1, new_desc.shape[1]), new_desc]).astype(np.float32)
     s_cost = np.concatenate([s_cost, np.full(len(new_boxes), cost)])
-    atomic_savez(path, boxes=s_boxes, desc=s_desc, cost=s_cost)
+    atomic_savez(path, identity=_store_identity(path), boxes=s_boxes, desc=s_desc, cost=s_cost)
     return s_boxes, s_desc, s_cost
 
 

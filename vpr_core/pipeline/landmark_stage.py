@@ -26,6 +26,13 @@ __all__ = ["LANDMARK_SCHEMES", "edge_box_candidates", "extract_landmarks", "land
 LANDMARK_SCHEMES = EDGE_BOX_SCHEMES + ("dense", "whole_image")
 
 
+def _check_boxes_entry(arrays: dict) -> str | None:
+    b = arrays["boxes"]
+    if b.ndim != 2 or b.shape[1] != 4 or not np.isfinite(b).all():
+        return f"boxes of shape {b.shape}, expected (K, 4) finite"
+    return None
+
+
 def edge_box_candidates(dataset, side: str, i: int, n_candidates: int = N_CANDIDATES,
                         overwrite: bool = False) -> tuple[np.ndarray, float]:
     """The ``n_candidates`` Edge Box proposals of one image, cached.
@@ -37,15 +44,19 @@ def edge_box_candidates(dataset, side: str, i: int, n_candidates: int = N_CANDID
     params = {"n_candidates": int(n_candidates), "sed": settings.sed_model() or "",
               "code": code_version("landmarks")}
     folder = cache_dir("landmarks", config_slug("edge_boxes", params))
-    path = folder / f"{dataset.image_key(side, i)}.npz"
-    cached = None if overwrite else load_npz(path, ("boxes", "seconds"))
+    key = dataset.image_key(side, i)
+    path = folder / f"{key}.npz"
+    identity = f"edge_boxes {config_slug('edge_boxes', params)} {key}"
+    cached = None if overwrite else load_npz(path, ("boxes", "seconds"), identity=identity,
+                                             check=_check_boxes_entry)
     if cached is not None:
         return cached["boxes"].astype(np.float64).reshape(-1, 4), float(cached["seconds"])
     image = dataset.load_image(side, i)
     t0 = time.perf_counter()
     res = lm.edge_boxes(image, max_boxes=n_candidates)
     seconds = time.perf_counter() - t0
-    atomic_savez(path, boxes=np.asarray(res.boxes, dtype=np.float64).reshape(-1, 4),
+    atomic_savez(path, identity=identity,
+                 boxes=np.asarray(res.boxes, dtype=np.float64).reshape(-1, 4),
                  scores=np.asarray(res.scores, dtype=np.float64),
                  edge_source=np.array(res.edge_source), seconds=np.array(seconds))
     return np.asarray(res.boxes, dtype=np.float64).reshape(-1, 4), seconds

@@ -198,7 +198,15 @@ def _run_method(method, dataset, backbone, dim, seed, weights, keep_descriptors,
             key["shortlist"] = k
         folder = cache_dir("results", f"{dataset.name}-{key['dataset']}")
         path = folder / f"{config_slug(conf['name'], key)}.npz"
-        cached = load_npz(path, ("similarity", "seconds_per_pair", "pairs"))
+        identity = f"results {path.parent.name} {path.stem}"
+
+        def check(a: dict) -> str | None:
+            shape = a["similarity"].shape
+            return None if shape == (nq, nr) else f"a similarity matrix of shape {shape}, " \
+                f"expected ({nq}, {nr}) for this dataset"
+
+        cached = load_npz(path, ("similarity", "seconds_per_pair", "pairs"), identity=identity,
+                          check=check)
         if cached is not None:
             sim, match_s = cached["similarity"], float(cached["seconds_per_pair"])
             n_pairs = float(cached["pairs"])
@@ -208,7 +216,7 @@ def _run_method(method, dataset, backbone, dim, seed, weights, keep_descriptors,
                               client=client)
             n_pairs = info["pairs"]
             match_s = (info["matching_s"] + info["shortlist_s"]) / max(n_pairs, 1)
-            atomic_savez(path, similarity=sim, seconds_per_pair=np.array(match_s),
+            atomic_savez(path, identity=identity, similarity=sim, seconds_per_pair=np.array(match_s),
                          pairs=np.array(n_pairs))
     finally:
         if client is not None:

@@ -51,8 +51,16 @@ def save_figure(fig: matplotlib.figure.Figure, name: str | Path, dataset: str | 
         path = path.with_suffix(path.suffix + ".png") if path.suffix else path.with_suffix(".png")
     if not path.is_absolute():
         path = figures_dir(dataset) / path
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi, metadata=png_metadata(path.suffix), bbox_inches=None)
+    from ..paths import make_dir
+
+    make_dir(path.parent, "--out / VPR_OUTPUT_DIR (default: the current folder)")
+    tmp = path.with_name(path.name + ".tmp")
+    try:  # written whole or not at all (a full disk leaves no half PNG)
+        fig.savefig(tmp, dpi=dpi, metadata=png_metadata(path.suffix), bbox_inches=None,
+                    format=path.suffix[1:])
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)
     return path
 
 
@@ -143,20 +151,27 @@ def save(obj, name: str, label: str, out: str | Path | None = None) -> Path:
         raise ValueError(f"save(): label must name the dataset (a non-empty string), got "
                          f"{label!r}")
     root = None if out is None else Path(out).expanduser().resolve()
+    from ..paths import make_dir
+
+    setting = "--out / VPR_OUTPUT_DIR (default: the current folder)"
     if isinstance(obj, matplotlib.figure.Figure):
-        folder = figures_dir(label) if root is None else root / "figures" / label
+        folder = figures_dir(label) if root is None else make_dir(root / "figures" / label,
+                                                                  setting)
         from ..notices import notice
 
         for problem in layout_problems(obj):
             notice(f"layout of {name}: {problem}")
         return save_figure(obj, folder / f"{name}.png")
     if isinstance(obj, pd.DataFrame):
-        folder = results_dir(label) if root is None else root / "results" / label
-        folder.mkdir(parents=True, exist_ok=True)
+        folder = results_dir(label) if root is None else make_dir(root / "results" / label,
+                                                                  setting)
         path = folder / f"{name}.csv"
         tmp = path.with_name(path.name + ".tmp")
-        obj.to_csv(tmp, float_format="%.6f", index=not isinstance(obj.index, pd.RangeIndex))
-        tmp.replace(path)
+        try:
+            obj.to_csv(tmp, float_format="%.6f", index=not isinstance(obj.index, pd.RangeIndex))
+            tmp.replace(path)
+        finally:
+            tmp.unlink(missing_ok=True)
         return path
     raise TypeError(f"save() writes a matplotlib Figure or a pandas DataFrame, got "
                     f"{type(obj).__name__}")
