@@ -35,6 +35,7 @@ from vpr_core.features import LandmarkEncoder
 from vpr_core.landmarks import dense_sampling, edge_boxes, normalized_scale
 from vpr_core.matching import cosine_distance, image_similarity, reciprocal_matches, shape_penalty
 from vpr_core.pipeline import run_method
+from vpr_core.runner import check_parameters
 from vpr_core.statistics import ground_truth_references
 from vpr_core.utils import configure_logging, tune_allocator
 from vpr_core.viz import (plot_coverage_comparison, plot_dense_scales, plot_descriptor_matrices,
@@ -57,6 +58,8 @@ pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass
 pair = 0  # the query walked through the pipeline (with its ground-truth reference)
 
 # %%
+check_parameters(dataset=dataset, root=root, options=options, limit=limit, label=label,
+                 backbone=backbone, pooling=pooling)
 ds = load_dataset(dataset, root=root, **options)
 if limit:
     ds = ds.subset(limit)
@@ -79,7 +82,8 @@ save(fig, "examples", label);
 # %% [markdown]
 # ## The pipeline, step by step, on one pair
 # ### 1. Landmarks: `edge_boxes` (classical) and `dense_sampling` (proposed)
-# The classical method keeps the 100 best Edge Box proposals. Dense sampling puts 25 boxes
+# The classical method keeps the 100 best Edge Box proposals (of a structured-edge model when
+# `VPR_SED_MODEL` names one, else of a gradient edge map). Dense sampling puts 25 boxes
 # per scale on a 5 x 5 grid from the top-left corner to the far edges; a box of area ratio *a*
 # is `sqrt(a)*W` wide and `sqrt(a)*H` high, so its normalised scale (Eq. 3) is *a*.
 
@@ -88,8 +92,7 @@ q, r = pair, ground_truth_references(ds.ground_truth, pair)[0]
 images = {"query": ds.load_image("query", q), "reference": ds.load_image("reference", r)}
 proposals = {s: edge_boxes(im, max_boxes=paper.N_LANDMARKS) for s, im in images.items()}
 fig = plot_landmark_panels({s: (images[s], proposals[s].boxes) for s in images},
-                           title=f"step 1a, edge_boxes ({proposals['query'].edge_source} "
-                                 f"edges): query {q} / reference {r}")
+                           title=f"step 1a, edge_boxes: query {q} / reference {r}")
 save(fig, "tour1_edge_boxes", label);
 
 # %%
@@ -111,10 +114,9 @@ scale = normalized_scale(boxes["query"], images["query"].shape[:2])
 # %%
 landmark_encoder = LandmarkEncoder(backbone, dim=paper.PROJECTION_DIM, seed=0, pooling=pooling)
 desc = {s: landmark_encoder.encode(images[s], boxes[s]) for s in images}
-fig = plot_descriptor_matrices(desc, title=f"step 2, LandmarkEncoder.encode ({backbone}, "
-                                           f"weights: {landmark_encoder.config['weights']})")
+fig = plot_descriptor_matrices(desc, title=f"step 2, LandmarkEncoder.encode ({backbone})")
 save(fig, "tour2_descriptors", label)
-{s: d.shape for s, d in desc.items()}
+{s: d.shape for s, d in desc.items()}, landmark_encoder.config["weights"]
 
 # %% [markdown]
 # ### 3. `reciprocal_matches`: mutual nearest neighbours on cosine distance
@@ -126,8 +128,7 @@ matches = reciprocal_matches(desc["query"], desc["reference"])
 d = cosine_distance(desc["query"], desc["reference"])[matches[:, 0], matches[:, 1]]
 fig = plot_labelled_matches(images["query"], images["reference"], boxes["query"],
                             boxes["reference"], matches, None,
-                            title=f"step 3, reciprocal_matches: {len(matches)} mutual nearest "
-                                  f"neighbours of {len(boxes['query'])} x {len(boxes['reference'])}")
+                            title=f"step 3, reciprocal_matches: {len(matches)} mutual neighbours")
 save(fig, "tour3_reciprocal_matches", label);
 
 # %% [markdown]
@@ -138,11 +139,10 @@ save(fig, "tour3_reciprocal_matches", label);
 # %%
 S = image_similarity(desc["query"], boxes["query"], desc["reference"], boxes["reference"])
 s = shape_penalty(boxes["query"], boxes["reference"])[matches[:, 0], matches[:, 1]]
-fig = plot_pair_terms(d, s, len(boxes["query"]), len(boxes["reference"]), S,
-                      title=f"step 4, image_similarity (Eq. 1): query {q} / reference {r}")
+na, nb = len(boxes["query"]), len(boxes["reference"])
+fig = plot_pair_terms(d, s, na, nb, S, title=f"step 4, image_similarity (Eq. 1): query {q} / reference {r}")
 save(fig, "tour4_image_similarity", label)
-print(f"image_similarity: {S:.6f}; from the terms: "
-      f"{(1 - d * s).sum() / np.sqrt(len(boxes['query']) * len(boxes['reference'])):.6f}")
+print(f"image_similarity: {S:.6f}; from the terms: {(1 - d * s).sum() / np.sqrt(na * nb):.6f}")
 
 # %% [markdown]
 # ## Fig. 3 and 8 — the classical and the dense pipeline on the same pair, over the dataset

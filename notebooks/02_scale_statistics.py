@@ -35,6 +35,7 @@ from matplotlib_inline.backend_inline import set_matplotlib_formats
 from vpr_core import paper
 from vpr_core.datasets import load_dataset
 from vpr_core.pipeline import run_method
+from vpr_core.runner import check_parameters
 from vpr_core.statistics import scale_statistics
 from vpr_core.utils import configure_logging, tune_allocator
 from vpr_core.viz import plot_asl, plot_cls, plot_cmr, plot_pair, plot_scale_statistics, save
@@ -56,6 +57,8 @@ method = "classical"  # landmark method whose matches are studied
 n_irrelevant = 5  # query-irrelevant references sampled per query
 
 # %%
+check_parameters(dataset=dataset, root=root, options=options, limit=limit, label=label,
+                 backbone=backbone, pooling=pooling)
 ds = load_dataset(dataset, root=root, **options)
 if limit:
     ds = ds.subset(limit)

@@ -29,6 +29,7 @@ from vpr_core import paper
 from vpr_core.datasets import load_dataset
 from vpr_core.evaluation import compare
 from vpr_core.pipeline import run_method
+from vpr_core.runner import check_parameters
 from vpr_core.utils import configure_logging, tune_allocator
 from vpr_core.viz import plot_pr_curves, save
 
@@ -46,6 +47,8 @@ backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
 pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass per image
 
 # %%
+check_parameters(dataset=dataset, root=root, options=options, limit=limit, label=label,
+                 backbone=backbone, pooling=pooling)
 ds = load_dataset(dataset, root=root, **options)
 if limit:
     ds = ds.subset(limit)

@@ -30,6 +30,7 @@ from vpr_core.cost import cost_table
 from vpr_core.datasets import load_dataset
 from vpr_core.evaluation import compare
 from vpr_core.pipeline import peer_result, run_method
+from vpr_core.runner import check_parameters
 from vpr_core.utils import configure_logging, tune_allocator
 from vpr_core.viz import plot_coverage_comparison, plot_pr_curves, save
 
@@ -50,6 +51,8 @@ peer_dataset = None  # its dataset folder, e.g. "GardensPointWalking" (None: no 
 my_method = None  # your method's (Nq, Nr) similarity matrix .npy on this dataset (None: none)
 
 # %%
+check_parameters(dataset=dataset, root=root, options=options, limit=limit, label=label,
+                 backbone=backbone, pooling=pooling)
 ds = load_dataset(dataset, root=root, **options)
 if limit:
     ds = ds.subset(limit)

@@ -85,3 +85,13 @@ def test_a_stopped_run_says_what_finished_and_where_the_files_are(tmp_path, monk
     out = capsys.readouterr().out
     assert "stopped in 02_scale_statistics (synthetic_quick); finished: 01_pipeline_tour" in out
     assert "cached work is kept" in out and str(tmp_path / "figures") in out
+
+
+def test_notebook_parameters_of_the_wrong_type_get_one_clear_line():
+    runner.check_parameters(dataset="synthetic", root=None, options={}, limit=None,
+                            label=None, backbone="hog", pooling="crop")
+    with pytest.raises(TypeError, match=r"options must be dict such as \{\"tolerance\": 0\}, "
+                                        r"got list \['tolerance', 0\]"):
+        runner.check_parameters(options=["tolerance", 0])
+    with pytest.raises(TypeError, match="limit must be int or None, got bool"):
+        runner.check_parameters(limit=True)

@@ -26,7 +26,7 @@ import pandas as pd
 
 from . import paths, settings
 
-__all__ = ["FIGURES", "NORDLAND_STUDY", "QUICK_IMAGES", "QUICK_PLACES", "FigureSpec",
+__all__ = ["FIGURES", "NORDLAND_STUDY", "PARAMETER_TYPES", "check_parameters", "QUICK_IMAGES", "QUICK_PLACES", "FigureSpec",
            "expected_figures", "figure_spec", "notebook_parameters", "notebook_paths",
            "notebooks_dir", "output_label", "run_study", "source_checkout", "study_datasets",
            "summary_table"]
@@ -141,6 +141,34 @@ def study_datasets() -> dict[str, dict]:
     for name, root in settings.extra_datasets().items():
         found[name] = {"dataset": name, "root": root, "options": {}, "pooling": "crop"}
     return found
+
+
+#: The parameters every study notebook takes, with their types (checked by
+#: :func:`check_parameters`).
+PARAMETER_TYPES: dict[str, tuple[type, ...]] = {
+    "dataset": (str,), "root": (str, type(None)), "options": (dict,),
+    "limit": (int, type(None)), "label": (str, type(None)), "backbone": (str,),
+    "pooling": (str,),
+}
+
+
+def check_parameters(**params) -> None:
+    """Refuse notebook parameters of the wrong type with one line naming each and the fix
+    (instead of a ``**``/``TypeError`` from deep inside a later cell).
+
+    Raises:
+        TypeError: e.g. ``options must be a dict such as {"tolerance": 0}, got a list``.
+    """
+    bad = []
+    for name, value in params.items():
+        types = PARAMETER_TYPES.get(name)
+        if types is None or (isinstance(value, types) and not isinstance(value, bool)):
+            continue
+        want = " or ".join("None" if t is type(None) else t.__name__ for t in types)
+        example = ' such as {"tolerance": 0}' if name == "options" else ""
+        bad.append(f"{name} must be {want}{example}, got {type(value).__name__} {value!r}")
+    if bad:
+        raise TypeError("notebook parameters: " + "; ".join(bad))
 
 
 def notebook_parameters(dataset: str, root: str | None = None,
