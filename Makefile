@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: study test install bench lint clean
+.PHONY: study study-nordland test install bench lint clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -18,6 +18,15 @@ install: $(STAMP)
 study: $(STAMP)
 	MPLBACKEND=Agg $(VENV)/bin/vpr-study run --dataset synthetic
 	MPLBACKEND=Agg $(VENV)/bin/vpr-study eval --dataset synthetic --method dense classical
+
+# Notebooks 05-06 on 715 Nordland places (every 5th of nordland_64x32, winter vs summer), roi
+# pooling, each query's top 25 references re-ranked by Eq. (1): about 30 min here. Then the
+# findings table with every result folder.
+study-nordland: $(STAMP)
+	MPLBACKEND=Agg $(VENV)/bin/vpr-study run --dataset nordland --root ../shared/data/nordland_64x32 \
+		--step 5 --tolerance 0 --pooling roi --shortlist 25 --label nordland_step5 \
+		--notebooks 05_dense_sampling_parameters 06_comparison
+	$(VENV)/bin/vpr-study findings --write
 
 test: $(STAMP)
 	MPLBACKEND=Agg $(PY) -m pytest -q

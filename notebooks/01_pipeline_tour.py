@@ -55,16 +55,17 @@ limit = None  # keep only the first N queries and references (quick runs)
 label = None  # subfolder of figures/ and results/ (default: the dataset's name)
 backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
 pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass per image
+shortlist = None  # None: exhaustive (the paper's); K: re-rank each query's top-K by Eq. (1)
 pair = 0  # the query walked through the pipeline (with its ground-truth reference)
 
 # %%
 check_parameters(dataset=dataset, root=root, options=options, limit=limit, label=label,
-                 backbone=backbone, pooling=pooling)
+                 backbone=backbone, pooling=pooling, shortlist=shortlist)
 ds = load_dataset(dataset, root=root, **options)
 if limit:
     ds = ds.subset(limit)
 label = label or ds.name
-encoder = {"backbone": backbone, "pooling": pooling}  # the landmark encoder of every run below
+run_options = {"backbone": backbone, "pooling": pooling, "shortlist": shortlist}  # every run below
 ds
 
 # %% [markdown]
@@ -151,8 +152,8 @@ print(f"image_similarity: {S:.6f}; from the terms: {(1 - d * s).sum() / np.sqrt(
 # SIFT + RANSAC verification on real images).
 
 # %%
-classical = run_method("classical", ds, keep_descriptors=True, **encoder)
-dense = run_method("dense", ds, keep_descriptors=True, **encoder)
+classical = run_method("classical", ds, keep_descriptors=True, **run_options)
+dense = run_method("dense", ds, keep_descriptors=True, **run_options)
 save(plot_pair(ds, classical, query=q), "fig03_classical_pipeline", label)
 save(plot_pair(ds, dense, query=q), "fig08_dense_pipeline", label);
 

@@ -53,17 +53,18 @@ limit = None  # keep only the first N queries and references (quick runs)
 label = None  # subfolder of figures/ and results/ (default: the dataset's name)
 backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
 pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass per image
+shortlist = None  # None: exhaustive (the paper's); K: re-rank each query's top-K by Eq. (1)
 method = "classical"  # landmark method whose matches are studied
 n_irrelevant = 5  # query-irrelevant references sampled per query
 
 # %%
 check_parameters(dataset=dataset, root=root, options=options, limit=limit, label=label,
-                 backbone=backbone, pooling=pooling)
+                 backbone=backbone, pooling=pooling, shortlist=shortlist)
 ds = load_dataset(dataset, root=root, **options)
 if limit:
     ds = ds.subset(limit)
 label = label or ds.name
-encoder = {"backbone": backbone, "pooling": pooling}  # the landmark encoder of every run below
+run_options = {"backbone": backbone, "pooling": pooling, "shortlist": shortlist}  # every run below
 ds
 
 # %% [markdown]
@@ -77,7 +78,7 @@ paper.table1()
 # One run of the method over the dataset, kept with its descriptors for the statistics below.
 
 # %%
-run = run_method(method, ds, keep_descriptors=True, **encoder)
+run = run_method(method, ds, keep_descriptors=True, **run_options)
 save(plot_pair(ds, run, query=0), "fig01_labelled_matches", label);
 
 # %% [markdown]

@@ -43,15 +43,16 @@ limit = None  # keep only the first N queries and references (quick runs)
 label = None  # subfolder of figures/ and results/ (default: the dataset's name)
 backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
 pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass per image
+shortlist = None  # None: exhaustive (the paper's); K: re-rank each query's top-K by Eq. (1)
 
 # %%
 check_parameters(dataset=dataset, root=root, options=options, limit=limit, label=label,
-                 backbone=backbone, pooling=pooling)
+                 backbone=backbone, pooling=pooling, shortlist=shortlist)
 ds = load_dataset(dataset, root=root, **options)
 if limit:
     ds = ds.subset(limit)
 label = label or ds.name
-encoder = {"backbone": backbone, "pooling": pooling}  # the landmark encoder of every run below
+run_options = {"backbone": backbone, "pooling": pooling, "shortlist": shortlist}  # every run below
 ds
 
 # %% [markdown]
@@ -62,7 +63,7 @@ ds
 
 # %%
 methods = ("classical", "selection_scheme1", "selection_scheme2")
-runs = [run_method(m, ds, **encoder) for m in methods]
+runs = [run_method(m, ds, **run_options) for m in methods]
 table = compare(runs, baseline="classical")
 fig = plot_pr_curves(runs, title="Fig. 5: landmark selection schemes")
 save(fig, "fig05_selection", label), save(table, "fig05_selection", label)

@@ -45,23 +45,24 @@ limit = None  # keep only the first N queries and references (quick runs)
 label = None  # subfolder of figures/ and results/ (default: the dataset's name)
 backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
 pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass per image
+shortlist = None  # None: exhaustive (the paper's); K: re-rank each query's top-K by Eq. (1)
 
 # %%
 check_parameters(dataset=dataset, root=root, options=options, limit=limit, label=label,
-                 backbone=backbone, pooling=pooling)
+                 backbone=backbone, pooling=pooling, shortlist=shortlist)
 ds = load_dataset(dataset, root=root, **options)
 if limit:
     ds = ds.subset(limit)
 label = label or ds.name
-encoder = {"backbone": backbone, "pooling": pooling}  # the landmark encoder of every run below
+run_options = {"backbone": backbone, "pooling": pooling, "shortlist": shortlist}  # every run below
 ds
 
 # %% [markdown]
 # ## Fig. 7 (a) — overlap reduction Scheme 1: NMS on the landmarks, one run per IoU threshold
 
 # %%
-classical = run_method("classical", ds, **encoder)
-runs = [classical] + [run_method("overlap_scheme1", ds, iou_threshold=t, **encoder)
+classical = run_method("classical", ds, **run_options)
+runs = [classical] + [run_method("overlap_scheme1", ds, iou_threshold=t, **run_options)
                       for t in paper.FIG7_NMS_THRESHOLDS]
 table = compare(runs, baseline="classical")
 fig = plot_pr_curves(runs, title="Fig. 7a: NMS on landmarks (Alg. 3)")
@@ -72,7 +73,7 @@ table
 # ## Fig. 7 (b) — overlap reduction Scheme 2: soft-NMS on the match scores
 
 # %%
-runs = [classical] + [run_method("overlap_scheme2", ds, soft_nms_iou=t, **encoder)
+runs = [classical] + [run_method("overlap_scheme2", ds, soft_nms_iou=t, **run_options)
                       for t in paper.FIG7_SOFT_NMS_THRESHOLDS]
 table = compare(runs, baseline="classical")
 fig = plot_pr_curves(runs, title="Fig. 7b: soft-NMS on matches (Alg. 4)")

@@ -41,15 +41,16 @@ limit = None  # keep only the first N queries and references (quick runs)
 label = None  # subfolder of figures/ and results/ (default: the dataset's name)
 backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
 pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass per image
+shortlist = None  # None: exhaustive (the paper's); K: re-rank each query's top-K by Eq. (1)
 
 # %%
 check_parameters(dataset=dataset, root=root, options=options, limit=limit, label=label,
-                 backbone=backbone, pooling=pooling)
+                 backbone=backbone, pooling=pooling, shortlist=shortlist)
 ds = load_dataset(dataset, root=root, **options)
 if limit:
     ds = ds.subset(limit)
 label = label or ds.name
-encoder = {"backbone": backbone, "pooling": pooling}  # the landmark encoder of every run below
+run_options = {"backbone": backbone, "pooling": pooling, "shortlist": shortlist}  # every run below
 ds
 
 # %% [markdown]
@@ -61,7 +62,7 @@ ds
 
 # %%
 def dense_runs(table):
-    return [run_method("dense", ds, scales=scales, per_scale=n, **encoder,
+    return [run_method("dense", ds, scales=scales, per_scale=n, **run_options,
                        label=paper.dense_set_label(name, scales, n))
             for name, (scales, n) in table.items()]
 

@@ -46,18 +46,19 @@ limit = None  # keep only the first N queries and references (quick runs)
 label = None  # subfolder of figures/ and results/ (default: the dataset's name)
 backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
 pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass per image
+shortlist = None  # None: exhaustive (the paper's); K: re-rank each query's top-K by Eq. (1)
 peers = None  # a VPR-Bench checkout with precomputed_matches/ (None: $VPR_BENCH_ROOT)
 peer_dataset = None  # its dataset folder, e.g. "GardensPointWalking" (None: no VPR-Bench peers)
 my_method = None  # your method's (Nq, Nr) similarity matrix .npy on this dataset (None: none)
 
 # %%
 check_parameters(dataset=dataset, root=root, options=options, limit=limit, label=label,
-                 backbone=backbone, pooling=pooling)
+                 backbone=backbone, pooling=pooling, shortlist=shortlist)
 ds = load_dataset(dataset, root=root, **options)
 if limit:
     ds = ds.subset(limit)
 label = label or ds.name
-encoder = {"backbone": backbone, "pooling": pooling}  # the landmark encoder of every run below
+run_options = {"backbone": backbone, "pooling": pooling, "shortlist": shortlist}  # every run below
 ds
 
 # %% [markdown]
@@ -66,7 +67,7 @@ ds
 # queries for both methods, and a difference is a finding only when its interval excludes 0.
 
 # %%
-runs = [run_method(m, ds, **encoder) for m in ("dense", "selection_scheme1", "classical", "global")]
+runs = [run_method(m, ds, **run_options) for m in ("dense", "selection_scheme1", "classical", "global")]
 if peer_dataset:
     runs += [peer_result(p, ds) for p in find_vprbench_peers(peers, peer_dataset)]
 if my_method:
@@ -93,6 +94,6 @@ coverage
 
 # %%
 cost = cost_table(ds, methods=("classical", "dense"), n_images=2 if limit or len(ds) < 10 else 6,
-                  **encoder)
+                  backbone=backbone, pooling=pooling)
 save(cost, "table5_cost", label)
 cost

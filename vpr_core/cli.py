@@ -186,7 +186,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .runner import run_study
 
     run_study(dataset=args.dataset, root=args.root, backbone=args.backbone, quick=args.quick,
-              notebooks=args.notebooks or None, real_data=args.real_data)
+              notebooks=args.notebooks or None, real_data=args.real_data, label=args.label,
+              options=_dataset_options(args), pooling=args.pooling, shortlist=args.shortlist)
     return 0
 
 
@@ -194,7 +195,8 @@ def cmd_findings(args: argparse.Namespace) -> int:
     from .findings import findings_markdown
 
     labels = args.labels or sorted(p.name for p in (paths.output_root() / "results").iterdir()
-                                   if p.is_dir() and not p.name.endswith("_quick"))
+                                   if p.is_dir() and not p.name.endswith("_quick")
+                                   and any(p.glob("fig*.csv")))
     text = findings_markdown(labels)
     print(text)
     if args.write:
@@ -287,6 +289,16 @@ def build_parser() -> argparse.ArgumentParser:
                         "(default for the full synthetic study)")
     r.add_argument("--no-real-data", dest="real_data", action="store_false",
                    help="only the --dataset study")
+    r.add_argument("--label", default=None,
+                   help="subfolder of figures/ and results/ (default: the dataset's name)")
+    r.add_argument("--pooling", default="crop", choices=("crop", "roi"),
+                   help="landmark pooling of every run (default crop, the paper's)")
+    r.add_argument("--shortlist", type=int, default=None, metavar="K",
+                   help="re-rank each query's top-K references (global cosine) by Eq. (1)")
+    r.add_argument("--step", type=int, default=None, help="nordland: keep every step-th place")
+    r.add_argument("--tolerance", type=int, default=None, help="ground-truth tolerance (frames)")
+    r.add_argument("--opt", action="append", metavar="KEY=VALUE",
+                   help="any other loader option, e.g. --opt query=winter (repeatable)")
     r.set_defaults(func=cmd_run)
 
     f = sub.add_parser("findings", help="the paper's claims vs results/<dataset>/ (Markdown)")

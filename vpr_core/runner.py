@@ -26,10 +26,25 @@ import pandas as pd
 
 from . import paths, settings
 
-__all__ = ["FIGURES", "NORDLAND_STUDY", "PARAMETER_TYPES", "check_parameters", "QUICK_IMAGES", "QUICK_PLACES", "FigureSpec",
-           "expected_figures", "figure_spec", "notebook_parameters", "notebook_paths",
-           "notebooks_dir", "output_label", "run_study", "source_checkout", "study_datasets",
-           "summary_table"]
+__all__ = [
+    "FIGURES",
+    "NORDLAND_STUDY",
+    "PARAMETER_TYPES",
+    "QUICK_IMAGES",
+    "QUICK_PLACES",
+    "FigureSpec",
+    "check_parameters",
+    "expected_figures",
+    "figure_spec",
+    "notebook_parameters",
+    "notebook_paths",
+    "notebooks_dir",
+    "output_label",
+    "run_study",
+    "source_checkout",
+    "study_datasets",
+    "summary_table",
+]
 
 logger = logging.getLogger("vpr_core")
 
@@ -148,7 +163,7 @@ def study_datasets() -> dict[str, dict]:
 PARAMETER_TYPES: dict[str, tuple[type, ...]] = {
     "dataset": (str,), "root": (str, type(None)), "options": (dict,),
     "limit": (int, type(None)), "label": (str, type(None)), "backbone": (str,),
-    "pooling": (str,),
+    "pooling": (str,), "shortlist": (int, type(None)),
 }
 
 
@@ -174,7 +189,7 @@ def check_parameters(**params) -> None:
 def notebook_parameters(dataset: str, root: str | None = None,
                         backbone: str = "efficientnet_lite0", quick: bool = False,
                         label: str | None = None, options: dict | None = None,
-                        pooling: str = "crop") -> dict:
+                        pooling: str = "crop", shortlist: int | None = None) -> dict:
     """The ``parameters`` cell values papermill injects into a study notebook.
 
     Quick mode: ``synthetic`` with :data:`QUICK_PLACES` places, a real dataset cut to its first
@@ -188,7 +203,7 @@ def notebook_parameters(dataset: str, root: str | None = None,
         limit = QUICK_IMAGES
     return {"dataset": dataset, "root": root, "backbone": backbone,
             "label": output_label(label or dataset, quick), "options": options,
-            "pooling": pooling, "limit": limit}
+            "pooling": pooling, "limit": limit, "shortlist": shortlist}
 
 
 def source_checkout() -> Path | None:
@@ -353,7 +368,9 @@ def _write_findings(labels: Sequence[str]) -> None:
 def run_study(dataset: str = "synthetic", root: str | None = None,
               backbone: str = "efficientnet_lite0", quick: bool = False,
               notebooks: Sequence[str] | None = None, kernel: str = "python3",
-              real_data: bool | None = None) -> pd.DataFrame:
+              real_data: bool | None = None, label: str | None = None,
+              options: dict | None = None, pooling: str = "crop",
+              shortlist: int | None = None) -> pd.DataFrame:
     """Execute the notebooks with papermill and verify their figures.
 
     Args:
@@ -367,6 +384,9 @@ def run_study(dataset: str = "synthetic", root: str | None = None,
             dataset of :func:`study_datasets` (outputs under
             ``figures/<label>/``, ``results/<label>/``); default: on for the full
             ``synthetic`` study, off otherwise.
+        label: output subfolder (default: the dataset's name; ``_quick`` appended in quick mode).
+        options: loader options of ``dataset`` (e.g. ``{"step": 5, "tolerance": 0}``).
+        pooling, shortlist: passed to every ``run_method`` of the notebooks.
 
     Returns:
         The summary metrics table of ``dataset`` (also printed, then one per real dataset).
@@ -380,12 +400,14 @@ def run_study(dataset: str = "synthetic", root: str | None = None,
     if root is not None:
         root = str(Path(root).expanduser().resolve())
     # fail fast, with the loader's clear message (quick synthetic: only the places it uses)
-    load_dataset(dataset, root=root, **({"n_places": QUICK_PLACES}
-                                        if quick and dataset == "synthetic" else {}))
+    options = dict(options or {})
+    load_dataset(dataset, root=root, **({"n_places": QUICK_PLACES, **options}
+                                        if quick and dataset == "synthetic" else options))
     if real_data is None:
-        real_data = dataset == "synthetic" and not quick
-    label = output_label(dataset, quick)
-    params = notebook_parameters(dataset, root, backbone, quick)
+        real_data = dataset == "synthetic" and not quick and label is None
+    params = notebook_parameters(dataset, root, backbone, quick, label=label, options=options,
+                                 pooling=pooling, shortlist=shortlist)
+    label = params["label"]
     selected = notebook_paths(notebooks)
     extra = study_datasets() if real_data else {}
     with _kernel_environment() as out_root:

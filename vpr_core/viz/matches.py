@@ -40,20 +40,31 @@ def plot_labelled_matches(img_q: np.ndarray, img_r: np.ndarray, boxes_q: np.ndar
         iq = np.repeat(iq[..., None], 3, axis=2)
     if ir.ndim == 2:
         ir = np.repeat(ir[..., None], 3, axis=2)
-    hh = max(iq.shape[0], ir.shape[0])
+    scale_r = 1.0
+    if ir.shape[0] != iq.shape[0]:  # draw both at the query's height (boxes scaled along)
+        import cv2
+
+        scale_r = iq.shape[0] / ir.shape[0]
+        ir = cv2.resize(np.ascontiguousarray(ir[..., :3]),
+                        (max(1, round(ir.shape[1] * scale_r)), iq.shape[0]),
+                        interpolation=cv2.INTER_AREA)
+    hh = iq.shape[0]
     canvas = np.full((hh, iq.shape[1] + gap + ir.shape[1], 3), 255, dtype=np.uint8)
-    canvas[: iq.shape[0], : iq.shape[1]] = iq[..., :3]
+    canvas[:, : iq.shape[1]] = iq[..., :3]
     off = iq.shape[1] + gap
-    canvas[: ir.shape[0], off:] = ir[..., :3]
-    if ax is None:
-        fig, ax = plt.subplots(figsize=(min(16.0, canvas.shape[1] / 80), canvas.shape[0] / 80 + 0.5))
+    canvas[:, off:] = ir[..., :3]
+    if ax is None:  # sized to the canvas: no empty margins beside the pictures
+        width = 14.0
+        height = width * hh / canvas.shape[1]
+        fig, ax = plt.subplots(figsize=(width, height + 0.75))
+        fig.subplots_adjust(left=0.005, right=0.995, bottom=0.005, top=height / (height + 0.75))
     else:
         fig = ax.figure
     ax.imshow(canvas)
     ax.set_axis_off()
     m = np.asarray(matches, dtype=np.int64).reshape(-1, 2)
     bq = np.asarray(boxes_q, dtype=float).reshape(-1, 4)
-    br = np.asarray(boxes_r, dtype=float).reshape(-1, 4)
+    br = np.asarray(boxes_r, dtype=float).reshape(-1, 4) * scale_r
     lab = None if labels is None else np.asarray(labels, dtype=bool).reshape(-1)
     if lab is not None and len(lab) != len(m):
         raise ValueError(f"labels ({len(lab)}) must have one entry per match ({len(m)})")
@@ -74,7 +85,7 @@ def plot_labelled_matches(img_q: np.ndarray, img_r: np.ndarray, boxes_q: np.ndar
         else:
             title = f"{len(m)} matches: {int(lab.sum())} correct (green), " \
                     f"{int((~lab).sum())} incorrect (red)"
-    ax.set_title(title, fontsize=9)
+    ax.set_title(title, fontsize=10)
     return fig
 
 
@@ -173,5 +184,6 @@ def plot_pair(dataset, result, query: int = 0, reference: int | None = None
                                 result.boxes["query"][pm.query],
                                 result.boxes["reference"][pm.reference], pm.matches, pm.labels)
     note = f"\n(labels unavailable: {pm.note[:90]})" if pm.note else ""
-    fig.suptitle(f"{result.label} on {dataset.name}: {pm.summary()}{note}", fontsize=10)
+    fig.suptitle(f"{result.label} on {dataset.name}: {pm.summary()}{note}", fontsize=11,
+                 y=0.995, va="top")
     return fig
