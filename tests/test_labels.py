@@ -316,3 +316,24 @@ def test_homography_sanity_rejects_degenerate_maps():
     assert not _homography_is_sane(np.diag([-1.0, 1.0, 1.0]), size)  # mirrored outline
     assert not _homography_is_sane(np.diag([10.0, 10.0, 1.0]), size)  # area x100
     assert not _homography_is_sane(np.full((3, 3), np.nan), size)
+
+
+def test_pair_label_widget_starts_from_a_run_and_says_when_saved(tiny_synthetic, tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from vpr_core.labels import pair_label_widget, read_label_file
+    from vpr_core.pipeline import run_method
+
+    res = run_method("dense", tiny_synthetic, keep_descriptors=True, backbone="hog",
+                     n_bootstrap=0)
+    out = tmp_path / "labels.csv"
+    box = pair_label_widget(tiny_synthetic, res, query=0, out=out)
+    yes, no, status = box.children[0].children
+    n = int(status.value.split("/")[1])
+    assert status.value == f"match 1/{n}" and n > 0
+    for k in range(n):
+        (yes if k % 2 == 0 else no).click()
+    assert status.value == f"saved {n} labels to {out}" and yes.disabled and no.disabled
+    rows = read_label_file(out)
+    assert len(rows) == n

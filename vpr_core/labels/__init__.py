@@ -79,7 +79,7 @@ from .geometric import (
     label_matches_geometric,
     label_pair_geometric,
 )
-from .manual import append_labels, label_widget
+from .manual import append_labels, label_widget, pair_label_widget
 
 __all__ = [
     "LABEL_COLUMNS",
@@ -94,6 +94,7 @@ __all__ = [
     "label_matches_geometric",
     "label_widget",
     "map_boxes",
+    "pair_label_widget",
     "read_label_file",
     "resolve_label_method",
 ]

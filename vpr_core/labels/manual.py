@@ -16,7 +16,7 @@ import numpy as np
 
 from .file import LABEL_COLUMNS
 
-__all__ = ["append_labels", "label_widget"]
+__all__ = ["append_labels", "label_widget", "pair_label_widget"]
 
 
 def append_labels(path: str | Path, q: int, r: int, matches: np.ndarray,
@@ -79,6 +79,7 @@ def label_widget(dataset: Any, q: int, r: int, boxes_q: np.ndarray, boxes_r: np.
     state = {"k": 0}
     output = widgets.Output()
     status = widgets.Label()
+    yes, no = widgets.Button(description="correct"), widgets.Button(description="wrong")
 
     def show() -> None:
         output.clear_output(wait=True)
@@ -86,7 +87,9 @@ def label_widget(dataset: Any, q: int, r: int, boxes_q: np.ndarray, boxes_r: np.
         with output:
             if k >= len(matches):
                 append_labels(out, q, r, matches, labels)
-                print(f"saved {len(matches)} labels to {out}")
+                status.value = f"saved {len(matches)} labels to {out}"
+                yes.disabled = no.disabled = True
+                print(status.value)
                 return
             i, j = matches[k]
             _fig, axes = plt.subplots(1, 2, figsize=(10, 3))
@@ -105,8 +108,25 @@ def label_widget(dataset: Any, q: int, r: int, boxes_q: np.ndarray, boxes_r: np.
             show()
         return _cb
 
-    yes, no = widgets.Button(description="correct"), widgets.Button(description="wrong")
     yes.on_click(answer(True))
     no.on_click(answer(False))
     show()
     return widgets.VBox([widgets.HBox([yes, no, status]), output])
+
+
+def pair_label_widget(dataset: Any, result: Any, query: int = 0, reference: int | None = None,
+                      out: str | Path = "labels.csv") -> Any:
+    """:func:`label_widget` for one pair of a run: its boxes and reciprocal matches are taken
+    from the run (nothing to compute by hand).
+
+    Args:
+        dataset: the run's dataset.
+        result: a :class:`~vpr_core.pipeline.MethodResult` run with ``keep_descriptors=True``.
+        query: query index. reference: None for its ground-truth reference.
+        out: the labels CSV.
+    """
+    from ..statistics import pair_matches
+
+    pm = pair_matches(dataset, result, query, reference)
+    return label_widget(dataset, pm.query, pm.reference, result.boxes["query"][pm.query],
+                        result.boxes["reference"][pm.reference], pm.matches, out=out)
