@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..boxes import check_boxes
-from . import check_matches
+from .exact import check_matches
 
 __all__ = ["LABEL_COLUMNS", "label_matches_file", "read_label_file"]
 

@@ -13,8 +13,7 @@ from typing import Any
 import numpy as np
 
 from ..boxes import check_boxes, paired_iou
-from . import LabelUnavailableError, check_matches, is_ground_truth
-from .exact import map_boxes
+from .exact import LabelUnavailableError, check_matches, is_ground_truth, map_boxes
 
 __all__ = ["PairGeometry", "estimate_pair_geometry", "label_matches_geometric", "label_pair_geometric"]
 
