@@ -29,11 +29,6 @@ def test_save_figure_goes_under_the_output_root(tmp_path, monkeypatch):
     plt.close(fig)
 
 
-def test_old_figure_helpers_are_gone():
-    # output folders come from vpr_core.paths only
-    assert not hasattr(viz, "figures_dir") and not hasattr(viz, "FIGURES_DIR")
-
-
 def test_landmark_panels_colour_groups_and_check_them(tmp_path):
     img = np.zeros((60, 80, 3), np.uint8)
     boxes = np.array([[0, 0, 10, 10], [5, 5, 20, 20], [30, 30, 10, 10]], float)
