@@ -29,7 +29,7 @@ from vpr_core.pipeline import run_method
 from vpr_core.runner import check_parameters
 from vpr_core.statistics import scale_distribution
 from vpr_core.utils import configure_logging, tune_allocator
-from vpr_core.viz import plot_pr_curves, plot_scale_distribution, save
+from vpr_core.viz import dataset_line, plot_pr_curves, plot_scale_distribution, save
 
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits
@@ -75,6 +75,6 @@ table
 # %%
 for run, stem in zip(runs[1:], ("fig06a_scheme1_scales", "fig06b_scheme2_scales")):
     counts = scale_distribution(run, ds)
-    fig = plot_scale_distribution(counts, title=f"{run.label}: landmarks per scale ({ds.name})")
+    fig = plot_scale_distribution(counts, title=f"{run.label}: landmarks per scale\n{dataset_line([run])}")
     save(fig, stem, label), save(counts, stem, label)
     display(counts.T)

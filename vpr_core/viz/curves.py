@@ -48,8 +48,10 @@ def plot_scale_distribution(hists: dict, title: str | None = None, ax=None,
     ax.set_ylabel("share of landmarks" if normalize else "number of landmarks")
     if title:
         ax.set_title(title)
-    if labels:
-        ax.legend(frameon=False)
+    if labels:  # headroom above the tallest bar: the legend never covers a bar
+        top = max(float(np.nanmax(p.get_height())) for p in ax.patches) if ax.patches else 1.0
+        ax.set_ylim(0, (top if top > 0 else 1.0) * 1.25)
+        ax.legend(frameon=False, loc="upper center", ncol=len(labels))
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
     return fig

@@ -190,6 +190,9 @@ def plot_coverage_comparison(dataset, results, index: int = 0, side: str = "refe
                   for i, b in enumerate(res.boxes[side])]
         rows.append({"method": res.label, "covered share (this image)": shares[index],
                      "covered share (mean)": float(np.mean(shares))})
+    from .curves import dataset_line
+
+    fig.suptitle(f"landmark coverage of {side} {index}; {dataset_line(results)}", fontsize=9)
     fig.tight_layout()
     return fig, pd.DataFrame(rows).set_index("method")
 
