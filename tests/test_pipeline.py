@@ -165,3 +165,20 @@ def test_run_method_protocols(tiny_synthetic):
     assert res.intervals["auc"][0] == res.metrics["auc"]
     with pytest.raises(ValueError, match="ratio"):
         run_method("global", tiny_synthetic, backbone="hog", protocol="nope")
+
+
+def test_the_papers_path_never_touches_the_engine():
+    """In-process and exhaustive, run_method is landmarks -> features -> similarity_matrix ->
+    metrics: the Dask / shortlist engine is not even imported (checked in a fresh interpreter)."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from vpr_core.datasets import load_dataset; "
+            "from vpr_core.pipeline import run_method; "
+            "run_method('dense', load_dataset('synthetic', n_places=3), backbone='hog', "
+            "n_bootstrap=0); "
+            "print(sorted(m for m in sys.modules if m.startswith(('vpr_core.engine', "
+            "'distributed'))))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.strip().splitlines()[-1]
+    assert out == "[]", out
