@@ -42,7 +42,7 @@ from vpr_core.viz import plot_asl, plot_cls, plot_cmr, plot_pair, plot_scale_sta
 
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits
-configure_logging(stream="stdout")  # vpr_core's log lines as cell output
+configure_logging(stream="stdout", silence_warnings=True)  # log lines (and warnings) as output
 set_matplotlib_formats("jpeg")  # inline pictures of photos as JPEG (the saved files stay PNG)
 
 # %% tags=["parameters"]

@@ -31,7 +31,7 @@ from vpr_core.viz import plot_pr_curves, save
 
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits
-configure_logging(stream="stdout")  # vpr_core's log lines as cell output
+configure_logging(stream="stdout", silence_warnings=True)  # log lines (and warnings) as output
 
 # %% tags=["parameters"]
 dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | nordland | vpr_bench | utm | folder

@@ -68,6 +68,7 @@ def test_quick_study_runs_headless_and_writes_every_figure(tmp_path, monkeypatch
     out = tmp_path / "out"
     monkeypatch.setenv("VPR_OUTPUT_DIR", str(out))
     monkeypatch.setenv("VPR_CACHE_DIR", os.environ.get("VPR_CACHE_DIR", str(REPO / ".cache")))
+    monkeypatch.delenv("TQDM_DISABLE", raising=False)  # the kernels' bars, as a user sees them
     table = runner.run_study(dataset="synthetic", quick=True)
     figures = out / "figures" / "synthetic_quick"
     for spec in FIGURES:
@@ -75,12 +76,21 @@ def test_quick_study_runs_headless_and_writes_every_figure(tmp_path, monkeypatch
         assert png.stat().st_size > 1000, png
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert not (NB_DIR / "figures").exists() and not (NB_DIR / "results").exists()
+    bars = {}
     for nb in expected_figures():
         executed = (out / "runs" / "synthetic_quick" / f"{nb}.ipynb").read_text()
         # every figure passed viz.layout_problems when saved (no cut text, no legend on data)
         assert "layout of " not in executed, nb
         # the executed notebook shows its figures inline and stays small enough to share
         assert '"image/' in executed and len(executed.encode()) < 3_000_000, nb
+        # log lines and warnings are plain stdout lines; bars are text, never a frozen widget
+        streams = [o for c in json.loads(executed)["cells"] for o in c.get("outputs", [])
+                   if o.get("output_type") == "stream"]
+        stderr = "".join("".join(o["text"]) for o in streams if o["name"] == "stderr")
+        assert "vpr_core" not in stderr and "VPRWarning" not in stderr, (nb, stderr[:300])
+        assert "application/vnd.jupyter.widget-view+json" not in executed, nb
+        bars[nb] = "".join("".join(o["text"]) for o in streams if o["name"] == "stdout")
+    assert "100%|" in bars["01_pipeline_tour"] and "[vpr_core INFO]" in bars["01_pipeline_tour"]
     results = out / "results" / "synthetic_quick"
     for stem in ("fig05_selection", "fig07a_overlap_nms", "fig07b_overlap_soft_nms",
                  "fig10_scale_levels", "fig11_landmarks_per_scale", "fig12_normalized_scales",

@@ -95,3 +95,31 @@ def test_notebook_parameters_of_the_wrong_type_get_one_clear_line():
         runner.check_parameters(options=["tolerance", 0])
     with pytest.raises(TypeError, match="limit must be int or None, got bool"):
         runner.check_parameters(limit=True)
+
+
+def test_text_progress_bars_for_saved_notebooks(monkeypatch, capsys):
+    from vpr_core.utils import progress
+
+    monkeypatch.delenv("TQDM_DISABLE", raising=False)
+    monkeypatch.setenv("VPR_PROGRESS", "text")  # what the runner gives its kernels
+    assert list(progress(range(3), total=3, desc="features")) == [0, 1, 2]
+    out = capsys.readouterr().out
+    assert "features: 100%" in out and "3/3" in out  # a final bar on stdout, not a widget
+
+
+def test_notebook_logging_is_stdout_and_warnings_are_not_printed_twice(capsys):
+    import logging
+    import warnings
+
+    from vpr_core.notices import notice
+    from vpr_core.utils import configure_logging
+
+    with warnings.catch_warnings():
+        configure_logging(stream="stdout", silence_warnings=True)
+        notice("a thing that changes a number")
+        logging.getLogger("vpr_core").info("a plain line")
+    captured = capsys.readouterr()
+    assert "[vpr_core WARNING] a thing that changes a number" in captured.out
+    assert "[vpr_core INFO] a plain line" in captured.out
+    assert "VPRWarning" not in captured.err and captured.err.count("a thing") == 0
+    configure_logging()  # back to stderr for the other tests

@@ -279,7 +279,8 @@ def _kernel_environment() -> Iterator[Path]:
     # the kernels draw inline (the executed notebooks hold their figures, as in Jupyter), even
     # when the caller runs headless with MPLBACKEND=Agg
     values = {settings.OUTPUT_ENV: str(root),
-              "MPLBACKEND": "module://matplotlib_inline.backend_inline"}
+              "MPLBACKEND": "module://matplotlib_inline.backend_inline",
+              settings.PROGRESS_ENV: "text"}  # bars the saved notebooks can show
     if settings.cache_dir():
         values[settings.CACHE_ENV] = str(paths.cache_root())
     root.mkdir(parents=True, exist_ok=True)
@@ -400,6 +401,7 @@ def run_study(dataset: str = "synthetic", root: str | None = None,
     if root is not None:
         root = str(Path(root).expanduser().resolve())
     # fail fast, with the loader's clear message (quick synthetic: only the places it uses)
+    t_start = time.perf_counter()
     options = dict(options or {})
     load_dataset(dataset, root=root, **({"n_places": QUICK_PLACES, **options}
                                         if quick and dataset == "synthetic" else options))
@@ -431,4 +433,10 @@ def run_study(dataset: str = "synthetic", root: str | None = None,
     for sub, t in others.items():
         if not t.empty:
             _print_summary(t, sub, backbone)
+    print(f"\nwrote, in {time.perf_counter() - t_start:.0f} s:")
+    for sub in (label, *others):
+        figs = sorted(paths.figures_dir(sub).glob("*.png"))
+        tables = sorted(paths.results_dir(sub).glob("*.csv"))
+        print(f"  {len(figs)} figures in {paths.figures_dir(sub)}, {len(tables)} tables in "
+              f"{paths.results_dir(sub)}, executed notebooks in {paths.runs_dir(sub)}")
     return table

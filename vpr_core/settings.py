@@ -45,6 +45,7 @@ __all__ = [
     "kernel_environment",
     "output_dir",
     "progress_disabled",
+    "progress_style",
     "scheduler_timeout",
     "sed_model",
     "tune_malloc",
@@ -59,6 +60,7 @@ ALEXNET_ENV = "VPR_ALEXNET_WEIGHTS"
 BENCH_ROOT_ENV = "VPR_BENCH_ROOT"
 DATASETS_ENV = "VPR_DATASETS"
 TUNE_MALLOC_ENV = "VPR_TUNE_MALLOC"
+PROGRESS_ENV = "VPR_PROGRESS"
 
 
 def _get(name: str) -> str | None:
@@ -144,6 +146,14 @@ def extra_datasets() -> dict[str, str]:
 def tune_malloc() -> bool:
     """False when ``$VPR_TUNE_MALLOC`` is ``0`` / ``false`` / ``no`` / ``off``."""
     return (_get(TUNE_MALLOC_ENV) or "1").strip().lower() not in ("0", "false", "no", "off")
+
+
+def progress_style() -> str:
+    """``$VPR_PROGRESS``: ``"text"`` (plain text bars on stdout, as the study runner sets for its
+    kernels so saved notebooks keep a readable final bar) or ``"auto"`` (tqdm.auto: a widget in
+    Jupyter, text in a terminal; the default)."""
+    value = (_get(PROGRESS_ENV) or "auto").strip().lower()
+    return value if value in ("auto", "text") else "auto"
 
 
 def progress_disabled() -> bool:

@@ -104,12 +104,19 @@ class _LiveStreamHandler(logging.StreamHandler):
         pass
 
 
-def configure_logging(level: str | int = "INFO", stream: str = "stderr") -> logging.Logger:
+def configure_logging(level: str | int = "INFO", stream: str = "stderr",
+                      silence_warnings: bool = False) -> logging.Logger:
     """Send ``vpr_core`` log records to ``stream`` as ``[vpr_core LEVEL] message`` (idempotent).
 
     The library itself only has a NullHandler (and raises :class:`~vpr_core.notices.VPRWarning`
     for what changes a number's meaning); the CLI calls this with ``stream="stderr"``, the
     notebooks with ``stream="stdout"`` (Jupyter draws stderr as error boxes).
+
+    Args:
+        level: the log level. stream: ``"stderr"`` or ``"stdout"``.
+        silence_warnings: also stop Python from printing :class:`~vpr_core.notices.VPRWarning`
+            a second time (they are already log records; results still record them on
+            ``.warnings``). A process-wide warnings filter: set only when asked (the notebooks).
 
     Raises:
         ValueError: ``stream`` is neither ``"stderr"`` nor ``"stdout"``.
@@ -124,6 +131,12 @@ def configure_logging(level: str | int = "INFO", stream: str = "stderr") -> logg
     logger.addHandler(h)
     logger.setLevel(level)
     logger.propagate = False
+    if silence_warnings:
+        import warnings
+
+        from .notices import VPRWarning
+
+        warnings.simplefilter("ignore", VPRWarning)
     return logger
 
 
@@ -145,10 +158,20 @@ def config_slug(name: str, conf: Mapping[str, Any]) -> str:
 
 
 def progress(iterable: Iterable, **kwargs: Any):
-    """``tqdm.auto`` progress bar (disabled by ``TQDM_DISABLE=1``)."""
+    """A progress bar: ``tqdm.auto`` (a widget in Jupyter), or with ``VPR_PROGRESS=text`` a plain
+    text bar on stdout that stays at its final count (saved / HTML notebooks show it, never a
+    frozen widget); disabled by ``TQDM_DISABLE=1``."""
+    kwargs.setdefault("disable", settings.progress_disabled())
+    if settings.progress_style() == "text":
+        from tqdm.std import tqdm
+
+        kwargs.setdefault("file", sys.stdout)
+        kwargs.setdefault("leave", True)
+        kwargs.setdefault("mininterval", 2.0)
+        kwargs.setdefault("ascii", True)
+        return tqdm(iterable, **kwargs)
     from tqdm.auto import tqdm
 
-    kwargs.setdefault("disable", settings.progress_disabled())
     kwargs.setdefault("leave", False)
     return tqdm(iterable, **kwargs)
 

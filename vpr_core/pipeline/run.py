@@ -235,6 +235,13 @@ def _run_method(method, dataset, backbone, dim, seed, weights, keep_descriptors,
         "landmarks_per_image": float(np.mean([len(b) for s in SIDES for b in boxes[s]])),
         "pairs": n_pairs,
     }
+    logger.info("%s on %s: %d images, %.0f landmarks/img; landmarks %.2f s/img, features %.3f "
+                "s/img, Eq. (1) on %d pairs%s; AUC(%s) %.3f, R@1 %.3f",
+                label or method_label(conf), dataset.name, n_img,
+                timings["landmarks_per_image"], timings["landmarks_s_per_image"],
+                timings["features_s_per_image"], int(n_pairs),
+                " (read from the cache)" if cached is not None else "", protocol,
+                metrics["auc"], metrics["r@1"])
     return MethodResult(
         method=conf["name"], label=label or method_label(conf), dataset=dataset.name,
         config=conf, encoder=dict(encoder.config), similarity=sim, ground_truth=gt,
