@@ -215,7 +215,7 @@ def test_a_store_of_another_seed_or_dimension_is_not_used(small, isolated_cache,
     ref = _run(small)
     for f in (isolated_cache / "results").rglob("*.npz"):
         f.unlink()
-    store = sorted((isolated_cache / "features").rglob("*.npz"))[0]
+    store = min((isolated_cache / "features").rglob("*.npz"))
     a = _npz(store)
     np.savez(store, boxes=a["boxes"], desc=a["desc"][:, :7], cost=a["cost"],
              _identity=a["_identity"])  # 7-column descriptors under the right name
