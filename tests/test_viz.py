@@ -63,9 +63,7 @@ def test_descriptor_matrices_and_pair_terms(tmp_path):
 def _result(label, sim, gt, auc=None):
     from types import SimpleNamespace
 
-    from vpr_core.evaluation import pr_curve
-
-    from vpr_core.evaluation import evaluate
+    from vpr_core.evaluation import evaluate, pr_curve
 
     return SimpleNamespace(label=label, similarity=sim, ground_truth=gt, dataset="toy",
                            tolerance=0, protocol="ratio", metrics=evaluate(sim, gt),
