@@ -20,44 +20,25 @@ from typing import Any
 
 import numpy as np
 
-from .boxes import check_boxes, paired_iou
+from .boxes import check_boxes
 from .labels import (
-    LABEL_METHODS,
     LabelUnavailableError,
-    PairGeometry,
     dataset_image_size,
-    estimate_pair_geometry,
     label_matches,
-    label_matches_exact,
-    label_matches_file,
-    label_matches_geometric,
-    map_boxes,
     read_label_file,
     resolve_label_method,
 )
 from .landmarks.scales import scale_index
-from .paper import N_SCALES, SCALE_EDGES, SCALE_RANGE_LABELS
+from .paper import N_SCALES, SCALE_RANGE_LABELS
 from .utils import progress
 
 __all__ = [
-    "LABEL_METHODS",
-    "SCALE_EDGES",
-    "SCALE_RANGE_LABELS",
-    "LabelUnavailableError",
     "MatchRecord",
-    "PairGeometry",
     "PairMatches",
     "ScaleStats",
-    "estimate_pair_geometry",
     "ground_truth_references",
     "label_matches",
-    "label_matches_exact",
-    "label_matches_file",
-    "label_matches_geometric",
-    "map_boxes",
     "pair_matches",
-    "paired_iou",
-    "read_label_file",
     "sample_irrelevant_references",
     "scale_distribution",
     "scale_statistics",
