@@ -89,3 +89,13 @@ def test_cmr_difference_bootstraps_over_queries():
     assert findings.cmr_difference(pd.DataFrame(rows)) == (d, lo, hi)  # seeded
     with pytest.raises(ValueError, match="Scales 1-3"):
         findings.cmr_difference(pd.DataFrame([r for r in rows if r["scale"] != 6]))
+
+
+def test_result_labels_put_the_study_first_and_skip_quick_and_other_folders(tmp_path):
+    for name in ("synthetic", "gardens_point_mini", "nordland_step5", "x_quick", "benchmarks"):
+        (tmp_path / "results" / name).mkdir(parents=True)
+    for name in ("synthetic", "gardens_point_mini", "nordland_step5", "x_quick"):
+        (tmp_path / "results" / name / "fig05_selection.csv").write_text("run\n")
+    assert findings.result_labels(["synthetic", "gardens_point_mini", "absent"], out=tmp_path) \
+        == ["synthetic", "gardens_point_mini", "nordland_step5"]
+    assert findings.result_labels(out=tmp_path / "nothing") == []

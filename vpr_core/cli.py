@@ -192,11 +192,10 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_findings(args: argparse.Namespace) -> int:
-    from .findings import findings_markdown
+    from .findings import findings_markdown, result_labels
+    from .runner import study_datasets
 
-    labels = args.labels or sorted(p.name for p in (paths.output_root() / "results").iterdir()
-                                   if p.is_dir() and not p.name.endswith("_quick")
-                                   and any(p.glob("fig*.csv")))
+    labels = args.labels or result_labels(["synthetic", *study_datasets()])
     text = findings_markdown(labels)
     print(text)
     if args.write:

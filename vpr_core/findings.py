@@ -40,7 +40,7 @@ from .methods import get_method, run_key
 from .paper import TABLE2, TABLE3, TABLE4
 
 __all__ = ["CLAIMS", "OBSERVATION_1", "Claim", "cmr_difference", "findings_markdown",
-           "findings_table"]
+           "findings_table", "result_labels"]
 
 
 @dataclass(frozen=True)
@@ -208,6 +208,16 @@ def _observation_1(folder: Path) -> tuple[str, str]:
         return "-", "not run"
     d, lo, hi = cmr_difference(pd.read_csv(csv))
     return f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}]", _verdict(">", lo, hi)
+
+
+def result_labels(first: Sequence[str] = (), out: str | Path | None = None) -> list[str]:
+    """The result folders that hold comparison tables (``results/<label>/fig*.csv``), not quick
+    runs: ``first`` (those present, in that order), then the others sorted."""
+    root = (paths.output_root() if out is None else Path(out)) / "results"
+    found = sorted(p.name for p in root.iterdir() if p.is_dir() and not p.name.endswith("_quick")
+                   and any(p.glob("fig*.csv"))) if root.is_dir() else []
+    head = [lab for lab in first if lab in found]
+    return head + [lab for lab in found if lab not in head]
 
 
 def findings_table(labels: Sequence[str], out: str | Path | None = None) -> pd.DataFrame:

@@ -358,9 +358,10 @@ def _run_label(label: str, selected: Sequence[Path], params: dict, kernel: str) 
 
 def _write_findings(labels: Sequence[str]) -> None:
     """``results/findings.md``: the paper's claims against these labels' paired differences."""
-    from .findings import findings_markdown
+    from .findings import findings_markdown, result_labels
 
-    text = findings_markdown(list(labels))
+    labels = result_labels(labels)  # this run's, then every other result folder (make study-nordland)
+    text = findings_markdown(labels)
     out = paths.results_dir() / "findings.md"
     out.write_text(text + "\n")
     print(f"\nThe paper's claims (dAUC [95% CI], paired bootstrap), also in {out}:\n{text}")
