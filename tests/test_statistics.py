@@ -296,8 +296,9 @@ def test_statistics_recomputed_independently_from_the_match_table(tiny_synthetic
 
 
 def test_pair_matches_and_scale_distribution_of_a_run(tiny_synthetic):
+    from vpr_core.labels import pair_matches
+    from vpr_core.landmarks import scale_distribution
     from vpr_core.pipeline import run_method
-    from vpr_core.statistics import pair_matches, scale_distribution
 
     res = run_method("dense", tiny_synthetic, keep_descriptors=True, backbone="hog",
                      n_bootstrap=0)

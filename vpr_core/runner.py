@@ -273,8 +273,6 @@ def summary_table(label: str) -> pd.DataFrame:
 def _kernel_environment() -> Iterator[Path]:
     """Absolute ``VPR_OUTPUT_DIR`` (and ``VPR_CACHE_DIR`` when set) for the notebook kernels,
     which run with cwd ``notebooks/``; the caller's environment is restored afterwards."""
-    from .settings import kernel_environment
-
     root = paths.output_root()
     # the kernels draw inline (the executed notebooks hold their figures, as in Jupyter), even
     # when the caller runs headless with MPLBACKEND=Agg
@@ -284,7 +282,7 @@ def _kernel_environment() -> Iterator[Path]:
     if settings.cache_dir():
         values[settings.CACHE_ENV] = str(paths.cache_root())
     root.mkdir(parents=True, exist_ok=True)
-    with kernel_environment(values):
+    with settings.kernel_environment(values):
         yield root
 
 

@@ -15,6 +15,8 @@ module             labeller
 
 from __future__ import annotations
 
+import logging
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -41,6 +43,7 @@ __all__ = [
     "LABEL_METHODS",
     "LabelUnavailableError",
     "PairGeometry",
+    "PairMatches",
     "append_labels",
     "check_matches",
     "dataset_image_size",
@@ -53,6 +56,7 @@ __all__ = [
     "label_widget",
     "map_boxes",
     "pair_label_widget",
+    "pair_matches",
     "read_label_file",
     "resolve_label_method",
 ]
@@ -153,3 +157,79 @@ def label_matches(dataset: Any, q: int, r: int, boxes_q: np.ndarray, boxes_r: np
         return label_matches_file(labels, q, r, boxes_q, boxes_r, matches, **options)
     return label_pair_geometric(dataset, q, r, boxes_q, boxes_r, matches, iou_threshold,
                                 **options)
+
+
+@dataclass(frozen=True)
+class PairMatches:
+    """The landmark matches of one image pair of a run, labelled where the pair allows.
+
+    Attributes:
+        query, reference: the image indices.
+        ground_truth: whether the pair shows the same place.
+        matches: ``(P, 2)`` reciprocal matches (query box, reference box).
+        labels: ``bool (P,)`` (an irrelevant pair's matches are all wrong), or None when the
+            pair cannot be verified (``note`` says why).
+        similarity: Eq. (1) of the pair.
+        note: why the labels are missing ("" otherwise).
+    """
+
+    query: int
+    reference: int
+    ground_truth: bool
+    matches: np.ndarray
+    labels: np.ndarray | None
+    similarity: float
+    note: str = ""
+
+    def summary(self) -> str:
+        """e.g. ``"query 0 vs reference 0 (ground truth); 40/61 matches correct; S = 0.41"``."""
+        counts = (f"{int(self.labels.sum())}/{len(self.labels)} matches correct"
+                  if self.labels is not None else f"{len(self.matches)} matches, unlabelled")
+        kind = "ground truth" if self.ground_truth else "irrelevant"
+        return (f"query {self.query} vs reference {self.reference} ({kind}); {counts}; "
+                f"S = {self.similarity:.3f}")
+
+
+def pair_matches(dataset: Any, result: Any, query: int = 0, reference: int | None = None
+                 ) -> PairMatches:
+    """Match and label the landmarks of one pair of a run (the data of Fig. 1-3 and 8).
+
+    Args:
+        dataset: the run's dataset.
+        result: a :class:`~vpr_core.pipeline.MethodResult` run with ``keep_descriptors=True``.
+        query: query index.
+        reference: reference index; None: the query's ground-truth reference (Fig. 1).
+            Another index shows an irrelevant pair, where every match is wrong (Fig. 2).
+
+    Raises:
+        ValueError: the result has no descriptors, or the query has no ground-truth reference.
+    """
+    from ..matching import match_landmarks
+    from ..statistics import ground_truth_references
+
+    if result.descriptors is None:
+        raise ValueError(f"pair_matches needs the descriptors of {result.label!r}: run it with "
+                         "run_method(..., keep_descriptors=True)")
+    gt = np.asarray(dataset.ground_truth, dtype=bool)
+    q = int(query)
+    if reference is None:
+        refs = ground_truth_references(gt, q)
+        if not refs:
+            raise ValueError(f"query {q} has no ground-truth reference; pick another query")
+        reference = refs[0]
+    r = int(reference)
+    bq, br = result.boxes["query"][q], result.boxes["reference"][r]
+    m = match_landmarks(result.descriptors["query"][q], bq, result.descriptors["reference"][r],
+                        br)
+    note = ""
+    if gt[q, r]:
+        try:
+            labels = label_matches(dataset, q, r, bq, br, m.matches)
+        except LabelUnavailableError as exc:
+            labels, note = None, str(exc)
+            logging.getLogger("vpr_core").warning("pair (%d, %d) cannot be labelled: %s", q, r,
+                                                   exc)
+    else:
+        labels = np.zeros(len(m.matches), dtype=bool)
+    return PairMatches(q, r, bool(gt[q, r]), np.asarray(m.matches), labels,
+                       float(m.similarity), note)

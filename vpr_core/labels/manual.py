@@ -125,7 +125,7 @@ def pair_label_widget(dataset: Any, result: Any, query: int = 0, reference: int 
         query: query index. reference: None for its ground-truth reference.
         out: the labels CSV.
     """
-    from ..statistics import pair_matches
+    from . import pair_matches
 
     pm = pair_matches(dataset, result, query, reference)
     return label_widget(dataset, pm.query, pm.reference, result.boxes["query"][pm.query],

@@ -32,6 +32,7 @@ from .scales import (
     SCALE_RANGE_LABELS,
     SCALE_RANGES,
     normalized_scale,
+    scale_distribution,
     scale_histogram,
     scale_index,
 )
@@ -58,6 +59,7 @@ __all__ = [
     "landmark_coverage",
     "normalized_scale",
     "reduce_overlap",
+    "scale_distribution",
     "scale_histogram",
     "scale_index",
     "select_from_candidates",

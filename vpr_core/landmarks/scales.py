@@ -8,6 +8,7 @@ constants are re-exported here from :mod:`vpr_core.paper`.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -21,6 +22,7 @@ __all__ = [
     "SCALE_RANGES",
     "SCALE_RANGE_LABELS",
     "normalized_scale",
+    "scale_distribution",
     "scale_histogram",
     "scale_index",
 ]
@@ -91,3 +93,22 @@ def scale_histogram(
     """
     idx = np.atleast_1d(scale_index(boxes, image_size))
     return np.bincount(idx, minlength=N_SCALES + 1).astype(np.int64)
+
+
+def scale_distribution(result: Any, dataset: Any) -> Any:
+    """Landmark counts per Table-1 scale of a run, query and reference side (the data of Fig. 6).
+
+    Returns:
+        ``(9, 2)`` pandas DataFrame indexed ``Scale 1`` .. ``Scale 9``, columns ``query`` and
+        ``reference``.
+    """
+    import pandas as pd
+
+
+    counts = {}
+    for side in ("query", "reference"):
+        h = np.zeros(N_SCALES + 1, dtype=np.int64)
+        for i, b in enumerate(result.boxes[side]):
+            h += scale_histogram(b, dataset.image_size(side, i))
+        counts[side] = h[1:]
+    return pd.DataFrame(counts, index=list(SCALE_LABELS))

@@ -169,14 +169,14 @@ def plot_pair(dataset, result, query: int = 0, reference: int | None = None
               ) -> matplotlib.figure.Figure:
     """Fig. 1-3, 8: the matched landmarks of one pair of a run, coloured correct / incorrect.
 
-    Labels from :func:`vpr_core.statistics.pair_matches` (``exact`` on ``synthetic``, SIFT +
+    Labels from :func:`vpr_core.labels.pair_matches` (``exact`` on ``synthetic``, SIFT +
     RANSAC on real images; an unverifiable pair is drawn unlabelled and the title says why).
 
     Args:
         dataset: the run's dataset. result: a run with ``keep_descriptors=True``.
         query: query index. reference: None for its ground-truth reference.
     """
-    from ..statistics import pair_matches
+    from ..labels import pair_matches
 
     pm = pair_matches(dataset, result, query, reference)
     fig = plot_labelled_matches(dataset.load_image("query", pm.query),
