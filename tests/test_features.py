@@ -10,12 +10,12 @@ import torch
 import torch.nn.functional as F
 
 from vpr_core.backbones import alexnet as alexnet_mod
-from vpr_core.backbones.efficientnet_lite0 import (
+from vpr_core.backbones.efficientnet_lite import (
     IMAGENET_MEAN,
     IMAGENET_STD,
     Conv2dSame,
-    EfficientNetLite0Features,
-    efficientnet_lite0_classifier,
+    EfficientNetLiteFeatures,
+    efficientnet_lite_classifier,
 )
 from vpr_core.features import LandmarkEncoder, available_backbones, random_projection
 
@@ -28,7 +28,7 @@ def _cos(a: np.ndarray, b: np.ndarray) -> float:
 
 @pytest.fixture(scope="module")
 def classifier():
-    return efficientnet_lite0_classifier()
+    return efficientnet_lite_classifier("lite0")
 
 
 @pytest.fixture(scope="module")
@@ -90,7 +90,7 @@ def test_same_padding_shapes():
 
 
 def test_truncated_fused_features_match_classifier_stage(classifier):
-    feats = EfficientNetLite0Features(input_size=96, stage=5)
+    feats = EfficientNetLiteFeatures(input_size=96, stage=5, variant="lite0")
     assert feats.feature_shape == (112, 6, 6) and feats.raw_dim == 112 * 36
     x = torch.randn(3, 3, 96, 96, generator=torch.Generator().manual_seed(0))
     with torch.inference_mode():
@@ -336,7 +336,7 @@ def test_roi_config_shape_and_global(roi_encoder, encoder):
     c = roi_encoder.describe()
     assert c["pooling"] == "roi" and encoder.describe()["pooling"] == "crop"
     assert c["working_size"] == 4 * 128 and c["dim"] == 1024 and c["raw_dim"] == encoder.raw_dim
-    from vpr_core.pipeline import _encoder_slug
+    from vpr_core.pipeline.feature_stage import _encoder_slug
 
     assert _encoder_slug(roi_encoder) != _encoder_slug(encoder)
     boxes = np.array([[0, 0, 640, 360], [100, 50, 200, 150]], dtype=float)

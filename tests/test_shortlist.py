@@ -112,7 +112,7 @@ def test_rerank_validates_inputs():
         rerank(np.array([0.1, np.nan]), pairs, 2, 2)
     with pytest.raises(ValueError, match="listed twice"):
         rerank(np.array([0.1, 0.2]), np.array([[0, 1], [0, 1]]), 2, 2)
-    with pytest.raises(ValueError, match=r"\(P, 2\) integer"):
+    with pytest.raises(ValueError, match="integer indices"):
         rerank(np.zeros(2), pairs.astype(float), 2, 2)
 
 

@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from ..matching.batched import check_pairs
 from ..paper import SOFT_NMS_SIGMA
 from .client import gather_in_order
 
@@ -141,20 +142,6 @@ def _pairs_task(qpart: _Part, rblocks: list[_Part], rstarts: list[int], ref_ids:
                             show_progress=False)
 
 
-def _check_pairs(pairs: Any, nq: int, nr: int) -> np.ndarray:
-    pr = np.asarray(pairs)
-    if pr.size == 0:
-        return np.zeros((0, 2), dtype=np.int64)
-    if pr.ndim != 2 or pr.shape[1] != 2 or not np.issubdtype(pr.dtype, np.integer):
-        raise ValueError(f"pairs must be a (P, 2) integer array of (query, reference) indices, "
-                         f"got shape {pr.shape}, dtype {pr.dtype}")
-    pr = pr.astype(np.int64)
-    for col, n, what in ((0, nq, "query"), (1, nr, "reference")):
-        if pr[:, col].min() < 0 or pr[:, col].max() >= n:
-            raise ValueError(f"pairs hold {what} indices outside 0..{n - 1} ({n} {what} images)")
-    return pr
-
-
 def similarity_pairs_distributed(client, query_desc, query_boxes, reference_desc,
                                  reference_boxes, pairs: np.ndarray,
                                  soft_nms_iou: float | None = None,
@@ -187,7 +174,7 @@ def similarity_pairs_distributed(client, query_desc, query_boxes, reference_desc
                                 soft_nms_iou=soft_nms_iou, sigma=sigma)
     qd, qb = _check_lists(query_desc, query_boxes, "query")
     rd, rb = _check_lists(reference_desc, reference_boxes, "reference")
-    pr = _check_pairs(pairs, len(qd), len(rd))
+    pr = check_pairs(pairs, len(qd), len(rd))
     if pr.shape[0] == 0:
         return np.zeros(0, dtype=np.float64)
     wide_q, wide_r = _widest(qd), _widest(rd)

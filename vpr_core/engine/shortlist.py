@@ -29,6 +29,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..matching.batched import check_pairs
+
 __all__ = ["global_cosine", "rerank", "shortlist_pairs", "split_whole_image", "topk_lowest_index",
            "whole_image_box", "with_whole_image_boxes"]
 
@@ -168,22 +170,14 @@ def rerank(similarity_pairs_values: np.ndarray, pairs: np.ndarray, nq: int, nr: 
             twice with different values.
     """
     vals = np.asarray(similarity_pairs_values, dtype=np.float64)
-    pr = np.asarray(pairs)
-    if pr.ndim != 2 or pr.shape[1] != 2 or not np.issubdtype(pr.dtype, np.integer):
-        raise ValueError(f"pairs must be a (P, 2) integer array of (query, reference) indices, "
-                         f"got shape {pr.shape}, dtype {pr.dtype}")
+    nq, nr = int(nq), int(nr)
+    pr = check_pairs(pairs, nq, nr)
     if vals.shape != (pr.shape[0],):
         raise ValueError(f"similarity_pairs_values must have shape ({pr.shape[0]},) (one value "
                          f"per pair), got {vals.shape}")
     if not np.isfinite(vals).all():
         raise ValueError("similarity_pairs_values contains NaN or inf; Eq. (1) values are "
                          "finite: recompute them")
-    nq, nr = int(nq), int(nr)
-    for col, n, what in ((0, nq, "query"), (1, nr, "reference")):
-        bad = np.flatnonzero((pr[:, col] < 0) | (pr[:, col] >= n))
-        if bad.size:
-            raise ValueError(f"pairs[{bad[0]}] has {what} index {int(pr[bad[0], col])}, outside "
-                             f"0..{n - 1} ({n} {what} images)")
     out = np.full((nq, nr), np.nan, dtype=np.float64)
     out[pr[:, 0], pr[:, 1]] = vals
     if not np.array_equal(out[pr[:, 0], pr[:, 1]], vals):

@@ -11,18 +11,12 @@ into one descriptor per box (Sec. 2.1). One concept per file:
 Backbones are looked up by name in :mod:`vpr_core.backbones` (``available_backbones()``).
 """
 
-from ..backbones import available_backbones, parse_backbone
-from .crops import boxes_to_corners
-from .encoder import DESCRIPTOR_VERSION, POOLING_MODES, LandmarkEncoder, default_input_size
+from ..backbones import available_backbones
+from .encoder import LandmarkEncoder
 from .projection import random_projection
 
 __all__ = [
-    "DESCRIPTOR_VERSION",
-    "POOLING_MODES",
     "LandmarkEncoder",
     "available_backbones",
-    "boxes_to_corners",
-    "default_input_size",
-    "parse_backbone",
     "random_projection",
 ]

@@ -18,8 +18,6 @@ from __future__ import annotations
 
 from .batched import similarity_matrix, similarity_pairs
 from .pairwise import (
-    NMS_TIE_TOL,
-    TIE_TOL,
     MatchResult,
     cosine_distance,
     cosine_similarity,
@@ -33,8 +31,6 @@ from .pairwise import (
 )
 
 __all__ = [
-    "NMS_TIE_TOL",
-    "TIE_TOL",
     "MatchResult",
     "cosine_distance",
     "cosine_similarity",

@@ -22,7 +22,7 @@ from ..utils import progress
 from .pairwise import TIE_TOL, check_soft_nms
 from .scoring import LandmarkSets, Selection, Side, iou_stack, prepare_side, score_block
 
-__all__ = ["similarity_matrix", "similarity_pairs"]
+__all__ = ["check_pairs", "similarity_matrix", "similarity_pairs"]
 
 #: Bytes of matmul output per block: big enough for an efficient matmul, small enough that the
 #: reductions that follow read it from the L2/L3 cache.
@@ -116,7 +116,7 @@ def similarity_pairs(query_desc: LandmarkSets, query_boxes: LandmarkSets,
     ctx = _Context.build(query_desc, query_boxes, reference_desc, reference_boxes, soft_nms_iou,
                          sigma, device, matmul_dtype)
     q, r = ctx.q, ctx.r
-    pr = _check_pairs(pairs, q.n, r.n)
+    pr = check_pairs(pairs, q.n, r.n)
     out = np.zeros(pr.shape[0], dtype=np.float64)
     if ctx.empty or pr.shape[0] == 0:
         return out
@@ -136,7 +136,7 @@ def similarity_pairs(query_desc: LandmarkSets, query_boxes: LandmarkSets,
     return out
 
 
-def _check_pairs(pairs: np.ndarray | Sequence, nq: int, nr: int) -> np.ndarray:
+def check_pairs(pairs: np.ndarray | Sequence, nq: int, nr: int) -> np.ndarray:
     """``pairs`` as an int64 ``(P, 2)`` array of valid (query, reference) indices."""
     arr = np.asarray(pairs)
     if arr.size == 0:
