@@ -1,0 +1,63 @@
+"""Size of ``vpr_core`` by kind of line: code, docstring, comment, blank, per package.
+
+Issue 16 measures the package with ``find vpr_core -name '*.py' | xargs wc -l``; this script
+prints the same total and splits it, so a reader sees what the lines are: statements, the
+docstrings the project keeps on every public function (Google style, with shapes), comments and
+blank lines. Docstring lines are the lines of a module, class or function docstring.
+
+Usage::
+
+    .venv/bin/python benchmarks/code_size.py            # per package, then the total
+    .venv/bin/python benchmarks/code_size.py --files    # per file
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+from collections import Counter
+from pathlib import Path
+
+KINDS = ("code", "docstring", "comment", "blank")
+DOC_OWNERS = (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)
+
+
+def line_kinds(source: str) -> Counter:
+    """Counts of :data:`KINDS` over the lines of one Python source."""
+    doc_lines: set[int] = set()
+    for node in ast.walk(ast.parse(source)):
+        body = getattr(node, "body", None)
+        if isinstance(node, DOC_OWNERS) and body and isinstance(body[0], ast.Expr) \
+                and isinstance(body[0].value, ast.Constant) and isinstance(body[0].value.value, str):
+            doc_lines.update(range(body[0].lineno, body[0].end_lineno + 1))
+    counts: Counter = Counter({k: 0 for k in KINDS})
+    for number, line in enumerate(source.splitlines(), 1):
+        text = line.strip()
+        kind = ("docstring" if number in doc_lines else "blank" if not text
+                else "comment" if text.startswith("#") else "code")
+        counts[kind] += 1
+    return counts
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--root", default=str(Path(__file__).resolve().parents[1] / "vpr_core"))
+    parser.add_argument("--files", action="store_true", help="one row per file")
+    args = parser.parse_args()
+    root = Path(args.root)
+    groups: dict[str, Counter] = {}
+    for path in sorted(root.rglob("*.py")):
+        rel = path.relative_to(root)
+        key = str(rel) if args.files else (rel.parts[0] if len(rel.parts) > 1 else "(top level)")
+        groups.setdefault(key, Counter()).update(line_kinds(path.read_text(encoding="utf-8")))
+    total: Counter = sum(groups.values(), Counter())
+    width = max(len(k) for k in [*groups, "total"])
+    print(f"{'':{width}}  {'lines':>6}  " + "  ".join(f"{k:>9}" for k in KINDS))
+    for key, c in sorted(groups.items(), key=lambda kv: -sum(kv[1].values())) + [("total", total)]:
+        print(f"{key:{width}}  {sum(c.values()):6d}  " + "  ".join(f"{c[k]:9d}" for k in KINDS))
+    n = sum(total.values())
+    print("share: " + ", ".join(f"{k} {total[k] / n:.0%}" for k in KINDS))
+
+
+if __name__ == "__main__":
+    main()
