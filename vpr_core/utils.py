@@ -74,14 +74,6 @@ def tune_allocator() -> bool:
     return ok
 
 
-def cache_root() -> Path:
-    """Root folder of on-disk caches: ``$VPR_CACHE_DIR``, else ``<output root>/.cache``.
-
-    See :mod:`vpr_core.paths`; nothing is ever written inside the installed package.
-    """
-    return paths.cache_root()
-
-
 class _LiveStreamHandler(logging.StreamHandler):
     """A StreamHandler that writes to whatever ``sys.stderr`` (or ``sys.stdout``) is when a
     record is emitted.
@@ -141,8 +133,8 @@ def configure_logging(level: str | int = "INFO", stream: str = "stderr",
 
 
 def cache_dir(*parts: str) -> Path:
-    """``cache_root()/parts...``, created."""
-    return paths.make_dir(cache_root().joinpath(*parts), "VPR_CACHE_DIR")
+    """``paths.cache_root()/parts...``, created."""
+    return paths.make_dir(paths.cache_root().joinpath(*parts), "VPR_CACHE_DIR")
 
 
 def short_hash(obj: Any, n: int = 10) -> str:

