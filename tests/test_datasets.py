@@ -17,6 +17,7 @@ import pytest
 
 from vpr_core import datasets as D
 from vpr_core.datasets import DATASETS, PlaceDataset, download_dataset, load_dataset
+from vpr_core.datasets.ground_truth import ground_truth_references, sample_irrelevant_references
 
 SMALL = (64, 112)  # (H, W) for fast generator tests
 
@@ -379,3 +380,19 @@ def test_plot_examples(tiny_synthetic, tmp_path):
     plt.close(fig2)
     with pytest.raises(IndexError):
         plot_examples(tiny_synthetic, indices=(99,))
+
+
+def test_irrelevant_sampling_and_gt_references():
+    gt = np.zeros((6, 8), dtype=bool)
+    for i in range(6):
+        gt[i, max(0, i - 1): i + 2] = True
+    a = sample_irrelevant_references(gt, 5, seed=1)
+    assert a == sample_irrelevant_references(gt, 5, seed=1)
+    for q, rs in a.items():
+        assert len(rs) == 5 and len(set(rs)) == 5 and not gt[q, rs].any()
+    assert len(sample_irrelevant_references(gt, 50, seed=0)[0]) == 6  # all non-gt references
+    assert ground_truth_references(gt, 3) == [3]
+    assert ground_truth_references(gt, 3, "all") == [2, 3, 4]
+    g2 = np.zeros((2, 5), dtype=bool)
+    g2[0, [1, 2, 4]] = True
+    assert ground_truth_references(g2, 0) == [2] and ground_truth_references(g2, 1) == []

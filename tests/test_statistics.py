@@ -10,9 +10,7 @@ import pytest
 from vpr_core.paper import SCALE_RANGE_LABELS
 from vpr_core.statistics import (
     MatchRecord,
-    ground_truth_references,
     label_matches,
-    sample_irrelevant_references,
     scale_statistics_from_matches,
 )
 
@@ -99,27 +97,6 @@ def test_match_record_validation():
         MatchRecord([1, 2], [0.5], None, True)
     with pytest.raises(ValueError, match="labels"):
         MatchRecord([1, 2], [0.5, 0.1], [True], True)
-
-
-# ---------------------------------------------------------------------------------------------
-# pair sampling
-# ---------------------------------------------------------------------------------------------
-
-
-def test_irrelevant_sampling_and_gt_references():
-    gt = np.zeros((6, 8), dtype=bool)
-    for i in range(6):
-        gt[i, max(0, i - 1): i + 2] = True
-    a = sample_irrelevant_references(gt, 5, seed=1)
-    assert a == sample_irrelevant_references(gt, 5, seed=1)
-    for q, rs in a.items():
-        assert len(rs) == 5 and len(set(rs)) == 5 and not gt[q, rs].any()
-    assert len(sample_irrelevant_references(gt, 50, seed=0)[0]) == 6  # all non-gt references
-    assert ground_truth_references(gt, 3) == [3]
-    assert ground_truth_references(gt, 3, "all") == [2, 3, 4]
-    g2 = np.zeros((2, 5), dtype=bool)
-    g2[0, [1, 2, 4]] = True
-    assert ground_truth_references(g2, 0) == [2] and ground_truth_references(g2, 1) == []
 
 
 # ---------------------------------------------------------------------------------------------

@@ -6,8 +6,10 @@ and bins everything by the Table-1 scale of the query-side landmark. :func:`scal
 is the same computation from pre-built :class:`MatchRecord` s (any landmark method, any matcher).
 
 Arrays of :class:`ScaleStats` have length 10 and are indexed by the Table-1 scale 1..9 (index 0
-is unused and NaN / 0). The labellers live in :mod:`vpr_core.labels`; their names are re-exported
-here, as are :func:`vpr_core.boxes.paired_iou` and the Table-1 constants of :mod:`vpr_core.paper`.
+is unused and NaN / 0). The labellers live in :mod:`vpr_core.labels` (:func:`label_matches` is
+re-exported here, its DESIGN.md home); the pairs the statistics use are picked from the ground
+truth by :func:`vpr_core.datasets.ground_truth.ground_truth_references` and
+:func:`~vpr_core.datasets.ground_truth.sample_irrelevant_references`.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from .boxes import check_boxes
+from .datasets.ground_truth import ground_truth_references, sample_irrelevant_references
 from .labels import (
     LabelUnavailableError,
     dataset_image_size,
@@ -35,9 +38,7 @@ from .utils import progress
 __all__ = [
     "MatchRecord",
     "ScaleStats",
-    "ground_truth_references",
     "label_matches",
-    "sample_irrelevant_references",
     "scale_statistics",
     "scale_statistics_from_matches",
 ]
@@ -291,60 +292,6 @@ def scale_statistics_from_matches(records: Iterable[MatchRecord], meta: dict | N
     cmr[nz] = st.n_correct[nz] / st.n_labelled[nz]
     st.cmr = cmr
     return st
-
-
-def ground_truth_references(ground_truth: np.ndarray, q: int, mode: str = "center") -> list[int]:
-    """Ground-truth references of query ``q`` used for the statistics.
-
-    Args:
-        ground_truth: ``(Nq, Nr)`` bool.
-        q: query index.
-        mode: ``"center"``: one reference per query — ``q`` itself when ``ground_truth[q, q]``
-            (frame-aligned datasets), else the middle of the true references (the centre of the
-            tolerance window / correspondence list). ``"all"``: every true reference.
-
-    Returns:
-        list of reference indices (empty when the query has no ground truth).
-    """
-    row = np.flatnonzero(np.asarray(ground_truth, dtype=bool)[q])
-    if len(row) == 0:
-        return []
-    if mode == "all":
-        return [int(x) for x in row]
-    if mode != "center":
-        raise ValueError(f"gt_pairs must be 'center' or 'all', got {mode!r}")
-    if q in row:
-        return [int(q)]
-    return [int(row[(len(row) - 1) // 2])]
-
-
-def sample_irrelevant_references(ground_truth: np.ndarray, n_irrelevant: int = 5,
-                                 seed: int = 0, queries: Sequence[int] | None = None
-                                 ) -> dict[int, list[int]]:
-    """Query-irrelevant references: per query, ``n_irrelevant`` references with
-    ``ground_truth[q, r] == False`` drawn without replacement (fewer when fewer exist), with one
-    ``np.random.default_rng(seed)`` consumed query by query in increasing order; returned sorted.
-
-    Args:
-        ground_truth: ``(Nq, Nr)`` bool.
-        n_irrelevant: references per query.
-        seed: RNG seed.
-        queries: the queries to sample for (default all).
-
-    Returns:
-        ``{q: [r, ...]}``.
-    """
-    gt = np.asarray(ground_truth, dtype=bool)
-    rng = np.random.default_rng(seed)
-    qs = range(gt.shape[0]) if queries is None else sorted(int(x) for x in queries)
-    out: dict[int, list[int]] = {}
-    for q in qs:
-        cand = np.flatnonzero(~gt[q])
-        k = min(int(n_irrelevant), len(cand))
-        out[q] = sorted(int(x) for x in rng.choice(cand, size=k, replace=False)) if k else []
-    return out
-
-
 
 
 def _query_records(dataset: Any, q: int, size_q: tuple[int, int], boxes_q: np.ndarray,

@@ -1,4 +1,5 @@
-"""Ground truth: files, the frame-aligned rule, tolerance widening and coverage checks.
+"""Ground truth: files, the frame-aligned rule, tolerance widening, coverage checks, and the
+pairs picked from it (a query's ground-truth references, sampled query-irrelevant ones).
 
 Ground-truth files accepted by the file-based loaders:
 
@@ -37,7 +38,9 @@ __all__ = [
     "check_tolerance",
     "frame_aligned",
     "ground_truth_coverage",
+    "ground_truth_references",
     "read_ground_truth",
+    "sample_irrelevant_references",
     "widen",
 ]
 
@@ -270,3 +273,55 @@ def read_ground_truth(
             "query,reference rows."
         )
     return _read_csv(path, query_paths, reference_paths)
+
+
+def ground_truth_references(ground_truth: np.ndarray, q: int, mode: str = "center") -> list[int]:
+    """Ground-truth references of query ``q`` used for the statistics.
+
+    Args:
+        ground_truth: ``(Nq, Nr)`` bool.
+        q: query index.
+        mode: ``"center"``: one reference per query — ``q`` itself when ``ground_truth[q, q]``
+            (frame-aligned datasets), else the middle of the true references (the centre of the
+            tolerance window / correspondence list). ``"all"``: every true reference.
+
+    Returns:
+        list of reference indices (empty when the query has no ground truth).
+    """
+    row = np.flatnonzero(np.asarray(ground_truth, dtype=bool)[q])
+    if len(row) == 0:
+        return []
+    if mode == "all":
+        return [int(x) for x in row]
+    if mode != "center":
+        raise ValueError(f"gt_pairs must be 'center' or 'all', got {mode!r}")
+    if q in row:
+        return [int(q)]
+    return [int(row[(len(row) - 1) // 2])]
+
+
+def sample_irrelevant_references(ground_truth: np.ndarray, n_irrelevant: int = 5,
+                                 seed: int = 0, queries: Sequence[int] | None = None
+                                 ) -> dict[int, list[int]]:
+    """Query-irrelevant references: per query, ``n_irrelevant`` references with
+    ``ground_truth[q, r] == False`` drawn without replacement (fewer when fewer exist), with one
+    ``np.random.default_rng(seed)`` consumed query by query in increasing order; returned sorted.
+
+    Args:
+        ground_truth: ``(Nq, Nr)`` bool.
+        n_irrelevant: references per query.
+        seed: RNG seed.
+        queries: the queries to sample for (default all).
+
+    Returns:
+        ``{q: [r, ...]}``.
+    """
+    gt = np.asarray(ground_truth, dtype=bool)
+    rng = np.random.default_rng(seed)
+    qs = range(gt.shape[0]) if queries is None else sorted(int(x) for x in queries)
+    out: dict[int, list[int]] = {}
+    for q in qs:
+        cand = np.flatnonzero(~gt[q])
+        k = min(int(n_irrelevant), len(cand))
+        out[q] = sorted(int(x) for x in rng.choice(cand, size=k, replace=False)) if k else []
+    return out

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from ..datasets.ground_truth import ground_truth_references
 from .exact import (
     LabelUnavailableError,
     check_matches,
@@ -205,7 +206,6 @@ def pair_matches(dataset: Any, result: Any, query: int = 0, reference: int | Non
         ValueError: the result has no descriptors, or the query has no ground-truth reference.
     """
     from ..matching import match_landmarks
-    from ..statistics import ground_truth_references
 
     if result.descriptors is None:
         raise ValueError(f"pair_matches needs the descriptors of {result.label!r}: run it with "
