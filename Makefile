@@ -41,6 +41,8 @@ bench: $(STAMP)
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check vpr_core tests benchmarks
+	$(VENV)/bin/ruff format --check vpr_core tests benchmarks
+	$(VENV)/bin/mypy
 
 clean:
 	rm -rf $(VENV) .cache runs

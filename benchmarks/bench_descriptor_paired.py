@@ -62,22 +62,44 @@ def main() -> None:
     from vpr_core.pipeline import run_method
 
     if not args.root.is_dir():
-        raise SystemExit(f"no Nordland data at {args.root}: pass --root <folder with summer/ "
-                         "and winter/>")
+        raise SystemExit(
+            f"no Nordland data at {args.root}: pass --root <folder with summer/ and winter/>"
+        )
     ds = load_dataset("nordland", args.root, step=args.step, tolerance=args.tolerance)
     name = f"nordland_step{args.step}_tol{args.tolerance}"
     out = results_dir("benchmarks") / "descriptor_paired.csv"
-    print(f"{name}: {len(ds.query_paths)} queries x {len(ds.reference_paths)} references, "
-          f"pooling {args.pooling}, shortlist {args.shortlist}")
+    print(
+        f"{name}: {len(ds.query_paths)} queries x {len(ds.reference_paths)} references, "
+        f"pooling {args.pooling}, shortlist {args.shortlist}"
+    )
     for method in args.methods:
-        res = {spec: run_method(method, ds, backbone=spec, pooling=args.pooling,
-                                shortlist=args.shortlist, n_bootstrap=args.bootstrap)
-               for spec in (args.a, args.b)}
-        d = paired_bootstrap(res[args.a].similarity, res[args.b].similarity, ds.ground_truth,
-                             n=args.bootstrap, seed=0)
-        row = {"a": args.a, "b": args.b, "method": method, "dataset": name,
-               "pooling": args.pooling, "shortlist": args.shortlist or "", "queries":
-               res[args.a].queries_with_gt[0]}
+        res = {
+            spec: run_method(
+                method,
+                ds,
+                backbone=spec,
+                pooling=args.pooling,
+                shortlist=args.shortlist,
+                n_bootstrap=args.bootstrap,
+            )
+            for spec in (args.a, args.b)
+        }
+        d = paired_bootstrap(
+            res[args.a].similarity,
+            res[args.b].similarity,
+            ds.ground_truth,
+            n=args.bootstrap,
+            seed=0,
+        )
+        row = {
+            "a": args.a,
+            "b": args.b,
+            "method": method,
+            "dataset": name,
+            "pooling": args.pooling,
+            "shortlist": args.shortlist or "",
+            "queries": res[args.a].queries_with_gt[0],
+        }
         for key, label in METRICS:
             for spec, tag in ((args.a, "a"), (args.b, "b")):
                 v = res[spec].intervals[key]
@@ -88,9 +110,14 @@ def main() -> None:
             row[f"d{label} p"] = round(pval, 4)
             row[f"d{label} verdict"] = difference_verdict(lo, hi)
         _merge(out, row)
-        print(f"  {method:<10} " + "  ".join(
-            f"d{label} {_fmt(d[key])} {difference_verdict(d[key][1], d[key][2])}"
-            for key, label in METRICS), flush=True)
+        print(
+            f"  {method:<10} "
+            + "  ".join(
+                f"d{label} {_fmt(d[key])} {difference_verdict(d[key][1], d[key][2])}"
+                for key, label in METRICS
+            ),
+            flush=True,
+        )
     print(f"written {out}")
 
 

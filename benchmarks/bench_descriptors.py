@@ -60,8 +60,9 @@ def datasets(step: int, tolerance: int = 0) -> dict:
     if (SHARED / "gardens_point_mini").is_dir():
         out["gardens_point_mini"] = load_dataset("folder", SHARED / "gardens_point_mini")
     if (SHARED / "nordland_64x32").is_dir():
-        out[f"nordland_step{step}"] = load_dataset("nordland", SHARED / "nordland_64x32",
-                                                   step=step, tolerance=tolerance)
+        out[f"nordland_step{step}"] = load_dataset(
+            "nordland", SHARED / "nordland_64x32", step=step, tolerance=tolerance
+        )
     if not out:
         raise SystemExit(f"no real data under {SHARED}: nothing to measure")
     return out
@@ -95,8 +96,9 @@ def seconds_per_image(encoder, repeats: int = 3) -> tuple[float, float]:
     return statistics.median(wall), statistics.median(cpu)
 
 
-def similarity(method: str, dataset, spec: str, pooling: str, encoder) -> tuple[np.ndarray,
-                                                                                np.ndarray]:
+def similarity(
+    method: str, dataset, spec: str, pooling: str, encoder
+) -> tuple[np.ndarray, np.ndarray]:
     """``(similarity (Nq, Nr), ground_truth (Nq, Nr))`` of one method with one option."""
     from vpr_core import pipeline
 
@@ -109,9 +111,14 @@ def similarity(method: str, dataset, spec: str, pooling: str, encoder) -> tuple[
     conf = get_method(method)
     boxes = pipeline.extract_landmarks(conf, dataset)
     feats = pipeline.extract_features(boxes, dataset, encoder)
-    sim = similarity_matrix(feats["query"], boxes["query"], feats["reference"],
-                            boxes["reference"], soft_nms_iou=conf["matching"]["soft_nms_iou"],
-                            sigma=conf["matching"]["sigma"])
+    sim = similarity_matrix(
+        feats["query"],
+        boxes["query"],
+        feats["reference"],
+        boxes["reference"],
+        soft_nms_iou=conf["matching"]["soft_nms_iou"],
+        sigma=conf["matching"]["sigma"],
+    )
     return np.asarray(sim, dtype=np.float64), np.asarray(dataset.ground_truth, dtype=bool)
 
 
@@ -127,8 +134,13 @@ def _kept_rows(path: Path, rerun: set[str]) -> list[dict]:
 
     old = read_rows(path)
     known = {o[0]: o for o in OPTIONS}
-    return [r for r in old if r["option"] in known and r["option"] not in rerun
-            and (r["backbone"], r["pooling"]) == known[r["option"]][1:]]
+    return [
+        r
+        for r in old
+        if r["option"] in known
+        and r["option"] not in rerun
+        and (r["backbone"], r["pooling"]) == known[r["option"]][1:]
+    ]
 
 
 def _in_option_order(rows: list[dict]) -> list[dict]:
@@ -140,11 +152,18 @@ def main() -> None:
     """Measure every option and write the table."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--nordland-step", type=int, default=50)
-    p.add_argument("--nordland-tolerance", type=int, default=0,
-                   help="in kept places (step 50: places 500 frames apart, so 0)")
-    p.add_argument("--options", nargs="*", default=None,
-                   help="labels from OPTIONS (default all); the table keeps the other options' "
-                        "earlier rows")
+    p.add_argument(
+        "--nordland-tolerance",
+        type=int,
+        default=0,
+        help="in kept places (step 50: places 500 frames apart, so 0)",
+    )
+    p.add_argument(
+        "--options",
+        nargs="*",
+        default=None,
+        help="labels from OPTIONS (default all); the table keeps the other options' earlier rows",
+    )
     p.add_argument("--bootstrap", type=int, default=1000)
     p.add_argument("--repeats", type=int, default=3)
     args = p.parse_args()
@@ -156,17 +175,27 @@ def main() -> None:
     data = datasets(args.nordland_step, args.nordland_tolerance)
     options = [o for o in OPTIONS if args.options is None or o[0] in args.options]
     out = results_dir("benchmarks") / "descriptor_choice.csv"
-    print(f"torch threads {torch.get_num_threads()}, load average {os.getloadavg()}; datasets: "
-          + ", ".join(f"{k} ({len(v.query_paths)}q x {len(v.reference_paths)}r, tolerance "
-                      f"{v.tolerance})" for k, v in data.items()))
+    print(
+        f"torch threads {torch.get_num_threads()}, load average {os.getloadavg()}; datasets: "
+        + ", ".join(
+            f"{k} ({len(v.query_paths)}q x {len(v.reference_paths)}r, tolerance {v.tolerance})"
+            for k, v in data.items()
+        )
+    )
     rows = []
     kept = _kept_rows(out, {o[0] for o in options}) if args.options else []
     for label, spec, pooling in options:
         t_opt = time.perf_counter()
         enc = encoder_for(spec, pooling)
         wall, cpu = seconds_per_image(enc, args.repeats)
-        row = {"option": label, "backbone": spec, "pooling": pooling, "raw_dim": enc.raw_dim,
-               "s/img": round(wall, 4), "cpu s/img": round(cpu, 4)}
+        row = {
+            "option": label,
+            "backbone": spec,
+            "pooling": pooling,
+            "raw_dim": enc.raw_dim,
+            "s/img": round(wall, 4),
+            "cpu s/img": round(cpu, 4),
+        }
         for dname, ds in data.items():
             for method in METHODS:
                 sim, gt = similarity(method, ds, spec, pooling, enc)
@@ -175,19 +204,29 @@ def main() -> None:
                     v = bm[key]
                     row[f"{dname} {method} {name}"] = round(v[0], 4)
                     row[f"{dname} {method} {name} 95%"] = f"[{v[1]:.3f}, {v[2]:.3f}]"
-                print(f"  {label:<24} {dname:<22} {method:<10} R@1 {fmt(bm['r@1'])}  "
-                      f"AUC {fmt(bm['auc'])}", flush=True)
-        print(f"{label:<24} {wall:.3f} s/img wall, {cpu:.3f} s/img cpu "
-              f"({time.perf_counter() - t_opt:.0f} s for this option)", flush=True)
+                print(
+                    f"  {label:<24} {dname:<22} {method:<10} R@1 {fmt(bm['r@1'])}  "
+                    f"AUC {fmt(bm['auc'])}",
+                    flush=True,
+                )
+        print(
+            f"{label:<24} {wall:.3f} s/img wall, {cpu:.3f} s/img cpu "
+            f"({time.perf_counter() - t_opt:.0f} s for this option)",
+            flush=True,
+        )
         rows.append(row)
         write_rows(out, _in_option_order(kept + rows))
     print(f"\nwritten {out}")
     keys = [k for k in rows[0] if k.endswith(("R@1", "AUC"))]
-    print(f"{'option':<24}{'s/img':>7}  " + "  ".join(k.replace('gardens_point_mini', 'gp')
-                                                       for k in keys))
+    print(
+        f"{'option':<24}{'s/img':>7}  "
+        + "  ".join(k.replace("gardens_point_mini", "gp") for k in keys)
+    )
     for r in rows:
-        print(f"{r['option']:<24}{r['s/img']:>7.3f}  "
-              + "  ".join(f"{r[k]:.3f} {r[k + ' 95%']}" for k in keys))
+        print(
+            f"{r['option']:<24}{r['s/img']:>7.3f}  "
+            + "  ".join(f"{r[k]:.3f} {r[k + ' 95%']}" for k in keys)
+        )
 
 
 if __name__ == "__main__":

@@ -74,7 +74,8 @@ class UntunedCrop:
         try:
             self.conn, child = ctx.Pipe()
             self.proc = ctx.Process(
-                target=_untuned_worker, args=(child, name, weights, threads), daemon=True)
+                target=_untuned_worker, args=(child, name, weights, threads), daemon=True
+            )
             self.proc.start()
         finally:
             if old is None:
@@ -91,13 +92,15 @@ class UntunedCrop:
         self.proc.join(30)
 
 
-def time_interleaved(encoders: dict, image: np.ndarray, boxes: np.ndarray,
-                     repeats: int) -> dict[str, tuple[float, float]]:
+def time_interleaved(
+    encoders: dict, image: np.ndarray, boxes: np.ndarray, repeats: int
+) -> dict[str, tuple[float, float]]:
     """Median ``(wall s, cpu s)`` per encoder, calls interleaved round-robin after a warm-up.
 
     An :class:`UntunedCrop` value times itself in its process; its descriptors must equal the
     ``crop`` encoder's bit for bit (checked, so the column compares the same computation).
     """
+
     def run(enc):
         if isinstance(enc, UntunedCrop):
             return enc.timed_encode(image, boxes)
@@ -134,38 +137,53 @@ def main() -> None:
     from vpr_core.landmarks import dense_sampling
     from vpr_core.paper import N_LANDMARKS
 
-    image = np.ascontiguousarray(
-        np.concatenate([astronaut(), astronaut()[:, ::-1]], 1)[:360, :640])
-    box_sets = {"dense": np.asarray(dense_sampling(image.shape[:2])),
-                "edge-box-like": edge_box_like(image.shape[:2], N_LANDMARKS)}
-    print(f"640x360 image, {N_LANDMARKS} landmarks, repeats={args.repeats}, torch "
-          f"{torch.__version__}, threads {torch.get_num_threads()}, load average "
-          f"{os.getloadavg()} (other processes share these cores)")
+    image = np.ascontiguousarray(np.concatenate([astronaut(), astronaut()[:, ::-1]], 1)[:360, :640])
+    box_sets = {
+        "dense": np.asarray(dense_sampling(image.shape[:2])),
+        "edge-box-like": edge_box_like(image.shape[:2], N_LANDMARKS),
+    }
+    print(
+        f"640x360 image, {N_LANDMARKS} landmarks, repeats={args.repeats}, torch "
+        f"{torch.__version__}, threads {torch.get_num_threads()}, load average "
+        f"{os.getloadavg()} (other processes share these cores)"
+    )
     from vpr_core.utils import tune_allocator
 
     tuned = tune_allocator()
-    header = (f"{'backbone':<34}{'work px':>8} {'boxes':<15}{'crop s':>8}{'roi s':>8}{'ratio':>7}"
-              f"{'crop cpu':>10}{'roi cpu':>9}{'ratio':>7}{'crop0 s':>9}{'crop0/roi':>10}")
+    header = (
+        f"{'backbone':<34}{'work px':>8} {'boxes':<15}{'crop s':>8}{'roi s':>8}{'ratio':>7}"
+        f"{'crop cpu':>10}{'roi cpu':>9}{'ratio':>7}{'crop0 s':>9}{'crop0/roi':>10}"
+    )
     print(header)
     print("-" * len(header))
     for name in args.backbones:
         weights = "random" if name.startswith("alexnet") else None
         roi_kw = {"working_size": args.working_size} if args.working_size else {}
-        encs = {"crop": LandmarkEncoder(name, weights=weights),
-                "roi": LandmarkEncoder(name, weights=weights, pooling="roi", **roi_kw)}
+        encs = {
+            "crop": LandmarkEncoder(name, weights=weights),
+            "roi": LandmarkEncoder(name, weights=weights, pooling="roi", **roi_kw),
+        }
         if tuned:  # else crop is already glibc's default: no second column to compare
             encs["crop0"] = UntunedCrop(name, weights, args.threads)
         for kind, boxes in box_sets.items():
             t = time_interleaved(encs, image, boxes, args.repeats)
             (cw, cc), (rw, rc) = t["crop"], t["roi"]
-            c0 = (f"{t['crop0'][0]:>9.3f}{t['crop0'][0] / rw:>10.1f}" if "crop0" in t
-                  else f"{'-':>9}{'-':>10}")
-            print(f"{name:<34}{encs['roi'].working_size:>8} {kind:<15}{cw:>8.3f}{rw:>8.3f}"
-                  f"{cw / rw:>7.1f}{cc:>10.3f}{rc:>9.3f}{cc / rc:>7.1f}{c0}", flush=True)
+            c0 = (
+                f"{t['crop0'][0]:>9.3f}{t['crop0'][0] / rw:>10.1f}"
+                if "crop0" in t
+                else f"{'-':>9}{'-':>10}"
+            )
+            print(
+                f"{name:<34}{encs['roi'].working_size:>8} {kind:<15}{cw:>8.3f}{rw:>8.3f}"
+                f"{cw / rw:>7.1f}{cc:>10.3f}{rc:>9.3f}{cc / rc:>7.1f}{c0}",
+                flush=True,
+            )
         if "crop0" in encs:
             encs["crop0"].close()
-    print("work px: roi working size (long side; default 4 crop sides). crop0: crop mode with "
-          "glibc's default allocator (VPR_TUNE_MALLOC=0, child process), same descriptors")
+    print(
+        "work px: roi working size (long side; default 4 crop sides). crop0: crop mode with "
+        "glibc's default allocator (VPR_TUNE_MALLOC=0, child process), same descriptors"
+    )
 
 
 if __name__ == "__main__":

@@ -64,8 +64,13 @@ def landmark_boxes(image: np.ndarray, landmarks: str) -> np.ndarray:
     raise ValueError(f"landmarks must be 'dense' or 'edge_boxes', got {landmarks!r}")
 
 
-def collect_pairs(n_pairs: int, seed: int, backbone: str = "efficientnet_lite0",
-                  n_places: int | None = None, landmarks: str = "dense") -> list[dict]:
+def collect_pairs(
+    n_pairs: int,
+    seed: int,
+    backbone: str = "efficientnet_lite0",
+    n_places: int | None = None,
+    landmarks: str = "dense",
+) -> list[dict]:
     """Matches, exact labels and estimated geometry of the first ``n_pairs`` (i, i) pairs.
 
     Args:
@@ -91,8 +96,9 @@ def collect_pairs(n_pairs: int, seed: int, backbone: str = "efficientnet_lite0",
         m = np.asarray(res.matches, dtype=np.int64).reshape(-1, 2)
         exact = label_matches(ds, q, q, bq, br, m, method="exact")
         geo = estimate_pair_geometry(img_q, img_r)
-        out.append({"q": q, "boxes_q": bq, "boxes_r": br, "matches": m, "exact": exact,
-                    "geometry": geo})
+        out.append(
+            {"q": q, "boxes_q": bq, "boxes_r": br, "matches": m, "exact": exact, "geometry": geo}
+        )
     return out
 
 
@@ -106,8 +112,9 @@ def agreement(pairs: list[dict], **rule) -> dict:
     unl = 0
     for p in pairs:
         try:
-            g = label_matches_geometric(p["boxes_q"], p["boxes_r"], p["matches"], p["geometry"],
-                                        **rule)
+            g = label_matches_geometric(
+                p["boxes_q"], p["boxes_r"], p["matches"], p["geometry"], **rule
+            )
         except LabelUnavailableError:
             unl += 1
             continue
@@ -117,16 +124,25 @@ def agreement(pairs: list[dict], **rule) -> dict:
         fn += int((~g & e).sum())
         tn += int((~g & ~e).sum())
     n = tp + fp + fn + tn
-    return {"tp": tp, "fp": fp, "fn": fn, "tn": tn, "n": n, "unlabelled_pairs": unl,
-            "accuracy": (tp + tn) / n if n else float("nan"),
-            "precision": tp / (tp + fp) if tp + fp else float("nan"),
-            "recall": tp / (tp + fn) if tp + fn else float("nan")}
+    return {
+        "tp": tp,
+        "fp": fp,
+        "fn": fn,
+        "tn": tn,
+        "n": n,
+        "unlabelled_pairs": unl,
+        "accuracy": (tp + tn) / n if n else float("nan"),
+        "precision": tp / (tp + fp) if tp + fp else float("nan"),
+        "recall": tp / (tp + fn) if tp + fn else float("nan"),
+    }
 
 
 def _row(name: str, a: dict) -> str:
-    return (f"{name:<34} acc {a['accuracy']:.3f}  prec {a['precision']:.3f}  "
-            f"rec {a['recall']:.3f}  TP {a['tp']:4d} FP {a['fp']:4d} FN {a['fn']:4d} "
-            f"TN {a['tn']:4d}  (n={a['n']}, unlabelled pairs {a['unlabelled_pairs']})")
+    return (
+        f"{name:<34} acc {a['accuracy']:.3f}  prec {a['precision']:.3f}  "
+        f"rec {a['recall']:.3f}  TP {a['tp']:4d} FP {a['fp']:4d} FN {a['fn']:4d} "
+        f"TN {a['tn']:4d}  (n={a['n']}, unlabelled pairs {a['unlabelled_pairs']})"
+    )
 
 
 def tune_point_rule(pairs: list[dict]) -> dict:
@@ -143,8 +159,12 @@ def tune_point_rule(pairs: list[dict]) -> dict:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--pairs", type=int, default=20, help="ground-truth pairs (default 20)")
-    ap.add_argument("--seed", type=int, default=11,
-                    help="validation synthetic seed (default 11; the labeller was tuned on 1, 3, 7)")
+    ap.add_argument(
+        "--seed",
+        type=int,
+        default=11,
+        help="validation synthetic seed (default 11; the labeller was tuned on 1, 3, 7)",
+    )
     ap.add_argument("--backbone", default="efficientnet_lite0")
     ap.add_argument("--landmarks", default="dense", choices=("dense", "edge_boxes"))
     ap.add_argument("--tune", action="store_true", help="tune the point rule on --tune-seed")
@@ -157,19 +177,27 @@ def main(argv: list[str] | None = None) -> int:
     kinds = [p["geometry"].kind for p in pairs]
     n_all = sum(len(p["matches"]) for p in pairs)
     n_ok = int(sum(p["exact"].sum() for p in pairs))
-    print(f"synthetic seed {args.seed}: {len(pairs)} ground-truth pairs, {args.landmarks} "
-          f"landmarks, {args.backbone}; {n_all} reciprocal matches, {n_ok} correct by exact "
-          f"labels (majority-class baseline accuracy {max(n_ok, n_all - n_ok) / max(n_all, 1):.3f})")
-    print("estimated geometry per pair: "
-          + ", ".join(f"{k}={kinds.count(k)}" for k in ("homography", "fundamental", "none")))
-    rules = {"geometric auto (default)": {}, "geometric points (forced)": {"model": "points"},
-             "geometric homography (forced)": {"model": "homography"}}
+    print(
+        f"synthetic seed {args.seed}: {len(pairs)} ground-truth pairs, {args.landmarks} "
+        f"landmarks, {args.backbone}; {n_all} reciprocal matches, {n_ok} correct by exact "
+        f"labels (majority-class baseline accuracy {max(n_ok, n_all - n_ok) / max(n_all, 1):.3f})"
+    )
+    print(
+        "estimated geometry per pair: "
+        + ", ".join(f"{k}={kinds.count(k)}" for k in ("homography", "fundamental", "none"))
+    )
+    rules = {
+        "geometric auto (default)": {},
+        "geometric points (forced)": {"model": "points"},
+        "geometric homography (forced)": {"model": "homography"},
+    }
     if args.tune:
-        tpairs = collect_pairs(args.pairs, args.tune_seed, args.backbone,
-                               landmarks=args.landmarks)
+        tpairs = collect_pairs(args.pairs, args.tune_seed, args.backbone, landmarks=args.landmarks)
         best = tune_point_rule(tpairs)
-        print(f"point rule tuned on seed {args.tune_seed}: {best} "
-              f"(tuning accuracy {agreement(tpairs, model='points', **best)['accuracy']:.3f})")
+        print(
+            f"point rule tuned on seed {args.tune_seed}: {best} "
+            f"(tuning accuracy {agreement(tpairs, model='points', **best)['accuracy']:.3f})"
+        )
         rules["geometric points (tuned)"] = {"model": "points", **best}
     for name, rule in rules.items():
         print(_row(name, agreement(pairs, **rule)))

@@ -43,8 +43,16 @@ def _resize(img: np.ndarray) -> np.ndarray:
 def images_skimage(n: int) -> list[tuple[str, np.ndarray]]:
     from skimage import data
 
-    names = ["astronaut", "coffee", "chelsea", "rocket", "immunohistochemistry", "camera",
-             "hubble_deep_field", "retina"]
+    names = [
+        "astronaut",
+        "coffee",
+        "chelsea",
+        "rocket",
+        "immunohistochemistry",
+        "camera",
+        "hubble_deep_field",
+        "retina",
+    ]
     out = []
     for name in names[:n]:
         out.append((name, _resize(getattr(data, name)())))
@@ -71,8 +79,10 @@ def images_gardens(n: int) -> list[tuple[str, np.ndarray]]:
     paths += sorted((root / "reference").glob("*.jpg"))[: n // 2]
     if not paths:
         raise SystemExit(f"no images under {root}")
-    return [(f"{p.parent.name}/{p.name}", _resize(cv2.cvtColor(cv2.imread(str(p)), cv2.COLOR_BGR2RGB)))
-            for p in paths]
+    return [
+        (f"{p.parent.name}/{p.name}", _resize(cv2.cvtColor(cv2.imread(str(p)), cv2.COLOR_BGR2RGB)))
+        for p in paths
+    ]
 
 
 def best_of(fn, repeats: int) -> float:
@@ -92,13 +102,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--candidates", type=int, default=N_CANDIDATES)
     args = ap.parse_args(argv)
 
-    loader = {"skimage": images_skimage, "synthetic": images_synthetic,
-              "gardens": images_gardens}[args.source]
+    loader = {"skimage": images_skimage, "synthetic": images_synthetic, "gardens": images_gardens}[
+        args.source
+    ]
     images = loader(args.n_images)
     L.edge_boxes(images[0][1], max_boxes=10)  # warm-up (imports, logging)
 
-    print(f"cores: {os.cpu_count()}  images: {len(images)} x {SIZE[1]}x{SIZE[0]} "
-          f"({args.source})  repeats: {args.repeats} (best of)")
+    print(
+        f"cores: {os.cpu_count()}  images: {len(images)} x {SIZE[1]}x{SIZE[0]} "
+        f"({args.source})  repeats: {args.repeats} (best of)"
+    )
     print(f"{'image':32s} {'edge_boxes [s]':>14s} {'#boxes':>7s} {'dense [s]':>11s}")
     eb_t, dn_t = [], []
     for name, img in images:
@@ -109,10 +122,14 @@ def main(argv: list[str] | None = None) -> int:
         dn_t.append(t_dn)
         print(f"{name:32s} {t_eb:14.3f} {n_boxes:7d} {t_dn:11.2e}")
     eb_med, dn_med = float(np.median(eb_t)), float(np.median(dn_t))
-    print(f"median s/image: edge_boxes({args.candidates}) = {eb_med:.3f}   "
-          f"dense_sampling = {dn_med:.2e}")
-    print(f"ratio edge_boxes / dense = {eb_med / dn_med:,.0f}x   "
-          f"(target edge_boxes <= 1 s/image: {'OK' if eb_med <= 1.0 else 'MISSED'})")
+    print(
+        f"median s/image: edge_boxes({args.candidates}) = {eb_med:.3f}   "
+        f"dense_sampling = {dn_med:.2e}"
+    )
+    print(
+        f"ratio edge_boxes / dense = {eb_med / dn_med:,.0f}x   "
+        f"(target edge_boxes <= 1 s/image: {'OK' if eb_med <= 1.0 else 'MISSED'})"
+    )
     return 0
 
 

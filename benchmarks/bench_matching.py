@@ -54,8 +54,10 @@ def main() -> None:
     xy = rng.uniform(0, 300, size=(2, n, k, 2))
     qb = np.concatenate([xy[0], wh[0]], axis=2)
     rb = np.concatenate([xy[1], wh[1]], axis=2)
-    print(f"torch {torch.__version__}, threads {torch.get_num_threads()}, "
-          f"cpu_count {os.cpu_count()}; {n} x {n} images x {k} landmarks x {dim}-d")
+    print(
+        f"torch {torch.__version__}, threads {torch.get_num_threads()}, "
+        f"cpu_count {os.cpu_count()}; {n} x {n} images x {k} landmarks x {dim}-d"
+    )
 
     a = torch.from_numpy(qd.reshape(n * k, dim))
     b = torch.from_numpy(rd.reshape(n * k, dim))
@@ -77,13 +79,17 @@ def main() -> None:
     flops = 2.0 * (n * k) ** 2 * dim
     t_mm, t_sm = statistics.median(mm), statistics.median(sm)
     ratio = statistics.median(ratios)
-    print(f"bare matmul ({n * k}, {dim}) @ ({dim}, {n * k}): median {t_mm:.3f} s "
-          f"({flops / t_mm / 1e9:.0f} GFLOP/s)")
+    print(
+        f"bare matmul ({n * k}, {dim}) @ ({dim}, {n * k}): median {t_mm:.3f} s "
+        f"({flops / t_mm / 1e9:.0f} GFLOP/s)"
+    )
     print(f"similarity_matrix: median {t_sm:.3f} s")
-    print(f"ratio similarity_matrix / bare matmul: median {ratio:.2f}x over {args.repeat} "
-          f"interleaved runs (per run: {', '.join(f'{x:.2f}' for x in ratios)}); "
-          f"target <= {TARGET}x: {'met' if ratio <= TARGET else 'NOT met'}; "
-          f"CPU-time ratio {statistics.median(cpu_ratios):.2f}x")
+    print(
+        f"ratio similarity_matrix / bare matmul: median {ratio:.2f}x over {args.repeat} "
+        f"interleaved runs (per run: {', '.join(f'{x:.2f}' for x in ratios)}); "
+        f"target <= {TARGET}x: {'met' if ratio <= TARGET else 'NOT met'}; "
+        f"CPU-time ratio {statistics.median(cpu_ratios):.2f}x"
+    )
 
     pairs = rng.integers(0, n, size=(args.check_pairs, 2))
     err = max(abs(image_similarity(qd[i], qb[i], rd[j], rb[j]) - sim[i, j]) for i, j in pairs)
@@ -94,15 +100,23 @@ def main() -> None:
 
         def run_nms():
             nonlocal sim_nms
-            sim_nms = similarity_matrix(qd, qb, rd, rb, soft_nms_iou=SOFT_NMS_IOU,
-                                        show_progress=False)
+            sim_nms = similarity_matrix(
+                qd, qb, rd, rb, soft_nms_iou=SOFT_NMS_IOU, show_progress=False
+            )
 
         t_nms, _ = _timed(run_nms)
-        print(f"similarity_matrix soft-NMS t={SOFT_NMS_IOU}: {t_nms:.3f} s "
-              f"({t_nms / t_mm:.2f}x bare matmul); {t_nms / n / n * 1e3:.3f} ms per image pair")
+        print(
+            f"similarity_matrix soft-NMS t={SOFT_NMS_IOU}: {t_nms:.3f} s "
+            f"({t_nms / t_mm:.2f}x bare matmul); {t_nms / n / n * 1e3:.3f} ms per image pair"
+        )
         sub = pairs[:10]
-        err = max(abs(image_similarity(qd[i], qb[i], rd[j], rb[j], soft_nms_iou=SOFT_NMS_IOU)
-                      - sim_nms[i, j]) for i, j in sub)
+        err = max(
+            abs(
+                image_similarity(qd[i], qb[i], rd[j], rb[j], soft_nms_iou=SOFT_NMS_IOU)
+                - sim_nms[i, j]
+            )
+            for i, j in sub
+        )
         print(f"max |diff| soft-NMS on {len(sub)} pairs: {err:.2e}")
 
 

@@ -38,13 +38,27 @@ def _fmt(v: tuple[float, ...]) -> str:
     return f"{v[0]:.3f} [{v[1]:.3f}, {v[2]:.3f}]"
 
 
-def _row(label: str, k: int | None, sim: np.ndarray, gt: np.ndarray, base: np.ndarray | None,
-         seconds: float, n_boot: int) -> dict:
+def _row(
+    label: str,
+    k: int | None,
+    sim: np.ndarray,
+    gt: np.ndarray,
+    base: np.ndarray | None,
+    seconds: float,
+    n_boot: int,
+) -> dict:
     """One table row: metrics with intervals, paired deltas to ``base``, shortlist recall."""
     m = bootstrap_metrics(sim, gt, n=n_boot, seed=0, ks=(1,))
-    row = {"setting": label, "k": k if k is not None else "", "AUC": m["auc"][0],
-           "AUC low": m["auc"][1], "AUC high": m["auc"][2], "R@1": m["r@1"][0],
-           "R@1 low": m["r@1"][1], "R@1 high": m["r@1"][2]}
+    row = {
+        "setting": label,
+        "k": k if k is not None else "",
+        "AUC": m["auc"][0],
+        "AUC low": m["auc"][1],
+        "AUC high": m["auc"][2],
+        "R@1": m["r@1"][0],
+        "R@1 low": m["r@1"][1],
+        "R@1 high": m["r@1"][2],
+    }
     has_gt = gt.any(1)
     listed = ~np.isnan(sim)
     row["gt in shortlist"] = float((listed & gt)[has_gt].any(1).mean())
@@ -69,27 +83,42 @@ def main(argv: list[str] | None = None) -> int:
 
     ds = load_dataset("nordland", args.root, step=args.step)
     gt = np.asarray(ds.ground_truth, dtype=bool)
-    print(f"nordland step={args.step}: {len(ds.query_paths)} queries x "
-          f"{len(ds.reference_paths)} references, tolerance={ds.tolerance} "
-          f"({ds.meta.get('query_traverse')} vs {ds.meta.get('reference_traverse')}), "
-          f"method={args.method}, pooling={args.pooling}")
+    print(
+        f"nordland step={args.step}: {len(ds.query_paths)} queries x "
+        f"{len(ds.reference_paths)} references, tolerance={ds.tolerance} "
+        f"({ds.meta.get('query_traverse')} vs {ds.meta.get('reference_traverse')}), "
+        f"method={args.method}, pooling={args.pooling}"
+    )
     t0 = time.perf_counter()
     exh = run_method(args.method, ds, pooling=args.pooling)
-    rows = [_row("exhaustive", None, exh.similarity, gt, None, time.perf_counter() - t0,
-                 args.n_boot)]
+    rows = [
+        _row("exhaustive", None, exh.similarity, gt, None, time.perf_counter() - t0, args.n_boot)
+    ]
     for k in args.ks:
         t0 = time.perf_counter()
         res = run_method(args.method, ds, pooling=args.pooling, shortlist=k)
-        rows.append(_row(f"shortlist k={k}", k, res.similarity, gt, exh.similarity,
-                         time.perf_counter() - t0, args.n_boot))
-    print(f"{'setting':<16} {'AUC [95%]':<24} {'R@1 [95%]':<24} {'dR@1 vs exh. [95%]':<26} "
-          f"{'gt in list':>10} {'s':>7}")
+        rows.append(
+            _row(
+                f"shortlist k={k}",
+                k,
+                res.similarity,
+                gt,
+                exh.similarity,
+                time.perf_counter() - t0,
+                args.n_boot,
+            )
+        )
+    print(
+        f"{'setting':<16} {'AUC [95%]':<24} {'R@1 [95%]':<24} {'dR@1 vs exh. [95%]':<26} "
+        f"{'gt in list':>10} {'s':>7}"
+    )
     for r in rows:
-        d = (f"{r['dR@1']:+.3f} [{r['dR@1 low']:+.3f}, {r['dR@1 high']:+.3f}]"
-             if "dR@1" in r else "")
-        print(f"{r['setting']:<16} {_fmt((r['AUC'], r['AUC low'], r['AUC high'])):<24} "
-              f"{_fmt((r['R@1'], r['R@1 low'], r['R@1 high'])):<24} {d:<26} "
-              f"{r['gt in shortlist']:>10.3f} {r['run s']:>7.1f}")
+        d = f"{r['dR@1']:+.3f} [{r['dR@1 low']:+.3f}, {r['dR@1 high']:+.3f}]" if "dR@1" in r else ""
+        print(
+            f"{r['setting']:<16} {_fmt((r['AUC'], r['AUC low'], r['AUC high'])):<24} "
+            f"{_fmt((r['R@1'], r['R@1 low'], r['R@1 high'])):<24} {d:<26} "
+            f"{r['gt in shortlist']:>10.3f} {r['run s']:>7.1f}"
+        )
     import pandas as pd
 
     out = results_dir("benchmarks") / "nordland_shortlist.csv"

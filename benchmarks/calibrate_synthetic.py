@@ -43,18 +43,27 @@ MIN_SPREAD = 0.15
 MAX_SHARE_GAP = 0.10
 MIN_SCALE = 4
 SPREAD_METHODS = ("classical", "selection_scheme1", "selection_scheme2", "dense")
-GARDENS_POINT_NIGHT = (Path(__file__).resolve().parents[2] / "shared" / "data"
-                       / "gardens_point_mini" / "reference")
+GARDENS_POINT_NIGHT = (
+    Path(__file__).resolve().parents[2] / "shared" / "data" / "gardens_point_mini" / "reference"
+)
 
 
 def study_runs() -> list[tuple[str, str, dict]]:
     """``(label, method, overrides)`` of every run of Fig. 5, Fig. 7 and Fig. 13."""
-    runs = [("classical", "classical", {}), ("selection_scheme1", "selection_scheme1", {}),
-            ("selection_scheme2", "selection_scheme2", {}), ("dense", "dense", {})]
-    runs += [(f"overlap_scheme1 t={t}", "overlap_scheme1", {"iou_threshold": t})
-             for t in FIG7_NMS_THRESHOLDS]
-    runs += [(f"overlap_scheme2 soft={t}", "overlap_scheme2", {"soft_nms_iou": t})
-             for t in FIG7_SOFT_NMS_THRESHOLDS]
+    runs = [
+        ("classical", "classical", {}),
+        ("selection_scheme1", "selection_scheme1", {}),
+        ("selection_scheme2", "selection_scheme2", {}),
+        ("dense", "dense", {}),
+    ]
+    runs += [
+        (f"overlap_scheme1 t={t}", "overlap_scheme1", {"iou_threshold": t})
+        for t in FIG7_NMS_THRESHOLDS
+    ]
+    runs += [
+        (f"overlap_scheme2 soft={t}", "overlap_scheme2", {"soft_nms_iou": t})
+        for t in FIG7_SOFT_NMS_THRESHOLDS
+    ]
     if "global" in available_methods():
         runs.append(("global", "global", {}))
     return runs
@@ -95,9 +104,15 @@ def evaluate(difficulty: str, n_places: int, seed: int, only: list[str] | None =
     synth_share = high_scale_share(ds.load_image("query", i) for i in range(len(ds)))
     real = sorted(list_images(GARDENS_POINT_NIGHT)) if GARDENS_POINT_NIGHT.is_dir() else []
     real_share = high_scale_share(read_image(p) for p in real) if real else None
-    return {"difficulty": difficulty, "n_places": n_places, "seed": seed, "runs": rows,
-            "partial": bool(only),
-            "night_share_synthetic": synth_share, "night_share_gardens_point": real_share}
+    return {
+        "difficulty": difficulty,
+        "n_places": n_places,
+        "seed": seed,
+        "runs": rows,
+        "partial": bool(only),
+        "night_share_synthetic": synth_share,
+        "night_share_gardens_point": real_share,
+    }
 
 
 def verdicts(report: dict) -> list[tuple[str, bool | None, str]]:
@@ -111,17 +126,29 @@ def verdicts(report: dict) -> list[tuple[str, bool | None, str]]:
     best, worst = max(spread, key=lambda r: r["auc"]), min(spread, key=lambda r: r["auc"])
     gap = best["auc"] - worst["auc"]
     separate = best["low"] > worst["high"]
-    detail = (f"{best['label']} {best['auc']:.3f} [{best['low']:.3f}, {best['high']:.3f}] - "
-              f"{worst['label']} {worst['auc']:.3f} [{worst['low']:.3f}, {worst['high']:.3f}] "
-              f"= {gap:.3f}")
+    detail = (
+        f"{best['label']} {best['auc']:.3f} [{best['low']:.3f}, {best['high']:.3f}] - "
+        f"{worst['label']} {worst['auc']:.3f} [{worst['low']:.3f}, {worst['high']:.3f}] "
+        f"= {gap:.3f}"
+    )
     out.append(("spread >= 0.15, intervals apart", gap >= MIN_SPREAD and separate, detail))
     s, g = report["night_share_synthetic"], report["night_share_gardens_point"]
     if g is None:
-        out.append(("night scale-share within 10 points", None,
-                    f"synthetic {s:.3f}; Gardens Point mini not found at {GARDENS_POINT_NIGHT}"))
+        out.append(
+            (
+                "night scale-share within 10 points",
+                None,
+                f"synthetic {s:.3f}; Gardens Point mini not found at {GARDENS_POINT_NIGHT}",
+            )
+        )
     else:
-        out.append(("night scale-share within 10 points", abs(s - g) <= MAX_SHARE_GAP,
-                    f"synthetic {s:.3f} vs Gardens Point night {g:.3f}"))
+        out.append(
+            (
+                "night scale-share within 10 points",
+                abs(s - g) <= MAX_SHARE_GAP,
+                f"synthetic {s:.3f} vs Gardens Point night {g:.3f}",
+            )
+        )
     return out
 
 
@@ -135,8 +162,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--only", default="", help="comma-separated run labels (partial check)")
     args = ap.parse_args(argv)
     only = [o.strip() for o in args.only.split(",") if o.strip()]
-    print(f"synthetic difficulty={args.difficulty} n_places={args.n_places} seed={args.seed} "
-          "(AUC, ratio protocol, 95% bootstrap over queries, 1,000 resamples, seed 0)")
+    print(
+        f"synthetic difficulty={args.difficulty} n_places={args.n_places} seed={args.seed} "
+        "(AUC, ratio protocol, 95% bootstrap over queries, 1,000 resamples, seed 0)"
+    )
     report = evaluate(args.difficulty, args.n_places, args.seed, only)
     if only:
         print("PARTIAL: only " + ", ".join(only) + " (the saturation target needs every run)")

@@ -27,14 +27,26 @@ def line_kinds(source: str) -> Counter:
     doc_lines: set[int] = set()
     for node in ast.walk(ast.parse(source)):
         body = getattr(node, "body", None)
-        if isinstance(node, DOC_OWNERS) and body and isinstance(body[0], ast.Expr) \
-                and isinstance(body[0].value, ast.Constant) and isinstance(body[0].value.value, str):
+        if (
+            isinstance(node, DOC_OWNERS)
+            and body
+            and isinstance(body[0], ast.Expr)
+            and isinstance(body[0].value, ast.Constant)
+            and isinstance(body[0].value.value, str)
+        ):
             doc_lines.update(range(body[0].lineno, body[0].end_lineno + 1))
     counts: Counter = Counter({k: 0 for k in KINDS})
     for number, line in enumerate(source.splitlines(), 1):
         text = line.strip()
-        kind = ("docstring" if number in doc_lines else "blank" if not text
-                else "comment" if text.startswith("#") else "code")
+        kind = (
+            "docstring"
+            if number in doc_lines
+            else "blank"
+            if not text
+            else "comment"
+            if text.startswith("#")
+            else "code"
+        )
         counts[kind] += 1
     return counts
 

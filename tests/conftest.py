@@ -34,6 +34,9 @@ def tiny_synthetic():
 @pytest.fixture(scope="session")
 def gardens_point_mini_root() -> Path:
     """``../shared/data/gardens_point_mini`` (10 real day/night pairs); skips when absent."""
-    if not (GARDENS_POINT_MINI / "query").is_dir() or not (GARDENS_POINT_MINI / "reference").is_dir():
+    if (
+        not (GARDENS_POINT_MINI / "query").is_dir()
+        or not (GARDENS_POINT_MINI / "reference").is_dir()
+    ):
         pytest.skip(f"real-data subset not found at {GARDENS_POINT_MINI}")
     return GARDENS_POINT_MINI

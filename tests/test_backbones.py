@@ -55,15 +55,18 @@ def test_lite_variants_are_different_networks():
     assert load_state_dict(variant="lite2")["_blocks.20._project_conv.weight"].shape[0] == 352
 
 
-@pytest.mark.parametrize("spec,shape", [
-    ("efficientnet_lite0", (112, 8, 8)),
-    ("efficientnet_lite0:input_size=96", (112, 6, 6)),
-    ("efficientnet_lite0:stage=4,input_size=96", (80, 6, 6)),
-    ("efficientnet_lite0:stage=6,input_size=224", (192, 7, 7)),
-    ("efficientnet_lite0_stage4", (80, 10, 10)),
-    ("efficientnet_lite1", (112, 8, 8)),
-    ("efficientnet_lite2:input_size=160", (120, 10, 10)),
-])
+@pytest.mark.parametrize(
+    "spec,shape",
+    [
+        ("efficientnet_lite0", (112, 8, 8)),
+        ("efficientnet_lite0:input_size=96", (112, 6, 6)),
+        ("efficientnet_lite0:stage=4,input_size=96", (80, 6, 6)),
+        ("efficientnet_lite0:stage=6,input_size=224", (192, 7, 7)),
+        ("efficientnet_lite0_stage4", (80, 10, 10)),
+        ("efficientnet_lite1", (112, 8, 8)),
+        ("efficientnet_lite2:input_size=160", (120, 10, 10)),
+    ],
+)
 def test_spec_feature_shapes(spec, shape):
     model = build_backbone(spec)
     assert model.feature_shape == shape and model.raw_dim == int(np.prod(shape))
@@ -77,14 +80,16 @@ def test_lite_stage_features_match_classifier():
     clf = efficientnet_lite_classifier("lite2")
     x = torch.randn(2, 3, 96, 96, generator=torch.Generator().manual_seed(0))
     with torch.inference_mode():
-        torch.testing.assert_close(feats(x), clf.extract_stage(x, 5).flatten(1),
-                                   atol=1e-3, rtol=1e-3)
+        torch.testing.assert_close(
+            feats(x), clf.extract_stage(x, 5).flatten(1), atol=1e-3, rtol=1e-3
+        )
 
 
 def test_canonical_spec_and_cache_keys():
     assert canonical_backbone("efficientnet_lite0:stage=5,input_size=128") == "efficientnet_lite0"
     assert canonical_backbone("efficientnet_lite0: input_size=96 , stage=4") == (
-        "efficientnet_lite0:input_size=96,stage=4")
+        "efficientnet_lite0:input_size=96,stage=4"
+    )
     assert backbone_options("efficientnet_lite0") == {"input_size": 128, "stage": 5}
     assert parse_backbone("hog:input_size=32") == ("hog", {"input_size": 32})
     assert backbone_options("efficientnet_lite1") == {"input_size": 128, "stage": 5}
@@ -109,8 +114,10 @@ def test_spec_errors_name_the_valid_choices():
         build_backbone("efficientnet_lite0:input_size=96", input_size=128)
 
 
-@pytest.mark.parametrize("shape,pads", [((3, 8, 12, 10), (0, 1, 0, 1)), ((2, 5, 9, 7), (2, 2, 1, 2)),
-                                        ((1, 4, 6, 6), (1, 2, 1, 2))])
+@pytest.mark.parametrize(
+    "shape,pads",
+    [((3, 8, 12, 10), (0, 1, 0, 1)), ((2, 5, 9, 7), (2, 2, 1, 2)), ((1, 4, 6, 6), (1, 2, 1, 2))],
+)
 @pytest.mark.parametrize("channels_last", [True, False])
 def test_relu6_padded_equals_pad_of_relu6(shape, pads, channels_last):
     """The fused ReLU6 + "same" padding gives F.pad(clamp(y)) exactly, in y's memory format,

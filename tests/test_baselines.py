@@ -42,21 +42,31 @@ def _sim(nq=4, nr=5, seed=0):
 
 
 def _dataset(nq, nr):
-    return PlaceDataset("t", [f"q{i}.png" for i in range(nq)], [f"r{i}.png" for i in range(nr)],
-                        np.eye(nq, nr, dtype=bool), 0)
+    return PlaceDataset(
+        "t",
+        [f"q{i}.png" for i in range(nq)],
+        [f"r{i}.png" for i in range(nr)],
+        np.eye(nq, nr, dtype=bool),
+        0,
+    )
 
 
 @pytest.mark.parametrize("as_list", [False, True])
 def test_load_precomputed_roundtrip(tmp_path, as_list):
     sim = _sim()
-    path = _write(tmp_path / "precomputed_matches" / "GardensPointWalking" / "NetVLAD"
-                  / PRECOMPUTED_FILE, sim, as_list=as_list)
+    path = _write(
+        tmp_path / "precomputed_matches" / "GardensPointWalking" / "NetVLAD" / PRECOMPUTED_FILE,
+        sim,
+        as_list=as_list,
+    )
     peer = load_vprbench_precomputed(path)
     assert peer.name == "NetVLAD" and peer.dataset == "GardensPointWalking"
     assert peer.source == path and peer.shape == (4, 5)
     np.testing.assert_array_equal(peer.similarity, sim)
     assert peer.similarity.dtype == np.float64
-    assert peer.encode_seconds == pytest.approx(0.0123) and peer.match_seconds == pytest.approx(0.0045)
+    assert peer.encode_seconds == pytest.approx(0.0123) and peer.match_seconds == pytest.approx(
+        0.0045
+    )
     np.testing.assert_array_equal(peer.top1_reference, np.argmax(sim, axis=1))
     np.testing.assert_array_equal(peer_similarity_for(_dataset(4, 5), peer), sim)
 
@@ -72,10 +82,13 @@ def test_peer_rows_follow_query_indices(tmp_path):
 
 def test_peer_shape_and_query_mismatch(tmp_path):
     peer = load_vprbench_precomputed(_write(tmp_path / "d" / "CoHOG" / PRECOMPUTED_FILE, _sim()))
-    with pytest.raises(ValueError, match=r"the peer has 4 x 5 .*the dataset .t. has 3 x 5: compute the peer"):
+    with pytest.raises(
+        ValueError, match=r"the peer has 4 x 5 .*the dataset .t. has 3 x 5: compute the peer"
+    ):
         peer_similarity_for(_dataset(3, 5), peer)
-    dup = load_vprbench_precomputed(_write(tmp_path / "d" / "CALC" / PRECOMPUTED_FILE, _sim(),
-                                           [0, 0, 1, 2]))
+    dup = load_vprbench_precomputed(
+        _write(tmp_path / "d" / "CALC" / PRECOMPUTED_FILE, _sim(), [0, 0, 1, 2])
+    )
     with pytest.raises(ValueError, match="query indices are not 0..3 each once"):
         peer_similarity_for(_dataset(4, 5), dup)
 
@@ -158,9 +171,13 @@ def test_peer_from_matrix_and_distance(tmp_path):
         peer_similarity_for(_dataset(3, 3), peer)
     bad = sim.copy()
     bad[0, 1] = np.nan
-    with pytest.raises(ValueError, match=r"peer 'x': the similarity matrix in the array holds 1 NaN"):
+    with pytest.raises(
+        ValueError, match=r"peer 'x': the similarity matrix in the array holds 1 NaN"
+    ):
         peer_from_matrix(bad, "x")
-    with pytest.raises(ValueError, match=r"has shape \(3,\); it must be a non-empty 2-d \(Nq, Nr\)"):
+    with pytest.raises(
+        ValueError, match=r"has shape \(3,\); it must be a non-empty 2-d \(Nq, Nr\)"
+    ):
         peer_from_matrix(np.ones(3), "x")
     np.save(tmp_path / "obj.npy", np.array([[1, "a"]], dtype=object), allow_pickle=True)
     with pytest.raises(ValueError, match="obj.npy is not a numeric .npy array"):
@@ -174,8 +191,9 @@ def test_peer_from_descriptors_cosine_and_l2(tmp_path):
     q, r = rng.normal(size=(3, 8)), rng.normal(size=(5, 8))
     np.save(tmp_path / "queries_descriptors.npy", q.astype(np.float32))
     np.save(tmp_path / "database_descriptors.npy", r.astype(np.float32))
-    peer = peer_from_descriptors(tmp_path / "queries_descriptors.npy",
-                                 tmp_path / "database_descriptors.npy", "mine")
+    peer = peer_from_descriptors(
+        tmp_path / "queries_descriptors.npy", tmp_path / "database_descriptors.npy", "mine"
+    )
     want = np.array([[a @ b / np.linalg.norm(a) / np.linalg.norm(b) for b in r] for a in q])
     assert peer.similarity.shape == (3, 5) and np.allclose(peer.similarity, want, atol=1e-6)
     l2 = peer_from_descriptors(q, r, "mine", metric="L2")

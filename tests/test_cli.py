@@ -8,12 +8,30 @@ from vpr_core import cli
 
 
 def test_eval_prints_table_and_writes_plot(tmp_path, capsys):
-    rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "dense",
-                   "--out", str(tmp_path)])
+    rc = cli.main(
+        [
+            "eval",
+            "--dataset",
+            "synthetic",
+            "--n-places",
+            "6",
+            "--method",
+            "dense",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     assert rc == 0
     out = capsys.readouterr().out
-    for col in ("AUC(ratio)", "R@100P", "R@1", "R@5", "landmarks s/img", "features s/img",
-                "matching s/pair"):
+    for col in (
+        "AUC(ratio)",
+        "R@100P",
+        "R@1",
+        "R@5",
+        "landmarks s/img",
+        "features s/img",
+        "matching s/pair",
+    ):
         assert col in out
     assert "AUC(ratio) [95% CI]" in out and "queries with ground truth: 6 of 6" in out
     res = tmp_path / "results" / "synthetic"
@@ -37,11 +55,24 @@ def test_eval_label_keeps_two_folder_datasets_apart(tmp_path, gardens_point_mini
                 shutil.copy(gardens_point_mini_root / side / f"{i}.jpg", root / side)
         roots.append(root)
     for root in roots:
-        assert cli.main(["eval", "--dataset", "folder", "--root", str(root), "--method",
-                         "dense", "--out", str(tmp_path / "out")]) == 0
+        assert (
+            cli.main(
+                [
+                    "eval",
+                    "--dataset",
+                    "folder",
+                    "--root",
+                    str(root),
+                    "--method",
+                    "dense",
+                    "--out",
+                    str(tmp_path / "out"),
+                ]
+            )
+            == 0
+        )
     for name in ("site_a", "site_b"):
-        assert (tmp_path / "out" / "results" / name / "eval_dense_efficientnet_lite0.csv"
-                ).is_file()
+        assert (tmp_path / "out" / "results" / name / "eval_dense_efficientnet_lite0.csv").is_file()
 
 
 def test_seed_must_be_non_negative(capsys):
@@ -55,8 +86,21 @@ def test_user_peer_from_a_matrix_enters_the_table(tmp_path, capsys):
 
     sim = np.eye(6) + 0.01 * np.arange(36).reshape(6, 6)
     np.save(tmp_path / "mine.npy", sim)
-    rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "dense",
-                   "--peer", f"MyNet={tmp_path / 'mine.npy'}", "--out", str(tmp_path)])
+    rc = cli.main(
+        [
+            "eval",
+            "--dataset",
+            "synthetic",
+            "--n-places",
+            "6",
+            "--method",
+            "dense",
+            "--peer",
+            f"MyNet={tmp_path / 'mine.npy'}",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     assert rc == 0
     out = capsys.readouterr().out
     line = next(ln for ln in out.splitlines() if ln.startswith("MyNet"))
@@ -79,8 +123,9 @@ def test_eval_unknown_dataset_is_a_clear_error(capsys):
 
 
 def test_eval_missing_root_is_a_clear_error(tmp_path, capsys):
-    rc = cli.main(["eval", "--dataset", "folder", "--root", str(tmp_path / "missing"),
-                   "--method", "dense"])
+    rc = cli.main(
+        ["eval", "--dataset", "folder", "--root", str(tmp_path / "missing"), "--method", "dense"]
+    )
     assert rc == 2
     assert "missing" in capsys.readouterr().err
 
@@ -91,8 +136,9 @@ def test_run_with_missing_root_fails_fast_with_the_loaders_message(tmp_path, cap
     assert "does not exist" in capsys.readouterr().err
 
 
-def test_unknown_backbone_is_reported_before_any_dataset_is_generated(tmp_path, monkeypatch,
-                                                                      capsys):
+def test_unknown_backbone_is_reported_before_any_dataset_is_generated(
+    tmp_path, monkeypatch, capsys
+):
     from vpr_core import datasets
 
     def boom(*a, **k):
@@ -108,9 +154,23 @@ def test_unknown_backbone_is_reported_before_any_dataset_is_generated(tmp_path, 
 def test_unreadable_weights_file_is_named(tmp_path, capsys):
     bad = tmp_path / "alexnet.pth"
     bad.write_bytes(b"not a checkpoint")
-    rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "4", "--method", "dense",
-                   "--backbone", "alexnet_conv3", "--weights", str(bad), "--out",
-                   str(tmp_path / "o")])
+    rc = cli.main(
+        [
+            "eval",
+            "--dataset",
+            "synthetic",
+            "--n-places",
+            "4",
+            "--method",
+            "dense",
+            "--backbone",
+            "alexnet_conv3",
+            "--weights",
+            str(bad),
+            "--out",
+            str(tmp_path / "o"),
+        ]
+    )
     assert rc == 2
     err = capsys.readouterr().err
     assert str(bad) in err and "Traceback" not in err
@@ -137,8 +197,23 @@ def test_log_output_follows_the_current_stderr(monkeypatch):
 def test_eval_protocol_is_named_in_table_file_and_csv(tmp_path, capsys):
     import pandas as pd
 
-    rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "global",
-                   "--backbone", "hog", "--protocol", "vpr_bench", "--out", str(tmp_path)])
+    rc = cli.main(
+        [
+            "eval",
+            "--dataset",
+            "synthetic",
+            "--n-places",
+            "6",
+            "--method",
+            "global",
+            "--backbone",
+            "hog",
+            "--protocol",
+            "vpr_bench",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     assert rc == 0
     out = capsys.readouterr().out
     assert "AUC(vpr_bench)" in out

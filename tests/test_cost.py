@@ -16,7 +16,9 @@ def test_cost_table_times_fresh_pipeline_stages(tiny_synthetic):
     assert list(t.columns) == list(COST_COLUMNS)
     assert (t.to_numpy() > 0).all()
     # Edge Boxes over 1,000 candidates (computed afresh) is far slower than the dense grid
-    assert t.loc["classical", "extract landmarks (s/img)"] > \
-        10 * t.loc["dense", "extract landmarks (s/img)"]
+    assert (
+        t.loc["classical", "extract landmarks (s/img)"]
+        > 10 * t.loc["dense", "extract landmarks (s/img)"]
+    )
     with pytest.raises(ValueError, match="n_images"):
         cost_table(tiny_synthetic, n_images=0)

@@ -113,8 +113,16 @@ def test_unreadable_image_is_a_clear_error(tmp_path):
 
 
 def test_registry_and_unknown_name():
-    assert set(DATASETS) == {"synthetic", "gardens_point", "mapillary_berlin",
-                             "freiburg_across_seasons", "folder", "nordland", "vpr_bench", "utm"}
+    assert set(DATASETS) == {
+        "synthetic",
+        "gardens_point",
+        "mapillary_berlin",
+        "freiburg_across_seasons",
+        "folder",
+        "nordland",
+        "vpr_bench",
+        "utm",
+    }
     with pytest.raises(ValueError) as e:
         load_dataset("oxford")
     for n in DATASETS:
@@ -126,8 +134,17 @@ def test_unknown_option_lists_valid_ones(tmp_path):
         load_dataset("synthetic", n_place=3)
 
 
-@pytest.mark.parametrize("name", ["gardens_point", "mapillary_berlin", "freiburg_across_seasons",
-                                  "folder", "nordland", "vpr_bench"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "gardens_point",
+        "mapillary_berlin",
+        "freiburg_across_seasons",
+        "folder",
+        "nordland",
+        "vpr_bench",
+    ],
+)
 def test_missing_root(name, tmp_path):
     with pytest.raises(FileNotFoundError, match="does not exist"):
         load_dataset(name, root=tmp_path / "nowhere")
@@ -251,10 +268,12 @@ def test_ground_truth_shape_mismatch_and_bad_files(tmp_path):
     with pytest.raises(ValueError, match="not a readable .npy"):
         load_dataset("folder", root=tmp_path, ground_truth=bad)
     csv_ = tmp_path / "gt.csv"
-    for text, msg in (("0,5\n", "reference index 5 out of range"),
-                      ("nope.png,0\n", "'nope.png' is not in the query folder"),
-                      ("0,1,2\n", "expected 2 columns"),
-                      ("query,reference\n", "no query,reference rows")):
+    for text, msg in (
+        ("0,5\n", "reference index 5 out of range"),
+        ("nope.png,0\n", "'nope.png' is not in the query folder"),
+        ("0,1,2\n", "expected 2 columns"),
+        ("query,reference\n", "no query,reference rows"),
+    ):
         csv_.write_text(text)
         with pytest.raises(ValueError, match=msg):
             load_dataset("folder", root=tmp_path, ground_truth=csv_)
@@ -385,7 +404,7 @@ def test_plot_examples(tiny_synthetic, tmp_path):
 def test_irrelevant_sampling_and_gt_references():
     gt = np.zeros((6, 8), dtype=bool)
     for i in range(6):
-        gt[i, max(0, i - 1): i + 2] = True
+        gt[i, max(0, i - 1) : i + 2] = True
     a = sample_irrelevant_references(gt, 5, seed=1)
     assert a == sample_irrelevant_references(gt, 5, seed=1)
     for q, rs in a.items():

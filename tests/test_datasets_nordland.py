@@ -29,11 +29,15 @@ def test_nordland_tree_step_tolerance_and_names(tmp_path):
     _tree(tmp_path, {"summer": NAMES, "winter": NAMES, "spring": NAMES[:2]})
     ds = load_dataset("nordland", tmp_path)
     assert ds.name == "nordland" and ds.tolerance == 1 and len(ds) == 12
-    assert ds.query_paths[0].parent.name == "winter" and ds.reference_paths[0].parent.name == "summer"
+    assert (
+        ds.query_paths[0].parent.name == "winter" and ds.reference_paths[0].parent.name == "summer"
+    )
     assert [p.name for p in ds.query_paths] == [p.name for p in ds.reference_paths] == NAMES
     q, r = np.indices((12, 12))
     assert np.array_equal(ds.ground_truth, np.abs(q - r) <= 1)
-    sub = load_dataset("nordland", tmp_path, query="summer", reference="winter", step=5, tolerance=0)
+    sub = load_dataset(
+        "nordland", tmp_path, query="summer", reference="winter", step=5, tolerance=0
+    )
     assert [p.name for p in sub.query_paths] == [NAMES[0], NAMES[5], NAMES[10]]
     assert sub.query_paths[0].parent.name == "summer"
     assert np.array_equal(sub.ground_truth, np.eye(3, dtype=bool))
@@ -56,8 +60,11 @@ def test_nordland_unknown_season_lists_found(tmp_path):
 
 def test_nordland_mismatched_names(tmp_path, caplog):
     _tree(tmp_path, {"summer": NAMES[:5], "winter": NAMES[1:6]})
-    with pytest.raises(ValueError, match=r"1 file\(s\) only in winter.*images-00060.png.*"
-                                         r"1 only in summer.*images-00010.png"):
+    with pytest.raises(
+        ValueError,
+        match=r"1 file\(s\) only in winter.*images-00060.png.*"
+        r"1 only in summer.*images-00010.png",
+    ):
         load_dataset("nordland", tmp_path)
     with caplog.at_level(logging.WARNING, logger="vpr_core"):
         ds = load_dataset("nordland", tmp_path, missing="intersect")
@@ -75,8 +82,13 @@ def test_nordland_real_folder():
     ds = load_dataset("nordland", NORDLAND, step=10, tolerance=1)
     assert ds.n_query == ds.n_reference == 358  # ceil(3576 / 10)
     assert all(q.name == r.name for q, r in zip(ds.query_paths, ds.reference_paths, strict=True))
-    assert ds.query_paths[0].name == "images-00010.png" and ds.query_paths[1].name == "images-00110.png"
-    assert ds.query_paths[5].parent.name == "winter" and ds.reference_paths[5].parent.name == "summer"
+    assert (
+        ds.query_paths[0].name == "images-00010.png"
+        and ds.query_paths[1].name == "images-00110.png"
+    )
+    assert (
+        ds.query_paths[5].parent.name == "winter" and ds.reference_paths[5].parent.name == "summer"
+    )
     assert ds.ground_truth.sum() == 358 + 2 * 357  # |i-j| <= 1 over the kept places
     assert ds.ground_truth[10, 11] and not ds.ground_truth[10, 12]
     assert ds.queries_with_ground_truth == 358

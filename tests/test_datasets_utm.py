@@ -27,7 +27,7 @@ def _utm_tree(root: Path) -> None:
     for k, (e, n) in enumerate([(543256.96, 4178906.93), (543300.0, 4178906.93), (0.0, 0.0)]):
         _img(root / "database" / _name(e, n), 10 * k)
     _img(root / "queries" / "sub" / _name(543256.96 + 20, 4178906.93), 1)  # 20 m / 23 m away
-    _img(root / "queries" / _name(543256.96 + 60, 4178906.93), 2)          # 60 m / 17 m away
+    _img(root / "queries" / _name(543256.96 + 60, 4178906.93), 2)  # 60 m / 17 m away
 
 
 def test_utm_hard_and_soft_ground_truth(tmp_path):
@@ -57,16 +57,22 @@ def test_utm_paths_list_sets_the_order(tmp_path):
     ds = load_dataset("utm", tmp_path)
     assert [p.name for p in ds.reference_paths] == names
     (tmp_path / "database_images_paths.txt").write_text("missing.jpg\n")
-    with pytest.raises(FileNotFoundError, match=r"database_images_paths.txt lists 1 file\(s\) that "
-                                                r"do not exist .*missing.jpg"):
+    with pytest.raises(
+        FileNotFoundError,
+        match=r"database_images_paths.txt lists 1 file\(s\) that "
+        r"do not exist .*missing.jpg",
+    ):
         load_dataset("utm", tmp_path)
 
 
 def test_utm_names_without_coordinates(tmp_path):
     _utm_tree(tmp_path)
     _img(tmp_path / "database" / "0001.jpg")
-    with pytest.raises(ValueError, match=r"0001.jpg has no UTM coordinates in its name; names must "
-                                         r"be @<utm_easting>@<utm_northing>@"):
+    with pytest.raises(
+        ValueError,
+        match=r"0001.jpg has no UTM coordinates in its name; names must "
+        r"be @<utm_easting>@<utm_northing>@",
+    ):
         load_dataset("utm", tmp_path)
     with pytest.raises(FileNotFoundError, match="traverse folder .*queries"):
         load_dataset("utm", tmp_path / "database")
@@ -82,9 +88,14 @@ def test_webp_read_and_unknown_files_named(tmp_path):
     assert ds.load_image("query", 1).shape == (32, 40, 3)
     (tmp_path / "query" / "1.webp").rename(tmp_path / "query" / "1.heic")
     (tmp_path / "reference" / "3.png").unlink()  # counts now match: 3 and 3
-    with pytest.warns(VPRWarning, match=r"skipped 1 file\(s\) .*1.heic"), \
-            pytest.raises(ValueError, match=r"1.heic\), so query i <-> reference i would pair .*"
-                                            "give a ground-truth file .* or remove those files"):
+    with (
+        pytest.warns(VPRWarning, match=r"skipped 1 file\(s\) .*1.heic"),
+        pytest.raises(
+            ValueError,
+            match=r"1.heic\), so query i <-> reference i would pair .*"
+            "give a ground-truth file .* or remove those files",
+        ),
+    ):
         load_dataset("folder", tmp_path)
     (tmp_path / "ground_truth.csv").write_text("0.jpg,0.png\n2.jpg,2.png\n")
     with pytest.warns(VPRWarning, match="1.heic"):
@@ -115,4 +126,5 @@ def test_partial_ground_truth_warns_to_python_users(tmp_path):
         warnings.simplefilter("always")
         load_dataset("folder", tmp_path)
     assert next(str(w.message) for w in caught if w.category is VPRWarning).endswith(
-        "covers 2 of 3 queries; the other 1 are dropped from every metric")
+        "covers 2 of 3 queries; the other 1 are dropped from every metric"
+    )

@@ -88,7 +88,9 @@ def test_vpr_bench_errors(tmp_path):
     with pytest.raises(ValueError, match=r"shape \(2, 3, 4\)"):
         load_dataset("vpr_bench", tmp_path)
     gt.write_bytes(b"not a numpy file")
-    with pytest.raises(ValueError, match="not a readable .npy file.*expected a VPR-Bench ground-truth file"):
+    with pytest.raises(
+        ValueError, match="not a readable .npy file.*expected a VPR-Bench ground-truth file"
+    ):
         load_dataset("vpr_bench", tmp_path)
     _save_gt(gt, [(0, [])])
     with pytest.raises(ValueError, match="no positive pair"):

@@ -35,8 +35,9 @@ ENCODER_ROI = {**ENCODER, "pooling": "roi"}
 @pytest.fixture(scope="module")
 def client():
     """A Client on a two-process LocalCluster bound to 127.0.0.1 (closed after the module)."""
-    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                       host="127.0.0.1", dashboard_address=None)
+    cluster = distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    )
     with cluster, get_client(cluster.scheduler_address) as c:
         yield c
 
@@ -70,8 +71,9 @@ def test_features_on_cluster_equal_in_process(client, small_set, conf):
     for side in ("query", "reference"):
         n = len(small_set.paths(side))
         boxes = [dense_sampling(small_set.image_size(side, i), per_scale=4) for i in range(n)]
-        got, secs = extract_features_distributed(client, small_set, side, conf,
-                                                 boxes=boxes, shard_size=3)
+        got, secs = extract_features_distributed(
+            client, small_set, side, conf, boxes=boxes, shard_size=3
+        )
         assert len(got) == n and len(secs) == n and all(s > 0 for s in secs)
         for i in range(n):
             want = enc.encode(small_set.load_image(side, i), boxes[i])
@@ -80,16 +82,18 @@ def test_features_on_cluster_equal_in_process(client, small_set, conf):
     # a subset in any order comes back in that order
     idx = [3, 0]
     boxes = [dense_sampling(small_set.image_size("query", i), per_scale=1) for i in idx]
-    got, _ = extract_features_distributed(client, small_set, "query", conf, indices=idx,
-                                          boxes=boxes, shard_size=1)
-    for g, i, b in zip(got, idx, boxes):
+    got, _ = extract_features_distributed(
+        client, small_set, "query", conf, indices=idx, boxes=boxes, shard_size=1
+    )
+    for g, i, b in zip(got, idx, boxes, strict=False):
         assert np.array_equal(g, enc.encode(small_set.load_image("query", i), b))
 
 
 def test_global_features_on_cluster_equal_in_process(client, small_set):
     enc = LandmarkEncoder(**ENCODER_ROI)
-    got, _ = extract_features_distributed(client, small_set, "reference", ENCODER_ROI,
-                                          kind="global")
+    got, _ = extract_features_distributed(
+        client, small_set, "reference", ENCODER_ROI, kind="global"
+    )
     want = [enc.encode_global(small_set.load_image("reference", i)) for i in range(4)]
     assert np.array_equal(np.stack(got), np.stack(want))
 
@@ -99,8 +103,9 @@ def test_similarity_and_shortlist_of_real_features_equal_in_process(client, smal
     feats, boxes = {}, {}
     for side in ("query", "reference"):
         boxes[side] = [dense_sampling(small_set.image_size(side, i)) for i in range(n)]
-        feats[side], _ = extract_features_distributed(client, small_set, side, ENCODER_ROI,
-                                                      boxes=boxes[side])
+        feats[side], _ = extract_features_distributed(
+            client, small_set, side, ENCODER_ROI, boxes=boxes[side]
+        )
     args = (feats["query"], boxes["query"], feats["reference"], boxes["reference"])
     want = similarity_matrix(*args, show_progress=False)
     got = similarity_blocks_distributed(client, *args, block_queries=3)
@@ -108,8 +113,7 @@ def test_similarity_and_shortlist_of_real_features_equal_in_process(client, smal
     gq = np.stack([d.mean(0) for d in feats["query"]])
     gr = np.stack([d.mean(0) for d in feats["reference"]])
     pairs, _ = shortlist_pairs(gq, gr, 2)
-    vals = similarity_pairs_distributed(client, *args, pairs, block_queries=3,
-                                        block_references=2)
+    vals = similarity_pairs_distributed(client, *args, pairs, block_queries=3, block_references=2)
     assert np.array_equal(vals, similarity_pairs(*args, pairs, show_progress=False))
     sim = rerank(vals, pairs, n, n)
     assert np.isnan(sim).sum() == n * (n - 2)
@@ -121,21 +125,30 @@ def test_similarity_blocks_unequal_landmark_counts_equal_in_process(client, soft
     qd, qb = _random_sets(rng, 11)
     rd, rb = _random_sets(rng, 13)
     want = similarity_matrix(qd, qb, rd, rb, soft_nms_iou=soft_nms_iou, show_progress=False)
-    got = similarity_blocks_distributed(client, qd, qb, rd, rb, soft_nms_iou=soft_nms_iou,
-                                        block_queries=4)
+    got = similarity_blocks_distributed(
+        client, qd, qb, rd, rb, soft_nms_iou=soft_nms_iou, block_queries=4
+    )
     assert np.array_equal(got, want)
     # a shuffled shortlist with repeats, spread over several query and reference blocks
     pairs = np.stack([rng.integers(0, 11, 60), rng.integers(0, 13, 60)], axis=1)
-    want_p = similarity_pairs(qd, qb, rd, rb, pairs, soft_nms_iou=soft_nms_iou,
-                              show_progress=False)
-    got_p = similarity_pairs_distributed(client, qd, qb, rd, rb, pairs,
-                                         soft_nms_iou=soft_nms_iou, block_queries=3,
-                                         block_references=4)
+    want_p = similarity_pairs(qd, qb, rd, rb, pairs, soft_nms_iou=soft_nms_iou, show_progress=False)
+    got_p = similarity_pairs_distributed(
+        client,
+        qd,
+        qb,
+        rd,
+        rb,
+        pairs,
+        soft_nms_iou=soft_nms_iou,
+        block_queries=3,
+        block_references=4,
+    )
     assert np.array_equal(got_p, want_p)
     # the pairs path agrees with the matrix path (bit for bit without soft-NMS; with it the
     # matcher's float64 soft-NMS scores can differ in the last bit between the two paths)
-    np.testing.assert_allclose(got_p, want[pairs[:, 0], pairs[:, 1]], rtol=0,
-                               atol=0 if soft_nms_iou is None else 1e-15)
+    np.testing.assert_allclose(
+        got_p, want[pairs[:, 0], pairs[:, 1]], rtol=0, atol=0 if soft_nms_iou is None else 1e-15
+    )
 
 
 def test_in_process_fallback_equals_direct_call():
@@ -167,8 +180,14 @@ def test_feature_arguments_validated(small_set):
     with pytest.raises(ValueError, match="side must be"):
         extract_features_distributed(None, small_set, "left", ENCODER)
     with pytest.raises(ValueError, match="block_queries must be"):
-        similarity_blocks_distributed(object(), [np.ones((1, 2))], [np.ones((1, 4))],
-                                      [np.ones((1, 2))], [np.ones((1, 4))], block_queries=0)
+        similarity_blocks_distributed(
+            object(),
+            [np.ones((1, 2))],
+            [np.ones((1, 4))],
+            [np.ones((1, 2))],
+            [np.ones((1, 4))],
+            block_queries=0,
+        )
 
 
 def _serve(handler, seconds: float = 30.0):
@@ -226,8 +245,21 @@ def test_a_malformed_address_is_refused_at_once(capsys):
     with pytest.raises(ValueError, match=r"'notanaddress' is not a Dask scheduler address"):
         get_client("notanaddress", timeout=5)
     assert scheduler_address("127.0.0.1:8786") == "tcp://127.0.0.1:8786"
-    rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "3", "--method", "global",
-                   "--backbone", "hog", "--scheduler", "notanaddress"])
+    rc = cli.main(
+        [
+            "eval",
+            "--dataset",
+            "synthetic",
+            "--n-places",
+            "3",
+            "--method",
+            "global",
+            "--backbone",
+            "hog",
+            "--scheduler",
+            "notanaddress",
+        ]
+    )
     err = capsys.readouterr().err
     assert rc == 2 and "tcp://HOST:PORT" in err and "Traceback" not in err
     assert time.perf_counter() - t0 < 30  # no stall in a client's __del__

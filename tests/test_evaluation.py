@@ -23,13 +23,15 @@ from vpr_core.evaluation import (
 from vpr_core.evaluation.bootstrap import _per_query, _resample_metrics
 
 # 5 queries x 3 references.
-S = np.array([
-    [0.9, 0.3, 0.1],  # q0 gt b0: b1=0, r = .3/.9 = 1/3, correct
-    [0.2, 0.8, 0.6],  # q1 gt b1: b1=1, r = .6/.8 = .75, correct
-    [0.5, 0.1, 0.4],  # q2 gt b2: b1=0, r = .4/.5 = .8, wrong
-    [0.0, 0.0, 0.0],  # q3 gt b2: S1 <= 0 -> r = 1; b1 = 0 (tie, lowest), wrong
-    [1.0, 0.0, 0.0],  # q4 has no ground truth: dropped
-])
+S = np.array(
+    [
+        [0.9, 0.3, 0.1],  # q0 gt b0: b1=0, r = .3/.9 = 1/3, correct
+        [0.2, 0.8, 0.6],  # q1 gt b1: b1=1, r = .6/.8 = .75, correct
+        [0.5, 0.1, 0.4],  # q2 gt b2: b1=0, r = .4/.5 = .8, wrong
+        [0.0, 0.0, 0.0],  # q3 gt b2: S1 <= 0 -> r = 1; b1 = 0 (tie, lowest), wrong
+        [1.0, 0.0, 0.0],  # q4 has no ground truth: dropped
+    ]
+)
 GT = np.zeros((5, 3), dtype=bool)
 GT[0, 0] = GT[1, 1] = GT[2, 2] = GT[3, 2] = True
 # sorted r: 1/3 TP, .75 TP, .8 FP, 1 FP  (4 kept queries)
@@ -220,7 +222,10 @@ def test_paired_bootstrap_identical_and_clearly_better():
     for key in ("auc", "r@1"):
         delta, lo, hi, p = better[key]
         assert 0 < lo <= delta <= hi and p < 0.05
-        a, b = bootstrap_metrics(strong, gt, n=10)[key][0], bootstrap_metrics(weak, gt, n=10)[key][0]
+        a, b = (
+            bootstrap_metrics(strong, gt, n=10)[key][0],
+            bootstrap_metrics(weak, gt, n=10)[key][0],
+        )
         assert delta == pytest.approx(a - b, abs=1e-15)
     worse = paired_bootstrap(weak, strong, gt, n=300, seed=1)
     assert worse["auc"][2] < 0 and worse["auc"][3] < 0.05
@@ -239,10 +244,20 @@ def test_bootstrap_is_fast_on_nordland_size():
 
 def test_format_interval_and_columns():
     assert format_interval(0.8123, 0.7509, 0.8661) == "0.812 [0.751, 0.866]"
-    cols = bootstrap_columns({"auc": (0.8, 0.7, 0.9), "r@100p": (0.1, 0.0, 0.2),
-                              "r@1": (0.5, 0.4, 0.6)})
-    assert list(cols) == ["AUC", "AUC lo", "AUC hi", "R@100P", "R@100P lo", "R@100P hi",
-                          "R@1", "R@1 lo", "R@1 hi"]
+    cols = bootstrap_columns(
+        {"auc": (0.8, 0.7, 0.9), "r@100p": (0.1, 0.0, 0.2), "r@1": (0.5, 0.4, 0.6)}
+    )
+    assert list(cols) == [
+        "AUC",
+        "AUC lo",
+        "AUC hi",
+        "R@100P",
+        "R@100P lo",
+        "R@100P hi",
+        "R@1",
+        "R@1 lo",
+        "R@1 hi",
+    ]
     paired = bootstrap_columns({"auc": (0.1, 0.05, 0.15, 0.002)}, prefix="d")
     assert paired == {"dAUC": 0.1, "dAUC lo": 0.05, "dAUC hi": 0.15, "dAUC p": 0.002}
     with pytest.raises(ValueError, match="value, low, high"):

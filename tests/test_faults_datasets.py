@@ -111,8 +111,11 @@ def test_truncated_jpeg_is_refused_by_name(tmp_path):
     bad = tmp_path / "cut.jpg"
     bad.write_bytes(data[: len(data) * 2 // 3])
     assert cv2.imread(str(bad)) is not None  # OpenCV alone would decode it (partly grey)
-    with pytest.raises(ValueError, match=r"cut\.jpg is a truncated JPEG.*Re-download the file or "
-                                         r"remove it"):
+    with pytest.raises(
+        ValueError,
+        match=r"cut\.jpg is a truncated JPEG.*Re-download the file or "
+        r"remove it",
+    ):
         read_image(bad)
     header_only = tmp_path / "header.jpg"
     header_only.write_bytes(data[:200])
@@ -153,8 +156,11 @@ def test_images_below_min_side_are_refused(tmp_path):
     ok = _images(tmp_path / "ok", 1, size=(32, 64))[0]  # Nordland's 64x32 frames load
     assert read_image(ok).shape == (32, 64, 3)
     tiny = _images(tmp_path / "tiny", 1, size=(8, 8))[0]
-    with pytest.raises(ValueError, match=r"tiny/0\.png is too small: 8x8 pixels.*at least 32 "
-                                         r"pixels on the short side"):
+    with pytest.raises(
+        ValueError,
+        match=r"tiny/0\.png is too small: 8x8 pixels.*at least 32 "
+        r"pixels on the short side",
+    ):
         read_image(tiny)
     thin = _images(tmp_path / "thin", 1, size=(31, 200))[0]
     with pytest.raises(ValueError, match=r"200x31 pixels"):

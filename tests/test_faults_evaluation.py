@@ -49,18 +49,24 @@ RNG = np.random.default_rng(0)
 S = RNG.random((10, 6))
 
 
-@pytest.mark.parametrize("metric", [
-    lambda s, gt: pr_curve(s, gt),
-    lambda s, gt: pr_curve(s, gt, "best_match"),
-    lambda s, gt: pr_curve(s, gt, "multi_match"),
-    lambda s, gt: evaluate(s, gt),
-    lambda s, gt: recall_at_k(s, gt, 1),
-    lambda s, gt: bootstrap_metrics(s, gt, n=10),
-    lambda s, gt: paired_bootstrap(s, s, gt, n=10),
-], ids=["ratio", "best_match", "multi_match", "evaluate", "recall_at_k", "bootstrap", "paired"])
+@pytest.mark.parametrize(
+    "metric",
+    [
+        lambda s, gt: pr_curve(s, gt),
+        lambda s, gt: pr_curve(s, gt, "best_match"),
+        lambda s, gt: pr_curve(s, gt, "multi_match"),
+        lambda s, gt: evaluate(s, gt),
+        lambda s, gt: recall_at_k(s, gt, 1),
+        lambda s, gt: bootstrap_metrics(s, gt, n=10),
+        lambda s, gt: paired_bootstrap(s, s, gt, n=10),
+    ],
+    ids=["ratio", "best_match", "multi_match", "evaluate", "recall_at_k", "bootstrap", "paired"],
+)
 def test_all_false_ground_truth_is_an_error(metric):
     # before: every metric 0.0000 and exit code 0
-    with pytest.raises(ValueError, match=r"no query has a ground-truth reference \(0 of 10.*tolerance"):
+    with pytest.raises(
+        ValueError, match=r"no query has a ground-truth reference \(0 of 10.*tolerance"
+    ):
         metric(S, np.zeros(S.shape, dtype=bool))
 
 

@@ -56,14 +56,16 @@ def _alexnet_state(seed: int = 0) -> dict[str, torch.Tensor]:
     """A full torchvision-layout AlexNet state dict with random tensors (classifier included)."""
     g = torch.Generator().manual_seed(seed)
     sd = {k: torch.randn(shape, generator=g) * 0.01 for k, shape in alexnet_mod.CONV3_KEYS.items()}
-    sd.update({
-        "features.8.weight": torch.randn(256, 384, 3, 3, generator=g),
-        "features.8.bias": torch.zeros(256),
-        "features.10.weight": torch.randn(256, 256, 3, 3, generator=g),
-        "features.10.bias": torch.zeros(256),
-        "classifier.6.weight": torch.randn(1000, 16, generator=g),  # shapes irrelevant: ignored
-        "classifier.6.bias": torch.zeros(1000),
-    })
+    sd.update(
+        {
+            "features.8.weight": torch.randn(256, 384, 3, 3, generator=g),
+            "features.8.bias": torch.zeros(256),
+            "features.10.weight": torch.randn(256, 256, 3, 3, generator=g),
+            "features.10.bias": torch.zeros(256),
+            "classifier.6.weight": torch.randn(1000, 16, generator=g),  # shapes irrelevant: ignored
+            "classifier.6.bias": torch.zeros(1000),
+        }
+    )
     return sd
 
 
@@ -126,8 +128,10 @@ def test_empty_boxes(encoder, image):
 
 def test_rows_independent_of_batching(image):
     enc = LandmarkEncoder(input_size=64, batch_size=2)
-    boxes = np.array([[0, 0, 50, 40], [10, 20, 100, 90], [150, 80, 60, 60], [5, 5, 190, 110],
-                      [30, 30, 33, 33]], dtype=float)
+    boxes = np.array(
+        [[0, 0, 50, 40], [10, 20, 100, 90], [150, 80, 60, 60], [5, 5, 190, 110], [30, 30, 33, 33]],
+        dtype=float,
+    )
     together = enc.encode(image, boxes)
     alone = np.concatenate([enc.encode(image, b[None]) for b in boxes])
     np.testing.assert_allclose(together, alone, rtol=1e-4, atol=1e-4)
@@ -143,8 +147,11 @@ def test_determinism_and_seed(image):
     assert not np.allclose(da, dc)
     p = random_projection(100, 20, seed=7)
     assert p.shape == (100, 20) and p.dtype == torch.float32
-    np.testing.assert_array_equal(p.numpy(), np.random.default_rng(7).standard_normal(
-        (100, 20), dtype=np.float32) * np.float32(1 / np.sqrt(20)))
+    np.testing.assert_array_equal(
+        p.numpy(),
+        np.random.default_rng(7).standard_normal((100, 20), dtype=np.float32)
+        * np.float32(1 / np.sqrt(20)),
+    )
     big = random_projection(2000, 500, seed=0).numpy()
     assert abs(big.std() - 1 / np.sqrt(500)) < 0.002 and abs(big.mean()) < 0.001
 
@@ -175,7 +182,10 @@ def test_crop_clipping_and_pyramid(image):
     enc = LandmarkEncoder("hog", dim=None, input_size=16)
     # 40x60 red block; a box inside it is 4x larger than the input -> pyramid level 1 (2x avg).
     assert enc._levels(np.array([[0, 0, 32, 32], [0, 0, 64, 64], [0, 0, 8, 8]])).tolist() == [
-        1, 2, 0]
+        1,
+        2,
+        0,
+    ]
     crop = enc.crops(image, np.array([[32, 22, 56, 36]], dtype=float))[0]
     np.testing.assert_allclose(crop[:, 0, 0].numpy(), np.array([200, 30, 30]) / 255, atol=1e-5)
     assert enc._levels(np.array([[-50, -50, 100, 100]]), (120, 200)).tolist() == [1]
@@ -240,7 +250,8 @@ def test_alexnet_weights_from_file_and_env(tmp_path, monkeypatch, no_alexnet_env
     enc2 = LandmarkEncoder("alexnet_conv3", dim=64)
     assert enc2.config["weights"] == "my_alexnet.pth"
     np.testing.assert_allclose(
-        enc2.encode(image, np.array([[0, 0, 100, 100]], dtype=float)), d[:1], atol=1e-4)
+        enc2.encode(image, np.array([[0, 0, 100, 100]], dtype=float)), d[:1], atol=1e-4
+    )
 
 
 def test_alexnet_hub_cache_is_used(no_alexnet_env):
@@ -315,7 +326,7 @@ def test_descriptors_do_not_depend_on_how_boxes_are_grouped():
     enc = LandmarkEncoder(batch_size=8)
     whole = enc.encode(img, boxes)
     for k in (1, 3, 5):
-        parts = np.concatenate([enc.encode(img, boxes[i:i + k]) for i in range(0, len(boxes), k)])
+        parts = np.concatenate([enc.encode(img, boxes[i : i + k]) for i in range(0, len(boxes), k)])
         np.testing.assert_array_equal(whole, parts)
 
 
@@ -353,11 +364,14 @@ def test_roi_grouping_invariant_and_deterministic(roi_encoder):
     from vpr_core.landmarks import dense_sampling
 
     img = _natural_image()
-    boxes = np.concatenate([dense_sampling(img.shape[:2]), [[-30, -20, 100, 90], [600, 330, 80, 60]]])
+    boxes = np.concatenate(
+        [dense_sampling(img.shape[:2]), [[-30, -20, 100, 90], [600, 330, 80, 60]]]
+    )
     whole = roi_encoder.encode(img, boxes)
     for k in (1, 7, 50):
-        parts = np.concatenate([roi_encoder.encode(img, boxes[i:i + k])
-                                for i in range(0, len(boxes), k)])
+        parts = np.concatenate(
+            [roi_encoder.encode(img, boxes[i : i + k]) for i in range(0, len(boxes), k)]
+        )
         np.testing.assert_array_equal(whole, parts)
     np.testing.assert_array_equal(whole, LandmarkEncoder(pooling="roi").encode(img, boxes))
 
@@ -369,8 +383,9 @@ def test_roi_pool_equals_grid_sample_reference():
 
     g = torch.Generator().manual_seed(0)
     fmap = torch.randn(1, 5, 9, 13, generator=g)
-    boxes = np.array([[0, 0, 208, 144], [30, 20, 70, 50], [-10, 100, 90, 60], [190, 5, 40, 40]],
-                     dtype=float)
+    boxes = np.array(
+        [[0, 0, 208, 144], [30, 20, 70, 50], [-10, 100, 90, 60], [190, 5, 40, 40]], dtype=float
+    )
     image_size, work, s, stride, off, r = (144, 208), (144, 208), 64, 16, 15.5, 3
     got = roi_pool(fmap, boxes, image_size, work, s, stride, off, r)
     n = s // stride
@@ -382,8 +397,13 @@ def test_roi_pool_equals_grid_sample_reference():
     ref = []
     for k in range(len(boxes)):
         grid = np.stack(np.meshgrid(gx[k], gy[k]), -1)[None].astype(np.float32)  # (1, nr, nr, 2)
-        smp = F.grid_sample(fmap, torch.from_numpy(grid), mode="bilinear",
-                            padding_mode="border", align_corners=False)[0]  # (C, nr, nr)
+        smp = F.grid_sample(
+            fmap,
+            torch.from_numpy(grid),
+            mode="bilinear",
+            padding_mode="border",
+            align_corners=False,
+        )[0]  # (C, nr, nr)
         ref.append(smp.reshape(5, n, r, n, r).mean((2, 4)).reshape(-1))
     torch.testing.assert_close(got, torch.stack(ref), atol=1e-5, rtol=1e-5)
 
@@ -447,8 +467,18 @@ def test_allocator_tuning_changes_no_bits(tmp_path):
         assert tuned  # glibc: the tuning is really in effect in this process
     np.savez(tmp_path / "in.npz", image=img, boxes=boxes)
     env = {**os.environ, "VPR_TUNE_MALLOC": "0"}
-    subprocess.run([sys.executable, "-c", _UNTUNED_SCRIPT, str(tmp_path / "in.npz"),
-                    str(tmp_path / "out.npz")], check=True, env=env, timeout=300)
+    subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            _UNTUNED_SCRIPT,
+            str(tmp_path / "in.npz"),
+            str(tmp_path / "out.npz"),
+        ],
+        check=True,
+        env=env,
+        timeout=300,
+    )
     there = np.load(tmp_path / "out.npz")
     for p in ("crop", "roi"):
         np.testing.assert_array_equal(here[p], there[p])

@@ -16,28 +16,56 @@ def _table(folder, figure, rows, baseline_run, baseline_label="base"):
     folder.mkdir(parents=True, exist_ok=True)
     recs = [{"method": baseline_label, "run": baseline_run, "baseline": None}]
     for run, label, d, lo, hi in rows:
-        recs.append({"method": label, "run": run, "baseline": baseline_label, "dAUC": d,
-                     "dAUC lo": lo, "dAUC hi": hi, "dAUC p": 0.01, "dAUC needs": 1234.0})
+        recs.append(
+            {
+                "method": label,
+                "run": run,
+                "baseline": baseline_label,
+                "dAUC": d,
+                "dAUC lo": lo,
+                "dAUC hi": hi,
+                "dAUC p": 0.01,
+                "dAUC needs": 1234.0,
+            }
+        )
     pd.DataFrame(recs).to_csv(folder / f"{figure}.csv", index=False)
 
 
 def test_verdicts_follow_the_interval_and_the_claims_direction(tmp_path):
     res = tmp_path / "results" / "d"
-    _table(res, "fig05_selection", [("selection_scheme1", "any legend", 0.2, 0.1, 0.3),
-                                    ("selection_scheme2", "S2", 0.05, -0.02, 0.12)],
-           "classical")
-    _table(res, "fig13_comparison", [("classical", "c", 0.0, 0.0, 0.0),
-                                     ("global", "g", -0.1, -0.2, -0.05)], "dense")
-    _table(res, "fig07a_overlap_nms",
-           [("overlap_scheme1(iou_threshold=0.4)", "renamed", 0.1, 0.05, 0.15),
-            ("overlap_scheme1(iou_threshold=0.7)", "x", 0.0, -0.01, 0.02)], "classical")
+    _table(
+        res,
+        "fig05_selection",
+        [
+            ("selection_scheme1", "any legend", 0.2, 0.1, 0.3),
+            ("selection_scheme2", "S2", 0.05, -0.02, 0.12),
+        ],
+        "classical",
+    )
+    _table(
+        res,
+        "fig13_comparison",
+        [("classical", "c", 0.0, 0.0, 0.0), ("global", "g", -0.1, -0.2, -0.05)],
+        "dense",
+    )
+    _table(
+        res,
+        "fig07a_overlap_nms",
+        [
+            ("overlap_scheme1(iou_threshold=0.4)", "renamed", 0.1, 0.05, 0.15),
+            ("overlap_scheme1(iou_threshold=0.7)", "x", 0.0, -0.01, 0.02),
+        ],
+        "classical",
+    )
     set1 = run_key(get_method("dense", scales=(0.25,), per_scale=100))
     _table(res, "fig10_scale_levels", [("dense", "Set 5 whatever", -0.2, -0.3, -0.1)], set1)
     t = findings.findings_table(["d"], out=tmp_path)
     v = t["d verdict"]
     assert v["Fig. 5: selection Scheme 1 beats classical"] == "holds"
-    assert v["Fig. 5: selection Scheme 2 lags behind classical"] == \
-        "inconclusive (needs ~1,200 queries)"
+    assert (
+        v["Fig. 5: selection Scheme 2 lags behind classical"]
+        == "inconclusive (needs ~1,200 queries)"
+    )
     assert v["Fig. 7a: NMS (Alg. 3) at IoU 0.4 falls below classical"] == "does not hold"
     assert v["Fig. 7a: NMS at IoU 0.7 is on par with classical"].startswith("holds")
     assert v["Table 2: 4 scales x 25 (Set 5) beat one scale x 100 (Set 1)"] == "does not hold"
@@ -53,8 +81,9 @@ def test_verdicts_follow_the_interval_and_the_claims_direction(tmp_path):
 def test_a_run_against_another_baseline_is_not_the_claim(tmp_path):
     res = tmp_path / "results" / "d"
     # scheme 1 compared against scheme 2, not classical: the claim has no number
-    _table(res, "fig05_selection", [("selection_scheme1", "s1", 0.2, 0.1, 0.3)],
-           "selection_scheme2")
+    _table(
+        res, "fig05_selection", [("selection_scheme1", "s1", 0.2, 0.1, 0.3)], "selection_scheme2"
+    )
     v = findings.findings_table(["d"], out=tmp_path)["d verdict"]
     assert v["Fig. 5: selection Scheme 1 beats classical"] == "not run"
 
@@ -69,10 +98,14 @@ def test_a_table_without_run_keys_is_refused(tmp_path):
 
 def test_claims_name_configurations():
     keys = {c.text: c.keys for c in findings.CLAIMS}
-    assert keys["Fig. 7a: NMS (Alg. 3) at IoU 0.4 falls below classical"] == \
-        ("overlap_scheme1(iou_threshold=0.4)", "classical")
-    assert keys["Table 2: 4 scales x 25 (Set 5) beat one scale x 100 (Set 1)"] == \
-        ("dense", "dense(per_scale=100, scales=0.25)")
+    assert keys["Fig. 7a: NMS (Alg. 3) at IoU 0.4 falls below classical"] == (
+        "overlap_scheme1(iou_threshold=0.4)",
+        "classical",
+    )
+    assert keys["Table 2: 4 scales x 25 (Set 5) beat one scale x 100 (Set 1)"] == (
+        "dense",
+        "dense(per_scale=100, scales=0.25)",
+    )
 
 
 def test_cmr_difference_bootstraps_over_queries():
@@ -81,8 +114,9 @@ def test_cmr_difference_bootstraps_over_queries():
     for q in range(30):
         for scale, p in ((1, 0.2), (2, 0.3), (6, 0.8)):
             for _ in range(10):
-                rows.append({"query": q, "pair": "gt", "scale": scale,
-                             "correct": float(rng.random() < p)})
+                rows.append(
+                    {"query": q, "pair": "gt", "scale": scale, "correct": float(rng.random() < p)}
+                )
     rows.append({"query": 0, "pair": "irrelevant", "scale": 6, "correct": np.nan})
     d, lo, hi = findings.cmr_difference(pd.DataFrame(rows))
     assert 0.45 < d < 0.6 and lo < d < hi and lo > 0.3
@@ -96,6 +130,9 @@ def test_result_labels_put_the_study_first_and_skip_quick_and_other_folders(tmp_
         (tmp_path / "results" / name).mkdir(parents=True)
     for name in ("synthetic", "gardens_point_mini", "nordland_step5", "x_quick"):
         (tmp_path / "results" / name / "fig05_selection.csv").write_text("run\n")
-    assert findings.result_labels(["synthetic", "gardens_point_mini", "absent"], out=tmp_path) \
-        == ["synthetic", "gardens_point_mini", "nordland_step5"]
+    assert findings.result_labels(["synthetic", "gardens_point_mini", "absent"], out=tmp_path) == [
+        "synthetic",
+        "gardens_point_mini",
+        "nordland_step5",
+    ]
     assert findings.result_labels(out=tmp_path / "nothing") == []

@@ -64,22 +64,29 @@ def test_map_boxes_and_iou():
     b = np.array([[10.0, 20.0, 50.0, 40.0]])
     np.testing.assert_allclose(map_boxes(b, translation(5, -3)), [[15, 17, 50, 40]])
     # zoom 2 about the origin, clipped to a 60 x 80 image (H, W)
-    np.testing.assert_allclose(map_boxes(b, np.diag([2.0, 2.0, 1.0]), (60, 80)),
-                               [[20, 40, 60, 20]])
+    np.testing.assert_allclose(map_boxes(b, np.diag([2.0, 2.0, 1.0]), (60, 80)), [[20, 40, 60, 20]])
     np.testing.assert_allclose(paired_iou(b, b + [[25, 0, 0, 0]]), [25 * 40 / (2 * 2000 - 1000)])
 
 
 def test_exact_labels_translation(fake):
-    boxes_q = np.array([[50.0, 60.0, 100.0, 80.0], [10.0, 10.0, 40.0, 40.0],
-                        [280.0, 150.0, 60.0, 60.0]])
-    boxes_r = np.array([
-        [80.0, 50.0, 100.0, 80.0],    # box 0 shifted by (30, -10): IoU 1
-        [200.0, 120.0, 60.0, 60.0],   # elsewhere
-        [40.0, 0.0, 40.0, 40.0],      # box 1 shifted -> (40, 0, 40, 40), IoU 1
-        [290.0, 130.0, 10.0, 70.0],   # box 2 mapped (310, 140) clipped to (300, 200): (300,140,0,60)
-        [100.0, 50.0, 100.0, 80.0],   # box 0 mapped vs this: IoU = 80*80/(2*8000-6400) = 0.667
-        [120.0, 50.0, 100.0, 80.0],   # IoU = 60*80/(16000-4800) = 0.43
-    ])
+    boxes_q = np.array(
+        [[50.0, 60.0, 100.0, 80.0], [10.0, 10.0, 40.0, 40.0], [280.0, 150.0, 60.0, 60.0]]
+    )
+    boxes_r = np.array(
+        [
+            [80.0, 50.0, 100.0, 80.0],  # box 0 shifted by (30, -10): IoU 1
+            [200.0, 120.0, 60.0, 60.0],  # elsewhere
+            [40.0, 0.0, 40.0, 40.0],  # box 1 shifted -> (40, 0, 40, 40), IoU 1
+            [
+                290.0,
+                130.0,
+                10.0,
+                70.0,
+            ],  # box 2 mapped (310, 140) clipped to (300, 200): (300,140,0,60)
+            [100.0, 50.0, 100.0, 80.0],  # box 0 mapped vs this: IoU = 80*80/(2*8000-6400) = 0.667
+            [120.0, 50.0, 100.0, 80.0],  # IoU = 60*80/(16000-4800) = 0.43
+        ]
+    )
     matches = np.array([[0, 0], [0, 1], [1, 2], [2, 3], [0, 4], [0, 5], [1, 0]])
     lab = label_matches(fake, 0, 0, boxes_q, boxes_r, matches)  # auto -> exact
     np.testing.assert_array_equal(lab, [True, False, True, False, True, False, False])
@@ -101,8 +108,9 @@ def test_exact_tolerance_pair_and_missing_geometry(fake):
     with pytest.raises(LabelUnavailableError, match="homographies"):
         label_matches(fake, 0, 0, b, b, [[0, 0]], method="exact")
     with pytest.raises(ValueError, match="outside"):
-        label_matches(fake.__class__(np.eye(3, dtype=bool), np.stack([np.eye(3)] * 3)), 0, 0,
-                      b, b, [[0, 3]])
+        label_matches(
+            fake.__class__(np.eye(3, dtype=bool), np.stack([np.eye(3)] * 3)), 0, 0, b, b, [[0, 3]]
+        )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -160,16 +168,18 @@ def test_file_labels_bad_rows(tmp_path, fake):
     with pytest.raises(ValueError, match="out of range"):
         label_matches(fake, 0, 0, b, b, [[0, 0]], method="file", labels=p)
     p = write_csv(tmp_path / "hdr.csv", "q,r,i,j,ok\n0,0,0,0,1\n")
-    with pytest.raises(ValueError, match="query,reference,query_box_index,reference_box_index,"
-                                         "correct"):
+    with pytest.raises(
+        ValueError, match="query,reference,query_box_index,reference_box_index,correct"
+    ):
         read_label_file(p)
     p = write_csv(tmp_path / "val.csv", CSV.replace("true", "maybe"))
     with pytest.raises(ValueError, match="not a boolean"):
         read_label_file(p)
     p = write_csv(tmp_path / "dup.csv", CSV + "0,0,0,0,0\n")
     with pytest.raises(ValueError, match="both correct and incorrect"):
-        label_matches(fake, 0, 0, np.zeros((4, 4)), np.zeros((4, 4)), [[0, 0]], method="file",
-                      labels=p)
+        label_matches(
+            fake, 0, 0, np.zeros((4, 4)), np.zeros((4, 4)), [[0, 0]], method="file", labels=p
+        )
     with pytest.raises(ValueError, match="labels="):
         label_matches(fake, 0, 0, b, b, [[0, 0]], method="file")
 
@@ -202,23 +212,39 @@ def test_geometric_homography_matches_exact(warped_pair):
     a, b = pts @ H.T, pts @ geo.homography.T
     assert np.abs(a[:, :2] / a[:, 2:] - b[:, :2] / b[:, 2:]).max() < 3.0
     rng = np.random.default_rng(0)
-    boxes_q = np.column_stack([rng.uniform(0, 300, 40), rng.uniform(0, 200, 40),
-                               rng.uniform(40, 160, 40), rng.uniform(40, 140, 40)])
+    boxes_q = np.column_stack(
+        [
+            rng.uniform(0, 300, 40),
+            rng.uniform(0, 200, 40),
+            rng.uniform(40, 160, 40),
+            rng.uniform(40, 140, 40),
+        ]
+    )
     true_r = map_boxes(boxes_q, H, (360, 480))
     boxes_r = np.concatenate([true_r, true_r[rng.permutation(40)] + rng.normal(0, 3, (40, 4))])
     matches = np.column_stack([np.r_[np.arange(40), np.arange(40)], np.arange(80)])
     ds = FakeDataset(np.eye(1, dtype=bool), H[None], size=(360, 480))
     exact = label_matches(ds, 0, 0, boxes_q, boxes_r, matches, method="exact")
-    geom = label_matches(ds, 0, 0, boxes_q, boxes_r, matches, method="geometric",
-                         images=(img_q, img_r))
+    geom = label_matches(
+        ds, 0, 0, boxes_q, boxes_r, matches, method="geometric", images=(img_q, img_r)
+    )
     assert (exact == geom).mean() >= 0.95
     # the point rule (forced) agrees well too on this planar pair
     pts_lab = label_matches_geometric(boxes_q, boxes_r, matches, geo, model="points")
     assert (exact == pts_lab).mean() >= 0.8
     # cache: a second call reuses the geometry
     cache: dict = {}
-    label_matches(ds, 0, 0, boxes_q, boxes_r, matches, method="geometric", images=(img_q, img_r),
-                  geometry_cache=cache)
+    label_matches(
+        ds,
+        0,
+        0,
+        boxes_q,
+        boxes_r,
+        matches,
+        method="geometric",
+        images=(img_q, img_r),
+        geometry_cache=cache,
+    )
     assert cache[(0, 0)].kind == "homography"
     # non-ground-truth pair: all incorrect without matching images
     ds.ground_truth = np.zeros((1, 1), dtype=bool)
@@ -268,6 +294,7 @@ def test_geometric_on_real_day_night_pairs(gardens_point_mini_root):
         assert lab.dtype == bool and lab.shape == (1,)
     except LabelUnavailableError as e:
         assert "no two-view geometry" in str(e)
+
 
 def test_labelling_helper_csv_round_trips_through_file_labels(tmp_path, tiny_synthetic):
     boxes = np.array([[0, 0, 10, 10], [5, 5, 20, 20], [30, 30, 5, 5]], float)
@@ -325,8 +352,7 @@ def test_pair_label_widget_starts_from_a_run_and_says_when_saved(tiny_synthetic,
     from vpr_core.labels import pair_label_widget, read_label_file
     from vpr_core.pipeline import run_method
 
-    res = run_method("dense", tiny_synthetic, keep_descriptors=True, backbone="hog",
-                     n_bootstrap=0)
+    res = run_method("dense", tiny_synthetic, keep_descriptors=True, backbone="hog", n_bootstrap=0)
     out = tmp_path / "labels.csv"
     box = pair_label_widget(tiny_synthetic, res, query=0, out=out)
     yes, no, status = box.children[0].children

@@ -377,7 +377,9 @@ def test_landmark_coverage():
     assert dense.shape == SIZE
     assert dense.min() >= 1  # dense sampling covers the whole image
     # total coverage equals the sum of (integer) box areas
-    np.testing.assert_allclose(dense.sum(), (L.dense_sampling(SIZE)[:, 2:].prod(1)).sum(), rtol=0.02)
+    np.testing.assert_allclose(
+        dense.sum(), (L.dense_sampling(SIZE)[:, 2:].prod(1)).sum(), rtol=0.02
+    )
 
 
 # ------------------------------------------------------------------------------------------
@@ -473,15 +475,18 @@ def test_select_from_candidates_on_edge_boxes_uses_the_papers_defaults(synthetic
 
     cand = L.edge_boxes(synthetic_image, max_boxes=300, model="gradient").boxes
     assert len(cand) > N_LANDMARKS  # enough candidates for every scheme to choose from
-    np.testing.assert_array_equal(L.select_from_candidates(cand, SIZE, "edge_boxes"),
-                                  cand[:N_LANDMARKS])
+    np.testing.assert_array_equal(
+        L.select_from_candidates(cand, SIZE, "edge_boxes"), cand[:N_LANDMARKS]
+    )
     s1 = L.select_from_candidates(cand, SIZE, "selection_scheme1")
     np.testing.assert_array_equal(
-        s1, L.select_min_scale(cand, SIZE, n=N_LANDMARKS, min_index=MIN_SCALE_INDEX))
+        s1, L.select_min_scale(cand, SIZE, n=N_LANDMARKS, min_index=MIN_SCALE_INDEX)
+    )
     assert np.all(L.scale_index(s1, SIZE) >= MIN_SCALE_INDEX)
     s2 = L.select_from_candidates(cand, SIZE, "selection_scheme2")
     np.testing.assert_array_equal(
-        s2, L.select_scale_priority(cand, SIZE, n=N_LANDMARKS, order=SCALE_PRIORITY_ORDER))
+        s2, L.select_scale_priority(cand, SIZE, n=N_LANDMARKS, order=SCALE_PRIORITY_ORDER)
+    )
     assert set(L.scale_index(s2, SIZE)) <= set(SCALE_PRIORITY_ORDER)
     o1 = L.select_from_candidates(cand, SIZE, "overlap_scheme1")
     np.testing.assert_array_equal(o1, L.reduce_overlap(cand, n=N_LANDMARKS, iou_threshold=NMS_IOU))
@@ -538,15 +543,18 @@ def test_select_from_candidates_dispatches_to_the_algorithms():
     wh = rng.uniform(10, 300, (200, 2))
     cands = np.concatenate([xy, wh], 1)
     size = (360, 640)
-    np.testing.assert_array_equal(select_from_candidates(cands, size, "edge_boxes", n=7),
-                                  cands[:7])
-    np.testing.assert_array_equal(select_from_candidates(cands, size, "selection_scheme1", n=20),
-                                  select_min_scale(cands, size, n=20))
+    np.testing.assert_array_equal(select_from_candidates(cands, size, "edge_boxes", n=7), cands[:7])
+    np.testing.assert_array_equal(
+        select_from_candidates(cands, size, "selection_scheme1", n=20),
+        select_min_scale(cands, size, n=20),
+    )
     np.testing.assert_array_equal(
         select_from_candidates(cands, size, "selection_scheme2", n=20, order=(6, 5)),
-        select_scale_priority(cands, size, n=20, order=(6, 5)))
+        select_scale_priority(cands, size, n=20, order=(6, 5)),
+    )
     np.testing.assert_array_equal(
         select_from_candidates(cands, size, "overlap_scheme1", n=20, iou_threshold=0.3),
-        reduce_overlap(cands, n=20, iou_threshold=0.3))
+        reduce_overlap(cands, n=20, iou_threshold=0.3),
+    )
     with pytest.raises(ValueError, match="valid: edge_boxes"):
         select_from_candidates(cands, size, "dense")

@@ -28,8 +28,12 @@ BOX = [0.0, 0.0, 10.0, 10.0]
 
 
 def _pairwise(qd, qb, rd, rb, **kw):
-    return np.array([[image_similarity(qd[i], qb[i], rd[j], rb[j], **kw) for j in range(len(rd))]
-                     for i in range(len(qd))])
+    return np.array(
+        [
+            [image_similarity(qd[i], qb[i], rd[j], rb[j], **kw) for j in range(len(rd))]
+            for i in range(len(qd))
+        ]
+    )
 
 
 def _random_sets(rng, n, kmin, kmax, dim, ties=True):
@@ -235,8 +239,12 @@ def test_similarity_matrix_many_ties_discrete_descriptors():
     qb = [np.c_[rng.uniform(0, 9, (len(d), 2)), np.full((len(d), 2), 10.0)] for d in qd]
     rb = [np.c_[rng.uniform(0, 9, (len(d), 2)), np.full((len(d), 2), 10.0)] for d in rd]
     for t in (None, 0.3):
-        np.testing.assert_allclose(similarity_matrix(qd, qb, rd, rb, soft_nms_iou=t),
-                                   _pairwise(qd, qb, rd, rb, soft_nms_iou=t), atol=1e-5, rtol=0)
+        np.testing.assert_allclose(
+            similarity_matrix(qd, qb, rd, rb, soft_nms_iou=t),
+            _pairwise(qd, qb, rd, rb, soft_nms_iou=t),
+            atol=1e-5,
+            rtol=0,
+        )
 
 
 def test_similarity_matrix_float32_near_ties_decided_in_float64():
@@ -314,8 +322,13 @@ def test_similarity_matrix_same_bits_for_any_thread_count():
 
 
 def test_soft_nms_sigma_default_is_the_papers():
-    for fn in (image_similarity, match_landmarks, soft_nms_scores, similarity_matrix,
-               similarity_pairs):
+    for fn in (
+        image_similarity,
+        match_landmarks,
+        soft_nms_scores,
+        similarity_matrix,
+        similarity_pairs,
+    ):
         assert inspect.signature(fn).parameters["sigma"].default == SOFT_NMS_SIGMA
 
 
@@ -354,10 +367,12 @@ def test_similarity_pairs_equals_pairwise(t):
     qd[6], qb[6] = np.zeros((0, 40), np.float32), np.zeros((0, 4))
     want = _pairwise(qd, qb, rd, rb, soft_nms_iou=t)
     # unsorted, repeated, several references per query (chunks of 2), an empty query
-    pairs = np.array([[3, 1], [0, 4], [2, 4], [0, 0], [3, 8], [2, 4], [6, 1], [0, 7], [0, 2],
-                      [5, 5]])
-    got = similarity_pairs(qd, qb, rd, rb, pairs, soft_nms_iou=t, ref_batch_size=2,
-                           show_progress=False)
+    pairs = np.array(
+        [[3, 1], [0, 4], [2, 4], [0, 0], [3, 8], [2, 4], [6, 1], [0, 7], [0, 2], [5, 5]]
+    )
+    got = similarity_pairs(
+        qd, qb, rd, rb, pairs, soft_nms_iou=t, ref_batch_size=2, show_progress=False
+    )
     assert got.shape == (10,) and got.dtype == np.float64
     np.testing.assert_allclose(got, want[pairs[:, 0], pairs[:, 1]], atol=1e-5, rtol=0)
     full = similarity_matrix(qd, qb, rd, rb, soft_nms_iou=t, show_progress=False)

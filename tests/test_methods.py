@@ -6,8 +6,15 @@ from vpr_core.methods import available_methods, get_method
 
 
 def test_all_paper_methods_present():
-    assert set(available_methods()) == {"classical", "selection_scheme1", "selection_scheme2",
-                                        "overlap_scheme1", "overlap_scheme2", "dense", "global"}
+    assert set(available_methods()) == {
+        "classical",
+        "selection_scheme1",
+        "selection_scheme2",
+        "overlap_scheme1",
+        "overlap_scheme2",
+        "dense",
+        "global",
+    }
 
 
 def test_classical_is_top100_edge_boxes_without_soft_nms():
@@ -75,8 +82,10 @@ def test_bad_option_values_are_named():
 def test_method_label_lives_in_methods_and_names_settings():
     from vpr_core.methods import method_label
 
-    assert method_label(get_method("overlap_scheme1", iou_threshold=0.4)) == \
-        "overlap_scheme1 (IoU 0.4)"
+    assert (
+        method_label(get_method("overlap_scheme1", iou_threshold=0.4))
+        == "overlap_scheme1 (IoU 0.4)"
+    )
     assert method_label(get_method("dense")) == "dense"
     assert method_label(get_method("dense", scales=(0.25,), per_scale=100)) == "dense (0.25 x 100)"
     assert get_method("global")["landmarks"] == {"scheme": "whole_image"}

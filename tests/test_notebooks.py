@@ -41,8 +41,9 @@ def test_notebook_is_clean_paired_and_parametrised(path):
     nb = json.loads(path.read_text())
     assert nb["metadata"]["kernelspec"]["name"] == "python3"
     code = [c for c in nb["cells"] if c["cell_type"] == "code"]
-    assert all(not c.get("outputs") and c.get("execution_count") is None for c in code), \
+    assert all(not c.get("outputs") and c.get("execution_count") is None for c in code), (
         "commit notebooks without outputs (nbstripout)"
+    )
     tagged = [c for c in code if "parameters" in c.get("metadata", {}).get("tags", [])]
     assert len(tagged) == 1
     params = "".join(tagged[0]["source"])
@@ -84,17 +85,27 @@ def test_quick_study_runs_headless_and_writes_every_figure(tmp_path, monkeypatch
         # the executed notebook shows its figures inline and stays small enough to share
         assert '"image/' in executed and len(executed.encode()) < 3_000_000, nb
         # log lines and warnings are plain stdout lines; bars are text, never a frozen widget
-        streams = [o for c in json.loads(executed)["cells"] for o in c.get("outputs", [])
-                   if o.get("output_type") == "stream"]
+        streams = [
+            o
+            for c in json.loads(executed)["cells"]
+            for o in c.get("outputs", [])
+            if o.get("output_type") == "stream"
+        ]
         stderr = "".join("".join(o["text"]) for o in streams if o["name"] == "stderr")
         assert "vpr_core" not in stderr and "VPRWarning" not in stderr, (nb, stderr[:300])
         assert "application/vnd.jupyter.widget-view+json" not in executed, nb
         bars[nb] = "".join("".join(o["text"]) for o in streams if o["name"] == "stdout")
     assert "100%|" in bars["01_pipeline_tour"] and "[vpr_core INFO]" in bars["01_pipeline_tour"]
     results = out / "results" / "synthetic_quick"
-    for stem in ("fig05_selection", "fig07a_overlap_nms", "fig07b_overlap_soft_nms",
-                 "fig10_scale_levels", "fig11_landmarks_per_scale", "fig12_normalized_scales",
-                 "fig13_comparison"):
+    for stem in (
+        "fig05_selection",
+        "fig07a_overlap_nms",
+        "fig07b_overlap_soft_nms",
+        "fig10_scale_levels",
+        "fig11_landmarks_per_scale",
+        "fig12_normalized_scales",
+        "fig13_comparison",
+    ):
         saved = pd.read_csv(results / f"{stem}.csv")
         assert {"run", "AUC", "AUC lo", "baseline", "dAUC verdict", "dataset"} <= set(saved)
     assert (results / "table5_cost.csv").exists() and (results / "fig04_matches.csv").exists()
@@ -121,8 +132,7 @@ def test_real_datasets_beside_the_project_get_the_comparison(tmp_path, monkeypat
     out = tmp_path / "out"
     monkeypatch.setenv("VPR_OUTPUT_DIR", str(out))
     monkeypatch.setenv("VPR_CACHE_DIR", os.environ.get("VPR_CACHE_DIR", str(REPO / ".cache")))
-    runner.run_study(dataset="synthetic", quick=True, notebooks=["06_comparison"],
-                     real_data=True)
+    runner.run_study(dataset="synthetic", quick=True, notebooks=["06_comparison"], real_data=True)
     for name in found:
         label = f"{name}_quick"
         assert (out / "figures" / label / "fig13_comparison.png").stat().st_size > 1000

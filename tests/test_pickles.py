@@ -63,8 +63,11 @@ def _hostile_files(tmp_path: Path, marker: Path) -> dict[str, Path]:
 def test_hostile_pickles_never_run(tmp_path):
     marker = tmp_path / "MARKER"
     for kind, path in _hostile_files(tmp_path, marker).items():
-        with pytest.raises(UnsafePickleError, match=rf"{path.name} is a pickle that asks to run "
-                                                    r"(posix\.system|builtins\.open|io\.open)"):
+        with pytest.raises(
+            UnsafePickleError,
+            match=rf"{path.name} is a pickle that asks to run "
+            r"(posix\.system|builtins\.open|io\.open)",
+        ):
             read_npy(path, "test data")
         assert not marker.exists(), kind
     # np.load would have run it: the test's payload is real
@@ -82,8 +85,11 @@ def test_hostile_vpr_bench_files_refused_by_the_loaders(tmp_path):
         load_dataset("vpr_bench", tmp_path)
     peer = tmp_path / "pc" / "GP" / "HOG" / "precomputed_data_corrected.npy"
     peer.parent.mkdir(parents=True)
-    np.save(peer, _object_array(np.arange(2), np.arange(2), np.ones(2), np.eye(2), _Open(marker),
-                                0.1), allow_pickle=True)
+    np.save(
+        peer,
+        _object_array(np.arange(2), np.arange(2), np.ones(2), np.eye(2), _Open(marker), 0.1),
+        allow_pickle=True,
+    )
     with pytest.raises(ValueError, match="precomputed_data_corrected.npy is a pickle that asks"):
         load_vprbench_precomputed(peer)
     np.save(tmp_path / "ground_truth.npy", _object_array(_System(marker)), allow_pickle=True)
@@ -93,8 +99,18 @@ def test_hostile_vpr_bench_files_refused_by_the_loaders(tmp_path):
 
 
 def test_legitimate_pickles_still_load(tmp_path):
-    data = [np.arange(3), np.float64(2.5), np.int64(7), "s", b"b", None, True, (1, 2.0),
-            np.array([[1.0, 2.0]], dtype=np.float32), np.array(["x"], dtype=object)]
+    data = [
+        np.arange(3),
+        np.float64(2.5),
+        np.int64(7),
+        "s",
+        b"b",
+        None,
+        True,
+        (1, 2.0),
+        np.array([[1.0, 2.0]], dtype=np.float32),
+        np.array(["x"], dtype=object),
+    ]
     for protocol in (2, 4, 5):
         out = restricted_loads(pickle.dumps(data, protocol=protocol), "mem")
         assert out[:1][0].tolist() == [0, 1, 2] and out[1] == 2.5 and out[2] == 7
@@ -113,13 +129,19 @@ def test_vpr_bench_mask_rows_read_as_masks(tmp_path):
     _images(tmp_path / "query", 2)
     _images(tmp_path / "ref", 3)
     gt = tmp_path / "ground_truth_new.npy"
-    np.save(gt, _object_array([0, np.array([False, True, True])], [1, [True, False, False]]),
-            allow_pickle=True)
+    np.save(
+        gt,
+        _object_array([0, np.array([False, True, True])], [1, [True, False, False]]),
+        allow_pickle=True,
+    )
     ds = load_dataset("vpr_bench", tmp_path)
     assert ds.ground_truth.tolist() == [[False, True, True], [True, False, False]]
     np.save(gt, _object_array([0, np.array([False, True])], [1, [0]]), allow_pickle=True)
-    with pytest.raises(ValueError, match=r"row 0: the references are a boolean mask of length 2, "
-                                         r"but the ref folder has 3 images"):
+    with pytest.raises(
+        ValueError,
+        match=r"row 0: the references are a boolean mask of length 2, "
+        r"but the ref folder has 3 images",
+    ):
         load_dataset("vpr_bench", tmp_path)
 
 
@@ -128,16 +150,20 @@ def test_npz_named_npy_is_a_clear_error(tmp_path):
     _images(tmp_path / "reference", 2)
     with open(tmp_path / "ground_truth.npy", "wb") as f:
         np.savez(f, gt=np.eye(2, dtype=bool))
-    with pytest.raises(ValueError, match=r"ground_truth.npy is not a readable .npy file .*\.npz "
-                                         r"\(zip\) archive.*expected a \(2, 2\) bool"):
+    with pytest.raises(
+        ValueError,
+        match=r"ground_truth.npy is not a readable .npy file .*\.npz "
+        r"\(zip\) archive.*expected a \(2, 2\) bool",
+    ):
         load_dataset("folder", tmp_path)
 
 
 def test_csv_bom_accepted_without_false_warning(tmp_path):
     _images(tmp_path / "query", 3)
     _images(tmp_path / "reference", 3)
-    (tmp_path / "ground_truth.csv").write_bytes("query,reference\n0,1\n1,2\n2,0\n"
-                                                .encode("utf-8-sig"))
+    (tmp_path / "ground_truth.csv").write_bytes(
+        "query,reference\n0,1\n1,2\n2,0\n".encode("utf-8-sig")
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         ds = load_dataset("folder", tmp_path)
@@ -147,8 +173,12 @@ def test_csv_bom_accepted_without_false_warning(tmp_path):
 def test_latin1_csv_names_file_line_and_encoding(tmp_path):
     _images(tmp_path / "query", 2)
     _images(tmp_path / "reference", 2)
-    (tmp_path / "ground_truth.csv").write_bytes("query,reference\n0.jpg,1.jpg\n1.jpg,caf\xe9.jpg\n"
-                                                .encode("latin-1"))
-    with pytest.raises(ValueError, match=r"ground_truth.csv, line 3: not UTF-8 text \(byte 0xe9"
-                                         r".*save the file as UTF-8"):
+    (tmp_path / "ground_truth.csv").write_bytes(
+        "query,reference\n0.jpg,1.jpg\n1.jpg,caf\xe9.jpg\n".encode("latin-1")
+    )
+    with pytest.raises(
+        ValueError,
+        match=r"ground_truth.csv, line 3: not UTF-8 text \(byte 0xe9"
+        r".*save the file as UTF-8",
+    ):
         load_dataset("folder", tmp_path)

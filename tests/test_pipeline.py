@@ -30,8 +30,12 @@ def test_dense_run_shapes_metrics_and_timings(tiny):
     assert r.timings["features_s_per_image"] > 0
     # the matrix is Eq. (1) pair by pair
     q, ref = 1, 2
-    s = image_similarity(r.descriptors["query"][q], r.boxes["query"][q],
-                         r.descriptors["reference"][ref], r.boxes["reference"][ref])
+    s = image_similarity(
+        r.descriptors["query"][q],
+        r.boxes["query"][q],
+        r.descriptors["reference"][ref],
+        r.boxes["reference"][ref],
+    )
     assert r.similarity[q, ref] == pytest.approx(s, abs=1e-5)
 
 
@@ -47,8 +51,9 @@ def test_edge_box_schemes_share_candidates(tiny):
     assert (idx >= 4).all()
 
 
-def test_feature_cache_reads_second_time_and_recomputes_changed_config(tiny, isolated_cache,
-                                                                       monkeypatch):
+def test_feature_cache_reads_second_time_and_recomputes_changed_config(
+    tiny, isolated_cache, monkeypatch
+):
     calls = []
     enc = pipeline.get_encoder()
     orig = enc.crops  # crop mode: the feature stage crops each image's missing boxes
@@ -71,14 +76,19 @@ def test_feature_cache_reads_second_time_and_recomputes_changed_config(tiny, iso
 def test_soft_nms_changes_scores_not_landmarks(tiny):
     a = pipeline.run_method("classical", tiny)
     b = pipeline.run_method("overlap_scheme2", tiny, soft_nms_iou=0.3)
-    for x, y in zip(a.boxes["query"], b.boxes["query"]):
+    for x, y in zip(a.boxes["query"], b.boxes["query"], strict=False):
         np.testing.assert_array_equal(x, y)
     # pair scores 1 - d*s can be negative, so soft-NMS is not monotone: check it changed S
     # and that the matrix equals the pairwise Algorithm-4 path
     assert not np.allclose(a.similarity, b.similarity)
     r = pipeline.run_method("overlap_scheme2", tiny, soft_nms_iou=0.3, keep_descriptors=True)
-    s = image_similarity(r.descriptors["query"][0], r.boxes["query"][0],
-                         r.descriptors["reference"][3], r.boxes["reference"][3], soft_nms_iou=0.3)
+    s = image_similarity(
+        r.descriptors["query"][0],
+        r.boxes["query"][0],
+        r.descriptors["reference"][3],
+        r.boxes["reference"][3],
+        soft_nms_iou=0.3,
+    )
     assert r.similarity[0, 3] == pytest.approx(s, abs=1e-5)
 
 
@@ -120,11 +130,12 @@ def test_crops_batched_across_images_give_each_images_own_bits(tiny, isolated_ca
     the same bits as encoding its image alone, also when a later config resumes a store."""
     enc = pipeline.get_encoder()
     r1 = pipeline.run_method("dense", tiny, scales=(0.25,), per_scale=9, keep_descriptors=True)
-    r2 = pipeline.run_method("dense", tiny, scales=(0.25, 0.49), per_scale=9,
-                             keep_descriptors=True)  # 9 new boxes per image, 9 cached
+    r2 = pipeline.run_method(
+        "dense", tiny, scales=(0.25, 0.49), per_scale=9, keep_descriptors=True
+    )  # 9 new boxes per image, 9 cached
     for r in (r1, r2):
         for side in ("query", "reference"):
-            for i, (b, d) in enumerate(zip(r.boxes[side], r.descriptors[side])):
+            for i, (b, d) in enumerate(zip(r.boxes[side], r.descriptors[side], strict=False)):
                 np.testing.assert_array_equal(d, enc.encode(tiny.load_image(side, i), b))
     assert r2.timings["features_s_per_image"] > 0
 
@@ -160,8 +171,10 @@ def test_run_method_protocols(tiny_synthetic):
 
     res = run_method("global", tiny_synthetic, backbone="hog", protocol="vpr_bench")
     assert res.protocol == "vpr_bench"
-    assert res.metrics["auc"] == evaluate(res.similarity, res.ground_truth,
-                                          protocol="vpr_bench")["auc"]
+    assert (
+        res.metrics["auc"]
+        == evaluate(res.similarity, res.ground_truth, protocol="vpr_bench")["auc"]
+    )
     assert res.intervals["auc"][0] == res.metrics["auc"]
     with pytest.raises(ValueError, match="ratio"):
         run_method("global", tiny_synthetic, backbone="hog", protocol="nope")
@@ -173,12 +186,17 @@ def test_the_papers_path_never_touches_the_engine():
     import subprocess
     import sys
 
-    code = ("import sys; from vpr_core.datasets import load_dataset; "
-            "from vpr_core.pipeline import run_method; "
-            "run_method('dense', load_dataset('synthetic', n_places=3), backbone='hog', "
-            "n_bootstrap=0); "
-            "print(sorted(m for m in sys.modules if m.startswith(('vpr_core.engine', "
-            "'distributed'))))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True).stdout.strip().splitlines()[-1]
+    code = (
+        "import sys; from vpr_core.datasets import load_dataset; "
+        "from vpr_core.pipeline import run_method; "
+        "run_method('dense', load_dataset('synthetic', n_places=3), backbone='hog', "
+        "n_bootstrap=0); "
+        "print(sorted(m for m in sys.modules if m.startswith(('vpr_core.engine', "
+        "'distributed'))))"
+    )
+    out = (
+        subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+        .stdout.strip()
+        .splitlines()[-1]
+    )
     assert out == "[]", out

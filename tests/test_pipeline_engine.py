@@ -76,8 +76,9 @@ def test_roi_pooling_runs_end_to_end_and_is_deterministic(small, isolated_cache)
 def test_run_method_on_a_local_cluster_equals_in_process(small, isolated_cache):
     distributed = pytest.importorskip("distributed")
     local = _run(small, shortlist=3)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  host="127.0.0.1", dashboard_address=None) as cluster:
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
         import shutil
 
         shutil.rmtree(isolated_cache)  # features and matrices are recomputed on the cluster
@@ -124,16 +125,36 @@ def test_peer_result_sits_beside_ours(small, tmp_path):
 
 
 def test_cli_shortlist_roi_and_paired_differences(small, tmp_path, capsys):
-    rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "dense",
-                   "global", "--pooling", "roi", "--shortlist", "3", "--dim", "64",
-                   "--n-bootstrap", "200", "--out", str(tmp_path)])
+    rc = cli.main(
+        [
+            "eval",
+            "--dataset",
+            "synthetic",
+            "--n-places",
+            "6",
+            "--method",
+            "dense",
+            "global",
+            "--pooling",
+            "roi",
+            "--shortlist",
+            "3",
+            "--dim",
+            "64",
+            "--n-bootstrap",
+            "200",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     assert rc == 0
     out = capsys.readouterr().out
     assert "shortlist k=3" in out and "paired bootstrap" in out and "- dense" in out
     row = next(ln for ln in out.splitlines() if ln.startswith("global "))
     assert ("finding" in row) or ("inconclusive" in row)
-    assert (tmp_path / "results" / "synthetic" / "eval_dense+global_efficientnet_lite0_roi_k3.csv"
-            ).is_file()
+    assert (
+        tmp_path / "results" / "synthetic" / "eval_dense+global_efficientnet_lite0_roi_k3.csv"
+    ).is_file()
 
 
 def test_ctrl_c_prints_one_line_and_exits_130(monkeypatch, capsys):
@@ -175,15 +196,44 @@ def test_cli_adds_vprbench_peers_to_table_and_figure(tmp_path, capsys):
     gt = np.eye(6, dtype=bool)
     sim = np.where(gt, 0.8, 0.2) + np.random.default_rng(1).random((6, 6)) * 0.05
     _write(tmp_path / "vb" / "precomputed_matches" / "Synth" / "NetVLAD" / PRECOMPUTED_FILE, sim)
-    rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "dense",
-                   "--dim", "64", "--n-bootstrap", "100", "--peers", str(tmp_path / "vb"),
-                   "--peer-dataset", "Synth", "--out", str(tmp_path / "out")])
+    rc = cli.main(
+        [
+            "eval",
+            "--dataset",
+            "synthetic",
+            "--n-places",
+            "6",
+            "--method",
+            "dense",
+            "--dim",
+            "64",
+            "--n-bootstrap",
+            "100",
+            "--peers",
+            str(tmp_path / "vb"),
+            "--peer-dataset",
+            "Synth",
+            "--out",
+            str(tmp_path / "out"),
+        ]
+    )
     assert rc == 0
     out = capsys.readouterr().out
     row = next(ln for ln in out.splitlines() if ln.startswith("NetVLAD (VPR-Bench)"))
     assert "finding" in row or "inconclusive" in row  # paired against dense
-    rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "dense",
-                   "--peers", str(tmp_path / "vb")])
+    rc = cli.main(
+        [
+            "eval",
+            "--dataset",
+            "synthetic",
+            "--n-places",
+            "6",
+            "--method",
+            "dense",
+            "--peers",
+            str(tmp_path / "vb"),
+        ]
+    )
     assert rc == 2 and "--peer-dataset" in capsys.readouterr().err
 
 
@@ -217,8 +267,9 @@ def test_a_store_of_another_seed_or_dimension_is_not_used(small, isolated_cache,
         f.unlink()
     store = min((isolated_cache / "features").rglob("*.npz"))
     a = _npz(store)
-    np.savez(store, boxes=a["boxes"], desc=a["desc"][:, :7], cost=a["cost"],
-             _identity=a["_identity"])  # 7-column descriptors under the right name
+    np.savez(
+        store, boxes=a["boxes"], desc=a["desc"][:, :7], cost=a["cost"], _identity=a["_identity"]
+    )  # 7-column descriptors under the right name
     again = _foreign_run(small, caplog, "descriptors of shape")
     np.testing.assert_array_equal(ref.similarity, again.similarity)
     seed1 = _run(small, seed=1)  # another encoder folder; copy its store into seed 0's
@@ -226,8 +277,11 @@ def test_a_store_of_another_seed_or_dimension_is_not_used(small, isolated_cache,
         f.unlink()
     folders = sorted({p.parent for p in (isolated_cache / "features").rglob("*.npz")})
     assert len(folders) == 2
-    src = next(folders[1].glob("*.npz")) if folders[0] in store.parents else \
-        next(folders[0].glob("*.npz"))
+    src = (
+        next(folders[1].glob("*.npz"))
+        if folders[0] in store.parents
+        else next(folders[0].glob("*.npz"))
+    )
     dst = store.parent / src.name
     dst.write_bytes(src.read_bytes())
     caplog.clear()
@@ -256,8 +310,21 @@ def test_an_unwritable_cache_folder_is_named_with_the_fix(small, tmp_path, monke
 def test_an_unwritable_output_folder_is_named_with_the_fix(tmp_path, capsys):
     blocker = tmp_path / "a_file"
     blocker.write_text("not a folder")
-    rc = cli.main(["eval", "--dataset", "synthetic", "--n-places", "3", "--method",
-                   "global", "--backbone", "hog", "--out", str(blocker / "out")])
+    rc = cli.main(
+        [
+            "eval",
+            "--dataset",
+            "synthetic",
+            "--n-places",
+            "3",
+            "--method",
+            "global",
+            "--backbone",
+            "hog",
+            "--out",
+            str(blocker / "out"),
+        ]
+    )
     err = capsys.readouterr().err
     assert rc == 2 and "--out / VPR_OUTPUT_DIR" in err and "a file is in the way" in err
     assert str(blocker) in err and "Traceback" not in err

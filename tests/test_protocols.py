@@ -111,8 +111,13 @@ def test_best_match_is_vpr_tutorial():
     np.testing.assert_allclose(c.precision, p)
     assert auc_pr(c) == pytest.approx(np.trapezoid(p, r))
     assert recall_at_100_precision(c) == r[p == 1].max()
-    assert set(evaluate(s, gt, "best_match", ks=(1, 5, 10))) == {"auc", "r@100p", "r@1", "r@5",
-                                                                 "r@10"}
+    assert set(evaluate(s, gt, "best_match", ks=(1, 5, 10))) == {
+        "auc",
+        "r@100p",
+        "r@1",
+        "r@5",
+        "r@10",
+    }
 
 
 def test_soft_ground_truth_is_neither_right_nor_wrong():
@@ -132,8 +137,12 @@ def test_recall_rate_at_n_is_vpr_benchs():
     got = recall_rate_at_n(s, gt, n_max=20)
     assert got.shape == (20,) and (np.diff(got) >= 0).all()
     for n in (1, 5, 19):  # VPR-Bench's compute_RecallRateAtN: over all queries
-        want = np.mean([bool(set(np.argsort(-s[q], kind="stable")[:n]) & set(np.flatnonzero(gt[q])))
-                        for q in range(len(s))])
+        want = np.mean(
+            [
+                bool(set(np.argsort(-s[q], kind="stable")[:n]) & set(np.flatnonzero(gt[q])))
+                for q in range(len(s))
+            ]
+        )
         assert got[n - 1] == pytest.approx(want)
 
 
@@ -143,9 +152,13 @@ def test_plot_recall_at_n():
     from vpr_core.viz.recall import plot_recall_at_n
 
     s, gt = _matrix(3)
-    fig = plot_recall_at_n([SimpleNamespace(label="a", similarity=s, ground_truth=gt),
-                            SimpleNamespace(label="b", similarity=s[:, ::-1], ground_truth=gt)],
-                           title="t")
+    fig = plot_recall_at_n(
+        [
+            SimpleNamespace(label="a", similarity=s, ground_truth=gt),
+            SimpleNamespace(label="b", similarity=s[:, ::-1], ground_truth=gt),
+        ],
+        title="t",
+    )
     ax = fig.axes[0]
     assert ax.get_title() == "t" and len(ax.lines) == 2 and ax.lines[0].get_xdata()[-1] == 20
     assert [t.get_text() for t in ax.get_legend().get_texts()] == ["a", "b"]
@@ -161,7 +174,10 @@ def test_no_resamples_no_interval_no_verdict():
         assert np.isfinite(delta) and np.isnan(lo) and np.isnan(hi) and np.isnan(p)
         assert difference_verdict(lo, hi) == "not computed"
     assert format_interval(0.8123, np.nan, np.nan) == "0.812 [not computed]"
-    assert difference_verdict(0.1, 0.2) == "finding" and difference_verdict(-0.1, 0.2) == "inconclusive"
+    assert (
+        difference_verdict(0.1, 0.2) == "finding"
+        and difference_verdict(-0.1, 0.2) == "inconclusive"
+    )
 
 
 def test_queries_needed_and_difference_tuple():
@@ -177,6 +193,9 @@ def test_queries_needed_and_difference_tuple():
     same = paired_bootstrap(s, s.copy(), gt, n=50)["auc"]
     assert same == (0.0, 0.0, 0.0, 1.0) and same.queries_needed == math.inf
     assert needs_text(1234) == "needs ~1,200 queries" and needs_text(57) == "needs ~57 queries"
-    assert needs_text(2e5) == needs_text(math.inf) == (
-        "> 100,000 queries: not decidable on any realistic set")
+    assert (
+        needs_text(2e5)
+        == needs_text(math.inf)
+        == ("> 100,000 queries: not decidable on any realistic set")
+    )
     assert needs_text(float("nan")) == "not computed"

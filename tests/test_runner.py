@@ -31,9 +31,12 @@ def test_study_datasets_reads_vpr_datasets(monkeypatch):
     with pytest.raises(ValueError, match="name=root"):
         runner.study_datasets()
     monkeypatch.setenv("VPR_DATASETS", "gardens_point=/data/gp")
-    assert runner.study_datasets()["gardens_point"] == {"dataset": "gardens_point",
-                                                        "root": "/data/gp", "options": {},
-                                                        "pooling": "crop"}
+    assert runner.study_datasets()["gardens_point"] == {
+        "dataset": "gardens_point",
+        "root": "/data/gp",
+        "options": {},
+        "pooling": "crop",
+    }
 
 
 def test_notebook_parameters_in_quick_mode():
@@ -52,8 +55,9 @@ def test_summary_table_reads_the_saved_comparisons(tmp_path, monkeypatch):
     monkeypatch.setenv("VPR_OUTPUT_DIR", str(tmp_path))
     folder = tmp_path / "results" / "d"
     folder.mkdir(parents=True)
-    pd.DataFrame({"method": ["a", "b"], "run": ["classical", "dense"], "AUC": [0.1, 0.2]}
-                 ).to_csv(folder / "fig05_selection.csv", index=False)
+    pd.DataFrame({"method": ["a", "b"], "run": ["classical", "dense"], "AUC": [0.1, 0.2]}).to_csv(
+        folder / "fig05_selection.csv", index=False
+    )
     pd.DataFrame({"scale": [1]}).to_csv(folder / "fig06a_scheme1_scales.csv", index=False)
     t = runner.summary_table("d")
     assert list(t["figure"]) == ["fig05_selection"] * 2
@@ -68,8 +72,7 @@ def test_runner_imports_no_study_facade():
         importlib.import_module("vpr_core.study")
 
 
-def test_a_stopped_run_says_what_finished_and_where_the_files_are(tmp_path, monkeypatch,
-                                                                  capsys):
+def test_a_stopped_run_says_what_finished_and_where_the_files_are(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("VPR_OUTPUT_DIR", str(tmp_path))
     calls = []
 
@@ -80,18 +83,29 @@ def test_a_stopped_run_says_what_finished_and_where_the_files_are(tmp_path, monk
 
     monkeypatch.setattr(runner, "_execute", fake_execute)
     with pytest.raises(KeyboardInterrupt):
-        runner.run_study("synthetic", quick=True,
-                         notebooks=["01_pipeline_tour", "02_scale_statistics"])
+        runner.run_study(
+            "synthetic", quick=True, notebooks=["01_pipeline_tour", "02_scale_statistics"]
+        )
     out = capsys.readouterr().out
     assert "stopped in 02_scale_statistics (synthetic_quick); finished: 01_pipeline_tour" in out
     assert "cached work is kept" in out and str(tmp_path / "figures") in out
 
 
 def test_notebook_parameters_of_the_wrong_type_get_one_clear_line():
-    runner.check_parameters(dataset="synthetic", root=None, options={}, limit=None,
-                            label=None, backbone="hog", pooling="crop")
-    with pytest.raises(TypeError, match=r"options must be dict such as \{\"tolerance\": 0\}, "
-                                        r"got list \['tolerance', 0\]"):
+    runner.check_parameters(
+        dataset="synthetic",
+        root=None,
+        options={},
+        limit=None,
+        label=None,
+        backbone="hog",
+        pooling="crop",
+    )
+    with pytest.raises(
+        TypeError,
+        match=r"options must be dict such as \{\"tolerance\": 0\}, "
+        r"got list \['tolerance', 0\]",
+    ):
         runner.check_parameters(options=["tolerance", 0])
     with pytest.raises(TypeError, match="limit must be int or None, got bool"):
         runner.check_parameters(limit=True)

@@ -22,8 +22,12 @@ def test_shortlist_picks_constructed_neighbours_best_first():
     # then 10, then 40 ...
     ang = np.deg2rad(np.arange(8) * 10.0)
     ref = np.c_[np.cos(ang), np.sin(ang)] * np.arange(1, 9)[:, None]  # norms must not matter
-    q = np.array([[np.cos(np.deg2rad(21.0)), np.sin(np.deg2rad(21.0))],
-                  [np.cos(np.deg2rad(69.0)), np.sin(np.deg2rad(69.0))]])
+    q = np.array(
+        [
+            [np.cos(np.deg2rad(21.0)), np.sin(np.deg2rad(21.0))],
+            [np.cos(np.deg2rad(69.0)), np.sin(np.deg2rad(69.0))],
+        ]
+    )
     pairs, sim = shortlist_pairs(q, ref, 3)
     assert pairs.dtype == np.int64 and pairs.shape == (6, 2)
     np.testing.assert_array_equal(pairs[:, 0], [0, 0, 0, 1, 1, 1])
@@ -139,14 +143,19 @@ def test_whole_image_boxes_round_trip(tiny_synthetic):
     from vpr_core.engine.shortlist import split_whole_image, with_whole_image_boxes
 
     n = len(tiny_synthetic.query_paths)
-    boxes = {"query": [np.zeros((0, 4))] + [np.ones((2, 4))] * (n - 1),
-             "reference": [np.ones((3, 4))] * n, "seconds": {}}
+    boxes = {
+        "query": [np.zeros((0, 4))] + [np.ones((2, 4))] * (n - 1),
+        "reference": [np.ones((3, 4))] * n,
+        "seconds": {},
+    }
     out = with_whole_image_boxes(boxes, tiny_synthetic)
     h, w = tiny_synthetic.image_size("query", 0)
     np.testing.assert_array_equal(out["query"][0], [[0, 0, w, h]])
     assert out["reference"][0].shape == (4, 4) and "seconds" in out
-    feats = {s: [np.arange(len(b) * 2, dtype=np.float32).reshape(-1, 2) for b in out[s]]
-             for s in ("query", "reference")}
+    feats = {
+        s: [np.arange(len(b) * 2, dtype=np.float32).reshape(-1, 2) for b in out[s]]
+        for s in ("query", "reference")
+    }
     lm, glob = split_whole_image(feats)
     assert lm["query"][0].shape == (0, 2) and lm["reference"][0].shape == (3, 2)
     np.testing.assert_array_equal(glob["reference"][0], [6, 7])

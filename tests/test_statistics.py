@@ -68,8 +68,17 @@ def test_hand_built_cmr_cls_asl():
 
 def test_cls_sums_to_one_random():
     rng = np.random.default_rng(3)
-    recs = [MatchRecord(rng.integers(1, 10, 40), rng.uniform(-0.2, 1.0, 40),
-                        rng.random(40) < 0.5, bool(i % 2), i, i) for i in range(12)]
+    recs = [
+        MatchRecord(
+            rng.integers(1, 10, 40),
+            rng.uniform(-0.2, 1.0, 40),
+            rng.random(40) < 0.5,
+            bool(i % 2),
+            i,
+            i,
+        )
+        for i in range(12)
+    ]
     st = scale_statistics_from_matches(recs)
     assert np.isclose(np.nansum(st.cls_gt[1:]), 1.0)
     assert np.isclose(np.nansum(st.cls_irrelevant[1:]), 1.0)
@@ -80,8 +89,9 @@ def test_empty_scales_are_nan_not_crash():
     st = scale_statistics_from_matches([])
     assert np.isnan(st.cmr).all() and np.isnan(st.cls_gt).all() and np.isnan(st.asl_gt).all()
     assert st.n_matches.sum() == 0
-    st = scale_statistics_from_matches([MatchRecord([], [], [], True), MatchRecord([], [], None,
-                                                                                    False)])
+    st = scale_statistics_from_matches(
+        [MatchRecord([], [], [], True), MatchRecord([], [], None, False)]
+    )
     assert np.isnan(st.cmr).all() and np.isnan(st.cls_irrelevant).all()
     # unlabelled gt pair: enters counts / CLS / ASL, not CMR
     st = scale_statistics_from_matches([MatchRecord([4, 4], [0.5, 0.3], None, True)])
@@ -130,7 +140,9 @@ def test_plots_deterministic(tmp_path):
     assert "1 correct" in fig.axes[0].get_title()
     assert _png_hash(fig, tmp_path, "m1.png") == _png_hash(
         viz.plot_labelled_matches(img, img[:30], boxes, boxes, [[0, 0], [1, 0]], [True, False]),
-        tmp_path, "m2.png")
+        tmp_path,
+        "m2.png",
+    )
     with pytest.raises(ValueError, match="one entry per match"):
         viz.plot_labelled_matches(img, img, boxes, boxes, [[0, 0]], [True, False])
     plt.close("all")
@@ -139,7 +151,6 @@ def test_plots_deterministic(tmp_path):
 # ---------------------------------------------------------------------------------------------
 # end to end on `synthetic`
 # ---------------------------------------------------------------------------------------------
-
 
 
 @pytest.fixture(scope="module")
@@ -157,8 +168,7 @@ def synthetic_small():
         imgs = [ds.load_image(side, i) for i in range(6)]
         out[f"img_{side}"] = imgs
         out[f"boxes_{side}"] = [dense_sampling(im.shape[:2]) for im in imgs]
-        out[f"desc_{side}"] = [enc.encode(im, b) for im, b in
-                               zip(imgs, out[f"boxes_{side}"])]
+        out[f"desc_{side}"] = [enc.encode(im, b) for im, b in zip(imgs, out[f"boxes_{side}"], strict=False)]
     return out
 
 
@@ -168,8 +178,15 @@ def test_scale_statistics_end_to_end(synthetic_small):
 
     s = synthetic_small
     ds = s["dataset"]
-    st = scale_statistics(ds, s["boxes_query"], s["boxes_reference"], s["desc_query"],
-                          s["desc_reference"], n_irrelevant=2, seed=0)
+    st = scale_statistics(
+        ds,
+        s["boxes_query"],
+        s["boxes_reference"],
+        s["desc_query"],
+        s["desc_reference"],
+        n_irrelevant=2,
+        seed=0,
+    )
     assert st.meta["label_method"] == "exact"
     assert (st.n_gt_pairs, st.n_irrelevant_pairs, st.n_unlabelled_pairs) == (6, 12, 0)
     # dense areas 0.16, 0.25, 0.36, 0.49 -> Table-1 scales 5, 6, 7, 7
@@ -181,8 +198,9 @@ def test_scale_statistics_end_to_end(synthetic_small):
     n = np.zeros(10, int)
     ok = np.zeros(10, int)
     for q in range(6):
-        res = match_landmarks(s["desc_query"][q], s["boxes_query"][q], s["desc_reference"][q],
-                              s["boxes_reference"][q])
+        res = match_landmarks(
+            s["desc_query"][q], s["boxes_query"][q], s["desc_reference"][q], s["boxes_reference"][q]
+        )
         lab = label_matches(ds, q, q, s["boxes_query"][q], s["boxes_reference"][q], res.matches)
         sc = np.array([5, 6, 7, 7]).repeat(25)[res.matches[:, 0]]
         np.add.at(n, sc, 1)
@@ -191,12 +209,20 @@ def test_scale_statistics_end_to_end(synthetic_small):
     np.testing.assert_array_equal(st.n_correct, ok)
     assert st.n_matches.sum() > 0 and np.nanmax(st.cmr) > 0.5
     # same seed -> same irrelevant pairs -> same statistics
-    st2 = scale_statistics(ds, s["boxes_query"], s["boxes_reference"], s["desc_query"],
-                           s["desc_reference"], n_irrelevant=2, seed=0)
+    st2 = scale_statistics(
+        ds,
+        s["boxes_query"],
+        s["boxes_reference"],
+        s["desc_query"],
+        s["desc_reference"],
+        n_irrelevant=2,
+        seed=0,
+    )
     np.testing.assert_array_equal(st.asl_irrelevant, st2.asl_irrelevant)
     with pytest.raises(ValueError, match="one entry per query"):
-        scale_statistics(ds, s["boxes_query"][:3], s["boxes_reference"], s["desc_query"],
-                         s["desc_reference"])
+        scale_statistics(
+            ds, s["boxes_query"][:3], s["boxes_reference"], s["desc_query"], s["desc_reference"]
+        )
 
 
 def test_geometric_agrees_with_exact_on_synthetic(synthetic_small):
@@ -213,10 +239,20 @@ def test_geometric_agrees_with_exact_on_synthetic(synthetic_small):
         bq, br = s["boxes_query"][q], s["boxes_reference"][q]
         m = match_landmarks(s["desc_query"][q], bq, s["desc_reference"][q], br).matches
         exact = label_matches(ds, q, q, bq, br, m, method="exact")
-        geo = label_matches(ds, q, q, bq, br, m, method="geometric", geometry_cache=cache,
-                            images=(s["img_query"][q], s["img_reference"][q]))
-        pts = label_matches(ds, q, q, bq, br, m, method="geometric", geometry_cache=cache,
-                            model="points")
+        geo = label_matches(
+            ds,
+            q,
+            q,
+            bq,
+            br,
+            m,
+            method="geometric",
+            geometry_cache=cache,
+            images=(s["img_query"][q], s["img_reference"][q]),
+        )
+        pts = label_matches(
+            ds, q, q, bq, br, m, method="geometric", geometry_cache=cache, model="points"
+        )
         agree_auto += int((geo == exact).sum())
         agree_pts += int((pts == exact).sum())
         n += len(m)
@@ -229,9 +265,16 @@ def test_scale_statistics_geometric_labels(synthetic_small):
     from vpr_core.statistics import scale_statistics
 
     s = synthetic_small
-    st = scale_statistics(s["dataset"], s["boxes_query"], s["boxes_reference"], s["desc_query"],
-                          s["desc_reference"], label_method="geometric", n_irrelevant=1,
-                          queries=[0, 1])
+    st = scale_statistics(
+        s["dataset"],
+        s["boxes_query"],
+        s["boxes_reference"],
+        s["desc_query"],
+        s["desc_reference"],
+        label_method="geometric",
+        n_irrelevant=1,
+        queries=[0, 1],
+    )
     assert st.meta["label_method"] == "geometric"
     assert (st.n_gt_pairs, st.n_irrelevant_pairs) == (2, 2)
     if st.n_unlabelled_pairs == 0:  # every ground-truth match labelled
@@ -239,16 +282,22 @@ def test_scale_statistics_geometric_labels(synthetic_small):
     assert st.n_matches.sum() > 0
 
 
-
 def test_statistics_recomputed_independently_from_the_match_table(tiny_synthetic):
     """CMR / CLS / ASL recomputed with pandas from ``matches_frame`` agree with ScaleStats."""
     from vpr_core.pipeline import run_method
     from vpr_core.statistics import scale_statistics
 
-    res = run_method("dense", tiny_synthetic, keep_descriptors=True, scales=(0.16, 0.36),
-                     per_scale=9)
-    st = scale_statistics(tiny_synthetic, res.boxes["query"], res.boxes["reference"],
-                          res.descriptors["query"], res.descriptors["reference"], n_irrelevant=3)
+    res = run_method(
+        "dense", tiny_synthetic, keep_descriptors=True, scales=(0.16, 0.36), per_scale=9
+    )
+    st = scale_statistics(
+        tiny_synthetic,
+        res.boxes["query"],
+        res.boxes["reference"],
+        res.descriptors["query"],
+        res.descriptors["reference"],
+        n_irrelevant=3,
+    )
     df = st.matches_frame()
     assert len(df) == st.n_matches.sum() + st.n_matches_irrelevant.sum()
     gt, irr = df[df.pair == "gt"], df[df.pair == "irrelevant"]
@@ -257,8 +306,9 @@ def test_statistics_recomputed_independently_from_the_match_table(tiny_synthetic
         if len(g):
             assert st.cmr[k] == pytest.approx(g.correct.mean())
             assert st.asl_gt[k] == pytest.approx(g.score.mean())
-            assert st.cls_gt[k] == pytest.approx(g.score.clip(lower=0).sum()
-                                                 / gt.score.clip(lower=0).sum())
+            assert st.cls_gt[k] == pytest.approx(
+                g.score.clip(lower=0).sum() / gt.score.clip(lower=0).sum()
+            )
         else:
             assert np.isnan(st.cmr[k])
         i = irr[irr.scale == k]
@@ -277,8 +327,7 @@ def test_pair_matches_and_scale_distribution_of_a_run(tiny_synthetic):
     from vpr_core.landmarks import scale_distribution
     from vpr_core.pipeline import run_method
 
-    res = run_method("dense", tiny_synthetic, keep_descriptors=True, backbone="hog",
-                     n_bootstrap=0)
+    res = run_method("dense", tiny_synthetic, keep_descriptors=True, backbone="hog", n_bootstrap=0)
     gt = pair_matches(tiny_synthetic, res, query=0)
     assert gt.ground_truth and gt.reference == 0 and gt.labels is not None
     assert len(gt.labels) == len(gt.matches) > 0 and 0 < gt.similarity <= 1
@@ -301,8 +350,11 @@ def test_cmr_intervals_bootstrap_over_queries():
     for q in range(40):
         scales = np.array([1] * 5 + [6] * 5)
         labels = np.concatenate([rng.random(5) < 0.2, rng.random(5) < 0.8])
-        recs.append(MatchRecord(q=q, r=q, is_gt_pair=True, scales=scales,
-                                scores=np.full(10, 0.5), labels=labels))
+        recs.append(
+            MatchRecord(
+                q=q, r=q, is_gt_pair=True, scales=scales, scores=np.full(10, 0.5), labels=labels
+            )
+        )
     stats = scale_statistics_from_matches(recs)
     iv = stats.cmr_intervals()
     for k in (1, 6):

@@ -84,7 +84,7 @@ def test_synthetic_homography_is_the_view_geometry(difficulty):
 
     def dlt(src, dst):
         a, b = [], []
-        for (x, y), (u, v) in zip(src, dst):
+        for (x, y), (u, v) in zip(src, dst, strict=False):
             a += [[x, y, 1, 0, 0, 0, -x * u, -y * u], [0, 0, 0, x, y, 1, -x * v, -y * v]]
             b += [u, v]
         return np.append(np.linalg.solve(np.array(a), np.array(b)), 1.0).reshape(3, 3)
@@ -95,8 +95,12 @@ def test_synthetic_homography_is_the_view_geometry(difficulty):
     for i in range(5):
         ref, qry = _place_views(0, i, size, diff)
         expect = dlt(ref, img) @ dlt(img, qry)
-        np.testing.assert_allclose(S.synthetic_homography(0, i, size, difficulty),
-                                   expect / expect[2, 2], rtol=1e-7, atol=1e-9)
+        np.testing.assert_allclose(
+            S.synthetic_homography(0, i, size, difficulty),
+            expect / expect[2, 2],
+            rtol=1e-7,
+            atol=1e-9,
+        )
 
 
 def test_synthetic_homography_aligns_views(tmp_path):
@@ -119,8 +123,13 @@ def test_synthetic_tolerance_and_options(tmp_path):
     q, r = np.indices((5, 5))
     assert np.array_equal(ds.ground_truth, np.abs(q - r) <= 1)
     assert ds.tolerance == 1
-    for bad in ({"n_places": 0}, {"seed": -1}, {"image_size": (10, 10)}, {"tolerance": -1},
-                {"image_size": "big"}):
+    for bad in (
+        {"n_places": 0},
+        {"seed": -1},
+        {"image_size": (10, 10)},
+        {"tolerance": -1},
+        {"image_size": "big"},
+    ):
         with pytest.raises(ValueError):
             load_dataset("synthetic", root=tmp_path, **bad)
 
@@ -148,7 +157,6 @@ def test_synthetic_cache_reuse_and_regeneration(tmp_path, monkeypatch):
     assert load_dataset("synthetic", n_places=1, seed=5, image_size=SMALL).root != ds.root
 
 
-
 # ----------------------------------------------------------------------------------------------
 # Exactness: the same pixels on every machine (issue 11 item 7)
 # ----------------------------------------------------------------------------------------------
@@ -158,27 +166,35 @@ def test_synthetic_cache_reuse_and_regeneration(tmp_path, monkeypatch):
 PIXEL_SHA256 = {
     ("easy", (64, 112), 0): (
         "c4e2bfcd449024d6041aa20dc93a28bd596d40d007eaa407d3af47fdb83ef6f4",
-        "fac7acf83f3ac76257be2ba2e9881ea2e1f6abc3dbde449a16175e73f1cfab35"),
+        "fac7acf83f3ac76257be2ba2e9881ea2e1f6abc3dbde449a16175e73f1cfab35",
+    ),
     ("easy", (64, 112), 3): (
         "f09ed815cf8055b914ab395edbdbe66db7abb5a8f8f0b558db229a8ab1961ba0",
-        "3bd450d30f091f383193592134a2a1d822d05311fd69f3e55cd0696468aaa5e7"),
+        "3bd450d30f091f383193592134a2a1d822d05311fd69f3e55cd0696468aaa5e7",
+    ),
     ("easy", (360, 640), 1): (
         "5d79f1abcf5336a57b2ee9e2197ae7d4633563c8192b5b07f9ad0993c61c1ee2",
-        "a12070c81b0aa0fdb6b72f5ba274cebbf4ee3485bf6995d2d16ee5ae7521fed7"),
+        "a12070c81b0aa0fdb6b72f5ba274cebbf4ee3485bf6995d2d16ee5ae7521fed7",
+    ),
     # the study's default (calibrated for issue 9) and the hard preset
     ("default", (64, 112), 0): (
         "e5bf5a6040d5f29b5e1ff2b2aeab16aa90dd1609b58c5f8c88c6438e29e556c1",
-        "9c64e992eb9c64cd33e7a2ee9dd30d1fb280992e1cb1e6aac184ecb0f2cc0eb1"),
+        "9c64e992eb9c64cd33e7a2ee9dd30d1fb280992e1cb1e6aac184ecb0f2cc0eb1",
+    ),
     ("default", (360, 640), 2): (
         "7326bcb373b5d8054efa85838bc7646ca80b078da9e1f40083c9e126ba375d2e",
-        "6ba12b87e5ca7e254bf5eb8e6f9775babcc12de03dd66bf716a53f3591f920a7"),
+        "6ba12b87e5ca7e254bf5eb8e6f9775babcc12de03dd66bf716a53f3591f920a7",
+    ),
     ("hard", (64, 112), 1): (
         "c10a721796bc24778604897acec42b38bab8ebd35169e22ec0e47c206f6e1dff",
-        "98ebe7587d5e37973af9f29fdc07a6bcb0998b83658b3b76bca286f36e77f33d"),
+        "98ebe7587d5e37973af9f29fdc07a6bcb0998b83658b3b76bca286f36e77f33d",
+    ),
 }
 
 
-@pytest.mark.parametrize("key", list(PIXEL_SHA256), ids=lambda k: f"{k[0]}-{k[1][0]}x{k[1][1]}-{k[2]}")
+@pytest.mark.parametrize(
+    "key", list(PIXEL_SHA256), ids=lambda k: f"{k[0]}-{k[1][0]}x{k[1][1]}-{k[2]}"
+)
 def test_pixels_match_committed_hashes(key):
     difficulty, size, i = key
     ref, qry, _ = D.render_synthetic_place(0, i, size, difficulty)
@@ -200,7 +216,7 @@ def test_generator_independent_of_opencv_threads():
         b = D.render_synthetic_place(0, 2, SMALL, "hard")
     finally:
         cv2.setNumThreads(n)
-    assert all(np.array_equal(x, y) for x, y in zip(a, b))
+    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=False))
 
 
 def test_exact_primitives_agree_with_opencv():
@@ -209,9 +225,13 @@ def test_exact_primitives_agree_with_opencv():
     img = rng.integers(0, 256, (40, 50, 3)).astype(np.uint8)
     h = ((1.02, 0.05, -3.0), (-0.03, 0.98, 2.0), (1e-4, -2e-4, 1.0))
     ours = X.warp_perspective(img, h, (30, 40))
-    ref = cv2.warpPerspective(img.astype(np.float32), np.array(h), (40, 30),
-                              flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                              borderMode=cv2.BORDER_REFLECT101)
+    ref = cv2.warpPerspective(
+        img.astype(np.float32),
+        np.array(h),
+        (40, 30),
+        flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+        borderMode=cv2.BORDER_REFLECT101,
+    )
     assert np.abs(ours - ref).max() < 0.2
     f = img.astype(np.float64)
     blur = cv2.GaussianBlur(f, (2 * 6 + 1, 2 * 6 + 1), 2.0, borderType=cv2.BORDER_REFLECT101)
@@ -228,7 +248,7 @@ def test_solve_homography_roundtrip_and_degenerate():
     src = [(0, 0), (10, 0), (10, 8), (0, 8)]
     dst = [(1.5, 2.0), (12.0, 1.0), (11.0, 9.5), (0.5, 8.0)]
     hm = X.normalise_h(X.solve_homography(src, dst))
-    for (x, y), (u, v) in zip(src, dst):
+    for (x, y), (u, v) in zip(src, dst, strict=False):
         p = hm @ [x, y, 1.0]
         assert p[0] / p[2] == pytest.approx(u) and p[1] / p[2] == pytest.approx(v)
     with pytest.raises(ValueError, match="degenerate"):
@@ -260,8 +280,12 @@ def test_difficulty_in_cache_key_and_manifest(tmp_path, monkeypatch):
     monkeypatch.setenv("VPR_CACHE_DIR", str(tmp_path / "cache"))
     a = load_dataset("synthetic", n_places=1, image_size=SMALL, difficulty="easy")
     b = load_dataset("synthetic", n_places=1, image_size=SMALL, difficulty="hard")
-    c = load_dataset("synthetic", n_places=1, image_size=SMALL,
-                     difficulty=S.SyntheticDifficulty(noise=(0.0, 0.0)))
+    c = load_dataset(
+        "synthetic",
+        n_places=1,
+        image_size=SMALL,
+        difficulty=S.SyntheticDifficulty(noise=(0.0, 0.0)),
+    )
     assert len({a.root, b.root, c.root}) == 3
     man = json.loads((c.root / "manifest.json").read_text())
     assert man["difficulty"] == "custom" and man["difficulty_settings"]["noise"] == [0.0, 0.0]

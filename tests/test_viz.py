@@ -32,12 +32,18 @@ def test_save_figure_goes_under_the_output_root(tmp_path, monkeypatch):
 def test_landmark_panels_colour_groups_and_check_them(tmp_path):
     img = np.zeros((60, 80, 3), np.uint8)
     boxes = np.array([[0, 0, 10, 10], [5, 5, 20, 20], [30, 30, 10, 10]], float)
-    a = _bytes(viz.plot_landmark_panels({"q": (img, boxes), "r": (img, boxes)},
-                                        colors_by=[0, 0, 1]), tmp_path / "a.png")
-    b = _bytes(viz.plot_landmark_panels({"q": (img, boxes), "r": (img, boxes)},
-                                        colors_by=[0, 0, 1]), tmp_path / "b.png")
-    c = _bytes(viz.plot_landmark_panels({"q": (img, boxes), "r": (img, boxes)},
-                                        colors_by=[0, 1, 1]), tmp_path / "c.png")
+    a = _bytes(
+        viz.plot_landmark_panels({"q": (img, boxes), "r": (img, boxes)}, colors_by=[0, 0, 1]),
+        tmp_path / "a.png",
+    )
+    b = _bytes(
+        viz.plot_landmark_panels({"q": (img, boxes), "r": (img, boxes)}, colors_by=[0, 0, 1]),
+        tmp_path / "b.png",
+    )
+    c = _bytes(
+        viz.plot_landmark_panels({"q": (img, boxes), "r": (img, boxes)}, colors_by=[0, 1, 1]),
+        tmp_path / "c.png",
+    )
     assert a == b and a != c
     with pytest.raises(ValueError, match="one group per box"):
         viz.plot_landmark_panels({"q": (img, boxes)}, colors_by=[0, 1])
@@ -65,10 +71,17 @@ def _result(label, sim, gt, auc=None):
 
     from vpr_core.evaluation import evaluate, pr_curve
 
-    return SimpleNamespace(label=label, similarity=sim, ground_truth=gt, dataset="toy",
-                           tolerance=0, protocol="ratio", metrics=evaluate(sim, gt),
-                           intervals={} if auc is None else {"auc": auc},
-                           curve=lambda: pr_curve(sim, gt, warn=False))
+    return SimpleNamespace(
+        label=label,
+        similarity=sim,
+        ground_truth=gt,
+        dataset="toy",
+        tolerance=0,
+        protocol="ratio",
+        metrics=evaluate(sim, gt),
+        intervals={} if auc is None else {"auc": auc},
+        curve=lambda: pr_curve(sim, gt, warn=False),
+    )
 
 
 def test_pr_curves_legend_outside_identical_curves_said_and_dataset_named():
@@ -81,8 +94,11 @@ def test_pr_curves_legend_outside_identical_curves_said_and_dataset_named():
     rng = np.random.default_rng(0)
     gt = np.eye(6, dtype=bool)
     a, b = gt + rng.random((6, 6)) * 0.9, gt + rng.random((6, 6)) * 3.0
-    results = [_result("dense", a, gt, (0.5, 0.25, 0.75)), _result("x", b, gt),
-               _result("y", a.copy(), gt)]
+    results = [
+        _result("dense", a, gt, (0.5, 0.25, 0.75)),
+        _result("x", b, gt),
+        _result("y", a.copy(), gt),
+    ]
     fig = plot_pr_curves(results, title="Fig. T")
     ax = fig.axes[0]
     texts = [t.get_text() for t in ax.get_legend().get_texts()]
@@ -107,8 +123,12 @@ def test_pr_curves_same_curve_is_said_and_colours_never_repeat():
     a = gt + rng.random((6, 6)) * 3.0
     scaled = a * 0.5  # another matrix, the same ranking: same curve and metrics
     other = gt + rng.random((6, 6)) * 3.0
-    results = [_result("classical", a, gt), _result("s2", scaled, gt),
-               _result("global", other, gt), _result("peer", other[::-1].copy(), gt)]
+    results = [
+        _result("classical", a, gt),
+        _result("s2", scaled, gt),
+        _result("global", other, gt),
+        _result("peer", other[::-1].copy(), gt),
+    ]
     fig = plot_pr_curves(results)
     ax = fig.axes[0]
     texts = [t.get_text() for t in ax.get_legend().get_texts()]
@@ -117,12 +137,12 @@ def test_pr_curves_same_curve_is_said_and_colours_never_repeat():
     assert len(drawn) == 3 and len(set(drawn)) == 3  # classical's blue is not reused
 
 
-
 def test_landmark_panels_say_which_colour_is_which_scale():
     img = np.zeros((60, 80, 3), np.uint8)
     boxes = np.array([[0, 0, 10, 10], [5, 5, 20, 20], [30, 30, 10, 10]], float)
-    fig = viz.plot_landmark_panels({"q": (img, boxes)}, colors_by=[0, 0, 1],
-                                   group_labels={0: "scale 0.16", 1: "scale 0.25"})
+    fig = viz.plot_landmark_panels(
+        {"q": (img, boxes)}, colors_by=[0, 0, 1], group_labels={0: "scale 0.16", 1: "scale 0.25"}
+    )
     texts = [t.get_text() for leg in fig.legends for t in leg.get_texts()]
     assert texts == ["scale 0.16", "scale 0.25"]
 
@@ -132,8 +152,10 @@ def test_pair_and_coverage_figures_of_runs(tiny_synthetic):
 
     from vpr_core.pipeline import run_method
 
-    runs = [run_method(m, tiny_synthetic, keep_descriptors=True, backbone="hog", n_bootstrap=0)
-            for m in ("dense", "global")]
+    runs = [
+        run_method(m, tiny_synthetic, keep_descriptors=True, backbone="hog", n_bootstrap=0)
+        for m in ("dense", "global")
+    ]
     fig = viz.plot_pair(tiny_synthetic, runs[0], query=1)
     assert "query 1 vs reference 1 (ground truth)" in fig._suptitle.get_text()
     fig, table = viz.plot_coverage_comparison(tiny_synthetic, runs, index=0)

@@ -53,8 +53,14 @@ log = logging.getLogger("vpr_core")
 
 PRECOMPUTED_FILE = "precomputed_data_corrected.npy"
 VPR_BENCH_ROOT_ENV = BENCH_ROOT_ENV
-_ITEMS = ("query indices", "top-1 reference indices", "top-1 scores", "similarity matrix",
-          "encode seconds", "match seconds")
+_ITEMS = (
+    "query indices",
+    "top-1 reference indices",
+    "top-1 scores",
+    "similarity matrix",
+    "encode seconds",
+    "match seconds",
+)
 
 
 @dataclass(frozen=True)
@@ -99,8 +105,9 @@ def _bad(path: Path, what: str) -> ValueError:
 
 
 def _items(path: Path) -> list:
-    data = read_npy(path, f"a VPR-Bench {PRECOMPUTED_FILE} (6 items: {', '.join(_ITEMS)}); "
-                          "download it again")
+    data = read_npy(
+        path, f"a VPR-Bench {PRECOMPUTED_FILE} (6 items: {', '.join(_ITEMS)}); download it again"
+    )
     if isinstance(data, np.ndarray) and data.dtype == object and data.ndim == 0:
         data = data.item()
     if isinstance(data, np.ndarray) and (data.dtype != object or data.ndim != 1):
@@ -118,8 +125,9 @@ def _vector(path: Path, value: Any, k: int, n: int | None, integral: bool) -> np
     except (TypeError, ValueError):
         raise _bad(path, f"item {k} ({_ITEMS[k]}) is not numeric") from None
     if n is not None and arr.size != n:
-        raise _bad(path, f"item {k} ({_ITEMS[k]}) has {arr.size} values, the similarity matrix "
-                         f"{n} rows")
+        raise _bad(
+            path, f"item {k} ({_ITEMS[k]}) has {arr.size} values, the similarity matrix {n} rows"
+        )
     if not np.all(np.isfinite(arr)):
         raise _bad(path, f"item {k} ({_ITEMS[k]}) holds NaN or inf")
     if integral:
@@ -140,8 +148,9 @@ def _matrix(path: Path, value: Any) -> np.ndarray:
     try:
         sim = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
-        raise _bad(path, "item 3 (similarity matrix) is not a numeric (Nq, Nr) matrix "
-                         "(ragged rows?)") from None
+        raise _bad(
+            path, "item 3 (similarity matrix) is not a numeric (Nq, Nr) matrix (ragged rows?)"
+        ) from None
     if sim.ndim != 2 or 0 in sim.shape:
         raise _bad(path, f"item 3 (similarity matrix) has shape {sim.shape}, not (Nq, Nr)")
     if not np.all(np.isfinite(sim)):
@@ -166,8 +175,10 @@ def load_vprbench_precomputed(path: str | os.PathLike) -> PeerResult:
     """
     path = Path(path).expanduser()
     if not path.is_file():
-        raise FileNotFoundError(f"VPR-Bench precomputed file not found: {path}; expected "
-                                f"precomputed_matches/<dataset>/<technique>/{PRECOMPUTED_FILE}.")
+        raise FileNotFoundError(
+            f"VPR-Bench precomputed file not found: {path}; expected "
+            f"precomputed_matches/<dataset>/<technique>/{PRECOMPUTED_FILE}."
+        )
     items = _items(path)
     sim = _matrix(path, items[3])
     nq, nr = sim.shape
@@ -178,13 +189,24 @@ def load_vprbench_precomputed(path: str | os.PathLike) -> PeerResult:
         raise _bad(path, f"item 1 (top-1 reference indices) outside 0..{nr - 1}")
     agree = float(np.mean(np.argmax(sim, axis=1) == top1))
     if agree < 0.9:
-        log.warning("%s: the stored top-1 references agree with the similarity matrix's row "
-                    "maxima for only %.0f%% of the queries; check that the matrix is a similarity "
-                    "(higher = better), not a distance", path, 100 * agree)
-    return PeerResult(name=path.parent.name, dataset=path.parent.parent.name, similarity=sim,
-                      encode_seconds=_seconds(path, items[4], 4),
-                      match_seconds=_seconds(path, items[5], 5), source=path,
-                      query_indices=queries, top1_reference=top1, top1_score=scores)
+        log.warning(
+            "%s: the stored top-1 references agree with the similarity matrix's row "
+            "maxima for only %.0f%% of the queries; check that the matrix is a similarity "
+            "(higher = better), not a distance",
+            path,
+            100 * agree,
+        )
+    return PeerResult(
+        name=path.parent.name,
+        dataset=path.parent.parent.name,
+        similarity=sim,
+        encode_seconds=_seconds(path, items[4], 4),
+        match_seconds=_seconds(path, items[5], 5),
+        source=path,
+        query_indices=queries,
+        top1_reference=top1,
+        top1_score=scores,
+    )
 
 
 def _user_array(value: Any, name: str, what: str, ndim: int) -> tuple[np.ndarray, Path | None]:
@@ -197,11 +219,15 @@ def _user_array(value: Any, name: str, what: str, ndim: int) -> tuple[np.ndarray
         try:
             value = np.load(source, allow_pickle=False)
         except (OSError, ValueError, EOFError) as exc:
-            raise ValueError(f"peer {name!r}: {source} is not a numeric .npy array ({exc}); save "
-                             f"the {what} with np.save(path, array).") from None
+            raise ValueError(
+                f"peer {name!r}: {source} is not a numeric .npy array ({exc}); save "
+                f"the {what} with np.save(path, array)."
+            ) from None
         if not isinstance(value, np.ndarray):
-            raise ValueError(f"peer {name!r}: {source} is a .npz archive; save the {what} alone "  # noqa: TRY004
-                             "with np.save(path, array).")
+            raise ValueError(
+                f"peer {name!r}: {source} is a .npz archive; save the {what} alone "  # noqa: TRY004
+                "with np.save(path, array)."
+            )
     where = source or "the array"
     try:
         arr = np.asarray(value, dtype=np.float64)
@@ -209,12 +235,16 @@ def _user_array(value: Any, name: str, what: str, ndim: int) -> tuple[np.ndarray
         raise ValueError(f"peer {name!r}: the {what} in {where} is not numeric.") from None
     if arr.ndim != ndim or 0 in arr.shape:
         shape = "(Nq, Nr)" if what.endswith("matrix") else "(N, D)"
-        raise ValueError(f"peer {name!r}: the {what} in {where} has shape {arr.shape}; it must be a "
-                         f"non-empty {ndim}-d {shape} array.")
+        raise ValueError(
+            f"peer {name!r}: the {what} in {where} has shape {arr.shape}; it must be a "
+            f"non-empty {ndim}-d {shape} array."
+        )
     if not np.all(np.isfinite(arr)):
-        raise ValueError(f"peer {name!r}: the {what} in {where} holds "
-                         f"{int(np.sum(~np.isfinite(arr)))} NaN or inf values; fix the method's "
-                         "output (every entry must be a finite number).")
+        raise ValueError(
+            f"peer {name!r}: the {what} in {where} holds "
+            f"{int(np.sum(~np.isfinite(arr)))} NaN or inf values; fix the method's "
+            "output (every entry must be a finite number)."
+        )
     return arr, source
 
 
@@ -222,14 +252,22 @@ def _user_peer(name: str, sim: np.ndarray, source: Path | None) -> PeerResult:
     if not isinstance(name, str) or not name.strip():
         raise ValueError(f"a peer needs a non-empty name, got {name!r}.")
     top1 = np.argmax(sim, axis=1)
-    return PeerResult(name=name, dataset="", similarity=sim, encode_seconds=float("nan"),
-                      match_seconds=float("nan"), source=source,
-                      query_indices=np.arange(sim.shape[0]), top1_reference=top1,
-                      top1_score=sim[np.arange(sim.shape[0]), top1])
+    return PeerResult(
+        name=name,
+        dataset="",
+        similarity=sim,
+        encode_seconds=float("nan"),
+        match_seconds=float("nan"),
+        source=source,
+        query_indices=np.arange(sim.shape[0]),
+        top1_reference=top1,
+        top1_score=sim[np.arange(sim.shape[0]), top1],
+    )
 
 
-def peer_from_matrix(matrix_or_path: np.ndarray | str | os.PathLike, name: str,
-                     distance: bool = False) -> PeerResult:
+def peer_from_matrix(
+    matrix_or_path: np.ndarray | str | os.PathLike, name: str, distance: bool = False
+) -> PeerResult:
     """A user's method as a peer, from its query x reference matrix.
 
     Args:
@@ -246,14 +284,18 @@ def peer_from_matrix(matrix_or_path: np.ndarray | str | os.PathLike, name: str,
         FileNotFoundError: no such file.
         ValueError: not a 2-d numeric matrix, NaN / inf entries, empty name.
     """
-    sim, source = _user_array(matrix_or_path, name, "distance matrix" if distance
-                              else "similarity matrix", 2)
+    sim, source = _user_array(
+        matrix_or_path, name, "distance matrix" if distance else "similarity matrix", 2
+    )
     return _user_peer(name, -sim if distance else sim, source)
 
 
-def peer_from_descriptors(query_path_or_array: np.ndarray | str | os.PathLike,
-                          database_path_or_array: np.ndarray | str | os.PathLike, name: str,
-                          metric: str = "cosine") -> PeerResult:
+def peer_from_descriptors(
+    query_path_or_array: np.ndarray | str | os.PathLike,
+    database_path_or_array: np.ndarray | str | os.PathLike,
+    name: str,
+    metric: str = "cosine",
+) -> PeerResult:
     """A user's method as a peer, from its global descriptors.
 
     Args:
@@ -278,15 +320,19 @@ def peer_from_descriptors(query_path_or_array: np.ndarray | str | os.PathLike,
     q, q_src = _user_array(query_path_or_array, name, "query descriptors", 2)
     r, _ = _user_array(database_path_or_array, name, "database descriptors", 2)
     if q.shape[1] != r.shape[1]:
-        raise ValueError(f"peer {name!r}: query descriptors are {q.shape[1]}-d but database "
-                         f"descriptors {r.shape[1]}-d; give both files of the same method run.")
+        raise ValueError(
+            f"peer {name!r}: query descriptors are {q.shape[1]}-d but database "
+            f"descriptors {r.shape[1]}-d; give both files of the same method run."
+        )
     if metric == "l2":
         sq = (q * q).sum(1)[:, None] + (r * r).sum(1)[None, :] - 2 * q @ r.T
         return _user_peer(name, -np.sqrt(np.maximum(sq, 0.0)), q_src)
     nq, nr = np.linalg.norm(q, axis=1), np.linalg.norm(r, axis=1)
     if not (nq > 0).all() or not (nr > 0).all():
-        raise ValueError(f"peer {name!r}: some descriptors are all zero, so their cosine is "
-                         "undefined; use metric='l2' or fix the descriptors.")
+        raise ValueError(
+            f"peer {name!r}: some descriptors are all zero, so their cosine is "
+            "undefined; use metric='l2' or fix the descriptors."
+        )
     return _user_peer(name, (q / nq[:, None]) @ (r / nr[:, None]).T, q_src)
 
 
@@ -294,14 +340,18 @@ def _precomputed_dir(root: str | os.PathLike | None) -> Path:
     if root is None:
         root = bench_root()
         if not root:
-            raise ValueError(f"no VPR-Bench folder given: pass root=<VPR-Bench checkout> or set "
-                             f"{VPR_BENCH_ROOT_ENV}.")
+            raise ValueError(
+                f"no VPR-Bench folder given: pass root=<VPR-Bench checkout> or set "
+                f"{VPR_BENCH_ROOT_ENV}."
+            )
     root = Path(root).expanduser()
     for cand in (root / "precomputed_matches", root):
         if cand.is_dir() and cand.name == "precomputed_matches":
             return cand
-    raise FileNotFoundError(f"{root} is neither a VPR-Bench checkout (with precomputed_matches/) "
-                            "nor its precomputed_matches folder.")
+    raise FileNotFoundError(
+        f"{root} is neither a VPR-Bench checkout (with precomputed_matches/) "
+        "nor its precomputed_matches folder."
+    )
 
 
 def find_vprbench_peers(root: str | os.PathLike | None, dataset: str) -> list[PeerResult]:
@@ -325,11 +375,15 @@ def find_vprbench_peers(root: str | os.PathLike | None, dataset: str) -> list[Pe
     found = sorted(p.name for p in base.iterdir() if p.is_dir())
     match = [n for n in found if n == dataset] or [n for n in found if n.lower() == dataset.lower()]
     if len(match) != 1:
-        raise FileNotFoundError(f"VPR-Bench dataset {dataset!r} not found in {base}; datasets "
-                                f"there: {', '.join(found) or 'none'}.")
+        raise FileNotFoundError(
+            f"VPR-Bench dataset {dataset!r} not found in {base}; datasets "
+            f"there: {', '.join(found) or 'none'}."
+        )
     folder = base / match[0]
-    files = sorted((p / PRECOMPUTED_FILE for p in folder.iterdir()
-                    if (p / PRECOMPUTED_FILE).is_file()), key=lambda p: p.parent.name.lower())
+    files = sorted(
+        (p / PRECOMPUTED_FILE for p in folder.iterdir() if (p / PRECOMPUTED_FILE).is_file()),
+        key=lambda p: p.parent.name.lower(),
+    )
     if not files:
         raise FileNotFoundError(f"no <technique>/{PRECOMPUTED_FILE} under {folder}.")
     return [load_vprbench_precomputed(f) for f in files]
@@ -359,6 +413,8 @@ def peer_similarity_for(dataset: Any, peer: PeerResult) -> np.ndarray:
         )
     order = np.argsort(peer.query_indices, kind="stable")
     if not np.array_equal(peer.query_indices[order], np.arange(nq)):
-        raise ValueError(f"peer {peer.name!r} ({peer.source}): its query indices are not 0..{nq - 1} "
-                         "each once, so its rows cannot be matched to the dataset's queries.")
+        raise ValueError(
+            f"peer {peer.name!r} ({peer.source}): its query indices are not 0..{nq - 1} "
+            "each once, so its rows cannot be matched to the dataset's queries."
+        )
     return peer.similarity[order].copy()

@@ -20,8 +20,9 @@ __all__ = [
 ]
 
 
-def check_boxes(boxes: Any, name: str = "boxes", k: int | None = None,
-                positive: bool = False) -> np.ndarray:
+def check_boxes(
+    boxes: Any, name: str = "boxes", k: int | None = None, positive: bool = False
+) -> np.ndarray:
     """Return ``boxes`` as float64 ``(K, 4)``; raise a ValueError naming the problem otherwise.
 
     Args:
@@ -70,8 +71,9 @@ def check_image(image: Any, allow_gray: bool = False, min_size: int = 1) -> np.n
     if not ((image.ndim == 3 and image.shape[2] == 3) or (allow_gray and image.ndim == 2)):
         raise ValueError(f"image must have shape {what}, got {image.shape}")
     if image.shape[0] < min_size or image.shape[1] < min_size:
-        raise ValueError(f"image is too small: shape {image.shape}, need at least "
-                         f"{min_size} x {min_size} pixels")
+        raise ValueError(
+            f"image is too small: shape {image.shape}, need at least {min_size} x {min_size} pixels"
+        )
     return image
 
 
@@ -79,8 +81,7 @@ def check_image_size(image_size: Any, name: str = "image_size") -> tuple[int, in
     """Validate ``(H, W)`` (a 3-tuple ``image.shape`` is accepted too) and return ints."""
     if isinstance(image_size, np.ndarray) and image_size.ndim >= 2:
         raise ValueError(
-            f"{name} must be (H, W), got an array of shape {image_size.shape}; "
-            "pass image.shape[:2]"
+            f"{name} must be (H, W), got an array of shape {image_size.shape}; pass image.shape[:2]"
         )
     try:
         seq = tuple(image_size)
@@ -123,9 +124,15 @@ def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a = check_boxes(a, "a")
     b = check_boxes(b, "b")
     return _iou_from_corners(
-        a[:, 0:1], a[:, 1:2], a[:, 0:1] + a[:, 2:3], a[:, 1:2] + a[:, 3:4],
+        a[:, 0:1],
+        a[:, 1:2],
+        a[:, 0:1] + a[:, 2:3],
+        a[:, 1:2] + a[:, 3:4],
         (a[:, 2] * a[:, 3])[:, None],
-        b[None, :, 0], b[None, :, 1], b[None, :, 0] + b[None, :, 2], b[None, :, 1] + b[None, :, 3],
+        b[None, :, 0],
+        b[None, :, 1],
+        b[None, :, 0] + b[None, :, 2],
+        b[None, :, 1] + b[None, :, 3],
         (b[:, 2] * b[:, 3])[None, :],
     )
 
@@ -143,9 +150,18 @@ def paired_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a = check_boxes(np.asarray(a, dtype=np.float64).reshape(-1, 4), "a")
     b = check_boxes(np.asarray(b, dtype=np.float64).reshape(-1, 4), "b")
     if a.shape[0] != b.shape[0]:
-        raise ValueError(f"paired_iou needs as many boxes in a as in b, got {a.shape[0]} and "
-                         f"{b.shape[0]}")
+        raise ValueError(
+            f"paired_iou needs as many boxes in a as in b, got {a.shape[0]} and {b.shape[0]}"
+        )
     return _iou_from_corners(
-        a[:, 0], a[:, 1], a[:, 0] + a[:, 2], a[:, 1] + a[:, 3], a[:, 2] * a[:, 3],
-        b[:, 0], b[:, 1], b[:, 0] + b[:, 2], b[:, 1] + b[:, 3], b[:, 2] * b[:, 3],
+        a[:, 0],
+        a[:, 1],
+        a[:, 0] + a[:, 2],
+        a[:, 1] + a[:, 3],
+        a[:, 2] * a[:, 3],
+        b[:, 0],
+        b[:, 1],
+        b[:, 0] + b[:, 2],
+        b[:, 1] + b[:, 3],
+        b[:, 2] * b[:, 3],
     )

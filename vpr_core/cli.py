@@ -63,13 +63,20 @@ def format_table(rows: list[dict], columns: list[str] | None = None, floatfmt: s
     if not rows:
         return "(no rows)"
     columns = columns or list(rows[0])
-    cells = [[(f"{r[c]:{floatfmt}}" if isinstance(r.get(c), float) else str(r.get(c, "")))
-              for c in columns] for r in rows]
+    cells = [
+        [
+            (f"{r[c]:{floatfmt}}" if isinstance(r.get(c), float) else str(r.get(c, "")))
+            for c in columns
+        ]
+        for r in rows
+    ]
     widths = [max(len(c), *(len(row[k]) for row in cells)) for k, c in enumerate(columns)]
-    line = "  ".join(c.ljust(w) for c, w in zip(columns, widths))
+    line = "  ".join(c.ljust(w) for c, w in zip(columns, widths, strict=False))
     sep = "  ".join("-" * w for w in widths)
-    body = ["  ".join(v.rjust(w) if k else v.ljust(w) for k, (v, w) in enumerate(zip(row, widths)))
-            for row in cells]
+    body = [
+        "  ".join(v.rjust(w) if k else v.ljust(w) for k, (v, w) in enumerate(zip(row, widths, strict=False)))
+        for row in cells
+    ]
     return "\n".join([line, sep, *body])
 
 
@@ -81,10 +88,14 @@ def _peer_results(args: argparse.Namespace, dataset) -> list:
     from .pipeline import peer_result
 
     if not args.peer_dataset:
-        raise ValueError("--peers needs --peer-dataset NAME (the folder under "
-                         "precomputed_matches/, e.g. GardensPointWalking)")
-    return [peer_result(p, dataset, n_bootstrap=args.n_bootstrap, protocol=args.protocol)
-            for p in find_vprbench_peers(args.peers, args.peer_dataset)]
+        raise ValueError(
+            "--peers needs --peer-dataset NAME (the folder under "
+            "precomputed_matches/, e.g. GardensPointWalking)"
+        )
+    return [
+        peer_result(p, dataset, n_bootstrap=args.n_bootstrap, protocol=args.protocol)
+        for p in find_vprbench_peers(args.peers, args.peer_dataset)
+    ]
 
 
 def _user_peers(args: argparse.Namespace, dataset) -> list:
@@ -100,17 +111,29 @@ def _user_peers(args: argparse.Namespace, dataset) -> list:
     for item in args.peer or []:
         name, sep, path = item.partition("=")
         if not sep or not name.strip() or not path.strip():
-            raise ValueError(f"--peer {item!r} is not NAME=PATH (e.g. --peer MyNet=sim.npy or "
-                             "--peer MyNet=descriptors_folder/)")
+            raise ValueError(
+                f"--peer {item!r} is not NAME=PATH (e.g. --peer MyNet=sim.npy or "
+                "--peer MyNet=descriptors_folder/)"
+            )
         p = Path(path.strip()).expanduser()
         if p.is_dir():
-            peer = peer_from_descriptors(p / "queries_descriptors.npy",
-                                         p / "database_descriptors.npy", name.strip(),
-                                         metric=args.peer_metric)
+            peer = peer_from_descriptors(
+                p / "queries_descriptors.npy",
+                p / "database_descriptors.npy",
+                name.strip(),
+                metric=args.peer_metric,
+            )
         else:
             peer = peer_from_matrix(p, name.strip(), distance=args.peer_distance)
-        out.append(peer_result(peer, dataset, n_bootstrap=args.n_bootstrap, label=name.strip(),
-                               protocol=args.protocol))
+        out.append(
+            peer_result(
+                peer,
+                dataset,
+                n_bootstrap=args.n_bootstrap,
+                label=name.strip(),
+                protocol=args.protocol,
+            )
+        )
     return out
 
 
@@ -127,8 +150,10 @@ def _display(table) -> list[dict]:
         for name in ("dAUC", "dR@1"):
             row[name] = ""
             if name in table.columns and isinstance(r.get(f"{name} verdict"), str):
-                row[name] = (f"{r[name]:+.3f} [{r[f'{name} lo']:+.3f}, {r[f'{name} hi']:+.3f}] "
-                             f"{r[f'{name} verdict']}")
+                row[name] = (
+                    f"{r[name]:+.3f} [{r[f'{name} lo']:+.3f}, {r[f'{name} hi']:+.3f}] "
+                    f"{r[f'{name} verdict']}"
+                )
         row["queries"] = str(int(r["queries"]))
         row["landmarks/img"] = f"{r['landmarks/img']:.0f}"
         for col in ("landmarks s/img", "features s/img", "matching s/pair"):
@@ -147,26 +172,47 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
     tune_allocator()  # process-wide, here at the boundary: crop features ~1.7x faster
     dataset = load_dataset(args.dataset, root=args.root, **_dataset_options(args))
-    label = args.label or (Path(args.root).expanduser().resolve().name
-                           if args.root and args.dataset == "folder" else dataset.name)
+    label = args.label or (
+        Path(args.root).expanduser().resolve().name
+        if args.root and args.dataset == "folder"
+        else dataset.name
+    )
     n_gt, n_q = ground_truth_coverage(dataset.ground_truth)
-    print(f"dataset: {dataset.name} ({label})  queries={len(dataset.query_paths)} "
-          f"references={len(dataset.reference_paths)} tolerance={dataset.tolerance}")
+    print(
+        f"dataset: {dataset.name} ({label})  queries={len(dataset.query_paths)} "
+        f"references={len(dataset.reference_paths)} tolerance={dataset.tolerance}"
+    )
     print(f"queries with ground truth: {n_gt} of {n_q}")
     mode = "exhaustive" if args.shortlist is None else f"shortlist k={args.shortlist}"
     scheduler = args.scheduler or settings.dask_scheduler()
-    results = [run_method(m, dataset, backbone=args.backbone, dim=args.dim, seed=args.seed,
-                          weights=args.weights, pooling=args.pooling, device=args.device,
-                          shortlist=args.shortlist, scheduler=scheduler,
-                          n_bootstrap=args.n_bootstrap, protocol=args.protocol)
-               for m in args.method]
+    results = [
+        run_method(
+            m,
+            dataset,
+            backbone=args.backbone,
+            dim=args.dim,
+            seed=args.seed,
+            weights=args.weights,
+            pooling=args.pooling,
+            device=args.device,
+            shortlist=args.shortlist,
+            scheduler=scheduler,
+            n_bootstrap=args.n_bootstrap,
+            protocol=args.protocol,
+        )
+        for m in args.method
+    ]
     results += _peer_results(args, dataset) + _user_peers(args, dataset)
-    print(f"backbone: {results[0].encoder.get('backbone')} "
-          f"(weights: {results[0].encoder.get('weights')}, pooling: {args.pooling}, {mode}; "
-          f"95% bootstrap intervals over queries, {args.n_bootstrap} resamples)")
+    print(
+        f"backbone: {results[0].encoder.get('backbone')} "
+        f"(weights: {results[0].encoder.get('weights')}, pooling: {args.pooling}, {mode}; "
+        f"95% bootstrap intervals over queries, {args.n_bootstrap} resamples)"
+    )
     if len(results) > 1:
-        print(f"paired bootstrap (same resampled queries): dAUC and dR@1 = method - "
-              f"{results[0].label}; a finding only where the interval excludes 0")
+        print(
+            f"paired bootstrap (same resampled queries): dAUC and dR@1 = method - "
+            f"{results[0].label}; a finding only where the interval excludes 0"
+        )
     table = compare(results, n_bootstrap=args.n_bootstrap)
     print(format_table(_display(table)))
     stem = "eval_" + "+".join(args.method) + f"_{args.backbone.replace(':', '_')}"
@@ -185,9 +231,18 @@ def cmd_eval(args: argparse.Namespace) -> int:
 def cmd_run(args: argparse.Namespace) -> int:
     from .runner import run_study
 
-    run_study(dataset=args.dataset, root=args.root, backbone=args.backbone, quick=args.quick,
-              notebooks=args.notebooks or None, real_data=args.real_data, label=args.label,
-              options=_dataset_options(args), pooling=args.pooling, shortlist=args.shortlist)
+    run_study(
+        dataset=args.dataset,
+        root=args.root,
+        backbone=args.backbone,
+        quick=args.quick,
+        notebooks=args.notebooks or None,
+        real_data=args.real_data,
+        label=args.label,
+        options=_dataset_options(args),
+        pooling=args.pooling,
+        shortlist=args.shortlist,
+    )
     return 0
 
 
@@ -210,71 +265,135 @@ def build_parser() -> argparse.ArgumentParser:
     from .methods import available_methods
     from .paper import PROJECTION_DIM
 
-    p = argparse.ArgumentParser(prog="vpr-study", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="vpr-study", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     sub = p.add_subparsers(dest="command", required=True)
 
     def common(sp: argparse.ArgumentParser) -> None:
-        sp.add_argument("--dataset", default="synthetic",
-                        help="synthetic | gardens_point | mapillary_berlin | "
-                             "freiburg_across_seasons | nordland | vpr_bench | folder")
+        sp.add_argument(
+            "--dataset",
+            default="synthetic",
+            help="synthetic | gardens_point | mapillary_berlin | "
+            "freiburg_across_seasons | nordland | vpr_bench | folder",
+        )
         sp.add_argument("--root", default=None, help="dataset folder (real datasets)")
-        sp.add_argument("--backbone", default="efficientnet_lite0",
-                        help="landmark descriptor: efficientnet_lite0 (default, ImageNet "
-                             "weights shipped), efficientnet_lite1/2, alexnet_conv3 (the "
-                             "paper's; needs a weights file), hog, sift")
-        sp.add_argument("--out", default=None,
-                        help="output root: figures/, results/, runs/ (and .cache/ unless "
-                             "VPR_CACHE_DIR is set) go under it; default the current folder "
-                             "or $VPR_OUTPUT_DIR")
+        sp.add_argument(
+            "--backbone",
+            default="efficientnet_lite0",
+            help="landmark descriptor: efficientnet_lite0 (default, ImageNet "
+            "weights shipped), efficientnet_lite1/2, alexnet_conv3 (the "
+            "paper's; needs a weights file), hog, sift",
+        )
+        sp.add_argument(
+            "--out",
+            default=None,
+            help="output root: figures/, results/, runs/ (and .cache/ unless "
+            "VPR_CACHE_DIR is set) go under it; default the current folder "
+            "or $VPR_OUTPUT_DIR",
+        )
 
     e = sub.add_parser("eval", help="evaluate one or more methods on a dataset")
     common(e)
-    e.add_argument("--method", nargs="+", default=["dense"],
-                   help=f"one or more of: {', '.join(available_methods())}")
-    e.add_argument("--label", default=None,
-                   help="output subfolder and the dataset's name in tables and titles "
-                        "(default: the root folder's name for folder datasets, else the "
-                        "dataset name)")
-    e.add_argument("--dim", type=int, default=PROJECTION_DIM,
-                   help=f"descriptor dimension after the random projection (default "
-                        f"{PROJECTION_DIM})")
-    e.add_argument("--seed", type=_non_negative, default=0,
-                   help="seed of the random projection (default 0)")
+    e.add_argument(
+        "--method",
+        nargs="+",
+        default=["dense"],
+        help=f"one or more of: {', '.join(available_methods())}",
+    )
+    e.add_argument(
+        "--label",
+        default=None,
+        help="output subfolder and the dataset's name in tables and titles "
+        "(default: the root folder's name for folder datasets, else the "
+        "dataset name)",
+    )
+    e.add_argument(
+        "--dim",
+        type=int,
+        default=PROJECTION_DIM,
+        help=f"descriptor dimension after the random projection (default {PROJECTION_DIM})",
+    )
+    e.add_argument(
+        "--seed", type=_non_negative, default=0, help="seed of the random projection (default 0)"
+    )
     e.add_argument("--weights", default=None, help="AlexNet weights file (alexnet_conv3)")
-    e.add_argument("--pooling", default="crop", choices=("crop", "roi"),
-                   help="crop: the paper's per-landmark crops (default); roi: one backbone "
-                        "pass per image, regions pooled from the feature map")
-    e.add_argument("--shortlist", type=int, default=None, metavar="K",
-                   help="re-rank only each query's top-K references by a whole-image "
-                        "descriptor (default: exhaustive, the paper's)")
-    e.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="Dask scheduler (tcp://host:8786; default $VPR_DASK_SCHEDULER): run "
-                        "features and matching on that cluster; unset: in-process")
-    e.add_argument("--protocol", default="ratio", choices=PROTOCOLS,
-                   help="PR protocol of AUC and R@100P: ratio (the paper's, default), vpr_bench "
-                        "(VPR-Bench's AUC-PR), best_match (VPR_Tutorial's), multi_match; see "
-                        "docs/DEFINITIONS.md")
+    e.add_argument(
+        "--pooling",
+        default="crop",
+        choices=("crop", "roi"),
+        help="crop: the paper's per-landmark crops (default); roi: one backbone "
+        "pass per image, regions pooled from the feature map",
+    )
+    e.add_argument(
+        "--shortlist",
+        type=int,
+        default=None,
+        metavar="K",
+        help="re-rank only each query's top-K references by a whole-image "
+        "descriptor (default: exhaustive, the paper's)",
+    )
+    e.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="Dask scheduler (tcp://host:8786; default $VPR_DASK_SCHEDULER): run "
+        "features and matching on that cluster; unset: in-process",
+    )
+    e.add_argument(
+        "--protocol",
+        default="ratio",
+        choices=PROTOCOLS,
+        help="PR protocol of AUC and R@100P: ratio (the paper's, default), vpr_bench "
+        "(VPR-Bench's AUC-PR), best_match (VPR_Tutorial's), multi_match; see "
+        "docs/DEFINITIONS.md",
+    )
     e.add_argument("--device", default="cpu", help="torch device: cpu (default) or cuda")
-    e.add_argument("--n-bootstrap", type=int, default=1000,
-                   help="bootstrap resamples of the 95%% intervals (default 1000)")
-    e.add_argument("--peers", default=None, metavar="VPR_BENCH",
-                   help="VPR-Bench checkout (or $VPR_BENCH_ROOT): add its precomputed "
-                        "techniques for --peer-dataset as peers in the table and the figure")
-    e.add_argument("--peer-dataset", default=None, metavar="NAME",
-                   help="VPR-Bench dataset folder under precomputed_matches/ "
-                        "(e.g. GardensPointWalking)")
-    e.add_argument("--peer", action="append", metavar="NAME=PATH",
-                   help="your own method as a peer: a (Nq, Nr) similarity matrix .npy, or a "
-                        "folder with queries_descriptors.npy + database_descriptors.npy "
-                        "(repeatable)")
-    e.add_argument("--peer-distance", action="store_true",
-                   help="--peer matrices are distances (lower = more similar)")
-    e.add_argument("--peer-metric", default="cosine", choices=("cosine", "l2"),
-                   help="metric of --peer descriptor folders (default cosine)")
+    e.add_argument(
+        "--n-bootstrap",
+        type=int,
+        default=1000,
+        help="bootstrap resamples of the 95%% intervals (default 1000)",
+    )
+    e.add_argument(
+        "--peers",
+        default=None,
+        metavar="VPR_BENCH",
+        help="VPR-Bench checkout (or $VPR_BENCH_ROOT): add its precomputed "
+        "techniques for --peer-dataset as peers in the table and the figure",
+    )
+    e.add_argument(
+        "--peer-dataset",
+        default=None,
+        metavar="NAME",
+        help="VPR-Bench dataset folder under precomputed_matches/ (e.g. GardensPointWalking)",
+    )
+    e.add_argument(
+        "--peer",
+        action="append",
+        metavar="NAME=PATH",
+        help="your own method as a peer: a (Nq, Nr) similarity matrix .npy, or a "
+        "folder with queries_descriptors.npy + database_descriptors.npy "
+        "(repeatable)",
+    )
+    e.add_argument(
+        "--peer-distance",
+        action="store_true",
+        help="--peer matrices are distances (lower = more similar)",
+    )
+    e.add_argument(
+        "--peer-metric",
+        default="cosine",
+        choices=("cosine", "l2"),
+        help="metric of --peer descriptor folders (default cosine)",
+    )
     e.add_argument("--step", type=int, default=None, help="nordland: keep every step-th place")
-    e.add_argument("--opt", action="append", metavar="KEY=VALUE",
-                   help="any other loader option, e.g. --opt query=winter (repeatable)")
+    e.add_argument(
+        "--opt",
+        action="append",
+        metavar="KEY=VALUE",
+        help="any other loader option, e.g. --opt query=winter (repeatable)",
+    )
     e.add_argument("--tolerance", type=int, default=None, help="ground-truth tolerance (frames)")
     e.add_argument("--n-places", type=int, default=None, help="synthetic: number of places")
     e.set_defaults(func=cmd_eval)
@@ -283,21 +402,43 @@ def build_parser() -> argparse.ArgumentParser:
     common(r)
     r.add_argument("--quick", action="store_true", help="small synthetic set (used by tests)")
     r.add_argument("--notebooks", nargs="*", help="subset of notebooks (file stems)")
-    r.add_argument("--real-data", dest="real_data", action="store_true", default=None,
-                   help="also run notebooks 03-06 on the real datasets beside the project "
-                        "(default for the full synthetic study)")
-    r.add_argument("--no-real-data", dest="real_data", action="store_false",
-                   help="only the --dataset study")
-    r.add_argument("--label", default=None,
-                   help="subfolder of figures/ and results/ (default: the dataset's name)")
-    r.add_argument("--pooling", default="crop", choices=("crop", "roi"),
-                   help="landmark pooling of every run (default crop, the paper's)")
-    r.add_argument("--shortlist", type=int, default=None, metavar="K",
-                   help="re-rank each query's top-K references (global cosine) by Eq. (1)")
+    r.add_argument(
+        "--real-data",
+        dest="real_data",
+        action="store_true",
+        default=None,
+        help="also run notebooks 03-06 on the real datasets beside the project "
+        "(default for the full synthetic study)",
+    )
+    r.add_argument(
+        "--no-real-data", dest="real_data", action="store_false", help="only the --dataset study"
+    )
+    r.add_argument(
+        "--label",
+        default=None,
+        help="subfolder of figures/ and results/ (default: the dataset's name)",
+    )
+    r.add_argument(
+        "--pooling",
+        default="crop",
+        choices=("crop", "roi"),
+        help="landmark pooling of every run (default crop, the paper's)",
+    )
+    r.add_argument(
+        "--shortlist",
+        type=int,
+        default=None,
+        metavar="K",
+        help="re-rank each query's top-K references (global cosine) by Eq. (1)",
+    )
     r.add_argument("--step", type=int, default=None, help="nordland: keep every step-th place")
     r.add_argument("--tolerance", type=int, default=None, help="ground-truth tolerance (frames)")
-    r.add_argument("--opt", action="append", metavar="KEY=VALUE",
-                   help="any other loader option, e.g. --opt query=winter (repeatable)")
+    r.add_argument(
+        "--opt",
+        action="append",
+        metavar="KEY=VALUE",
+        help="any other loader option, e.g. --opt query=winter (repeatable)",
+    )
     r.set_defaults(func=cmd_run)
 
     f = sub.add_parser("findings", help="the paper's claims vs results/<dataset>/ (Markdown)")
@@ -353,8 +494,16 @@ def main(argv: list[str] | None = None) -> int:
     except _Terminated:
         print(INTERRUPTED.replace("interrupted", "terminated"), file=sys.stderr)
         return 143
-    except (ValueError, TypeError, FileNotFoundError, IndexError, RuntimeError, OSError,
-            ConnectionError, ImportError) as exc:
+    except (
+        ValueError,
+        TypeError,
+        FileNotFoundError,
+        IndexError,
+        RuntimeError,
+        OSError,
+        ConnectionError,
+        ImportError,
+    ) as exc:
         print(f"vpr-study: error: {exc}", file=sys.stderr)
         return 2
     finally:

@@ -24,8 +24,12 @@ from .pipeline import get_encoder, landmarks_for_image
 __all__ = ["COST_COLUMNS", "cost_table"]
 
 #: Columns of Table 5 as measured here.
-COST_COLUMNS = ("extract landmarks (s/img)", "computing CNN features (s/img)",
-                "remaining steps (s/pair)", "matching two images (s)")
+COST_COLUMNS = (
+    "extract landmarks (s/img)",
+    "computing CNN features (s/img)",
+    "remaining steps (s/pair)",
+    "matching two images (s)",
+)
 
 
 def _time_method(method: str, dataset, encoder, n: int, repeats: int) -> dict[str, float]:
@@ -43,19 +47,34 @@ def _time_method(method: str, dataset, encoder, n: int, repeats: int) -> dict[st
             t_lm += seconds
             boxes.append(np.asarray(b))
         t0 = time.perf_counter()
-        similarity_matrix(descs, boxes, descs, boxes,
-                          soft_nms_iou=conf["matching"]["soft_nms_iou"],
-                          sigma=conf["matching"]["sigma"])
+        similarity_matrix(
+            descs,
+            boxes,
+            descs,
+            boxes,
+            soft_nms_iou=conf["matching"]["soft_nms_iou"],
+            sigma=conf["matching"]["sigma"],
+        )
         t_match += time.perf_counter() - t0
     per_img_lm, per_img_ft = t_lm / (repeats * n), t_ft / (repeats * n)
     per_pair = t_match / (repeats * n * n)
-    return dict(zip(COST_COLUMNS, (per_img_lm, per_img_ft, per_pair,
-                                   2 * (per_img_lm + per_img_ft) + per_pair)))
+    return dict(
+        zip(
+            COST_COLUMNS,
+            (per_img_lm, per_img_ft, per_pair, 2 * (per_img_lm + per_img_ft) + per_pair), strict=False,
+        )
+    )
 
 
-def cost_table(dataset, methods: Sequence[str] = ("classical", "dense"), n_images: int = 4,
-               repeats: int = 1, backbone: str = "efficientnet_lite0", pooling: str = "crop",
-               seed: int = 0) -> pd.DataFrame:
+def cost_table(
+    dataset,
+    methods: Sequence[str] = ("classical", "dense"),
+    n_images: int = 4,
+    repeats: int = 1,
+    backbone: str = "efficientnet_lite0",
+    pooling: str = "crop",
+    seed: int = 0,
+) -> pd.DataFrame:
     """Table 5 measured here, computed fresh on the first ``n_images`` query images.
 
     Args:
@@ -74,8 +93,9 @@ def cost_table(dataset, methods: Sequence[str] = ("classical", "dense"), n_image
         ValueError: ``n_images`` or ``repeats`` below 1.
     """
     if n_images < 1 or repeats < 1:
-        raise ValueError(f"cost_table needs n_images >= 1 and repeats >= 1, got {n_images} "
-                         f"and {repeats}.")
+        raise ValueError(
+            f"cost_table needs n_images >= 1 and repeats >= 1, got {n_images} and {repeats}."
+        )
     encoder = get_encoder(backbone, PROJECTION_DIM, seed, pooling=pooling)
     n = min(n_images, len(dataset.query_paths))
     rows = [{"method": m, **_time_method(m, dataset, encoder, n, repeats)} for m in methods]

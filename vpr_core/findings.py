@@ -39,8 +39,15 @@ from .evaluation.bootstrap import N_BOOTSTRAP, needs_text
 from .methods import get_method, run_key
 from .paper import TABLE2, TABLE3, TABLE4
 
-__all__ = ["CLAIMS", "OBSERVATION_1", "Claim", "cmr_difference", "findings_markdown",
-           "findings_table", "result_labels"]
+__all__ = [
+    "CLAIMS",
+    "OBSERVATION_1",
+    "Claim",
+    "cmr_difference",
+    "findings_markdown",
+    "findings_table",
+    "result_labels",
+]
 
 
 @dataclass(frozen=True)
@@ -66,8 +73,9 @@ class Claim:
     @property
     def keys(self) -> tuple[str, str]:
         """The run keys of method and baseline (the ``run`` column of the tables)."""
-        return tuple(run_key(get_method(name, **opts)) for name, opts in (self.method,
-                                                                           self.baseline))
+        return tuple(
+            run_key(get_method(name, **opts)) for name, opts in (self.method, self.baseline)
+        )
 
 
 def _dense(table: dict, name: str) -> tuple[str, dict]:
@@ -80,43 +88,120 @@ _D = ("dense", {})
 
 #: The paper's claims, in paper order (observation 1 is handled by :func:`cmr_difference`).
 CLAIMS: tuple[Claim, ...] = (
-    Claim("Fig. 5: selection Scheme 1 beats classical", "fig05_selection",
-          ("selection_scheme1", {}), _C, ">"),
-    Claim("Fig. 5: selection Scheme 2 lags behind classical", "fig05_selection",
-          ("selection_scheme2", {}), _C, "<"),
-    Claim("Fig. 7a: NMS (Alg. 3) at IoU 0.4 falls below classical", "fig07a_overlap_nms",
-          ("overlap_scheme1", {"iou_threshold": 0.4}), _C, "<"),
-    Claim("Fig. 7a: NMS at IoU 0.7 is on par with classical", "fig07a_overlap_nms",
-          ("overlap_scheme1", {"iou_threshold": 0.7}), _C, "~"),
-    Claim("Fig. 7b: soft-NMS (Alg. 4) at IoU 0.3 falls below classical",
-          "fig07b_overlap_soft_nms", ("overlap_scheme2", {"soft_nms_iou": 0.3}), _C, "<"),
-    Claim("Fig. 7b: soft-NMS at IoU 0.7 is on par with classical", "fig07b_overlap_soft_nms",
-          ("overlap_scheme2", {"soft_nms_iou": 0.7}), _C, "~"),
-    Claim("Table 2: 4 scales x 25 (Set 5) beat one scale x 100 (Set 1)", "fig10_scale_levels",
-          _dense(TABLE2, "Set 5"), _dense(TABLE2, "Set 1"), ">"),
-    Claim("Table 2: one large scale (Set 2, 0.49) is worse than Set 1", "fig10_scale_levels",
-          _dense(TABLE2, "Set 2"), _dense(TABLE2, "Set 1"), "<"),
-    Claim("Table 2: six scales x 16 (Set 6) are worse even than one scale (Set 1)",
-          "fig10_scale_levels", _dense(TABLE2, "Set 6"), _dense(TABLE2, "Set 1"), "<"),
-    Claim("Table 3: the most uneven split (Set 4) is worse than uniform 25 each (Set 1)",
-          "fig11_landmarks_per_scale", _dense(TABLE3, "Set 4"), _dense(TABLE3, "Set 1"), "<"),
-    Claim("Table 4: similar scales (Set 2) are on par with Set 1", "fig12_normalized_scales",
-          _dense(TABLE4, "Set 2"), _dense(TABLE4, "Set 1"), "~"),
-    Claim("Table 4: small scales (Set 3) are worse than Set 1", "fig12_normalized_scales",
-          _dense(TABLE4, "Set 3"), _dense(TABLE4, "Set 1"), "<"),
-    Claim("Table 4: oversize scales (Set 4) are worse than Set 1", "fig12_normalized_scales",
-          _dense(TABLE4, "Set 4"), _dense(TABLE4, "Set 1"), "<"),
+    Claim(
+        "Fig. 5: selection Scheme 1 beats classical",
+        "fig05_selection",
+        ("selection_scheme1", {}),
+        _C,
+        ">",
+    ),
+    Claim(
+        "Fig. 5: selection Scheme 2 lags behind classical",
+        "fig05_selection",
+        ("selection_scheme2", {}),
+        _C,
+        "<",
+    ),
+    Claim(
+        "Fig. 7a: NMS (Alg. 3) at IoU 0.4 falls below classical",
+        "fig07a_overlap_nms",
+        ("overlap_scheme1", {"iou_threshold": 0.4}),
+        _C,
+        "<",
+    ),
+    Claim(
+        "Fig. 7a: NMS at IoU 0.7 is on par with classical",
+        "fig07a_overlap_nms",
+        ("overlap_scheme1", {"iou_threshold": 0.7}),
+        _C,
+        "~",
+    ),
+    Claim(
+        "Fig. 7b: soft-NMS (Alg. 4) at IoU 0.3 falls below classical",
+        "fig07b_overlap_soft_nms",
+        ("overlap_scheme2", {"soft_nms_iou": 0.3}),
+        _C,
+        "<",
+    ),
+    Claim(
+        "Fig. 7b: soft-NMS at IoU 0.7 is on par with classical",
+        "fig07b_overlap_soft_nms",
+        ("overlap_scheme2", {"soft_nms_iou": 0.7}),
+        _C,
+        "~",
+    ),
+    Claim(
+        "Table 2: 4 scales x 25 (Set 5) beat one scale x 100 (Set 1)",
+        "fig10_scale_levels",
+        _dense(TABLE2, "Set 5"),
+        _dense(TABLE2, "Set 1"),
+        ">",
+    ),
+    Claim(
+        "Table 2: one large scale (Set 2, 0.49) is worse than Set 1",
+        "fig10_scale_levels",
+        _dense(TABLE2, "Set 2"),
+        _dense(TABLE2, "Set 1"),
+        "<",
+    ),
+    Claim(
+        "Table 2: six scales x 16 (Set 6) are worse even than one scale (Set 1)",
+        "fig10_scale_levels",
+        _dense(TABLE2, "Set 6"),
+        _dense(TABLE2, "Set 1"),
+        "<",
+    ),
+    Claim(
+        "Table 3: the most uneven split (Set 4) is worse than uniform 25 each (Set 1)",
+        "fig11_landmarks_per_scale",
+        _dense(TABLE3, "Set 4"),
+        _dense(TABLE3, "Set 1"),
+        "<",
+    ),
+    Claim(
+        "Table 4: similar scales (Set 2) are on par with Set 1",
+        "fig12_normalized_scales",
+        _dense(TABLE4, "Set 2"),
+        _dense(TABLE4, "Set 1"),
+        "~",
+    ),
+    Claim(
+        "Table 4: small scales (Set 3) are worse than Set 1",
+        "fig12_normalized_scales",
+        _dense(TABLE4, "Set 3"),
+        _dense(TABLE4, "Set 1"),
+        "<",
+    ),
+    Claim(
+        "Table 4: oversize scales (Set 4) are worse than Set 1",
+        "fig12_normalized_scales",
+        _dense(TABLE4, "Set 4"),
+        _dense(TABLE4, "Set 1"),
+        "<",
+    ),
     Claim("Fig. 13: classical is clearly worse than dense", "fig13_comparison", _C, _D, "<"),
-    Claim("Fig. 13: Scheme 1 is slightly worse than dense", "fig13_comparison",
-          ("selection_scheme1", {}), _D, "<"),
-    Claim("(not in the paper) a global descriptor vs dense landmarks", "fig13_comparison",
-          ("global", {}), _D, "?"),
+    Claim(
+        "Fig. 13: Scheme 1 is slightly worse than dense",
+        "fig13_comparison",
+        ("selection_scheme1", {}),
+        _D,
+        "<",
+    ),
+    Claim(
+        "(not in the paper) a global descriptor vs dense landmarks",
+        "fig13_comparison",
+        ("global", {}),
+        _D,
+        "?",
+    ),
 )
 
 #: Observation 1 (Fig. 4): large landmarks (Scales 5-7) match correctly more often than small
 #: ones (Scales 1-3).
-OBSERVATION_1 = ("Obs. 1 / Fig. 4: large landmarks (Scales 5-7) match correctly more often "
-                 "than small ones (Scales 1-3), CMR difference")
+OBSERVATION_1 = (
+    "Obs. 1 / Fig. 4: large landmarks (Scales 5-7) match correctly more often "
+    "than small ones (Scales 1-3), CMR difference"
+)
 
 #: The file of labelled matches that observation 1 reads (``results/<label>/<name>.csv``).
 MATCHES_TABLE = "fig04_matches"
@@ -143,8 +228,10 @@ def _claim_cell(folder: Path, claim: Claim) -> tuple[str, str]:
         return "-", "not run"
     df = pd.read_csv(csv)
     if "run" not in df.columns or "baseline" not in df.columns:
-        raise ValueError(f"{csv} is not a comparison table (no 'run' / 'baseline' column); "
-                         "write it with save(compare(runs), figure, label)")
+        raise ValueError(
+            f"{csv} is not a comparison table (no 'run' / 'baseline' column); "
+            "write it with save(compare(runs), figure, label)"
+        )
     method_key, base_key = claim.keys
     base = df[df["run"] == base_key]
     rows = df[(df["run"] == method_key) & df["baseline"].isin(base["method"])]
@@ -159,8 +246,9 @@ def _claim_cell(folder: Path, claim: Claim) -> tuple[str, str]:
     return f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] p={p:.3f}", verdict
 
 
-def cmr_difference(matches: pd.DataFrame, n: int = N_BOOTSTRAP, seed: int = 0
-                   ) -> tuple[float, float, float]:
+def cmr_difference(
+    matches: pd.DataFrame, n: int = N_BOOTSTRAP, seed: int = 0
+) -> tuple[float, float, float]:
     """CMR(Scales 5-7) - CMR(Scales 1-3) of labelled ground-truth matches, bootstrapped over
     query images (all matches of a drawn query count).
 
@@ -178,16 +266,16 @@ def cmr_difference(matches: pd.DataFrame, n: int = N_BOOTSTRAP, seed: int = 0
     m = matches[(matches["pair"] == "gt") & matches["correct"].notna()]
     groups = {"small": m["scale"].between(1, 3), "large": m["scale"].between(5, 7)}
     if not all(g.any() for g in groups.values()):
-        raise ValueError("cmr_difference needs labelled ground-truth matches at Scales 1-3 "
-                         "and 5-7")
+        raise ValueError("cmr_difference needs labelled ground-truth matches at Scales 1-3 and 5-7")
     queries = np.unique(m["query"].to_numpy())
     qi = np.searchsorted(queries, m["query"].to_numpy())
     sums = {}
     for name, mask in groups.items():
         mask = mask.to_numpy()
-        sums[name] = (np.bincount(qi[mask], weights=m["correct"].to_numpy()[mask],
-                                  minlength=len(queries)),
-                      np.bincount(qi[mask], minlength=len(queries)).astype(float))
+        sums[name] = (
+            np.bincount(qi[mask], weights=m["correct"].to_numpy()[mask], minlength=len(queries)),
+            np.bincount(qi[mask], minlength=len(queries)).astype(float),
+        )
 
     def diff(w: np.ndarray) -> np.ndarray:
         rates = {k: (w @ c) / np.maximum(w @ t, 1e-12) for k, (c, t) in sums.items()}
@@ -214,8 +302,15 @@ def result_labels(first: Sequence[str] = (), out: str | Path | None = None) -> l
     """The result folders that hold comparison tables (``results/<label>/fig*.csv``), not quick
     runs: ``first`` (those present, in that order), then the others sorted."""
     root = (paths.output_root() if out is None else Path(out)) / "results"
-    found = sorted(p.name for p in root.iterdir() if p.is_dir() and not p.name.endswith("_quick")
-                   and any(p.glob("fig*.csv"))) if root.is_dir() else []
+    found = (
+        sorted(
+            p.name
+            for p in root.iterdir()
+            if p.is_dir() and not p.name.endswith("_quick") and any(p.glob("fig*.csv"))
+        )
+        if root.is_dir()
+        else []
+    )
     head = [lab for lab in first if lab in found]
     return head + [lab for lab in found if lab not in head]
 
@@ -237,8 +332,7 @@ def findings_table(labels: Sequence[str], out: str | Path | None = None) -> pd.D
         row = {"claim": OBSERVATION_1 if claim is None else claim.text}
         for label in labels:
             folder = root / "results" / label
-            value, verdict = (_observation_1(folder) if claim is None
-                              else _claim_cell(folder, claim))
+            value, verdict = _observation_1(folder) if claim is None else _claim_cell(folder, claim)
             row[label], row[f"{label} verdict"] = value, verdict
         rows.append(row)
     return pd.DataFrame(rows).set_index("claim")
@@ -251,7 +345,9 @@ def findings_markdown(labels: Sequence[str], out: str | Path | None = None) -> s
     sep = "|---" * (len(labels) + 1) + "|"
     lines = [head, sep]
     for claim, r in table.iterrows():
-        cells = [f"{r[lab]} **{r[lab + ' verdict']}**" if r[lab] != "-" else
-                 f"**{r[lab + ' verdict']}**" for lab in labels]
+        cells = [
+            f"{r[lab]} **{r[lab + ' verdict']}**" if r[lab] != "-" else f"**{r[lab + ' verdict']}**"
+            for lab in labels
+        ]
         lines.append(f"| {claim} | " + " | ".join(cells) + " |")
     return "\n".join(lines)

@@ -72,8 +72,11 @@ METHODS: dict[str, dict[str, Any]] = {
         "landmarks": {"scheme": "selection_scheme1", "n": N_LANDMARKS, "min_index": MIN_SCALE_INDEX}
     },
     "selection_scheme2": {
-        "landmarks": {"scheme": "selection_scheme2", "n": N_LANDMARKS,
-                      "order": SCALE_PRIORITY_ORDER}
+        "landmarks": {
+            "scheme": "selection_scheme2",
+            "n": N_LANDMARKS,
+            "order": SCALE_PRIORITY_ORDER,
+        }
     },
     "overlap_scheme1": {
         "landmarks": {"scheme": "overlap_scheme1", "n": N_LANDMARKS, "iou_threshold": NMS_IOU}
@@ -138,9 +141,11 @@ def _is_int(v: Any) -> bool:
 
 def _validate(name: str, key: str, value: Any) -> Any:
     """Check one option's type and range before it reaches a label, a slug or an algorithm."""
+
     def bad(expected: str) -> ValueError:
-        return ValueError(f"method {name!r}: option {key}={value!r} is not valid; expected "
-                          f"{expected}")
+        return ValueError(
+            f"method {name!r}: option {key}={value!r} is not valid; expected {expected}"
+        )
 
     if key == "scales":
         if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
@@ -159,10 +164,13 @@ def _validate(name: str, key: str, value: Any) -> Any:
             raise bad("a positive integer (at least 1)")
         return int(value)
     if key == "order":
-        if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)) or not all(
-                _is_int(v) and 1 <= v <= 9 for v in value) or not value:
-            raise bad("a non-empty sequence of Table-1 scale indices 1..9, e.g. "
-                      "(5, 6, 7, 8, 9, 4)")
+        if (
+            isinstance(value, (str, bytes))
+            or not isinstance(value, (list, tuple))
+            or not all(_is_int(v) and 1 <= v <= 9 for v in value)
+            or not value
+        ):
+            raise bad("a non-empty sequence of Table-1 scale indices 1..9, e.g. (5, 6, 7, 8, 9, 4)")
         return tuple(int(v) for v in value)
     if key in ("iou_threshold", "soft_nms_iou"):
         if value is None and key == "soft_nms_iou":
@@ -234,6 +242,7 @@ def method_label(conf: dict[str, Any]) -> str:
         lconf = conf["landmarks"]
         return f"dense ({_text(tuple(lconf['scales']))} x {_text(lconf['per_scale'])})"
     return name
+
 
 def _options(conf: dict[str, Any]) -> dict[str, Any]:
     """The options of a config that differ from its preset (flat, as :func:`get_method` takes)."""

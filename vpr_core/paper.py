@@ -76,7 +76,7 @@ SCALE_EDGES: tuple[float, ...] = (0.02, 0.05, 0.09, 0.14, 0.23, 0.34, 0.5, 0.72)
 N_SCALES: int = len(SCALE_EDGES) + 1
 #: ``(low, high)`` of Scale i at ``SCALE_RANGES[i - 1]``.
 SCALE_RANGES: tuple[tuple[float, float], ...] = tuple(
-    zip((0.0,) + SCALE_EDGES, SCALE_EDGES + (1.0,))
+    zip((0.0,) + SCALE_EDGES, SCALE_EDGES + (1.0,), strict=False)
 )
 #: ``"Scale 1"`` .. ``"Scale 9"`` (``SCALE_LABELS[i - 1]`` for Scale i).
 SCALE_LABELS: tuple[str, ...] = tuple(f"Scale {i}" for i in range(1, N_SCALES + 1))
@@ -151,12 +151,14 @@ def table1():
     """
     import pandas as pd
 
-    return pd.DataFrame({
-        "scale index": list(SCALE_LABELS),
-        "normalized scale": list(SCALE_RANGE_LABELS),
-        "lower (incl.)": [lo for lo, _ in SCALE_RANGES],
-        "upper": [hi for _, hi in SCALE_RANGES],
-    }).set_index("scale index")
+    return pd.DataFrame(
+        {
+            "scale index": list(SCALE_LABELS),
+            "normalized scale": list(SCALE_RANGE_LABELS),
+            "lower (incl.)": [lo for lo, _ in SCALE_RANGES],
+            "upper": [hi for _, hi in SCALE_RANGES],
+        }
+    ).set_index("scale index")
 
 
 def dense_settings(table: dict):
@@ -167,8 +169,14 @@ def dense_settings(table: dict):
     rows = []
     for name, (scales, per_scale) in table.items():
         counts = per_scale if isinstance(per_scale, tuple) else (per_scale,) * len(scales)
-        rows.append({"setting": name, "normalized scales": scales,
-                     "landmarks per scale": counts, "total": int(sum(counts))})
+        rows.append(
+            {
+                "setting": name,
+                "normalized scales": scales,
+                "landmarks per scale": counts,
+                "total": int(sum(counts)),
+            }
+        )
     return pd.DataFrame(rows).set_index("setting")
 
 

@@ -37,9 +37,12 @@ def make_dir(path: Path, setting: str) -> Path:
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        why = ("a file is in the way" if exc.errno in (17, 20) else exc.strerror or str(exc))
-        raise type(exc)(exc.errno, f"cannot create the folder {path} ({why}); it comes from "
-                        f"{setting}: point it at a writable folder with free space") from exc
+        why = "a file is in the way" if exc.errno in (17, 20) else exc.strerror or str(exc)
+        raise type(exc)(
+            exc.errno,
+            f"cannot create the folder {path} ({why}); it comes from "
+            f"{setting}: point it at a writable folder with free space",
+        ) from exc
     return path
 
 
@@ -69,6 +72,10 @@ def cache_root() -> Path:
     """``$VPR_CACHE_DIR`` or ``<output root>/.cache``, created."""
     env = settings.cache_dir()
     root = Path(env).expanduser().resolve() if env else output_root() / ".cache"
-    return make_dir(root, "VPR_CACHE_DIR" if env else
-                    "--out / VPR_OUTPUT_DIR (the cache defaults to <output root>/.cache; or set "
-                    "VPR_CACHE_DIR)")
+    return make_dir(
+        root,
+        "VPR_CACHE_DIR"
+        if env
+        else "--out / VPR_OUTPUT_DIR (the cache defaults to <output root>/.cache; or set "
+        "VPR_CACHE_DIR)",
+    )

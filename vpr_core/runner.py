@@ -128,8 +128,7 @@ def expected_figures() -> dict[str, list[str]]:
 #: ``../shared/data/nordland_64x32`` (72 places, 500 original frames apart, so tolerance 0),
 #: winter queries against summer references, ``roi`` pooling (one backbone pass per image: the
 #: 64x32 frames make per-landmark crops as slow as full-size images for no extra detail).
-NORDLAND_STUDY = {"dataset": "nordland", "options": {"step": 50, "tolerance": 0},
-                  "pooling": "roi"}
+NORDLAND_STUDY = {"dataset": "nordland", "options": {"step": 50, "tolerance": 0}, "pooling": "roi"}
 
 
 def study_datasets() -> dict[str, dict]:
@@ -148,9 +147,12 @@ def study_datasets() -> dict[str, dict]:
     if checkout is not None:
         data = checkout.parent / "shared" / "data"
         if (data / "gardens_point_mini").is_dir():
-            found["gardens_point_mini"] = {"dataset": "folder",
-                                           "root": str(data / "gardens_point_mini"),
-                                           "options": {}, "pooling": "crop"}
+            found["gardens_point_mini"] = {
+                "dataset": "folder",
+                "root": str(data / "gardens_point_mini"),
+                "options": {},
+                "pooling": "crop",
+            }
         if (data / "nordland_64x32").is_dir():
             found["nordland_step50"] = {**NORDLAND_STUDY, "root": str(data / "nordland_64x32")}
     for name, root in settings.extra_datasets().items():
@@ -161,9 +163,14 @@ def study_datasets() -> dict[str, dict]:
 #: The parameters every study notebook takes, with their types (checked by
 #: :func:`check_parameters`).
 PARAMETER_TYPES: dict[str, tuple[type, ...]] = {
-    "dataset": (str,), "root": (str, type(None)), "options": (dict,),
-    "limit": (int, type(None)), "label": (str, type(None)), "backbone": (str,),
-    "pooling": (str,), "shortlist": (int, type(None)),
+    "dataset": (str,),
+    "root": (str, type(None)),
+    "options": (dict,),
+    "limit": (int, type(None)),
+    "label": (str, type(None)),
+    "backbone": (str,),
+    "pooling": (str,),
+    "shortlist": (int, type(None)),
 }
 
 
@@ -186,10 +193,16 @@ def check_parameters(**params) -> None:
         raise TypeError("notebook parameters: " + "; ".join(bad))
 
 
-def notebook_parameters(dataset: str, root: str | None = None,
-                        backbone: str = "efficientnet_lite0", quick: bool = False,
-                        label: str | None = None, options: dict | None = None,
-                        pooling: str = "crop", shortlist: int | None = None) -> dict:
+def notebook_parameters(
+    dataset: str,
+    root: str | None = None,
+    backbone: str = "efficientnet_lite0",
+    quick: bool = False,
+    label: str | None = None,
+    options: dict | None = None,
+    pooling: str = "crop",
+    shortlist: int | None = None,
+) -> dict:
     """The ``parameters`` cell values papermill injects into a study notebook.
 
     Quick mode: ``synthetic`` with :data:`QUICK_PLACES` places, a real dataset cut to its first
@@ -201,9 +214,16 @@ def notebook_parameters(dataset: str, root: str | None = None,
         options.setdefault("n_places", QUICK_PLACES)
     elif quick:
         limit = QUICK_IMAGES
-    return {"dataset": dataset, "root": root, "backbone": backbone,
-            "label": output_label(label or dataset, quick), "options": options,
-            "pooling": pooling, "limit": limit, "shortlist": shortlist}
+    return {
+        "dataset": dataset,
+        "root": root,
+        "backbone": backbone,
+        "label": output_label(label or dataset, quick),
+        "options": options,
+        "pooling": pooling,
+        "limit": limit,
+        "shortlist": shortlist,
+    }
 
 
 def source_checkout() -> Path | None:
@@ -224,7 +244,8 @@ def notebooks_dir() -> Path:
         raise FileNotFoundError(
             "The study notebooks are not part of the installed package "
             f"({Path(__file__).resolve().parent}); run `vpr-study run` from a clone of the "
-            "repository (pip install -e .), where notebooks/ sits beside vpr_core/.")
+            "repository (pip install -e .), where notebooks/ sits beside vpr_core/."
+        )
     return root / "notebooks"
 
 
@@ -276,9 +297,11 @@ def _kernel_environment() -> Iterator[Path]:
     root = paths.output_root()
     # the kernels draw inline (the executed notebooks hold their figures, as in Jupyter), even
     # when the caller runs headless with MPLBACKEND=Agg
-    values = {settings.OUTPUT_ENV: str(root),
-              "MPLBACKEND": "module://matplotlib_inline.backend_inline",
-              settings.PROGRESS_ENV: "text"}  # bars the saved notebooks can show
+    values = {
+        settings.OUTPUT_ENV: str(root),
+        "MPLBACKEND": "module://matplotlib_inline.backend_inline",
+        settings.PROGRESS_ENV: "text",
+    }  # bars the saved notebooks can show
     if settings.cache_dir():
         values[settings.CACHE_ENV] = str(paths.cache_root())
     root.mkdir(parents=True, exist_ok=True)
@@ -299,18 +322,37 @@ def _unwritten(folder: Path, stems: Sequence[str], since: float) -> list[str]:
 
 
 def _print_summary(table: pd.DataFrame, label: str, backbone: str) -> None:
-    with pd.option_context("display.width", 200, "display.max_rows", 200,
-                           "display.float_format", "{:.3f}".format):
-        cols = [c for c in ("notebook", "figure", "method", "AUC", "AUC lo", "AUC hi",
-                            "R@100P", "R@1", "R@1 lo", "R@1 hi") if c in table.columns]
+    with pd.option_context(
+        "display.width", 200, "display.max_rows", 200, "display.float_format", "{:.3f}".format
+    ):
+        cols = [
+            c
+            for c in (
+                "notebook",
+                "figure",
+                "method",
+                "AUC",
+                "AUC lo",
+                "AUC hi",
+                "R@100P",
+                "R@1",
+                "R@1 lo",
+                "R@1 hi",
+            )
+            if c in table.columns
+        ]
         print(f"\nSummary ({label}, backbone {backbone}):")
         print(table[cols].to_string(index=False))
 
 
 #: The comparison notebooks that ``make study`` also runs on the real datasets beside the
 #: project (:func:`study_datasets`).
-REAL_DATA_NOTEBOOKS = ("03_landmark_selection", "04_overlap", "05_dense_sampling_parameters",
-                       "06_comparison")
+REAL_DATA_NOTEBOOKS = (
+    "03_landmark_selection",
+    "04_overlap",
+    "05_dense_sampling_parameters",
+    "06_comparison",
+)
 
 
 def _execute(nb: Path, out: Path, params: dict, kernel: str) -> None:
@@ -323,14 +365,22 @@ def _execute(nb: Path, out: Path, params: dict, kernel: str) -> None:
     try:
         # the kernel's own lines (vpr_core's log, on stdout in the notebooks) stream here live,
         # so a long cell is never a silent counter
-        pm.execute_notebook(str(nb), str(out), parameters=params, cwd=str(nb.parent),
-                            kernel_name=kernel, progress_bar=not settings.progress_disabled(),
-                            stdout_file=sys.stdout, stderr_file=sys.stderr)
+        pm.execute_notebook(
+            str(nb),
+            str(out),
+            parameters=params,
+            cwd=str(nb.parent),
+            kernel_name=kernel,
+            progress_bar=not settings.progress_disabled(),
+            stdout_file=sys.stdout,
+            stderr_file=sys.stderr,
+        )
     except KeyboardInterrupt:
         raise
     except Exception as exc:  # papermill raises PapermillExecutionError with the cell
-        raise RuntimeError(f"notebook {nb.name} failed; open {out} to see the failing "
-                           f"cell:\n{exc}") from exc
+        raise RuntimeError(
+            f"notebook {nb.name} failed; open {out} to see the failing cell:\n{exc}"
+        ) from exc
     logger.info("%s done in %.1f s", nb.name, time.perf_counter() - t0)
 
 
@@ -345,9 +395,11 @@ def _run_label(label: str, selected: Sequence[Path], params: dict, kernel: str) 
         try:
             _execute(nb, out_dir / nb.name, params, kernel)
         except BaseException:
-            print(f"\nstopped in {nb.stem} ({label}); finished: {', '.join(done) or 'none'}. "
-                  f"Figures so far in {paths.figures_dir(label)}, tables in "
-                  f"{paths.results_dir(label)}; cached work is kept, rerun to resume.")
+            print(
+                f"\nstopped in {nb.stem} ({label}); finished: {', '.join(done) or 'none'}. "
+                f"Figures so far in {paths.figures_dir(label)}, tables in "
+                f"{paths.results_dir(label)}; cached work is kept, rerun to resume."
+            )
             raise
         done.append(nb.stem)
         missing += _unwritten(paths.figures_dir(label), expected.get(nb.stem, []), started)
@@ -358,19 +410,28 @@ def _write_findings(labels: Sequence[str]) -> None:
     """``results/findings.md``: the paper's claims against these labels' paired differences."""
     from .findings import findings_markdown, result_labels
 
-    labels = result_labels(labels)  # this run's, then every other result folder (make study-nordland)
+    labels = result_labels(
+        labels
+    )  # this run's, then every other result folder (make study-nordland)
     text = findings_markdown(labels)
     out = paths.results_dir() / "findings.md"
     out.write_text(text + "\n")
     print(f"\nThe paper's claims (dAUC [95% CI], paired bootstrap), also in {out}:\n{text}")
 
 
-def run_study(dataset: str = "synthetic", root: str | None = None,
-              backbone: str = "efficientnet_lite0", quick: bool = False,
-              notebooks: Sequence[str] | None = None, kernel: str = "python3",
-              real_data: bool | None = None, label: str | None = None,
-              options: dict | None = None, pooling: str = "crop",
-              shortlist: int | None = None) -> pd.DataFrame:
+def run_study(
+    dataset: str = "synthetic",
+    root: str | None = None,
+    backbone: str = "efficientnet_lite0",
+    quick: bool = False,
+    notebooks: Sequence[str] | None = None,
+    kernel: str = "python3",
+    real_data: bool | None = None,
+    label: str | None = None,
+    options: dict | None = None,
+    pooling: str = "crop",
+    shortlist: int | None = None,
+) -> pd.DataFrame:
     """Execute the notebooks with papermill and verify their figures.
 
     Args:
@@ -402,12 +463,23 @@ def run_study(dataset: str = "synthetic", root: str | None = None,
     # fail fast, with the loader's clear message (quick synthetic: only the places it uses)
     t_start = time.perf_counter()
     options = dict(options or {})
-    load_dataset(dataset, root=root, **({"n_places": QUICK_PLACES, **options}
-                                        if quick and dataset == "synthetic" else options))
+    load_dataset(
+        dataset,
+        root=root,
+        **({"n_places": QUICK_PLACES, **options} if quick and dataset == "synthetic" else options),
+    )
     if real_data is None:
         real_data = dataset == "synthetic" and not quick and label is None
-    params = notebook_parameters(dataset, root, backbone, quick, label=label, options=options,
-                                 pooling=pooling, shortlist=shortlist)
+    params = notebook_parameters(
+        dataset,
+        root,
+        backbone,
+        quick,
+        label=label,
+        options=options,
+        pooling=pooling,
+        shortlist=shortlist,
+    )
     label = params["label"]
     selected = notebook_paths(notebooks)
     extra = study_datasets() if real_data else {}
@@ -418,9 +490,20 @@ def run_study(dataset: str = "synthetic", root: str | None = None,
         for name, spec in extra.items():
             sub = output_label(name, quick)
             logger.info("real data: %s (%s, %s)", sub, spec["dataset"], spec["root"])
-            missing += _run_label(sub, real_selected, notebook_parameters(
-                spec["dataset"], spec["root"], backbone, quick, label=name,
-                options=spec.get("options", {}), pooling=spec.get("pooling", "crop")), kernel)
+            missing += _run_label(
+                sub,
+                real_selected,
+                notebook_parameters(
+                    spec["dataset"],
+                    spec["root"],
+                    backbone,
+                    quick,
+                    label=name,
+                    options=spec.get("options", {}),
+                    pooling=spec.get("pooling", "crop"),
+                ),
+                kernel,
+            )
         if missing:
             raise RuntimeError("expected figures were not written: " + ", ".join(missing))
         table = summary_table(label)
@@ -436,6 +519,8 @@ def run_study(dataset: str = "synthetic", root: str | None = None,
     for sub in (label, *others):
         figs = sorted(paths.figures_dir(sub).glob("*.png"))
         tables = sorted(paths.results_dir(sub).glob("*.csv"))
-        print(f"  {len(figs)} figures in {paths.figures_dir(sub)}, {len(tables)} tables in "
-              f"{paths.results_dir(sub)}, executed notebooks in {paths.runs_dir(sub)}")
+        print(
+            f"  {len(figs)} figures in {paths.figures_dir(sub)}, {len(tables)} tables in "
+            f"{paths.results_dir(sub)}, executed notebooks in {paths.runs_dir(sub)}"
+        )
     return table

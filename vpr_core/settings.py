@@ -97,8 +97,10 @@ def scheduler_timeout(default: float = 15.0) -> float:
     except ValueError:
         value = -1.0
     if not value > 0:
-        raise ValueError(f"{SCHEDULER_TIMEOUT_ENV}={raw!r} is not a positive number of seconds; "
-                         f"set e.g. {SCHEDULER_TIMEOUT_ENV}=15 or unset it.")
+        raise ValueError(
+            f"{SCHEDULER_TIMEOUT_ENV}={raw!r} is not a positive number of seconds; "
+            f"set e.g. {SCHEDULER_TIMEOUT_ENV}=15 or unset it."
+        )
     return value
 
 
@@ -137,8 +139,10 @@ def extra_datasets() -> dict[str, str]:
     for item in filter(None, (os.environ.get(DATASETS_ENV) or "").split(";")):
         name, sep, root = item.partition("=")
         if not sep or not name.strip() or not root.strip():
-            raise ValueError(f"{DATASETS_ENV} entry {item!r} is not 'name=root'; write entries "
-                             "as 'gardens_point=/data/gp;folder=/data/x'.")
+            raise ValueError(
+                f"{DATASETS_ENV} entry {item!r} is not 'name=root'; write entries "
+                "as 'gardens_point=/data/gp;folder=/data/x'."
+            )
         found[name.strip()] = root.strip()
     return found
 

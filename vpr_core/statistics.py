@@ -73,15 +73,19 @@ class MatchRecord:
         self.scales = np.asarray(self.scales, dtype=np.int64).reshape(-1)
         self.scores = np.asarray(self.scores, dtype=np.float64).reshape(-1)
         if len(self.scales) != len(self.scores):
-            raise ValueError(f"scales ({len(self.scales)}) and scores ({len(self.scores)}) "
-                             "must have one entry per match")
+            raise ValueError(
+                f"scales ({len(self.scales)}) and scores ({len(self.scores)}) "
+                "must have one entry per match"
+            )
         if len(self.scales) and ((self.scales < 1) | (self.scales > N_SCALES)).any():
             raise ValueError("scales must be Table-1 indices 1..9")
         if self.labels is not None:
             self.labels = np.asarray(self.labels, dtype=bool).reshape(-1)
             if len(self.labels) != len(self.scales):
-                raise ValueError(f"labels ({len(self.labels)}) must have one entry per match "
-                                 f"({len(self.scales)})")
+                raise ValueError(
+                    f"labels ({len(self.labels)}) must have one entry per match "
+                    f"({len(self.scales)})"
+                )
 
 
 def _nan10() -> np.ndarray:
@@ -181,21 +185,23 @@ class ScaleStats:
 
         s = slice(1, N_SCALES + 1)
         iv = self.cmr_intervals()
-        df = pd.DataFrame({
-            "scale": self.scales,
-            "range": list(SCALE_RANGE_LABELS),
-            "n_matches": self.n_matches[s],
-            "n_labelled": self.n_labelled[s],
-            "n_correct": self.n_correct[s],
-            "cmr": self.cmr[s],
-            "cmr lo": iv[s, 0],
-            "cmr hi": iv[s, 1],
-            "cls_gt": self.cls_gt[s],
-            "cls_irrelevant": self.cls_irrelevant[s],
-            "asl_gt": self.asl_gt[s],
-            "asl_irrelevant": self.asl_irrelevant[s],
-            "n_matches_irrelevant": self.n_matches_irrelevant[s],
-        })
+        df = pd.DataFrame(
+            {
+                "scale": self.scales,
+                "range": list(SCALE_RANGE_LABELS),
+                "n_matches": self.n_matches[s],
+                "n_labelled": self.n_labelled[s],
+                "n_correct": self.n_correct[s],
+                "cmr": self.cmr[s],
+                "cmr lo": iv[s, 0],
+                "cmr hi": iv[s, 1],
+                "cls_gt": self.cls_gt[s],
+                "cls_irrelevant": self.cls_irrelevant[s],
+                "asl_gt": self.asl_gt[s],
+                "asl_irrelevant": self.asl_irrelevant[s],
+                "n_matches_irrelevant": self.n_matches_irrelevant[s],
+            }
+        )
         return df.set_index("scale")
 
     def matches_frame(self) -> Any:
@@ -207,16 +213,37 @@ class ScaleStats:
 
         rows = []
         for rec in self.records:
-            m = (np.asarray(rec.matches, dtype=np.int64).reshape(-1, 2) if rec.matches is not None
-                 else np.full((len(rec.scales), 2), -1, dtype=np.int64))
+            m = (
+                np.asarray(rec.matches, dtype=np.int64).reshape(-1, 2)
+                if rec.matches is not None
+                else np.full((len(rec.scales), 2), -1, dtype=np.int64)
+            )
             for k in range(len(rec.scales)):
-                rows.append({"query": rec.q, "reference": rec.r,
-                             "pair": "gt" if rec.is_gt_pair else "irrelevant",
-                             "query_box_index": int(m[k, 0]), "reference_box_index": int(m[k, 1]),
-                             "scale": int(rec.scales[k]), "score": float(rec.scores[k]),
-                             "correct": (None if rec.labels is None else int(rec.labels[k]))})
-        return pd.DataFrame(rows, columns=["query", "reference", "pair", "query_box_index",
-                                           "reference_box_index", "scale", "score", "correct"])
+                rows.append(
+                    {
+                        "query": rec.q,
+                        "reference": rec.r,
+                        "pair": "gt" if rec.is_gt_pair else "irrelevant",
+                        "query_box_index": int(m[k, 0]),
+                        "reference_box_index": int(m[k, 1]),
+                        "scale": int(rec.scales[k]),
+                        "score": float(rec.scores[k]),
+                        "correct": (None if rec.labels is None else int(rec.labels[k])),
+                    }
+                )
+        return pd.DataFrame(
+            rows,
+            columns=[
+                "query",
+                "reference",
+                "pair",
+                "query_box_index",
+                "reference_box_index",
+                "scale",
+                "score",
+                "correct",
+            ],
+        )
 
 
 def _cls_asl(scales: np.ndarray, scores: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -225,8 +252,9 @@ def _cls_asl(scales: np.ndarray, scores: np.ndarray) -> tuple[np.ndarray, np.nda
     # CLS shares the *positive* similarity mass: a pair score 1 - d*s below 0 (d*s > 1, common
     # with weakly similar descriptors and the shape factor s <= e) lowers Eq. (1) rather than
     # contributing to it, and signed sums near zero would give shares far outside [0, 1].
-    pos = np.bincount(scales, weights=np.clip(scores, 0.0, None),
-                      minlength=N_SCALES + 1)[: N_SCALES + 1]
+    pos = np.bincount(scales, weights=np.clip(scores, 0.0, None), minlength=N_SCALES + 1)[
+        : N_SCALES + 1
+    ]
     n[0] = 0
     mass[0] = pos[0] = 0.0
     total = pos[1:].sum()
@@ -239,8 +267,9 @@ def _cls_asl(scales: np.ndarray, scores: np.ndarray) -> tuple[np.ndarray, np.nda
     return n, cls, asl
 
 
-def scale_statistics_from_matches(records: Iterable[MatchRecord], meta: dict | None = None
-                                  ) -> ScaleStats:
+def scale_statistics_from_matches(
+    records: Iterable[MatchRecord], meta: dict | None = None
+) -> ScaleStats:
     """CMR / CLS / ASL per Table-1 scale from per-pair match records.
 
     Matches are binned by their query-side scale and pooled over all pairs: ``cmr`` from the
@@ -282,7 +311,8 @@ def scale_statistics_from_matches(records: Iterable[MatchRecord], meta: dict | N
     st.n_gt_pairs, st.n_irrelevant_pairs, st.n_unlabelled_pairs = n_gt, n_irr, n_unl
     st.n_matches, st.cls_gt, st.asl_gt = _cls_asl(cat(gt_sc, np.int64), cat(gt_s, np.float64))
     st.n_matches_irrelevant, st.cls_irrelevant, st.asl_irrelevant = _cls_asl(
-        cat(irr_sc, np.int64), cat(irr_s, np.float64))
+        cat(irr_sc, np.int64), cat(irr_s, np.float64)
+    )
     lsc, lv = cat(lab_sc, np.int64), cat(lab_v, bool)
     st.n_labelled = np.bincount(lsc, minlength=N_SCALES + 1)[: N_SCALES + 1].astype(np.int64)
     st.n_correct = np.bincount(lsc[lv], minlength=N_SCALES + 1)[: N_SCALES + 1].astype(np.int64)
@@ -294,10 +324,18 @@ def scale_statistics_from_matches(records: Iterable[MatchRecord], meta: dict | N
     return st
 
 
-def _query_records(dataset: Any, q: int, size_q: tuple[int, int], boxes_q: np.ndarray,
-                   desc_q: np.ndarray, boxes_r: Sequence[np.ndarray],
-                   desc_r: Sequence[np.ndarray], pairs: list[tuple[int, bool]],
-                   match_options: dict, label_options: dict) -> list[MatchRecord]:
+def _query_records(
+    dataset: Any,
+    q: int,
+    size_q: tuple[int, int],
+    boxes_q: np.ndarray,
+    desc_q: np.ndarray,
+    boxes_r: Sequence[np.ndarray],
+    desc_r: Sequence[np.ndarray],
+    pairs: list[tuple[int, bool]],
+    match_options: dict,
+    label_options: dict,
+) -> list[MatchRecord]:
     """The :class:`MatchRecord` of query ``q`` against each ``(r, is_gt)`` of ``pairs``.
 
     Ground-truth pairs are labelled by :func:`label_matches` (``label_options``); a pair the
@@ -318,19 +356,31 @@ def _query_records(dataset: Any, q: int, size_q: tuple[int, int], boxes_q: np.nd
                 lab = label_matches(dataset, q, r, bq, br, mt, **label_options)
             except LabelUnavailableError as e:
                 logger.warning("scale_statistics: pair (%d, %d) unlabelled: %s", q, r, e)
-        records.append(MatchRecord(sc_q[mt[:, 0]], np.asarray(res.scores), lab, is_gt, q, r,
-                                   matches=mt))
+        records.append(
+            MatchRecord(sc_q[mt[:, 0]], np.asarray(res.scores), lab, is_gt, q, r, matches=mt)
+        )
     return records
 
 
-def scale_statistics(dataset: Any, boxes_q: Sequence[np.ndarray], boxes_r: Sequence[np.ndarray],
-                     desc_q: Sequence[np.ndarray], desc_r: Sequence[np.ndarray], *,
-                     label_method: str = "auto", n_irrelevant: int = 5, seed: int = 0,
-                     image_sizes: Sequence[tuple[int, int]] | None = None,
-                     queries: Sequence[int] | None = None, gt_pairs: str = "center",
-                     soft_nms_iou: float | None = None, sigma: float = 0.5,
-                     iou_threshold: float = 0.5, labels: Any = None,
-                     **label_options: Any) -> ScaleStats:
+def scale_statistics(
+    dataset: Any,
+    boxes_q: Sequence[np.ndarray],
+    boxes_r: Sequence[np.ndarray],
+    desc_q: Sequence[np.ndarray],
+    desc_r: Sequence[np.ndarray],
+    *,
+    label_method: str = "auto",
+    n_irrelevant: int = 5,
+    seed: int = 0,
+    image_sizes: Sequence[tuple[int, int]] | None = None,
+    queries: Sequence[int] | None = None,
+    gt_pairs: str = "center",
+    soft_nms_iou: float | None = None,
+    sigma: float = 0.5,
+    iou_threshold: float = 0.5,
+    labels: Any = None,
+    **label_options: Any,
+) -> ScaleStats:
     """Fig. 4 scale statistics for any landmark method (classical, selection, dense, ...).
 
     For every query with a ground-truth reference: landmarks are matched (reciprocal nearest
@@ -370,11 +420,13 @@ def scale_statistics(dataset: Any, boxes_q: Sequence[np.ndarray], boxes_r: Seque
     gt = np.asarray(dataset.ground_truth, dtype=bool)
     nq, nr = gt.shape
     if len(boxes_q) != nq or len(desc_q) != nq:
-        raise ValueError(f"boxes_q/desc_q need one entry per query ({nq}), got "
-                         f"{len(boxes_q)}/{len(desc_q)}")
+        raise ValueError(
+            f"boxes_q/desc_q need one entry per query ({nq}), got {len(boxes_q)}/{len(desc_q)}"
+        )
     if len(boxes_r) != nr or len(desc_r) != nr:
-        raise ValueError(f"boxes_r/desc_r need one entry per reference ({nr}), got "
-                         f"{len(boxes_r)}/{len(desc_r)}")
+        raise ValueError(
+            f"boxes_r/desc_r need one entry per reference ({nr}), got {len(boxes_r)}/{len(desc_r)}"
+        )
     if "method" in label_options:
         raise TypeError("scale_statistics takes the labeller as label_method=..., not method=...")
     method = resolve_label_method(dataset, label_method, labels)
@@ -386,20 +438,43 @@ def scale_statistics(dataset: Any, boxes_q: Sequence[np.ndarray], boxes_r: Seque
     qs = [q for q in qs if gt[q].any()]
     irr = sample_irrelevant_references(gt, n_irrelevant, seed, qs)
     match_options = {"soft_nms_iou": soft_nms_iou, "sigma": sigma}
-    label_options = {"method": method, "iou_threshold": iou_threshold, "labels": labels,
-                     **label_options}
+    label_options = {
+        "method": method,
+        "iou_threshold": iou_threshold,
+        "labels": labels,
+        **label_options,
+    }
 
     records: list[MatchRecord] = []
     for q in progress(qs, desc="scale statistics", unit="query"):
-        size_q = (tuple(image_sizes[q]) if image_sizes is not None
-                  else dataset_image_size(dataset, "query", q))
+        size_q = (
+            tuple(image_sizes[q])
+            if image_sizes is not None
+            else dataset_image_size(dataset, "query", q)
+        )
         pairs = [(r, True) for r in ground_truth_references(gt, q, gt_pairs)]
         pairs += [(r, False) for r in irr[q]]
-        records += _query_records(dataset, q, size_q, boxes_q[q], desc_q[q], boxes_r, desc_r,
-                                  pairs, match_options, label_options)
-    meta = {"dataset": getattr(dataset, "name", None), "label_method": method,
-            "n_irrelevant": n_irrelevant, "seed": seed, "gt_pairs": gt_pairs,
-            "soft_nms_iou": soft_nms_iou, "iou_threshold": iou_threshold,
-            "tolerance": getattr(dataset, "tolerance", None),
-            "queries_with_gt": [int(gt.any(axis=1).sum()), int(gt.shape[0])]}
+        records += _query_records(
+            dataset,
+            q,
+            size_q,
+            boxes_q[q],
+            desc_q[q],
+            boxes_r,
+            desc_r,
+            pairs,
+            match_options,
+            label_options,
+        )
+    meta = {
+        "dataset": getattr(dataset, "name", None),
+        "label_method": method,
+        "n_irrelevant": n_irrelevant,
+        "seed": seed,
+        "gt_pairs": gt_pairs,
+        "soft_nms_iou": soft_nms_iou,
+        "iou_threshold": iou_threshold,
+        "tolerance": getattr(dataset, "tolerance", None),
+        "queries_with_gt": [int(gt.any(axis=1).sum()), int(gt.shape[0])],
+    }
     return scale_statistics_from_matches(records, meta=meta)

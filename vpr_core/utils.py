@@ -96,8 +96,9 @@ class _LiveStreamHandler(logging.StreamHandler):
         pass
 
 
-def configure_logging(level: str | int = "INFO", stream: str = "stderr",
-                      silence_warnings: bool = False) -> logging.Logger:
+def configure_logging(
+    level: str | int = "INFO", stream: str = "stderr", silence_warnings: bool = False
+) -> logging.Logger:
     """Send ``vpr_core`` log records to ``stream`` as ``[vpr_core LEVEL] message`` (idempotent).
 
     The library itself only has a NullHandler (and raises :class:`~vpr_core.notices.VPRWarning`
@@ -114,8 +115,9 @@ def configure_logging(level: str | int = "INFO", stream: str = "stderr",
         ValueError: ``stream`` is neither ``"stderr"`` nor ``"stdout"``.
     """
     if stream not in ("stderr", "stdout"):
-        raise ValueError(f"configure_logging(stream=...) takes 'stderr' or 'stdout', got "
-                         f"{stream!r}")
+        raise ValueError(
+            f"configure_logging(stream=...) takes 'stderr' or 'stdout', got {stream!r}"
+        )
     for h in [h for h in logger.handlers if isinstance(h, _LiveStreamHandler)]:
         logger.removeHandler(h)
     h = _LiveStreamHandler(stream)

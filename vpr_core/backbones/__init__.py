@@ -52,12 +52,15 @@ class _Entry:
 
 
 def _lite(variant: str) -> Factory:
-    def build(input_size: int, weights: str | os.PathLike | None, seed: int,
-              stage: int) -> nn.Module:
+    def build(
+        input_size: int, weights: str | os.PathLike | None, seed: int, stage: int
+    ) -> nn.Module:
         from .efficientnet_lite import EfficientNetLiteFeatures
 
-        return EfficientNetLiteFeatures(input_size=input_size, stage=stage, weights=weights,
-                                        variant=variant)
+        return EfficientNetLiteFeatures(
+            input_size=input_size, stage=stage, weights=weights, variant=variant
+        )
+
     return build
 
 
@@ -99,8 +102,10 @@ def available_backbones() -> list[str]:
 
 
 def _unknown(name: str) -> ValueError:
-    return ValueError(f"unknown backbone {name!r}; valid names: {', '.join(available_backbones())}"
-                      " (options after a colon, e.g. 'efficientnet_lite0:stage=4,input_size=96')")
+    return ValueError(
+        f"unknown backbone {name!r}; valid names: {', '.join(available_backbones())}"
+        " (options after a colon, e.g. 'efficientnet_lite0:stage=4,input_size=96')"
+    )
 
 
 def backbone_options(name: str) -> dict[str, int]:
@@ -132,13 +137,16 @@ def parse_backbone(spec: str) -> tuple[str, dict[str, int]]:
     for item in filter(None, (p.strip() for p in rest.split(","))):
         key, eq, value = (s.strip() for s in item.partition("="))
         if not eq or key not in options:
-            raise ValueError(f"backbone {name!r}: bad option {item!r} in {spec!r}; valid options "
-                             f"(key=integer): {', '.join(f'{k}={v}' for k, v in options.items())}")
+            raise ValueError(
+                f"backbone {name!r}: bad option {item!r} in {spec!r}; valid options "
+                f"(key=integer): {', '.join(f'{k}={v}' for k, v in options.items())}"
+            )
         try:
             options[key] = int(value)
         except ValueError:
-            raise ValueError(f"backbone {name!r}: option {key} must be an integer, got "
-                             f"{value!r} in {spec!r}") from None
+            raise ValueError(
+                f"backbone {name!r}: option {key} must be an integer, got {value!r} in {spec!r}"
+            ) from None
     if options["input_size"] < 16:
         raise ValueError(f"input_size must be >= 16, got {options['input_size']} in {spec!r}")
     if "stage" in options and options["stage"] not in _STAGES:
@@ -176,8 +184,10 @@ def build_backbone(
     if input_size is not None:
         explicit = ":" in name and "input_size" in name.partition(":")[2]
         if explicit and int(input_size) != options["input_size"]:
-            raise ValueError(f"input_size={input_size} conflicts with the backbone spec {name!r}; "
-                             "give the crop size once")
+            raise ValueError(
+                f"input_size={input_size} conflicts with the backbone spec {name!r}; "
+                "give the crop size once"
+            )
         if int(input_size) < 16:
             raise ValueError(f"input_size must be >= 16, got {input_size}")
         options["input_size"] = int(input_size)

@@ -81,15 +81,17 @@ def resolve_weights(weights: str | os.PathLike | None) -> Path | str:
     if weights is not None:
         p = Path(weights).expanduser()
         if not p.is_file():
-            raise FileNotFoundError(f"AlexNet weights file {p} does not exist.\n"
-                                    + _missing_weights_message())
+            raise FileNotFoundError(
+                f"AlexNet weights file {p} does not exist.\n" + _missing_weights_message()
+            )
         return p
     env = settings.alexnet_weights()
     if env:
         p = Path(env).expanduser()
         if not p.is_file():
-            raise FileNotFoundError(f"{ALEXNET_ENV}={env} does not point to a file.\n"
-                                    + _missing_weights_message())
+            raise FileNotFoundError(
+                f"{ALEXNET_ENV}={env} does not point to a file.\n" + _missing_weights_message()
+            )
         return p
     p = hub_weights_path()
     if p.is_file():
@@ -97,7 +99,9 @@ def resolve_weights(weights: str | os.PathLike | None) -> Path | str:
     raise FileNotFoundError(_missing_weights_message())
 
 
-def extract_conv3_state(state: dict[str, torch.Tensor], source: str = "") -> dict[str, torch.Tensor]:
+def extract_conv3_state(
+    state: dict[str, torch.Tensor], source: str = ""
+) -> dict[str, torch.Tensor]:
     """Pick the conv1-conv3 tensors out of a (full torchvision) AlexNet state dict.
 
     Classifier and other extra keys are ignored; a ``module.`` prefix (DataParallel) is stripped.
@@ -109,8 +113,7 @@ def extract_conv3_state(state: dict[str, torch.Tensor], source: str = "") -> dic
     if isinstance(state, dict) and "state_dict" in state and isinstance(state["state_dict"], dict):
         state = state["state_dict"]
     if not isinstance(state, dict):
-        raise TypeError(f"AlexNet weights {source}: expected {EXPECTED_WEIGHTS}, "
-                        f"got {type(state)}")
+        raise TypeError(f"AlexNet weights {source}: expected {EXPECTED_WEIGHTS}, got {type(state)}")
     state = {k.removeprefix("module."): v for k, v in state.items()}
     out, problems = {}, []
     for key, shape in CONV3_KEYS.items():

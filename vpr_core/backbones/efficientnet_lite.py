@@ -56,7 +56,13 @@ from .checkpoint import WeightsFileError, load_checkpoint
 
 #: (expand ratio, kernel, stride) per stage, shared by all Lite variants.
 STAGE_OPS: tuple[tuple[int, int, int], ...] = (
-    (1, 3, 1), (6, 3, 2), (6, 5, 2), (6, 3, 2), (6, 5, 1), (6, 5, 2), (6, 3, 1),
+    (1, 3, 1),
+    (6, 3, 2),
+    (6, 5, 2),
+    (6, 3, 2),
+    (6, 5, 1),
+    (6, 5, 2),
+    (6, 3, 1),
 )
 #: variant -> (stage output channels, stage repeats, native resolution).
 VARIANTS: dict[str, tuple[tuple[int, ...], tuple[int, ...], int]] = {
@@ -81,8 +87,9 @@ def weights_package(variant: str) -> str:
 
 def _check_variant(variant: str) -> tuple[tuple[int, ...], tuple[int, ...], int]:
     if variant not in VARIANTS:
-        raise ValueError(f"unknown EfficientNet-Lite variant {variant!r}; valid: "
-                         f"{', '.join(VARIANTS)}")
+        raise ValueError(
+            f"unknown EfficientNet-Lite variant {variant!r}; valid: {', '.join(VARIANTS)}"
+        )
     return VARIANTS[variant]
 
 
@@ -102,12 +109,25 @@ class Conv2dSame(nn.Conv2d):
     ``Conv2dDynamicSamePadding``. ``(B, C_in, H, W) -> (B, C_out, ceil(H/s), ceil(W/s))``.
     """
 
-    def __init__(self, in_channels: int, out_channels: int, kernel_size: int, stride: int = 1,
-                 groups: int = 1, bias: bool = False) -> None:
+    def __init__(
+        self,
+        in_channels: int,
+        out_channels: int,
+        kernel_size: int,
+        stride: int = 1,
+        groups: int = 1,
+        bias: bool = False,
+    ) -> None:
         symmetric = stride == 1 and kernel_size % 2 == 1
-        super().__init__(in_channels, out_channels, kernel_size, stride=stride,
-                         padding=(kernel_size - 1) // 2 if symmetric else 0, groups=groups,
-                         bias=bias)
+        super().__init__(
+            in_channels,
+            out_channels,
+            kernel_size,
+            stride=stride,
+            padding=(kernel_size - 1) // 2 if symmetric else 0,
+            groups=groups,
+            bias=bias,
+        )
         self._dynamic = not symmetric
 
     def same_pads(self, height: int, width: int) -> tuple[int, int, int, int]:
@@ -139,15 +159,22 @@ def relu6_padded(y: torch.Tensor, pads: tuple[int, int, int, int]) -> torch.Tens
     """
     left, right, top, bottom = pads
     n, c, h, w = y.shape
-    fmt = (torch.channels_last if y.is_contiguous(memory_format=torch.channels_last)
-           and not y.is_contiguous() else torch.contiguous_format)
-    out = torch.empty((n, c, h + top + bottom, w + left + right), dtype=y.dtype, device=y.device,
-                      memory_format=fmt)
+    fmt = (
+        torch.channels_last
+        if y.is_contiguous(memory_format=torch.channels_last) and not y.is_contiguous()
+        else torch.contiguous_format
+    )
+    out = torch.empty(
+        (n, c, h + top + bottom, w + left + right),
+        dtype=y.dtype,
+        device=y.device,
+        memory_format=fmt,
+    )
     out[:, :, :top].zero_()
-    out[:, :, top + h:].zero_()
-    out[:, :, top:top + h, :left].zero_()
-    out[:, :, top:top + h, left + w:].zero_()
-    torch.clamp(y, 0.0, 6.0, out=out[:, :, top:top + h, left:left + w])
+    out[:, :, top + h :].zero_()
+    out[:, :, top : top + h, :left].zero_()
+    out[:, :, top : top + h, left + w :].zero_()
+    torch.clamp(y, 0.0, 6.0, out=out[:, :, top : top + h, left : left + w])
     return out
 
 
@@ -196,8 +223,14 @@ def fuse_conv_bn(conv: Conv2dSame, bn: nn.BatchNorm2d) -> Conv2dSame:
     ``bn(conv(x)) == fused(x)`` with ``w' = w * g / sqrt(v + eps)``,
     ``b' = beta + (b - mu) * g / sqrt(v + eps)``.
     """
-    fused = Conv2dSame(conv.in_channels, conv.out_channels, conv.kernel_size[0],
-                       stride=conv.stride[0], groups=conv.groups, bias=True)
+    fused = Conv2dSame(
+        conv.in_channels,
+        conv.out_channels,
+        conv.kernel_size[0],
+        stride=conv.stride[0],
+        groups=conv.groups,
+        bias=True,
+    )
     scale = bn.weight / torch.sqrt(bn.running_var + bn.eps)
     fused.weight.copy_(conv.weight * scale[:, None, None, None])
     bias = conv.bias if conv.bias is not None else torch.zeros_like(bn.running_mean)
@@ -214,12 +247,15 @@ def fuse_batchnorms_(model: nn.Module) -> nn.Module:
     """
     for conv_name, bn_name in (("_conv_stem", "_bn0"), ("_conv_head", "_bn1")):
         if hasattr(model, conv_name) and isinstance(getattr(model, bn_name, None), nn.BatchNorm2d):
-            setattr(model, conv_name, fuse_conv_bn(getattr(model, conv_name),
-                                                   getattr(model, bn_name)))
+            setattr(
+                model, conv_name, fuse_conv_bn(getattr(model, conv_name), getattr(model, bn_name))
+            )
             setattr(model, bn_name, nn.Identity())
     for block in model._blocks:
         for conv_name, bn_name in (
-            ("_expand_conv", "_bn0"), ("_depthwise_conv", "_bn1"), ("_project_conv", "_bn2")
+            ("_expand_conv", "_bn0"),
+            ("_depthwise_conv", "_bn1"),
+            ("_project_conv", "_bn2"),
         ):
             if hasattr(block, conv_name):
                 conv, bn = getattr(block, conv_name), getattr(block, bn_name)
@@ -259,7 +295,7 @@ class EfficientNetLite(nn.Module):
         self._bn0 = _bn(STEM_CHANNELS)
         blocks: list[nn.Module] = []
         in_ch = STEM_CHANNELS
-        for (expand, kernel, stride), out_ch, n in zip(STAGE_OPS, channels, repeats):
+        for (expand, kernel, stride), out_ch, n in zip(STAGE_OPS, channels, repeats, strict=False):
             for r in range(n):
                 blocks.append(MBConvBlock(in_ch, out_ch, expand, kernel, stride if r == 0 else 1))
                 in_ch = out_ch
@@ -314,13 +350,17 @@ def default_weights_path(variant: str = "lite0") -> Path:
 
 @lru_cache(maxsize=4)
 def _load_cached(path: str, mtime_ns: int, variant: str) -> dict[str, torch.Tensor]:
-    return load_checkpoint(path, f"an EfficientNet-{variant.capitalize()} state dict in the "
-                           f"EfficientNet-PyTorch layout (as shipped by "
-                           f"{weights_package(variant)})")
+    return load_checkpoint(
+        path,
+        f"an EfficientNet-{variant.capitalize()} state dict in the "
+        f"EfficientNet-PyTorch layout (as shipped by "
+        f"{weights_package(variant)})",
+    )
 
 
-def load_state_dict(path: str | os.PathLike | None = None,
-                    variant: str = "lite0") -> dict[str, torch.Tensor]:
+def load_state_dict(
+    path: str | os.PathLike | None = None, variant: str = "lite0"
+) -> dict[str, torch.Tensor]:
     """Load the ``variant`` checkpoint (``path`` or :func:`default_weights_path`) on CPU.
 
     The loaded dict is cached per (path, mtime) and shared: do not modify its tensors in place.
@@ -334,8 +374,9 @@ def load_state_dict(path: str | os.PathLike | None = None,
     return dict(_load_cached(str(p.resolve()), p.stat().st_mtime_ns, variant))
 
 
-def efficientnet_lite_classifier(variant: str = "lite0",
-                                 weights: str | os.PathLike | None = None) -> EfficientNetLite:
+def efficientnet_lite_classifier(
+    variant: str = "lite0", weights: str | os.PathLike | None = None
+) -> EfficientNetLite:
     """Full ImageNet classifier with pretrained weights loaded ``strict=True``, in eval mode.
 
     Args:
@@ -384,8 +425,13 @@ class EfficientNetLiteFeatures(nn.Module):
     mean = IMAGENET_MEAN
     std = IMAGENET_STD
 
-    def __init__(self, input_size: int = 128, stage: int = 5,
-                 weights: str | os.PathLike | None = None, variant: str = "lite0") -> None:
+    def __init__(
+        self,
+        input_size: int = 128,
+        stage: int = 5,
+        weights: str | os.PathLike | None = None,
+        variant: str = "lite0",
+    ) -> None:
         super().__init__()
         self.stride = stage_stride(stage)
         net = efficientnet_lite_classifier(variant, weights)
@@ -405,7 +451,8 @@ class EfficientNetLiteFeatures(nn.Module):
         self.feature_shape = (channels, side, side)
         self.raw_dim = channels * side * side
         self.weights_source = (
-            f"{Path(weights).name}" if weights is not None
+            f"{Path(weights).name}"
+            if weights is not None
             else f"{weights_package(variant)} ({default_weights_path(variant).name}, ImageNet)"
         )
 

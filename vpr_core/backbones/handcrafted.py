@@ -44,13 +44,17 @@ class HOGBackbone(nn.Module):
             "block_norm": "L2-Hys",
             "feature_vector": True,
         }
-        self.raw_dim = int(hog(np.zeros((self.input_size, self.input_size)), **self.hog_params).size)
+        self.raw_dim = int(
+            hog(np.zeros((self.input_size, self.input_size)), **self.hog_params).size
+        )
         self.feature_shape = (self.raw_dim,)
 
     def forward(self, batch: torch.Tensor) -> torch.Tensor:
         w = torch.tensor([0.299, 0.587, 0.114], dtype=batch.dtype, device=batch.device)
         gray = (batch * w[None, :, None, None]).sum(1).cpu().numpy().astype(np.float64)
-        feats = np.stack([hog(g, **self.hog_params) for g in gray]) if len(gray) else np.zeros(
-            (0, self.raw_dim)
+        feats = (
+            np.stack([hog(g, **self.hog_params) for g in gray])
+            if len(gray)
+            else np.zeros((0, self.raw_dim))
         )
         return torch.from_numpy(feats.astype(np.float32)).to(batch.device)

@@ -39,8 +39,26 @@ __all__ = [
 SIDES = ("query", "reference")
 #: Every 8-bit format OpenCV's ``imread`` decodes (other files in an image folder are skipped
 #: with a warning naming them).
-IMAGE_EXTENSIONS = (".jpg", ".jpeg", ".jpe", ".png", ".bmp", ".dib", ".tif", ".tiff", ".webp",
-                    ".gif", ".jp2", ".avif", ".ppm", ".pgm", ".pbm", ".pnm", ".sr", ".ras")
+IMAGE_EXTENSIONS = (
+    ".jpg",
+    ".jpeg",
+    ".jpe",
+    ".png",
+    ".bmp",
+    ".dib",
+    ".tif",
+    ".tiff",
+    ".webp",
+    ".gif",
+    ".jp2",
+    ".avif",
+    ".ppm",
+    ".pgm",
+    ".pbm",
+    ".pnm",
+    ".sr",
+    ".ras",
+)
 
 #: Smallest accepted short side of an image, in pixels. Below it the landmark stages degenerate
 #: (Edge Boxes finds no boxes on 8x8 images; dense sampling makes 3-pixel boxes that blank images
@@ -146,8 +164,9 @@ def _broken_link(p: Path) -> str | None:
     return None
 
 
-def scan_images(folder: str | os.PathLike, what: str = "image folder"
-                ) -> tuple[list[Path], list[Path]]:
+def scan_images(
+    folder: str | os.PathLike, what: str = "image folder"
+) -> tuple[list[Path], list[Path]]:
     """Image files directly inside ``folder`` (naturally sorted) and the other files it skipped.
 
     Images are files with an extension of :data:`IMAGE_EXTENSIONS` (any case); hidden files and
@@ -162,8 +181,9 @@ def scan_images(folder: str | os.PathLike, what: str = "image folder"
     if not folder.is_dir():
         broken = _broken_link(folder)
         raise FileNotFoundError(
-            f"{what} not found: {folder} " + (f"is {broken}" if broken else "does not exist or is "
-            "not a folder") + "; create it and put the images there, or point `root` at the "
+            f"{what} not found: {folder} "
+            + (f"is {broken}" if broken else "does not exist or is not a folder")
+            + "; create it and put the images there, or point `root` at the "
             "folder that contains it."
         )
     files, skipped = [], []
@@ -183,7 +203,8 @@ def scan_images(folder: str | os.PathLike, what: str = "image folder"
             f"{what} {folder} contains no images (looked for {', '.join(IMAGE_EXTENSIONS)}, "
             "any case); copy the images there or point `root` at the right folder."
         )
-    key = lambda p: natural_key(p.name)
+    def key(p):
+        return natural_key(p.name)
     return sorted(files, key=key), sorted(skipped, key=key)
 
 
@@ -207,8 +228,10 @@ def list_images(folder: str | os.PathLike, what: str = "image folder") -> list[P
     files, skipped = scan_images(folder, what)
     if skipped:
         names = ", ".join(p.name for p in skipped[:10]) + (" ..." if len(skipped) > 10 else "")
-        notice(f"{what} {folder}: skipped {len(skipped)} file(s) that are not images OpenCV "
-               f"reads ({names}); they are not part of the dataset.")
+        notice(
+            f"{what} {folder}: skipped {len(skipped)} file(s) that are not images OpenCV "
+            f"reads ({names}); they are not part of the dataset."
+        )
     return files
 
 
@@ -275,8 +298,12 @@ class PlaceDataset:
                 "fix the ground-truth file or the image folders so they agree."
             )
         soft = self.ground_truth_soft
-        if soft is not None and (not isinstance(soft, np.ndarray) or soft.dtype != np.bool_
-                                 or soft.shape != gt.shape or (gt & ~soft).any()):
+        if soft is not None and (
+            not isinstance(soft, np.ndarray)
+            or soft.dtype != np.bool_
+            or soft.shape != gt.shape
+            or (gt & ~soft).any()
+        ):
             raise ValueError(
                 f"PlaceDataset {self.name!r}: ground_truth_soft must be a bool ({nq}, {nr}) array "
                 "holding every ground_truth pair (GTsoft is a superset of GThard), or None."
@@ -372,11 +399,17 @@ class PlaceDataset:
         nq, nr = min(int(n), self.n_query), min(int(n), self.n_reference)
         soft = None if self.ground_truth_soft is None else self.ground_truth_soft[:nq, :nr].copy()
         homs = None if self.homographies is None else self.homographies[:nq].copy()
-        return PlaceDataset(name=self.name, query_paths=self.query_paths[:nq],
-                            reference_paths=self.reference_paths[:nr],
-                            ground_truth=self.ground_truth[:nq, :nr].copy(),
-                            tolerance=self.tolerance, root=self.root, homographies=homs,
-                            meta={**self.meta, "subset": (nq, nr)}, ground_truth_soft=soft)
+        return PlaceDataset(
+            name=self.name,
+            query_paths=self.query_paths[:nq],
+            reference_paths=self.reference_paths[:nr],
+            ground_truth=self.ground_truth[:nq, :nr].copy(),
+            tolerance=self.tolerance,
+            root=self.root,
+            homographies=homs,
+            meta={**self.meta, "subset": (nq, nr)},
+            ground_truth_soft=soft,
+        )
 
     def gt_pairs(self) -> list[tuple[int, int]]:
         """All ``(q, r)`` with ``ground_truth[q, r]`` True, row-major order."""

@@ -79,7 +79,7 @@ def download_dataset(
             "docstring."
         )
     url = url or str(entry["url"])  # type: ignore[index]
-    expected = (sha256 or (entry or {}).get("sha256") or None)
+    expected = sha256 or (entry or {}).get("sha256") or None
     expected = expected.lower().strip() if expected else None
     root = Path(root).expanduser()
     root.mkdir(parents=True, exist_ok=True)
@@ -99,8 +99,12 @@ def download_dataset(
             "Retry (the download may be truncated) or check the URL / the expected hash."
         )
     if expected is None:
-        log.warning("%s: no SHA-256 known for %s; computed sha256=%s (pass sha256=... to "
-                    "verify next time)", name, url, got)
+        log.warning(
+            "%s: no SHA-256 known for %s; computed sha256=%s (pass sha256=... to verify next time)",
+            name,
+            url,
+            got,
+        )
     target = root / fname
     os.replace(part, target)
     top = _unzip(name, target, root) if zipfile.is_zipfile(target) else ""
@@ -116,17 +120,27 @@ def _stream(name: str, url: str, part: Path, root: Path) -> str:
     try:
         with urllib.request.urlopen(url, timeout=60) as resp:
             total = int(resp.headers.get("Content-Length") or 0) or None
-            with open(part, "wb") as f, tqdm(total=total, unit="B", unit_scale=True,
-                                              desc=f"download {name}", leave=False,
-                                              disable=settings.progress_disabled()) as bar:
+            with (
+                open(part, "wb") as f,
+                tqdm(
+                    total=total,
+                    unit="B",
+                    unit_scale=True,
+                    desc=f"download {name}",
+                    leave=False,
+                    disable=settings.progress_disabled(),
+                ) as bar,
+            ):
                 for chunk in iter(lambda: resp.read(1 << 20), b""):
                     f.write(chunk)
                     digest.update(chunk)
                     bar.update(len(chunk))
     except OSError as exc:
         part.unlink(missing_ok=True)
-        raise OSError(f"download of {name!r} from {url} failed: {exc}; check the URL and your "
-                      f"connection, or download it by hand into {root}.") from exc
+        raise OSError(
+            f"download of {name!r} from {url} failed: {exc}; check the URL and your "
+            f"connection, or download it by hand into {root}."
+        ) from exc
     return digest.hexdigest()
 
 
@@ -136,8 +150,9 @@ def _unzip(name: str, target: Path, root: Path) -> str:
         with zipfile.ZipFile(target) as zf:
             names = _safe_extract(zf, root)
     except zipfile.BadZipFile as exc:
-        raise ValueError(f"{target} is not a valid zip archive ({exc}); download it again "
-                         "with overwrite=True.") from None
+        raise ValueError(
+            f"{target} is not a valid zip archive ({exc}); download it again with overwrite=True."
+        ) from None
     target.unlink()
     log.info("%s: extracted %d entries into %s", name, len(names), root)
     tops = {n.split("/")[0] for n in names if n.strip("/")}

@@ -25,8 +25,22 @@ FOLDER_LAYOUT = (
 
 #: Skipped files that cannot be a frame (notes, lists, arrays): they do not block the
 #: frame-aligned rule; any other skipped file (an unreadable image format, a broken link) does.
-_NOT_FRAMES = {".txt", ".csv", ".json", ".md", ".xml", ".yaml", ".yml", ".log", ".npy", ".npz",
-               ".mat", ".ini", ".db", ".pdf"}
+_NOT_FRAMES = {
+    ".txt",
+    ".csv",
+    ".json",
+    ".md",
+    ".xml",
+    ".yaml",
+    ".yml",
+    ".log",
+    ".npy",
+    ".npz",
+    ".mat",
+    ".ini",
+    ".db",
+    ".pdf",
+}
 
 
 def load_folder(
@@ -73,8 +87,11 @@ def load_folder(
         gt_file = found[0] if found else None
     else:
         gt_file = resolve_file(root, ground_truth)
-    meta: dict[str, Any] = {"query_traverse": query, "reference_traverse": reference,
-                            "layout": FOLDER_LAYOUT}
+    meta: dict[str, Any] = {
+        "query_traverse": query,
+        "reference_traverse": reference,
+        "layout": FOLDER_LAYOUT,
+    }
     if gt_file is not None:
         gt = widen(read_ground_truth(gt_file, qp, rp), tolerance)
         check_ground_truth(gt, str(gt_file))
@@ -86,8 +103,11 @@ def load_folder(
                 "frame-aligned rule (query i <-> reference i) does not apply; supply a ground-"
                 "truth file (ground_truth.npy or ground_truth.csv in root, or ground_truth=<path>)."
             )
-        skipped = [p for p in scan_images(qdir)[1] + scan_images(rdir)[1]
-                   if p.suffix.lower() not in _NOT_FRAMES]
+        skipped = [
+            p
+            for p in scan_images(qdir)[1] + scan_images(rdir)[1]
+            if p.suffix.lower() not in _NOT_FRAMES
+        ]
         if skipped:
             raise ValueError(
                 f"folder: {len(skipped)} file(s) in the image folders were skipped as not images "

@@ -46,7 +46,10 @@ def load_freiburg_across_seasons(
     qd = traverse_dir(root, query, "freiburg_across_seasons", FREIBURG_LAYOUT)
     rd = traverse_dir(root, reference, "freiburg_across_seasons", FREIBURG_LAYOUT)
     gt_file = resolve_file(root, ground_truth)
-    meta = {"query_traverse": query, "reference_traverse": reference, "layout": FREIBURG_LAYOUT,
-            "layout_verified": False}
-    return correspondence_dataset("freiburg_across_seasons", root, qd, rd, gt_file, tolerance,
-                                   meta)
+    meta = {
+        "query_traverse": query,
+        "reference_traverse": reference,
+        "layout": FREIBURG_LAYOUT,
+        "layout_verified": False,
+    }
+    return correspondence_dataset("freiburg_across_seasons", root, qd, rd, gt_file, tolerance, meta)

@@ -60,16 +60,24 @@ def load_gardens_point(
     if not (root / query).is_dir() and (root / "GardensPointWalking" / query).is_dir():
         base = root / "GardensPointWalking"
         log.info("gardens_point: using %s (the archive's top folder)", base)
-    qp = list_images(traverse_dir(base, query, "gardens_point", GARDENS_POINT_LAYOUT),
-                     f"gardens_point {query} folder")
-    rp = list_images(traverse_dir(base, reference, "gardens_point", GARDENS_POINT_LAYOUT),
-                     f"gardens_point {reference} folder")
+    qp = list_images(
+        traverse_dir(base, query, "gardens_point", GARDENS_POINT_LAYOUT),
+        f"gardens_point {query} folder",
+    )
+    rp = list_images(
+        traverse_dir(base, reference, "gardens_point", GARDENS_POINT_LAYOUT),
+        f"gardens_point {reference} folder",
+    )
     if len(qp) != len(rp):
         raise ValueError(
             f"gardens_point: {query} has {len(qp)} images but {reference} has {len(rp)}; the "
             "traverses are frame-aligned and must have the same count (re-extract the dataset)."
         )
     gt = frame_aligned(len(qp), len(rp), tolerance)
-    meta = {"query_traverse": query, "reference_traverse": reference,
-            "ground_truth_rule": f"frame-aligned |q-r|<={tolerance}", "layout": GARDENS_POINT_LAYOUT}
+    meta = {
+        "query_traverse": query,
+        "reference_traverse": reference,
+        "ground_truth_rule": f"frame-aligned |q-r|<={tolerance}",
+        "layout": GARDENS_POINT_LAYOUT,
+    }
     return PlaceDataset("gardens_point", qp, rp, gt, tolerance, root=base, meta=meta)

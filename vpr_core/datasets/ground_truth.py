@@ -32,6 +32,7 @@ import numpy as np
 
 from ..notices import notice
 from .safe_pickle import read_npy
+import contextlib
 
 __all__ = [
     "check_ground_truth",
@@ -43,6 +44,7 @@ __all__ = [
     "sample_irrelevant_references",
     "widen",
 ]
+
 
 def check_tolerance(tolerance: Any) -> int:
     """Return ``tolerance`` as an int >= 0 (frames); ValueError otherwise."""
@@ -109,8 +111,10 @@ def check_ground_truth(gt: np.ndarray, source: str) -> tuple[int, int]:
             "tolerance."
         )
     if covered < nq:
-        notice(f"ground truth from {source} covers {covered} of {nq} queries; the other "
-               f"{nq - covered} are dropped from every metric")
+        notice(
+            f"ground truth from {source} covers {covered} of {nq} queries; the other "
+            f"{nq - covered} are dropped from every metric"
+        )
     return covered, nq
 
 
@@ -126,10 +130,8 @@ def _name_index(paths: Sequence[Path], base: Path | None) -> dict[str, int]:
         index[p.name] = i
         stems.setdefault(p.stem, []).append(i)
         if base is not None:
-            try:
+            with contextlib.suppress(ValueError):
                 index[p.relative_to(base).as_posix()] = i
-            except ValueError:
-                pass
     for stem, idx in stems.items():
         if len(idx) == 1:
             index.setdefault(stem, idx[0])
@@ -137,8 +139,9 @@ def _name_index(paths: Sequence[Path], base: Path | None) -> dict[str, int]:
 
 
 def _read_npy(path: Path, nq: int, nr: int) -> np.ndarray:
-    arr = np.asarray(read_npy(path, f"a ({nq}, {nr}) bool or 0/1 matrix saved with "
-                                    "np.save(path, matrix)"))
+    arr = np.asarray(
+        read_npy(path, f"a ({nq}, {nr}) bool or 0/1 matrix saved with np.save(path, matrix)")
+    )
     if arr.shape != (nq, nr):
         raise ValueError(
             f"ground truth {path} has shape {arr.shape} but the dataset has {nq} query and "
@@ -162,7 +165,7 @@ def _csv_rows(path: Path) -> list[tuple[int, str, str]]:
     try:
         text = data.decode("utf-8-sig")  # a UTF-8 byte-order mark (Excel's "CSV UTF-8") is fine
     except UnicodeDecodeError as exc:
-        line = data[:exc.start].count(b"\n") + 1
+        line = data[: exc.start].count(b"\n") + 1
         raise ValueError(
             f"{path}, line {line}: not UTF-8 text (byte 0x{data[exc.start]:02x} cannot be "
             "decoded); ground-truth CSVs are read as UTF-8: save the file as UTF-8 (e.g. "
@@ -197,12 +200,14 @@ def _looks_one_based(path: Path, cells: list[str], paths: Sequence[Path], side: 
         f"{path}: the {side} cells are numbers 1..{max(values)} with no 0, which looks 1-based; "
         f"they were read as 0-based indices into the naturally sorted {side} images (cell '1' = "
         f"{first}). If they are 1-based numbers or file stems, subtract 1 or write file names.",
-        stacklevel=5)
+        stacklevel=5,
+    )
     return True
 
 
-def _resolve(path: Path, line: int, cell: str, names: dict[str, int], n: int, side: str,
-             one_based: bool) -> int:
+def _resolve(
+    path: Path, line: int, cell: str, names: dict[str, int], n: int, side: str, one_based: bool
+) -> int:
     if cell.isdigit():
         j = int(cell)
         if j >= n:
@@ -220,8 +225,9 @@ def _resolve(path: Path, line: int, cell: str, names: dict[str, int], n: int, si
     )
 
 
-def _read_csv(path: Path, query_paths: Sequence[Path], reference_paths: Sequence[Path]
-              ) -> np.ndarray:
+def _read_csv(
+    path: Path, query_paths: Sequence[Path], reference_paths: Sequence[Path]
+) -> np.ndarray:
     nq, nr = len(query_paths), len(reference_paths)
     rows = _csv_rows(path)
     q_one = _looks_one_based(path, [q for _, q, _ in rows], query_paths, "query")
@@ -300,9 +306,12 @@ def ground_truth_references(ground_truth: np.ndarray, q: int, mode: str = "cente
     return [int(row[(len(row) - 1) // 2])]
 
 
-def sample_irrelevant_references(ground_truth: np.ndarray, n_irrelevant: int = 5,
-                                 seed: int = 0, queries: Sequence[int] | None = None
-                                 ) -> dict[int, list[int]]:
+def sample_irrelevant_references(
+    ground_truth: np.ndarray,
+    n_irrelevant: int = 5,
+    seed: int = 0,
+    queries: Sequence[int] | None = None,
+) -> dict[int, list[int]]:
     """Query-irrelevant references: per query, ``n_irrelevant`` references with
     ``ground_truth[q, r] == False`` drawn without replacement (fewer when fewer exist), with one
     ``np.random.default_rng(seed)`` consumed query by query in increasing order; returned sorted.

@@ -50,11 +50,18 @@ def load_mapillary_berlin(
     """
     tolerance = check_tolerance(tolerance)
     root = check_root(root, "mapillary_berlin", MAPILLARY_BERLIN_LAYOUT)
-    base = traverse_dir(root, sequence, "mapillary_berlin", MAPILLARY_BERLIN_LAYOUT) \
-        if sequence else root
+    base = (
+        traverse_dir(root, sequence, "mapillary_berlin", MAPILLARY_BERLIN_LAYOUT)
+        if sequence
+        else root
+    )
     qd = traverse_dir(base, query, "mapillary_berlin", MAPILLARY_BERLIN_LAYOUT)
     rd = traverse_dir(base, reference, "mapillary_berlin", MAPILLARY_BERLIN_LAYOUT)
     gt_file = resolve_file(base, ground_truth)
-    meta = {"sequence": sequence, "query_traverse": query, "reference_traverse": reference,
-            "layout": MAPILLARY_BERLIN_LAYOUT}
+    meta = {
+        "sequence": sequence,
+        "query_traverse": query,
+        "reference_traverse": reference,
+        "layout": MAPILLARY_BERLIN_LAYOUT,
+    }
     return correspondence_dataset("mapillary_berlin", base, qd, rd, gt_file, tolerance, meta)

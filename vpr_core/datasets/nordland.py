@@ -28,8 +28,9 @@ _MISSING = ("error", "intersect")
 
 def _check_step(step: Any) -> int:
     if isinstance(step, bool) or not isinstance(step, int) or step < 1:
-        raise ValueError(f"nordland: step must be a positive int (keep every step-th place), "
-                         f"got {step!r}.")
+        raise ValueError(
+            f"nordland: step must be a positive int (keep every step-th place), got {step!r}."
+        )
     return int(step)
 
 
@@ -49,8 +50,10 @@ def _common_names(q: dict, r: dict, query: str, reference: str, missing: str) ->
     only_r = sorted(set(r) - set(q))
     if not only_q and not only_r:
         return list(q)
-    detail = (f"{len(only_q)} file(s) only in {query} (e.g. {only_q[:3]}), {len(only_r)} only in "
-              f"{reference} (e.g. {only_r[:3]})")
+    detail = (
+        f"{len(only_q)} file(s) only in {query} (e.g. {only_q[:3]}), {len(only_r)} only in "
+        f"{reference} (e.g. {only_r[:3]})"
+    )
     if missing == "error":
         raise ValueError(
             f"nordland: the season folders do not hold the same file names: {detail}. The "
@@ -58,8 +61,11 @@ def _common_names(q: dict, r: dict, query: str, reference: str, missing: str) ->
             "missing='intersect' to keep only the names present in both."
         )
     keep = [n for n in q if n in r]
-    log.warning("nordland: %s; keeping the %d file names present in both (missing='intersect')",
-                detail, len(keep))
+    log.warning(
+        "nordland: %s; keeping the %d file names present in both (missing='intersect')",
+        detail,
+        len(keep),
+    )
     return keep
 
 
@@ -113,7 +119,12 @@ def load_nordland(
     qp = [q_files[n] for n in names]
     rp = [r_files[n] for n in names]
     gt = frame_aligned(len(qp), len(rp), tolerance)
-    meta = {"query_traverse": query, "reference_traverse": reference, "step": step,
-            "seasons_found": seasons, "layout": NORDLAND_LAYOUT,
-            "ground_truth_rule": f"same file name, |i-j|<={tolerance} kept places"}
+    meta = {
+        "query_traverse": query,
+        "reference_traverse": reference,
+        "step": step,
+        "seasons_found": seasons,
+        "layout": NORDLAND_LAYOUT,
+        "ground_truth_rule": f"same file name, |i-j|<={tolerance} kept places",
+    }
     return PlaceDataset("nordland", qp, rp, gt, tolerance, root=root, meta=meta)

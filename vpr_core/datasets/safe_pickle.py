@@ -20,21 +20,32 @@ from typing import Any
 import numpy as np
 from numpy.lib import format as npy_format
 
-__all__ = ["ALLOWED_GLOBALS", "RestrictedUnpickler", "UnsafePickleError", "read_npy",
-           "restricted_loads"]
+__all__ = [
+    "ALLOWED_GLOBALS",
+    "RestrictedUnpickler",
+    "UnsafePickleError",
+    "read_npy",
+    "restricted_loads",
+]
 
 #: The only callables a pickle may name: numpy's array / dtype / scalar rebuilders (both the
 #: numpy 1 ``numpy.core`` and numpy 2 ``numpy._core`` spellings) and ``_codecs.encode``, which
 #: Python 3 protocol-2 pickles use to write bytes.
 ALLOWED_GLOBALS = frozenset(
-    {(core + ".multiarray", n) for core in ("numpy.core", "numpy._core")
-     for n in ("_reconstruct", "scalar")}
+    {
+        (core + ".multiarray", n)
+        for core in ("numpy.core", "numpy._core")
+        for n in ("_reconstruct", "scalar")
+    }
     | {(core + ".numeric", "_frombuffer") for core in ("numpy.core", "numpy._core")}
     | {("numpy", "ndarray"), ("numpy", "dtype"), ("_codecs", "encode")}
 )
 _NPY_MAGIC, _ZIP_MAGIC = b"\x93NUMPY", b"PK\x03\x04"
-_HEADERS = {(1, 0): npy_format.read_array_header_1_0, (2, 0): npy_format.read_array_header_2_0,
-            (3, 0): npy_format.read_array_header_2_0}
+_HEADERS = {
+    (1, 0): npy_format.read_array_header_1_0,
+    (2, 0): npy_format.read_array_header_2_0,
+    (3, 0): npy_format.read_array_header_2_0,
+}
 
 
 class UnsafePickleError(ValueError):
@@ -65,7 +76,9 @@ class RestrictedUnpickler(pickle.Unpickler):
         )
 
     def persistent_load(self, pid: Any) -> Any:
-        raise UnsafePickleError(f"{self.source} is a pickle with persistent ids; it was not loaded.")
+        raise UnsafePickleError(
+            f"{self.source} is a pickle with persistent ids; it was not loaded."
+        )
 
 
 def restricted_loads(data: bytes, source: str, encoding: str = "latin1") -> Any:
@@ -112,8 +125,15 @@ def read_npy(path: str | os.PathLike, expected: str, encoding: str = "latin1") -
             return RestrictedUnpickler(f, str(path), encoding).load()
         except UnsafePickleError:
             raise
-        except (OSError, ValueError, EOFError, TypeError, AttributeError, IndexError,
-                pickle.UnpicklingError) as exc:
+        except (
+            OSError,
+            ValueError,
+            EOFError,
+            TypeError,
+            AttributeError,
+            IndexError,
+            pickle.UnpicklingError,
+        ) as exc:
             raise ValueError(
                 f"{path} is not a readable .npy file ({type(exc).__name__}: {exc}); expected "
                 f"{expected}."

@@ -51,12 +51,20 @@ def _paths(folder: Path, what: str) -> list[Path]:
                 "list (without it the images are found by searching the folder)."
             )
     else:
-        paths = sorted((p for p in folder.rglob("*") if p.is_file()
-                        and p.suffix.lower() in IMAGE_EXTENSIONS and not p.name.startswith(".")),
-                       key=str)
+        paths = sorted(
+            (
+                p
+                for p in folder.rglob("*")
+                if p.is_file()
+                and p.suffix.lower() in IMAGE_EXTENSIONS
+                and not p.name.startswith(".")
+            ),
+            key=str,
+        )
     if not paths:
-        raise ValueError(f"utm: {what} folder {folder} contains no images. Expected layout: "
-                         f"{UTM_LAYOUT}")
+        raise ValueError(
+            f"utm: {what} folder {folder} contains no images. Expected layout: {UTM_LAYOUT}"
+        )
     return paths
 
 
@@ -82,8 +90,12 @@ def utm_coordinates(paths: list[Path]) -> np.ndarray:
 
 
 def _threshold(value: object, what: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) \
-            or not np.isfinite(value) or value < 0:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float, np.number))
+        or not np.isfinite(value)
+        or value < 0
+    ):
         raise ValueError(f"utm: {what} must be a number of metres >= 0, got {value!r}.")
     return float(value)
 
@@ -115,11 +127,16 @@ def load_utm(
         FileNotFoundError: missing root or folders, a paths list naming missing files.
     """
     hard = _threshold(positive_dist_threshold, "positive_dist_threshold")
-    soft = None if soft_dist_threshold is None else _threshold(soft_dist_threshold,
-                                                                "soft_dist_threshold")
+    soft = (
+        None
+        if soft_dist_threshold is None
+        else _threshold(soft_dist_threshold, "soft_dist_threshold")
+    )
     if soft is not None and soft < hard:
-        raise ValueError(f"utm: soft_dist_threshold ({soft:g} m) must be >= "
-                         f"positive_dist_threshold ({hard:g} m).")
+        raise ValueError(
+            f"utm: soft_dist_threshold ({soft:g} m) must be >= "
+            f"positive_dist_threshold ({hard:g} m)."
+        )
     root = check_root(root, "utm", UTM_LAYOUT)
     qp = _paths(traverse_dir(root, queries, "utm", UTM_LAYOUT), "query")
     rp = _paths(traverse_dir(root, database, "utm", UTM_LAYOUT), "database")
@@ -128,8 +145,21 @@ def load_utm(
     gt = dist <= hard
     rule = f"UTM distance <= {hard:g} m"
     check_ground_truth(gt, f"utm file names ({rule})")
-    meta = {"layout": UTM_LAYOUT, "query_traverse": queries, "reference_traverse": database,
-            "ground_truth_rule": rule + (f" (soft <= {soft:g} m)" if soft is not None else ""),
-            "utm_query": uq, "utm_reference": ur}
-    return PlaceDataset("utm", qp, rp, gt, f"{hard:g} m", root=root, meta=meta,
-                        ground_truth_soft=None if soft is None else dist <= soft)
+    meta = {
+        "layout": UTM_LAYOUT,
+        "query_traverse": queries,
+        "reference_traverse": database,
+        "ground_truth_rule": rule + (f" (soft <= {soft:g} m)" if soft is not None else ""),
+        "utm_query": uq,
+        "utm_reference": ur,
+    }
+    return PlaceDataset(
+        "utm",
+        qp,
+        rp,
+        gt,
+        f"{hard:g} m",
+        root=root,
+        meta=meta,
+        ground_truth_soft=None if soft is None else dist <= soft,
+    )

@@ -76,13 +76,18 @@ def _mask_or_index(value: Any, path: Path, row: int, nr: int) -> np.ndarray:
 
 
 def _rows(path: Path) -> list:
-    arr = read_npy(path, "a VPR-Bench ground-truth file: a numpy .npy object array of rows "
-                         "[query index, [reference indices]] (download it again)")
+    arr = read_npy(
+        path,
+        "a VPR-Bench ground-truth file: a numpy .npy object array of rows "
+        "[query index, [reference indices]] (download it again)",
+    )
     if isinstance(arr, np.ndarray) and arr.dtype == object and arr.ndim == 0:
         arr = arr.item()
     if isinstance(arr, np.ndarray) and arr.ndim not in (1, 2):
-        raise ValueError(f"{path}: expected a list of [query index, [reference indices]] rows, "
-                         f"got an array of shape {arr.shape}.")
+        raise ValueError(
+            f"{path}: expected a list of [query index, [reference indices]] rows, "
+            f"got an array of shape {arr.shape}."
+        )
     return list(arr)
 
 
@@ -118,17 +123,23 @@ def read_vprbench_ground_truth(path: str | os.PathLike, nq: int, nr: int) -> np.
         q = _as_index(row[0], path, k, "query index")
         refs = _mask_or_index(row[1], path, k, nr)
         if q.size != 1:
-            raise ValueError(f"{path}, row {k}: the query index must be one number, got {row[0]!r}.")
+            raise ValueError(
+                f"{path}, row {k}: the query index must be one number, got {row[0]!r}."
+            )
         qi = int(q[0])
         if not 0 <= qi < nq:
-            raise ValueError(f"{path}, row {k}: query index {qi} out of range (the query folder "
-                             f"has {nq} images, indices 0..{nq - 1}); is this the file of another "
-                             "dataset, or are images missing?")
+            raise ValueError(
+                f"{path}, row {k}: query index {qi} out of range (the query folder "
+                f"has {nq} images, indices 0..{nq - 1}); is this the file of another "
+                "dataset, or are images missing?"
+            )
         bad = refs[(refs < 0) | (refs >= nr)]
         if bad.size:
-            raise ValueError(f"{path}, row {k}: reference indices {bad[:5].tolist()} out of range "
-                             f"(the ref folder has {nr} images, indices 0..{nr - 1}); is this the "
-                             "file of another dataset, or are images missing?")
+            raise ValueError(
+                f"{path}, row {k}: reference indices {bad[:5].tolist()} out of range "
+                f"(the ref folder has {nr} images, indices 0..{nr - 1}); is this the "
+                "file of another dataset, or are images missing?"
+            )
         gt[qi, refs] = True
     return gt
 
@@ -136,9 +147,14 @@ def read_vprbench_ground_truth(path: str | os.PathLike, nq: int, nr: int) -> np.
 def _ordered(paths: list[Path], order: str, side: str) -> list[Path]:
     lexi = sorted(paths, key=lambda p: p.name)
     if lexi != paths:
-        log.warning("vpr_bench: the %s file names sort differently naturally and lexicographically "
-                    "(%s...); ground-truth indices are read against the %s order (order=%r)",
-                    side, ", ".join(p.name for p in paths[:3]), order, order)
+        log.warning(
+            "vpr_bench: the %s file names sort differently naturally and lexicographically "
+            "(%s...); ground-truth indices are read against the %s order (order=%r)",
+            side,
+            ", ".join(p.name for p in paths[:3]),
+            order,
+            order,
+        )
     return lexi if order == "lexicographic" else paths
 
 
@@ -173,14 +189,30 @@ def load_vpr_bench(
     if order not in _ORDERS:
         raise ValueError(f"vpr_bench: order must be one of {_ORDERS}, got {order!r}.")
     root = check_root(root, "vpr_bench", VPR_BENCH_LAYOUT)
-    qp = _ordered(list_images(traverse_dir(root, query, "vpr_bench", VPR_BENCH_LAYOUT),
-                              "vpr_bench query folder"), order, "query")
-    rp = _ordered(list_images(traverse_dir(root, reference, "vpr_bench", VPR_BENCH_LAYOUT),
-                              "vpr_bench ref folder"), order, "reference")
+    qp = _ordered(
+        list_images(
+            traverse_dir(root, query, "vpr_bench", VPR_BENCH_LAYOUT), "vpr_bench query folder"
+        ),
+        order,
+        "query",
+    )
+    rp = _ordered(
+        list_images(
+            traverse_dir(root, reference, "vpr_bench", VPR_BENCH_LAYOUT), "vpr_bench ref folder"
+        ),
+        order,
+        "reference",
+    )
     gt_file = resolve_file(root, ground_truth)
     gt = widen(read_vprbench_ground_truth(gt_file, len(qp), len(rp)), tolerance)
     check_ground_truth(gt, str(gt_file))
-    meta = {"dataset": root.name, "query_traverse": query, "reference_traverse": reference,
-            "order": order, "layout": VPR_BENCH_LAYOUT, "ground_truth_file": str(gt_file),
-            "ground_truth_rule": "VPR-Bench ground_truth_new.npy"}
+    meta = {
+        "dataset": root.name,
+        "query_traverse": query,
+        "reference_traverse": reference,
+        "order": order,
+        "layout": VPR_BENCH_LAYOUT,
+        "ground_truth_file": str(gt_file),
+        "ground_truth_rule": "VPR-Bench ground_truth_new.npy",
+    }
     return PlaceDataset("vpr_bench", qp, rp, gt, tolerance, root=root, meta=meta)

@@ -80,16 +80,29 @@ def _matrix_task(qpart: _Part, refs: _Part, soft_nms_iou, sigma) -> np.ndarray:
     """Task: Eq. (1) of a query block x all references; ``(bq, Nr)`` (extra row dropped)."""
     from ..matching import similarity_matrix
 
-    out = similarity_matrix(qpart.desc, qpart.boxes, refs.desc, refs.boxes,
-                            soft_nms_iou=soft_nms_iou, sigma=sigma, batch_size=QUERY_BATCH,
-                            show_progress=False)
+    out = similarity_matrix(
+        qpart.desc,
+        qpart.boxes,
+        refs.desc,
+        refs.boxes,
+        soft_nms_iou=soft_nms_iou,
+        sigma=sigma,
+        batch_size=QUERY_BATCH,
+        show_progress=False,
+    )
     return out[:-1]
 
 
-def similarity_blocks_distributed(client, query_desc, query_boxes, reference_desc,
-                                  reference_boxes, soft_nms_iou: float | None = None,
-                                  sigma: float = SOFT_NMS_SIGMA,
-                                  block_queries: int = 128) -> np.ndarray:
+def similarity_blocks_distributed(
+    client,
+    query_desc,
+    query_boxes,
+    reference_desc,
+    reference_boxes,
+    soft_nms_iou: float | None = None,
+    sigma: float = SOFT_NMS_SIGMA,
+    block_queries: int = 128,
+) -> np.ndarray:
     """Exhaustive Eq. (1) matrix as Dask tasks over query blocks.
 
     The reference side is scattered once to every worker (each worker holds
@@ -110,8 +123,14 @@ def similarity_blocks_distributed(client, query_desc, query_boxes, reference_des
 
     bq = _block_size(block_queries, "block_queries")
     if client is None:
-        return similarity_matrix(query_desc, query_boxes, reference_desc, reference_boxes,
-                                 soft_nms_iou=soft_nms_iou, sigma=sigma)
+        return similarity_matrix(
+            query_desc,
+            query_boxes,
+            reference_desc,
+            reference_boxes,
+            soft_nms_iou=soft_nms_iou,
+            sigma=sigma,
+        )
     qd, qb = _check_lists(query_desc, query_boxes, "query")
     rd, rb = _check_lists(reference_desc, reference_boxes, "reference")
     wide = _widest(qd)
@@ -122,13 +141,21 @@ def similarity_blocks_distributed(client, query_desc, query_boxes, reference_des
         part = client.scatter(_query_part(qd, qb, q0, q0 + bq, wide), hash=False)
         futures.append(client.submit(_matrix_task, part, refs, soft_nms_iou, sigma, pure=False))
     out = np.empty((len(qd), len(rd)), dtype=np.float64)
-    for q0, block in zip(starts, gather_in_order(client, futures, "similarity (dask)")):
-        out[q0:q0 + bq] = block
+    for q0, block in zip(starts, gather_in_order(client, futures, "similarity (dask)"), strict=False):
+        out[q0 : q0 + bq] = block
     return out
 
 
-def _pairs_task(qpart: _Part, rblocks: list[_Part], rstarts: list[int], ref_ids: np.ndarray,
-                wide_ref: _Part, local_pairs: np.ndarray, soft_nms_iou, sigma) -> np.ndarray:
+def _pairs_task(
+    qpart: _Part,
+    rblocks: list[_Part],
+    rstarts: list[int],
+    ref_ids: np.ndarray,
+    wide_ref: _Part,
+    local_pairs: np.ndarray,
+    soft_nms_iou,
+    sigma,
+) -> np.ndarray:
     """Task: Eq. (1) of listed pairs; ``local_pairs`` index ``qpart`` and ``ref_ids``."""
     from ..matching import similarity_pairs
 
@@ -137,16 +164,30 @@ def _pairs_task(qpart: _Part, rblocks: list[_Part], rstarts: list[int], ref_ids:
         b = int(np.searchsorted(rstarts, j, side="right")) - 1
         rd.append(rblocks[b].desc[j - rstarts[b]])
         rb.append(rblocks[b].boxes[j - rstarts[b]])
-    return similarity_pairs(qpart.desc, qpart.boxes, rd + wide_ref.desc, rb + wide_ref.boxes,
-                            local_pairs, soft_nms_iou=soft_nms_iou, sigma=sigma,
-                            show_progress=False)
+    return similarity_pairs(
+        qpart.desc,
+        qpart.boxes,
+        rd + wide_ref.desc,
+        rb + wide_ref.boxes,
+        local_pairs,
+        soft_nms_iou=soft_nms_iou,
+        sigma=sigma,
+        show_progress=False,
+    )
 
 
-def similarity_pairs_distributed(client, query_desc, query_boxes, reference_desc,
-                                 reference_boxes, pairs: np.ndarray,
-                                 soft_nms_iou: float | None = None,
-                                 sigma: float = SOFT_NMS_SIGMA, block_queries: int = 128,
-                                 block_references: int = 512) -> np.ndarray:
+def similarity_pairs_distributed(
+    client,
+    query_desc,
+    query_boxes,
+    reference_desc,
+    reference_boxes,
+    pairs: np.ndarray,
+    soft_nms_iou: float | None = None,
+    sigma: float = SOFT_NMS_SIGMA,
+    block_queries: int = 128,
+    block_references: int = 512,
+) -> np.ndarray:
     """Eq. (1) of listed pairs (a shortlist) as Dask tasks over query blocks.
 
     Reference blocks are scattered once; a query block's task receives only the reference
@@ -170,8 +211,15 @@ def similarity_pairs_distributed(client, query_desc, query_boxes, reference_desc
     bq = _block_size(block_queries, "block_queries")
     br = _block_size(block_references, "block_references")
     if client is None:
-        return similarity_pairs(query_desc, query_boxes, reference_desc, reference_boxes, pairs,
-                                soft_nms_iou=soft_nms_iou, sigma=sigma)
+        return similarity_pairs(
+            query_desc,
+            query_boxes,
+            reference_desc,
+            reference_boxes,
+            pairs,
+            soft_nms_iou=soft_nms_iou,
+            sigma=sigma,
+        )
     qd, qb = _check_lists(query_desc, query_boxes, "query")
     rd, rb = _check_lists(reference_desc, reference_boxes, "reference")
     pr = check_pairs(pairs, len(qd), len(rd))
@@ -180,7 +228,7 @@ def similarity_pairs_distributed(client, query_desc, query_boxes, reference_desc
     wide_q, wide_r = _widest(qd), _widest(rd)
     wide_ref = client.scatter(_Part([rd[wide_r]], [rb[wide_r]]), broadcast=True, hash=False)
     rstarts = list(range(0, len(rd), br))
-    rfut = [client.scatter(_Part(rd[s:s + br], rb[s:s + br]), hash=False) for s in rstarts]
+    rfut = [client.scatter(_Part(rd[s : s + br], rb[s : s + br]), hash=False) for s in rstarts]
     futures, rows_of = [], []
     for q0 in range(0, len(qd), bq):
         rows = np.flatnonzero((pr[:, 0] >= q0) & (pr[:, 0] < q0 + bq))
@@ -190,11 +238,22 @@ def similarity_pairs_distributed(client, query_desc, query_boxes, reference_desc
         blocks = sorted({int(j) // br for j in ref_ids})
         local = np.stack([pr[rows, 0] - q0, local_r.reshape(-1)], axis=1)
         part = client.scatter(_query_part(qd, qb, q0, q0 + bq, wide_q), hash=False)
-        futures.append(client.submit(_pairs_task, part, [rfut[b] for b in blocks],
-                                     [rstarts[b] for b in blocks], ref_ids, wide_ref, local,
-                                     soft_nms_iou, sigma, pure=False))
+        futures.append(
+            client.submit(
+                _pairs_task,
+                part,
+                [rfut[b] for b in blocks],
+                [rstarts[b] for b in blocks],
+                ref_ids,
+                wide_ref,
+                local,
+                soft_nms_iou,
+                sigma,
+                pure=False,
+            )
+        )
         rows_of.append(rows)
     out = np.empty(pr.shape[0], dtype=np.float64)
-    for rows, vals in zip(rows_of, gather_in_order(client, futures, "shortlist (dask)")):
+    for rows, vals in zip(rows_of, gather_in_order(client, futures, "shortlist (dask)"), strict=False):
         out[rows] = vals
     return out

@@ -15,8 +15,7 @@ from .. import settings
 from ..settings import SCHEDULER_ENV
 from ..utils import logger, progress
 
-__all__ = ["SCHEDULER_ENV", "gather_in_order", "get_client", "probe_scheduler",
-           "scheduler_address"]
+__all__ = ["SCHEDULER_ENV", "gather_in_order", "get_client", "probe_scheduler", "scheduler_address"]
 
 _ADDRESS = re.compile(r"(tcp|tls|inproc|ucx)://(\[[^\]]+\]|[^:/\[\]]+):(\d{1,5})")
 #: A Dask handshake message is a few hundred bytes; anything near this is not Dask speaking.
@@ -33,16 +32,20 @@ def scheduler_address(scheduler: str | None = None) -> str | None:
     if addr is None:
         return None
     if not isinstance(addr, str) or not addr.strip():
-        raise ValueError(f"Dask scheduler address must be a non-empty string such as "
-                         f"'tcp://127.0.0.1:8786', got {addr!r} (check --scheduler / "
-                         f"${SCHEDULER_ENV}; unset it to run in-process)")
+        raise ValueError(
+            f"Dask scheduler address must be a non-empty string such as "
+            f"'tcp://127.0.0.1:8786', got {addr!r} (check --scheduler / "
+            f"${SCHEDULER_ENV}; unset it to run in-process)"
+        )
     addr = addr.strip()
     if "://" not in addr and re.fullmatch(r"[^:/]+:\d{1,5}", addr):
         addr = "tcp://" + addr  # host:port, as Dask itself accepts it
     if not _ADDRESS.fullmatch(addr):
-        raise ValueError(f"{addr!r} is not a Dask scheduler address; write it as "
-                         f"tcp://HOST:PORT (e.g. tcp://127.0.0.1:8786) in --scheduler / "
-                         f"${SCHEDULER_ENV}, or unset it to run in-process")
+        raise ValueError(
+            f"{addr!r} is not a Dask scheduler address; write it as "
+            f"tcp://HOST:PORT (e.g. tcp://127.0.0.1:8786) in --scheduler / "
+            f"${SCHEDULER_ENV}, or unset it to run in-process"
+        )
     return addr
 
 
@@ -61,8 +64,10 @@ def probe_scheduler(addr: str, timeout: float) -> None:
     if m is None or m.group(1) != "tcp":
         return
     host, port = m.group(2).strip("[]"), int(m.group(3))
-    fix = (f"start a scheduler there (`dask scheduler`, see docs/DISTRIBUTED.md), or unset "
-           f"--scheduler / ${SCHEDULER_ENV} to run in-process")
+    fix = (
+        f"start a scheduler there (`dask scheduler`, see docs/DISTRIBUTED.md), or unset "
+        f"--scheduler / ${SCHEDULER_ENV} to run in-process"
+    )
     head = b""
     try:
         with socket.create_connection((host, port), timeout=timeout) as sock:
@@ -74,19 +79,25 @@ def probe_scheduler(addr: str, timeout: float) -> None:
                 head += chunk
     except TimeoutError:
         if not head:
-            raise ConnectionError(f"{addr} accepted a connection but sent no Dask handshake "
-                                  f"within {timeout:g} s: it is not a Dask scheduler; {fix}"
-                                  ) from None
+            raise ConnectionError(
+                f"{addr} accepted a connection but sent no Dask handshake "
+                f"within {timeout:g} s: it is not a Dask scheduler; {fix}"
+            ) from None
     except OSError as e:
-        raise ConnectionError(f"could not reach the Dask scheduler at {addr} ({e}); {fix}"
-                              ) from None
+        raise ConnectionError(
+            f"could not reach the Dask scheduler at {addr} ({e}); {fix}"
+        ) from None
     if len(head) < 8:
-        raise ConnectionError(f"{addr} closed the connection without a Dask handshake: it is "
-                              f"not a Dask scheduler; {fix}")
+        raise ConnectionError(
+            f"{addr} closed the connection without a Dask handshake: it is "
+            f"not a Dask scheduler; {fix}"
+        )
     (n,) = struct.unpack("<Q", head)
     if not 0 < n < _MAX_HANDSHAKE:
-        raise ConnectionError(f"{addr} answered with bytes that are not Dask's protocol "
-                              f"({head!r}...): it is not a Dask scheduler; {fix}")
+        raise ConnectionError(
+            f"{addr} answered with bytes that are not Dask's protocol "
+            f"({head!r}...): it is not a Dask scheduler; {fix}"
+        )
 
 
 def get_client(scheduler: str | None = None, timeout: float | None = None):
@@ -112,8 +123,10 @@ def get_client(scheduler: str | None = None, timeout: float | None = None):
     try:
         from distributed import Client
     except ImportError as e:  # pragma: no cover - dask[distributed] is a dependency
-        raise ImportError("a Dask scheduler was given but dask.distributed is not installed: "
-                          "pip install 'dask[distributed]'") from e
+        raise ImportError(
+            "a Dask scheduler was given but dask.distributed is not installed: "
+            "pip install 'dask[distributed]'"
+        ) from e
     try:
         client = Client(addr, timeout=timeout, set_as_default=False)
     except Exception as e:  # anything Dask raises on a bad peer becomes one clear error
@@ -122,8 +135,9 @@ def get_client(scheduler: str | None = None, timeout: float | None = None):
             f"one (`dask scheduler`, then `dask worker {addr}` on each machine; see "
             f"docs/DISTRIBUTED.md), or unset --scheduler / ${SCHEDULER_ENV} to run in-process."
         ) from e
-    logger.info("Dask: connected to %s (%d workers)", addr,
-                len(client.scheduler_info().get("workers", {})))
+    logger.info(
+        "Dask: connected to %s (%d workers)", addr, len(client.scheduler_info().get("workers", {}))
+    )
     return client
 
 
@@ -139,5 +153,3 @@ def gather_in_order(client, futures: list, desc: str) -> list:
     finally:
         bar.close()
     return client.gather(futures)
-
-

@@ -65,9 +65,15 @@ def _encoder(key: str):
     return LandmarkEncoder(**json.loads(key))
 
 
-def _encode_shard(dataset, side: str, indices: list[int], boxes: list[np.ndarray] | None,
-                  key: str, kind: str, threads: int | None = None
-                  ) -> tuple[list[np.ndarray], list[float], dict]:
+def _encode_shard(
+    dataset,
+    side: str,
+    indices: list[int],
+    boxes: list[np.ndarray] | None,
+    key: str,
+    kind: str,
+    threads: int | None = None,
+) -> tuple[list[np.ndarray], list[float], dict]:
     """Task: descriptors of a shard of images (runs on a worker, or in-process).
 
     ``threads``: torch intra-op threads for this task (restored afterwards); None keeps the
@@ -98,12 +104,17 @@ def _encode_shard(dataset, side: str, indices: list[int], boxes: list[np.ndarray
     return descs, secs, dict(enc.config)
 
 
-def extract_features_distributed(client, dataset, side: str, encoder_kwargs: dict[str, Any],
-                                 indices: Sequence[int] | None = None,
-                                 boxes: Sequence[np.ndarray] | None = None,
-                                 kind: str = "landmarks", shard_size: int = 16,
-                                 threads: int | None = None,
-                                 ) -> tuple[list[np.ndarray], list[float]]:
+def extract_features_distributed(
+    client,
+    dataset,
+    side: str,
+    encoder_kwargs: dict[str, Any],
+    indices: Sequence[int] | None = None,
+    boxes: Sequence[np.ndarray] | None = None,
+    kind: str = "landmarks",
+    shard_size: int = 16,
+    threads: int | None = None,
+) -> tuple[list[np.ndarray], list[float]]:
     """Descriptors of one side's images, computed in shards of images on a Dask cluster.
 
     Args:
@@ -140,23 +151,29 @@ def extract_features_distributed(client, dataset, side: str, encoder_kwargs: dic
     idx = list(range(n_side)) if indices is None else [int(i) for i in indices]
     if kind == "landmarks":
         if boxes is None or len(boxes) != len(idx):
-            raise ValueError(f"kind='landmarks' needs one boxes array per image: got "
-                             f"{None if boxes is None else len(boxes)} for {len(idx)} images")
+            raise ValueError(
+                f"kind='landmarks' needs one boxes array per image: got "
+                f"{None if boxes is None else len(boxes)} for {len(idx)} images"
+            )
         boxes = [np.asarray(b, dtype=np.float64).reshape(-1, 4) for b in boxes]
     key = _encoder_key(encoder_kwargs)
     expected = dict(_encoder(key).config)
     shards = [slice(s, s + int(shard_size)) for s in range(0, len(idx), int(shard_size))]
     args = [(idx[s], None if kind == "global" else boxes[s]) for s in shards]
     if client is None:
-        results = [_encode_shard(dataset, side, i, b, key, kind)
-                   for i, b in progress(args, desc=f"features {side}")]
+        results = [
+            _encode_shard(dataset, side, i, b, key, kind)
+            for i, b in progress(args, desc=f"features {side}")
+        ]
     else:
         import torch
 
         nthreads = int(threads) if threads is not None else torch.get_num_threads()
         ds = client.scatter(dataset, broadcast=False, hash=False)
-        futures = [client.submit(_encode_shard, ds, side, i, b, key, kind, nthreads, pure=False)
-                   for i, b in args]
+        futures = [
+            client.submit(_encode_shard, ds, side, i, b, key, kind, nthreads, pure=False)
+            for i, b in args
+        ]
         results = gather_in_order(client, futures, f"features {side} (dask)")
     descs: list[np.ndarray] = []
     secs: list[float] = []
@@ -165,7 +182,8 @@ def extract_features_distributed(client, dataset, side: str, encoder_kwargs: dic
             raise RuntimeError(
                 "a Dask worker's encoder differs from the client's (config "
                 f"{_diff(config, expected)}): install the same vpr_core version, torch build and "
-                "backbone weights on every worker")
+                "backbone weights on every worker"
+            )
         descs.extend(d)
         secs.extend(s)
     return descs, secs

@@ -31,8 +31,15 @@ import numpy as np
 
 from ..matching.batched import check_pairs
 
-__all__ = ["global_cosine", "rerank", "shortlist_pairs", "split_whole_image", "topk_lowest_index",
-           "whole_image_box", "with_whole_image_boxes"]
+__all__ = [
+    "global_cosine",
+    "rerank",
+    "shortlist_pairs",
+    "split_whole_image",
+    "topk_lowest_index",
+    "whole_image_box",
+    "with_whole_image_boxes",
+]
 
 SIDES = ("query", "reference")
 
@@ -45,18 +52,23 @@ def _check_global(x: np.ndarray, name: str) -> np.ndarray:
     """``x`` as a finite float64 ``(N, D)`` array with N >= 1 (clear errors otherwise)."""
     arr = np.asarray(x)
     if arr.ndim != 2:
-        raise ValueError(f"{name} must be a (N, D) array of global descriptors (one row per "
-                         f"image), got shape {arr.shape}")
+        raise ValueError(
+            f"{name} must be a (N, D) array of global descriptors (one row per "
+            f"image), got shape {arr.shape}"
+        )
     if arr.shape[0] < 1 or arr.shape[1] < 1:
-        raise ValueError(f"{name} is empty (shape {arr.shape}): every image needs a global "
-                         "descriptor")
+        raise ValueError(
+            f"{name} is empty (shape {arr.shape}): every image needs a global descriptor"
+        )
     if not np.issubdtype(arr.dtype, np.number):
         raise ValueError(f"{name} must be numeric, got dtype {arr.dtype}")
     arr = arr.astype(np.float64, copy=False)
     if not np.isfinite(arr).all():
         bad = int(np.flatnonzero(~np.isfinite(arr).all(1))[0])
-        raise ValueError(f"{name}[{bad}] contains NaN or inf: recompute that image's global "
-                         "descriptor (a corrupt feature cache can be deleted and rebuilt)")
+        raise ValueError(
+            f"{name}[{bad}] contains NaN or inf: recompute that image's global "
+            "descriptor (a corrupt feature cache can be deleted and rebuilt)"
+        )
     return arr
 
 
@@ -68,8 +80,9 @@ def _unit(x: np.ndarray) -> np.ndarray:
 
 def _check_k(k: int) -> int:
     if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or int(k) < 1:
-        raise ValueError(f"shortlist k must be an integer >= 1 (references kept per query), "
-                         f"got {k!r}")
+        raise ValueError(
+            f"shortlist k must be an integer >= 1 (references kept per query), got {k!r}"
+        )
     return int(k)
 
 
@@ -86,11 +99,13 @@ def global_cosine(global_query: np.ndarray, global_reference: np.ndarray) -> np.
     q = _unit(_check_global(global_query, "global_query"))
     r = _unit(_check_global(global_reference, "global_reference"))
     if q.shape[1] != r.shape[1]:
-        raise ValueError(f"global descriptor dimensions differ: query D={q.shape[1]}, "
-                         f"reference D={r.shape[1]} (use the same encoder for both sides)")
+        raise ValueError(
+            f"global descriptor dimensions differ: query D={q.shape[1]}, "
+            f"reference D={r.shape[1]} (use the same encoder for both sides)"
+        )
     out = np.empty((q.shape[0], r.shape[0]), dtype=np.float64)
     for q0 in range(0, q.shape[0], CHUNK_QUERIES):
-        np.matmul(q[q0:q0 + CHUNK_QUERIES], r.T, out=out[q0:q0 + CHUNK_QUERIES])
+        np.matmul(q[q0 : q0 + CHUNK_QUERIES], r.T, out=out[q0 : q0 + CHUNK_QUERIES])
     return out
 
 
@@ -123,8 +138,9 @@ def topk_lowest_index(scores: np.ndarray, k: int) -> np.ndarray:
     return top.astype(np.int64)
 
 
-def shortlist_pairs(global_query: np.ndarray, global_reference: np.ndarray, k: int
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def shortlist_pairs(
+    global_query: np.ndarray, global_reference: np.ndarray, k: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Each query's top-k references by cosine of whole-image descriptors.
 
     Args:
@@ -147,13 +163,12 @@ def shortlist_pairs(global_query: np.ndarray, global_reference: np.ndarray, k: i
     kk = min(k, nr)
     top = np.empty((nq, kk), dtype=np.int64)
     for q0 in range(0, nq, CHUNK_QUERIES):
-        top[q0:q0 + CHUNK_QUERIES] = topk_lowest_index(sim[q0:q0 + CHUNK_QUERIES], kk)
+        top[q0 : q0 + CHUNK_QUERIES] = topk_lowest_index(sim[q0 : q0 + CHUNK_QUERIES], kk)
     pairs = np.stack([np.repeat(np.arange(nq, dtype=np.int64), kk), top.reshape(-1)], axis=1)
     return pairs, sim
 
 
-def rerank(similarity_pairs_values: np.ndarray, pairs: np.ndarray, nq: int, nr: int
-           ) -> np.ndarray:
+def rerank(similarity_pairs_values: np.ndarray, pairs: np.ndarray, nq: int, nr: int) -> np.ndarray:
     """The final similarity matrix of a shortlist run: Eq. (1) on listed pairs, NaN elsewhere.
 
     Args:
@@ -173,11 +188,14 @@ def rerank(similarity_pairs_values: np.ndarray, pairs: np.ndarray, nq: int, nr: 
     nq, nr = int(nq), int(nr)
     pr = check_pairs(pairs, nq, nr)
     if vals.shape != (pr.shape[0],):
-        raise ValueError(f"similarity_pairs_values must have shape ({pr.shape[0]},) (one value "
-                         f"per pair), got {vals.shape}")
+        raise ValueError(
+            f"similarity_pairs_values must have shape ({pr.shape[0]},) (one value "
+            f"per pair), got {vals.shape}"
+        )
     if not np.isfinite(vals).all():
-        raise ValueError("similarity_pairs_values contains NaN or inf; Eq. (1) values are "
-                         "finite: recompute them")
+        raise ValueError(
+            "similarity_pairs_values contains NaN or inf; Eq. (1) values are finite: recompute them"
+        )
     out = np.full((nq, nr), np.nan, dtype=np.float64)
     out[pr[:, 0], pr[:, 1]] = vals
     if not np.array_equal(out[pr[:, 0], pr[:, 1]], vals):
@@ -207,9 +225,15 @@ def with_whole_image_boxes(boxes: dict, dataset) -> dict:
     """
     out = dict(boxes)
     for side in SIDES:
-        out[side] = [np.concatenate([np.asarray(b, dtype=np.float64).reshape(-1, 4),
-                                     whole_image_box(dataset.image_size(side, i))])
-                     for i, b in enumerate(boxes[side])]
+        out[side] = [
+            np.concatenate(
+                [
+                    np.asarray(b, dtype=np.float64).reshape(-1, 4),
+                    whole_image_box(dataset.image_size(side, i)),
+                ]
+            )
+            for i, b in enumerate(boxes[side])
+        ]
     return out
 
 

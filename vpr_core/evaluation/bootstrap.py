@@ -49,8 +49,16 @@ from .curves import (
     recall_at_k,
 )
 
-__all__ = ["N_BOOTSTRAP", "Difference", "bootstrap_columns", "bootstrap_metrics",
-           "difference_verdict", "format_interval", "needs_text", "paired_bootstrap"]
+__all__ = [
+    "N_BOOTSTRAP",
+    "Difference",
+    "bootstrap_columns",
+    "bootstrap_metrics",
+    "difference_verdict",
+    "format_interval",
+    "needs_text",
+    "paired_bootstrap",
+]
 
 #: Bootstrap resamples of every interval and paired difference (the one home of this count).
 N_BOOTSTRAP = 1000
@@ -64,8 +72,15 @@ class Difference(tuple):
     ``.se`` (standard error of the difference) and ``.queries_needed`` (float; inf when
     ``delta = 0``; NaN without resamples)."""
 
-    def __new__(cls, delta: float, low: float, high: float, p: float, se: float = np.nan,
-                queries_needed: float = np.nan):
+    def __new__(
+        cls,
+        delta: float,
+        low: float,
+        high: float,
+        p: float,
+        se: float = np.nan,
+        queries_needed: float = np.nan,
+    ):
         self = super().__new__(cls, (float(delta), float(low), float(high), float(p)))
         self.se, self.queries_needed = float(se), float(queries_needed)
         return self
@@ -74,8 +89,11 @@ class Difference(tuple):
         return (*self, self.se, self.queries_needed)
 
     def __repr__(self) -> str:
-        return ("Difference(delta={:.4g}, low={:.4g}, high={:.4g}, p={:.4g}, ".format(*self)
-                + f"se={self.se:.4g}, queries_needed={self.queries_needed:.4g})")
+        return (
+            "Difference(delta={:.4g}, low={:.4g}, high={:.4g}, p={:.4g}, ".format(*self)
+            + f"se={self.se:.4g}, queries_needed={self.queries_needed:.4g})"
+        )
+
 
 #: Resamples evaluated at once (bounds memory: ``chunk x queries`` float64 per array).
 _CHUNK = 250
@@ -98,9 +116,11 @@ def _check_args(n: int, protocol: str, ks: Sequence[int]) -> tuple[int, ...]:
     if int(n) < 0:
         raise ValueError(f"n (number of resamples) must be >= 0 (0: no intervals), got {n}")
     if protocol not in ("ratio", "best_match", "vpr_bench"):
-        raise ValueError(f"bootstrap supports protocol 'ratio', 'best_match' or 'vpr_bench' "
-                         f"(per-query decisions), got {protocol!r}; valid protocols: "
-                         f"{', '.join(PROTOCOLS)}")
+        raise ValueError(
+            f"bootstrap supports protocol 'ratio', 'best_match' or 'vpr_bench' "
+            f"(per-query decisions), got {protocol!r}; valid protocols: "
+            f"{', '.join(PROTOCOLS)}"
+        )
     ks = tuple(int(k) for k in ks)
     if any(k < 1 for k in ks):
         raise ValueError(f"ks must be >= 1, got {ks}")
@@ -118,8 +138,9 @@ def _per_query(s: np.ndarray, gt: np.ndarray, protocol: str, ks: tuple[int, ...]
     run_end = np.r_[sc[1:] != sc[:-1], True] if sc.size else np.zeros(0, dtype=bool)
     rank = _true_rank(s, gt)
     hits = {k: ((rank < k) & keep).astype(np.float64) for k in ks}
-    return _PerQuery(protocol, keep, keep & gt.any(axis=1), idx[o], correct[o].astype(np.float64),
-                     run_end, hits)
+    return _PerQuery(
+        protocol, keep, keep & gt.any(axis=1), idx[o], correct[o].astype(np.float64), run_end, hits
+    )
 
 
 def _resample_metrics(pq: _PerQuery, w: np.ndarray) -> dict[str, np.ndarray]:
@@ -199,9 +220,15 @@ def _interval(vals: list[np.ndarray]) -> tuple[float, float]:
     return float(lo), float(hi)
 
 
-def bootstrap_metrics(similarity: np.ndarray, ground_truth: np.ndarray, n: int = N_BOOTSTRAP,
-                      seed: int = 0, protocol: str = "ratio", ks: Sequence[int] = (1, 5),
-                      ignore: np.ndarray | None = None) -> dict[str, tuple[float, float, float]]:
+def bootstrap_metrics(
+    similarity: np.ndarray,
+    ground_truth: np.ndarray,
+    n: int = N_BOOTSTRAP,
+    seed: int = 0,
+    protocol: str = "ratio",
+    ks: Sequence[int] = (1, 5),
+    ignore: np.ndarray | None = None,
+) -> dict[str, tuple[float, float, float]]:
     """95% bootstrap intervals of AUC, R@100P and R@K, resampling queries.
 
     Args:
@@ -225,8 +252,9 @@ def bootstrap_metrics(similarity: np.ndarray, ground_truth: np.ndarray, n: int =
     point = _point(s, gt, protocol, ks)
     pq = _per_query(s, gt, protocol, ks)
     draws = [_resample_metrics(pq, w) for w in _draws(n, s.shape[0], seed)]
-    return {key: (float(value), *_interval([d[key] for d in draws]))
-            for key, value in point.items()}
+    return {
+        key: (float(value), *_interval([d[key] for d in draws])) for key, value in point.items()
+    }
 
 
 def _p_value(delta: float, deltas: np.ndarray) -> float:
@@ -246,10 +274,16 @@ def _queries_needed(delta: float, se: float, n_queries: int) -> float:
     return float(max(1, math.ceil(n_queries * (1.96 * se / abs(delta)) ** 2)))
 
 
-def paired_bootstrap(sim_a: np.ndarray, sim_b: np.ndarray, ground_truth: np.ndarray,
-                     n: int = N_BOOTSTRAP, seed: int = 0, protocol: str = "ratio",
-                     ks: Sequence[int] = (1, 5), ignore: np.ndarray | None = None
-                     ) -> dict[str, Difference]:
+def paired_bootstrap(
+    sim_a: np.ndarray,
+    sim_b: np.ndarray,
+    ground_truth: np.ndarray,
+    n: int = N_BOOTSTRAP,
+    seed: int = 0,
+    protocol: str = "ratio",
+    ks: Sequence[int] = (1, 5),
+    ignore: np.ndarray | None = None,
+) -> dict[str, Difference]:
     """Paired bootstrap of the difference ``a - b`` of two methods on the same queries.
 
     Args:
@@ -290,8 +324,9 @@ def paired_bootstrap(sim_a: np.ndarray, sim_b: np.ndarray, ground_truth: np.ndar
         lo, hi = np.nanpercentile(d, [2.5, 97.5])
         d = d[~np.isnan(d)]
         se = float(np.std(d, ddof=1)) if d.size > 1 else np.nan
-        out[key] = Difference(delta, lo, hi, _p_value(delta, d), se,
-                              _queries_needed(delta, se, a.shape[0]))
+        out[key] = Difference(
+            delta, lo, hi, _p_value(delta, d), se, _queries_needed(delta, se, a.shape[0])
+        )
     return out
 
 
@@ -341,8 +376,10 @@ def bootstrap_columns(result: Mapping[str, Sequence[float]], prefix: str = "") -
     cols: dict[str, float] = {}
     for key, vals in result.items():
         if len(vals) not in (3, 4):
-            raise ValueError(f"result[{key!r}] must be (value, low, high) or (delta, low, high, p), "
-                             f"got {len(vals)} numbers")
+            raise ValueError(
+                f"result[{key!r}] must be (value, low, high) or (delta, low, high, p), "
+                f"got {len(vals)} numbers"
+            )
         name = prefix + _label(key)
         cols[name], cols[f"{name} lo"], cols[f"{name} hi"] = (float(v) for v in vals[:3])
         if len(vals) == 4:

@@ -38,8 +38,9 @@ def _same_result(a: Any, b: Any) -> bool:
     if getattr(a, "metrics", None) != getattr(b, "metrics", None):
         return False
     ca, cb = a.curve(), b.curve()
-    return _same(np.asarray(ca.recall), np.asarray(cb.recall)) and \
-        _same(np.asarray(ca.precision), np.asarray(cb.precision))
+    return _same(np.asarray(ca.recall), np.asarray(cb.recall)) and _same(
+        np.asarray(ca.precision), np.asarray(cb.precision)
+    )
 
 
 def identical_to(results: Sequence[Any]) -> list[str | None]:
@@ -63,14 +64,23 @@ def _version() -> str:
 
 def _context(r: Any) -> dict:
     enc = getattr(r, "encoder", {}) or {}
-    return {"dataset": r.dataset, "root": getattr(r, "root", None),
-            "tolerance": getattr(r, "tolerance", None),
-            "protocol": getattr(r, "protocol", "ratio"), "backbone": enc.get("backbone"),
-            "pooling": enc.get("pooling"), "version": _version()}
+    return {
+        "dataset": r.dataset,
+        "root": getattr(r, "root", None),
+        "tolerance": getattr(r, "tolerance", None),
+        "protocol": getattr(r, "protocol", "ratio"),
+        "backbone": enc.get("backbone"),
+        "pooling": enc.get("pooling"),
+        "version": _version(),
+    }
 
 
-def compare(results: Sequence[Any], baseline: str | int | None = None,
-            n_bootstrap: int = N_BOOTSTRAP, seed: int = 0) -> pd.DataFrame:
+def compare(
+    results: Sequence[Any],
+    baseline: str | int | None = None,
+    n_bootstrap: int = N_BOOTSTRAP,
+    seed: int = 0,
+) -> pd.DataFrame:
     """Metrics with intervals for every result, and paired differences against a baseline.
 
     Args:
@@ -99,8 +109,10 @@ def compare(results: Sequence[Any], baseline: str | int | None = None,
     labels = [r.label for r in results]
     dup = sorted({x for x in labels if labels.count(x) > 1})
     if dup:
-        raise ValueError(f"compare(): labels must be unique, repeated: {dup}; pass label=... to "
-                         "run_method to tell the runs apart")
+        raise ValueError(
+            f"compare(): labels must be unique, repeated: {dup}; pass label=... to "
+            "run_method to tell the runs apart"
+        )
     if baseline is None:
         base = results[0]
     elif isinstance(baseline, int):
@@ -112,28 +124,45 @@ def compare(results: Sequence[Any], baseline: str | int | None = None,
     gt = np.asarray(base.ground_truth, dtype=bool)
     for r in results:
         if not _same(np.asarray(r.ground_truth, dtype=bool), gt):
-            raise ValueError(f"compare(): {r.label!r} was evaluated on another ground truth than "
-                             f"{base.label!r}; compare runs of one dataset only")
+            raise ValueError(
+                f"compare(): {r.label!r} was evaluated on another ground truth than "
+                f"{base.label!r}; compare runs of one dataset only"
+            )
     protocols = sorted({getattr(r, "protocol", "ratio") for r in results})
     if len(protocols) > 1:
-        raise ValueError(f"compare(): the results use different protocols ({', '.join(protocols)});"
-                         " run them all with the same protocol=...")
+        raise ValueError(
+            f"compare(): the results use different protocols ({', '.join(protocols)});"
+            " run them all with the same protocol=..."
+        )
     protocol = protocols[0]
     twins = identical_to(results)
     rows = []
-    for r, twin in zip(results, twins):
+    for r, twin in zip(results, twins, strict=False):
         row = {**r.row(), "identical to": twin, "baseline": None}
         if r is not base:
             row["baseline"] = base.label
-            diff = paired_bootstrap(r.similarity, base.similarity, gt, n=n_bootstrap,
-                                    seed=seed, ks=(1,), protocol=protocol)
+            diff = paired_bootstrap(
+                r.similarity,
+                base.similarity,
+                gt,
+                n=n_bootstrap,
+                seed=seed,
+                ks=(1,),
+                protocol=protocol,
+            )
             cols = bootstrap_columns({k: diff[k] for k in DIFFERENCES.values()}, prefix="d")
             for name, key in DIFFERENCES.items():
                 lo, hi = cols[f"{name} lo"], cols[f"{name} hi"]
-                row.update({name: cols[name], f"{name} lo": lo, f"{name} hi": hi,
-                            f"{name} p": cols[f"{name} p"],
-                            f"{name} verdict": difference_verdict(lo, hi),
-                            f"{name} needs": getattr(diff[key], "queries_needed", np.nan)})
+                row.update(
+                    {
+                        name: cols[name],
+                        f"{name} lo": lo,
+                        f"{name} hi": hi,
+                        f"{name} p": cols[f"{name} p"],
+                        f"{name} verdict": difference_verdict(lo, hi),
+                        f"{name} needs": getattr(diff[key], "queries_needed", np.nan),
+                    }
+                )
         row.update(_context(r))
         row["warnings"] = " | ".join(getattr(r, "warnings", []) or [])
         rows.append(row)

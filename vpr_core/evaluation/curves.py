@@ -133,14 +133,17 @@ def _check(similarity, ground_truth, ignore=None) -> tuple[np.ndarray, np.ndarra
     if ignore is not None:
         ig = np.asarray(ignore)
         if ig.shape != s.shape or not np.isin(ig, (0, 1)).all():
-            raise ValueError(f"ignore must be a bool matrix of shape {s.shape} (soft ground "
-                             f"truth), got shape {ig.shape} dtype {ig.dtype}")
+            raise ValueError(
+                f"ignore must be a bool matrix of shape {s.shape} (soft ground "
+                f"truth), got shape {ig.shape} dtype {ig.dtype}"
+            )
         s = np.where(ig.astype(bool) & ~gt, np.nan, s)
     return s, gt
 
 
-def _kept_queries(s: np.ndarray, gt: np.ndarray, warn: bool = True, need_gt: bool = True
-                  ) -> np.ndarray:
+def _kept_queries(
+    s: np.ndarray, gt: np.ndarray, warn: bool = True, need_gt: bool = True
+) -> np.ndarray:
     """``(Nq,)`` bool: queries with ground truth (if ``need_gt``) and a ranked (non-NaN) reference.
 
     Raises a ValueError when no query has ground truth or none is left; logs one warning with
@@ -154,21 +157,30 @@ def _kept_queries(s: np.ndarray, gt: np.ndarray, warn: bool = True, need_gt: boo
         raise ValueError(
             f"no query has a ground-truth reference (0 of {n_total} queries), so no metric can be "
             "computed. Check the ground-truth file (query/reference indices, 0- or 1-based) or "
-            "widen the tolerance (e.g. load_dataset(..., tolerance=2)).")
+            "widen the tolerance (e.g. load_dataset(..., tolerance=2))."
+        )
     if n_kept == 0:
         raise ValueError(
             f"every query with ground truth ({n_gt} of {n_total}) has no ranked reference (all "
-            "similarities NaN: images without landmarks). Check the landmark settings.")
+            "similarities NaN: images without landmarks). Check the landmark settings."
+        )
     if not need_gt:  # vpr_bench: a query without ground truth is a negative, not left out
         keep = ranked
         if warn and not ranked.all():
-            logger.warning("metrics use %d of %d queries: %d have no ranked reference (all NaN)",
-                           int(ranked.sum()), n_total, int((~ranked).sum()))
+            logger.warning(
+                "metrics use %d of %d queries: %d have no ranked reference (all NaN)",
+                int(ranked.sum()),
+                n_total,
+                int((~ranked).sum()),
+            )
     elif warn and n_kept < n_total:
         logger.warning(
-            "metrics use %d of %d queries: %d have no ground-truth reference%s", n_kept, n_total,
-            n_total - n_gt, f", {n_gt - n_kept} have no ranked reference (all NaN)"
-            if n_gt > n_kept else "")
+            "metrics use %d of %d queries: %d have no ground-truth reference%s",
+            n_kept,
+            n_total,
+            n_total - n_gt,
+            f", {n_gt - n_kept} have no ranked reference (all NaN)" if n_gt > n_kept else "",
+        )
     return keep
 
 
@@ -212,8 +224,9 @@ def _query_scores(s: np.ndarray, gt: np.ndarray, protocol: str) -> tuple[np.ndar
     return np.clip(r, 0.0, 1.0), correct
 
 
-def _curve_from_scores(score: np.ndarray, correct: np.ndarray, ascending: bool, protocol: str,
-                       n_pos: int | None = None) -> PRCurve:
+def _curve_from_scores(
+    score: np.ndarray, correct: np.ndarray, ascending: bool, protocol: str, n_pos: int | None = None
+) -> PRCurve:
     """Sweep a threshold over per-decision scores (accept ``score <= tau`` if ascending)."""
     n = score.shape[0]
     order = np.argsort(score if ascending else -score, kind="stable")
@@ -243,8 +256,13 @@ def _curve_from_scores(score: np.ndarray, correct: np.ndarray, ascending: bool, 
     )
 
 
-def pr_curve(similarity: np.ndarray, ground_truth: np.ndarray, protocol: str = "ratio",
-             warn: bool = True, ignore: np.ndarray | None = None) -> PRCurve:
+def pr_curve(
+    similarity: np.ndarray,
+    ground_truth: np.ndarray,
+    protocol: str = "ratio",
+    warn: bool = True,
+    ignore: np.ndarray | None = None,
+) -> PRCurve:
     """Precision-recall curve of a similarity matrix (see the module docstring for protocols).
 
     Args:
@@ -269,8 +287,9 @@ def pr_curve(similarity: np.ndarray, ground_truth: np.ndarray, protocol: str = "
         if not gt.any():
             _kept_queries(s, gt)  # raises: no ground truth
         ranked = ~np.isnan(s).ravel()
-        return _curve_from_scores(s.ravel()[ranked], gt.ravel()[ranked], False, protocol,
-                                  n_pos=int(gt.sum()))
+        return _curve_from_scores(
+            s.ravel()[ranked], gt.ravel()[ranked], False, protocol, n_pos=int(gt.sum())
+        )
     if protocol == "ratio" and s.shape[1] < 2:
         raise ValueError(f"the ratio protocol needs at least 2 references, got {s.shape[1]}")
     if s.shape[1] < 1:
@@ -282,8 +301,16 @@ def pr_curve(similarity: np.ndarray, ground_truth: np.ndarray, protocol: str = "
     curve = _curve_from_scores(score, correct, protocol == "ratio", protocol, n_pos)
     if protocol == "vpr_bench" and n_pos:  # stop at the first point of full recall
         end = int(np.searchsorted(curve.tp, n_pos)) + 1
-        curve = PRCurve(curve.recall[:end], curve.precision[:end], curve.thresholds[:end],
-                        protocol, curve.n_queries, curve.tp[:end], curve.fp[:end], curve.fn[:end])
+        curve = PRCurve(
+            curve.recall[:end],
+            curve.precision[:end],
+            curve.thresholds[:end],
+            protocol,
+            curve.n_queries,
+            curve.tp[:end],
+            curve.fp[:end],
+            curve.fn[:end],
+        )
     return curve
 
 
@@ -322,8 +349,13 @@ def _topk_hits(s: np.ndarray, gt: np.ndarray, k: int) -> np.ndarray:
     return _true_rank(s, gt) < int(k)
 
 
-def recall_at_k(similarity: np.ndarray, ground_truth: np.ndarray, k: int,
-                warn: bool = True, ignore: np.ndarray | None = None) -> float:
+def recall_at_k(
+    similarity: np.ndarray,
+    ground_truth: np.ndarray,
+    k: int,
+    warn: bool = True,
+    ignore: np.ndarray | None = None,
+) -> float:
     """Fraction of queries (with ground truth) whose top-k references include a true one.
 
     Args:
@@ -346,8 +378,12 @@ def recall_at_k(similarity: np.ndarray, ground_truth: np.ndarray, k: int,
     return float(_topk_hits(s[keep], gt[keep], k).mean())
 
 
-def recall_rate_at_n(similarity: np.ndarray, ground_truth: np.ndarray, n_max: int = 20,
-                     ignore: np.ndarray | None = None) -> np.ndarray:
+def recall_rate_at_n(
+    similarity: np.ndarray,
+    ground_truth: np.ndarray,
+    n_max: int = 20,
+    ignore: np.ndarray | None = None,
+) -> np.ndarray:
     """VPR-Bench's RecallRate@N for N = 1..n_max (its ``compute_RecallRateAtN``).
 
     The share of *all* queries whose top-N references contain a ground-truth one: VPR-Bench
@@ -372,14 +408,22 @@ def recall_rate_at_n(similarity: np.ndarray, ground_truth: np.ndarray, n_max: in
     rank = _true_rank(s, gt)
     never = int((rank == np.iinfo(np.int64).max).sum())
     if never:
-        logger.warning("RecallRate@N divides by all %d queries as VPR-Bench does: %d of them "
-                       "have no ranked ground-truth reference and count as misses",
-                       s.shape[0], never)
+        logger.warning(
+            "RecallRate@N divides by all %d queries as VPR-Bench does: %d of them "
+            "have no ranked ground-truth reference and count as misses",
+            s.shape[0],
+            never,
+        )
     return (rank[:, None] < np.arange(1, int(n_max) + 1)).mean(axis=0)
 
 
-def evaluate(similarity: np.ndarray, ground_truth: np.ndarray, protocol: str = "ratio",
-             ks: Sequence[int] = (1, 5), ignore: np.ndarray | None = None) -> dict[str, float]:
+def evaluate(
+    similarity: np.ndarray,
+    ground_truth: np.ndarray,
+    protocol: str = "ratio",
+    ks: Sequence[int] = (1, 5),
+    ignore: np.ndarray | None = None,
+) -> dict[str, float]:
     """Table metrics ``{"auc", "r@100p", "r@K" for K in ks}`` (the keys of ``bootstrap_metrics``).
 
     ``auc`` and ``r@100p`` follow ``protocol``; R@K is protocol-free (:func:`recall_at_k`).
@@ -390,8 +434,9 @@ def evaluate(similarity: np.ndarray, ground_truth: np.ndarray, protocol: str = "
     curve = pr_curve(s, gt, protocol)
     out = {"auc": auc_pr(curve), "r@100p": recall_at_100_precision(curve)}
     for i, k in enumerate(ks):
-        out[f"r@{int(k)}"] = recall_at_k(s, gt, k, warn=i == 0 and protocol in ("multi_match",
-                                                                               "vpr_bench"))
+        out[f"r@{int(k)}"] = recall_at_k(
+            s, gt, k, warn=i == 0 and protocol in ("multi_match", "vpr_bench")
+        )
     return out
 
 
@@ -421,15 +466,20 @@ def saturation_notice(ground_truth: np.ndarray, intervals: Mapping | None = None
         return None
     share = float(rows.mean(axis=1).mean())
     if share >= SATURATION_SHARE:
-        return notice(f"saturated ground truth: on average {share:.0%} of the {gt.shape[1]} "
-                      f"references count as correct for a query, so a random ranking gets R@1 "
-                      f"~{share:.2f} and AUC near 1; the metrics cannot rank methods. Use a smaller "
-                      "tolerance (e.g. tolerance=0) or a larger set.", stacklevel=4)
+        return notice(
+            f"saturated ground truth: on average {share:.0%} of the {gt.shape[1]} "
+            f"references count as correct for a query, so a random ranking gets R@1 "
+            f"~{share:.2f} and AUC near 1; the metrics cannot rank methods. Use a smaller "
+            "tolerance (e.g. tolerance=0) or a larger set.",
+            stacklevel=4,
+        )
     ivs = [v for v in (intervals or {}).values() if len(v) == 3 and np.isfinite(v[1])]
     if ivs and all(lo == 1.0 and hi == 1.0 for _, lo, hi in ivs):
-        return notice("saturated result: every metric is 1.0 with interval [1.0, 1.0]; this set "
-                      "cannot tell methods apart. Use a harder set, more places, or tolerance=0.",
-                      stacklevel=4)
+        return notice(
+            "saturated result: every metric is 1.0 with interval [1.0, 1.0]; this set "
+            "cannot tell methods apart. Use a harder set, more places, or tolerance=0.",
+            stacklevel=4,
+        )
     return None
 
 

@@ -43,15 +43,23 @@ def boxes_to_corners(boxes: np.ndarray, image_size: tuple[int, int], level: int 
     x2 = np.clip(np.maximum(x2, x1), 0, w_img - 1)
     y2 = np.clip(np.maximum(y2, y1), 0, h_img - 1)
     pts = np.stack(
-        [np.stack([x1, y1], 1), np.stack([x2, y1], 1), np.stack([x2, y2], 1),
-         np.stack([x1, y2], 1)],
+        [
+            np.stack([x1, y1], 1),
+            np.stack([x2, y1], 1),
+            np.stack([x2, y2], 1),
+            np.stack([x1, y2], 1),
+        ],
         axis=1,
     )
     return pts.astype(np.float32)
 
 
-def pyramid_levels(boxes: np.ndarray, input_size: int, image_size: tuple[int, int] | None = None,
-                   antialias: bool = True) -> np.ndarray:
+def pyramid_levels(
+    boxes: np.ndarray,
+    input_size: int,
+    image_size: tuple[int, int] | None = None,
+    antialias: bool = True,
+) -> np.ndarray:
     """Pyramid level per box: largest l with sqrt(w*h) / 2**l >= input_size (0 if off).
 
     Args:
@@ -74,8 +82,9 @@ def pyramid_levels(boxes: np.ndarray, input_size: int, image_size: tuple[int, in
     return np.floor(np.log2(ratio)).astype(int)
 
 
-def crop_boxes(image: torch.Tensor, boxes: np.ndarray, size: int, batch_size: int,
-               antialias: bool = True) -> torch.Tensor:
+def crop_boxes(
+    image: torch.Tensor, boxes: np.ndarray, size: int, batch_size: int, antialias: bool = True
+) -> torch.Tensor:
     """Crop and resize every box of a normalised image.
 
     Args:
@@ -100,12 +109,13 @@ def crop_boxes(image: torch.Tensor, boxes: np.ndarray, size: int, batch_size: in
         lvl_eff = min(int(lvl), len(pyramid) - 1)
         img = pyramid[lvl_eff]
         idx = np.flatnonzero(levels == lvl)
-        corners = torch.from_numpy(
-            boxes_to_corners(boxes[idx], tuple(img.shape[-2:]), lvl_eff)).to(device)
+        corners = torch.from_numpy(boxes_to_corners(boxes[idx], tuple(img.shape[-2:]), lvl_eff)).to(
+            device
+        )
         for start in range(0, len(idx), batch_size):
             sl = slice(start, start + batch_size)
             c = corners[sl]
             out[torch.from_numpy(idx[sl]).to(device)] = crop_and_resize(
-                img.expand(len(c), -1, -1, -1), c, (size, size), mode="bilinear",
-                align_corners=True)
+                img.expand(len(c), -1, -1, -1), c, (size, size), mode="bilinear", align_corners=True
+            )
     return out

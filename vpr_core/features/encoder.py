@@ -107,8 +107,10 @@ class LandmarkEncoder:
         if int(batch_size) < 1:
             raise ValueError(f"batch_size must be >= 1, got {batch_size}")
         if (working_size is not None and int(working_size) < 32) or int(roi_sampling) < 1:
-            raise ValueError(f"working_size must be >= 32 and roi_sampling >= 1, got "
-                             f"{working_size}, {roi_sampling}")
+            raise ValueError(
+                f"working_size must be >= 32 and roi_sampling >= 1, got "
+                f"{working_size}, {roi_sampling}"
+            )
         self.device = torch.device(device)
         if self.device.type == "cuda" and not torch.cuda.is_available():
             raise ValueError(f"device={device!r} but torch sees no CUDA GPU; use device='cpu'")
@@ -118,14 +120,18 @@ class LandmarkEncoder:
         self.batch_size = int(batch_size)
         self.antialias = bool(antialias)
         self.roi_sampling = int(roi_sampling)
-        self.model = build_backbone(spec, input_size=input_size, weights=weights,
-                                    seed=self.seed).to(self.device)
+        self.model = build_backbone(
+            spec, input_size=input_size, weights=weights, seed=self.seed
+        ).to(self.device)
         if pooling == "roi" and not hasattr(self.model, "feature_map"):
-            raise ValueError(f"pooling='roi' needs a CNN backbone with a feature map; {spec!r} "
-                             "has none: use pooling='crop'")
+            raise ValueError(
+                f"pooling='roi' needs a CNN backbone with a feature map; {spec!r} "
+                "has none: use pooling='crop'"
+            )
         self.input_size = int(self.model.input_size)
-        self.working_size = (default_working_size(self.input_size) if working_size is None
-                             else int(working_size))
+        self.working_size = (
+            default_working_size(self.input_size) if working_size is None else int(working_size)
+        )
         self.raw_dim = int(self.model.raw_dim)
         self.weights_source = str(self.model.weights_source)
         self._mean = torch.tensor(self.model.mean, dtype=torch.float32, device=self.device)
@@ -136,7 +142,8 @@ class LandmarkEncoder:
             self.dim = self.raw_dim
         else:
             self.projection = random_projection(self.raw_dim, self.dim_requested, self.seed).to(
-                self.device)
+                self.device
+            )
             self.dim = self.dim_requested
         self.config = self._make_config()
         logger.debug("LandmarkEncoder %s", self.config)
@@ -148,8 +155,11 @@ class LandmarkEncoder:
             "raw_dim": self.raw_dim,
             "feature_shape": list(getattr(self.model, "feature_shape", (self.raw_dim,))),
             "dim": self.dim,
-            "projection": ("none" if self.projection is None
-                           else "gaussian N(0, 1/dim), numpy default_rng(seed)"),
+            "projection": (
+                "none"
+                if self.projection is None
+                else "gaussian N(0, 1/dim), numpy default_rng(seed)"
+            ),
             "seed": self.seed,
             "weights": self.weights_source,
             "normalisation": {"mean": list(self.model.mean), "std": list(self.model.std)},
@@ -173,9 +183,11 @@ class LandmarkEncoder:
 
     def __repr__(self) -> str:
         c = self.config
-        return (f"LandmarkEncoder(backbone={c['backbone']!r}, pooling={c['pooling']!r}, "
-                f"input_size={c['input_size']}, raw_dim={c['raw_dim']}, dim={c['dim']}, "
-                f"seed={c['seed']}, weights={c['weights']!r})")
+        return (
+            f"LandmarkEncoder(backbone={c['backbone']!r}, pooling={c['pooling']!r}, "
+            f"input_size={c['input_size']}, raw_dim={c['raw_dim']}, dim={c['dim']}, "
+            f"seed={c['seed']}, weights={c['weights']!r})"
+        )
 
     # ------------------------------------------------------------------ inputs
     def _levels(self, boxes: np.ndarray, image_size: tuple[int, int] | None = None) -> np.ndarray:
@@ -200,8 +212,9 @@ class LandmarkEncoder:
         """
         image = check_image(image)
         boxes = check_boxes(boxes, positive=True)
-        return crop_boxes(self._image_tensor(image), boxes, self.input_size, self.batch_size,
-                          self.antialias)
+        return crop_boxes(
+            self._image_tensor(image), boxes, self.input_size, self.batch_size, self.antialias
+        )
 
     # ------------------------------------------------------------------ encode
     def encode(self, image: np.ndarray, boxes: np.ndarray) -> np.ndarray:
@@ -226,8 +239,10 @@ class LandmarkEncoder:
             return self.encode_crops(self.crops(image, boxes))
         with torch.inference_mode():
             raw = self._roi_raw(image, boxes)
-            outs = [self._project_fixed(raw[start:start + self.batch_size]).cpu()
-                    for start in range(0, len(boxes), self.batch_size)]
+            outs = [
+                self._project_fixed(raw[start : start + self.batch_size]).cpu()
+                for start in range(0, len(boxes), self.batch_size)
+            ]
         return torch.cat(outs).numpy().astype(np.float32, copy=False)
 
     def encode_crops(self, crops: torch.Tensor) -> np.ndarray:
@@ -249,11 +264,11 @@ class LandmarkEncoder:
         outs = []
         with torch.inference_mode():
             for start in range(0, len(crops), self.batch_size):
-                chunk = crops[start:start + self.batch_size].to(self.device)
+                chunk = crops[start : start + self.batch_size].to(self.device)
                 feats = self._forward_fixed(chunk, keep_padding=True)
                 if self.projection is not None:
                     feats = feats @ self.projection
-                outs.append(feats[:len(chunk)].cpu())
+                outs.append(feats[: len(chunk)].cpu())
         return torch.cat(outs).numpy().astype(np.float32, copy=False)
 
     def encode_global(self, image: np.ndarray) -> np.ndarray:
@@ -270,9 +285,17 @@ class LandmarkEncoder:
         """``roi`` mode raw features ``(K, raw_dim)`` on the device (one backbone pass)."""
         x = working_image(self._image_tensor(image), self.working_size)
         fmap = self.model.feature_map(x)
-        return roi_pool(fmap, boxes, image.shape[:2], tuple(x.shape[-2:]), self.input_size,
-                        int(self.model.stride), float(self.model.feature_offset),
-                        self.roi_sampling, self.batch_size)
+        return roi_pool(
+            fmap,
+            boxes,
+            image.shape[:2],
+            tuple(x.shape[-2:]),
+            self.input_size,
+            int(self.model.stride),
+            float(self.model.feature_offset),
+            self.roi_sampling,
+            self.batch_size,
+        )
 
     def _project_fixed(self, raw: torch.Tensor) -> torch.Tensor:
         """Project ``(B, raw_dim)`` rows in a matmul of fixed shape ``(batch_size, raw_dim)``."""
@@ -309,10 +332,13 @@ class LandmarkEncoder:
         with torch.inference_mode():
             if self.pooling == "roi":
                 return self._roi_raw(image, boxes).cpu().numpy()
-            crops = crop_boxes(self._image_tensor(image), boxes, self.input_size,
-                               self.batch_size, self.antialias)
-            feats = [self._forward_fixed(crops[i:i + self.batch_size]).cpu()
-                     for i in range(0, len(boxes), self.batch_size)]
+            crops = crop_boxes(
+                self._image_tensor(image), boxes, self.input_size, self.batch_size, self.antialias
+            )
+            feats = [
+                self._forward_fixed(crops[i : i + self.batch_size]).cpu()
+                for i in range(0, len(boxes), self.batch_size)
+            ]
         return torch.cat(feats).numpy()
 
 

@@ -38,8 +38,15 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-__all__ = ["DEFAULT_ROI_SAMPLING", "ROI_VERSION", "WORKING_SIZE_FACTOR", "default_working_size",
-           "roi_pool", "roi_sample_points", "working_image"]
+__all__ = [
+    "DEFAULT_ROI_SAMPLING",
+    "ROI_VERSION",
+    "WORKING_SIZE_FACTOR",
+    "default_working_size",
+    "roi_pool",
+    "roi_sample_points",
+    "working_image",
+]
 
 #: Default long side of the image fed to the backbone in ``roi`` mode, in crop sides.
 WORKING_SIZE_FACTOR = 4
@@ -71,12 +78,18 @@ def working_image(image: torch.Tensor, working_size: int) -> torch.Tensor:
     hw, ww = working_shape(tuple(image.shape[-2:]), working_size)
     if (hw, ww) == tuple(image.shape[-2:]):
         return image
-    return F.interpolate(image, size=(hw, ww), mode="bilinear", align_corners=False,
-                         antialias=True)
+    return F.interpolate(image, size=(hw, ww), mode="bilinear", align_corners=False, antialias=True)
 
 
-def roi_sample_points(boxes: np.ndarray, image_size: tuple[int, int], crop_size: int,
-                      side: int, stride: int, offset: float, sampling: int) -> np.ndarray:
+def roi_sample_points(
+    boxes: np.ndarray,
+    image_size: tuple[int, int],
+    crop_size: int,
+    side: int,
+    stride: int,
+    offset: float,
+    sampling: int,
+) -> np.ndarray:
     """Image pixel coordinates (index convention) of every RoIAlign sample of every box.
 
     Args:
@@ -133,9 +146,17 @@ def _axis_weights(q: np.ndarray, size: int, side: int, sampling: int) -> np.ndar
     return weights
 
 
-def roi_pool(fmap: torch.Tensor, boxes: np.ndarray, image_size: tuple[int, int],
-             work_size: tuple[int, int], crop_size: int, stride: int, offset: float,
-             sampling: int = DEFAULT_ROI_SAMPLING, chunk: int = 50) -> torch.Tensor:
+def roi_pool(
+    fmap: torch.Tensor,
+    boxes: np.ndarray,
+    image_size: tuple[int, int],
+    work_size: tuple[int, int],
+    crop_size: int,
+    stride: int,
+    offset: float,
+    sampling: int = DEFAULT_ROI_SAMPLING,
+    chunk: int = 50,
+) -> torch.Tensor:
     """Pool every box from a feature map to crop mode's ``(C, n, n)`` layout, flattened.
 
     Bilinear interpolation on a separable sample grid factors into one weight matrix per axis:
@@ -180,5 +201,5 @@ def roi_pool(fmap: torch.Tensor, boxes: np.ndarray, image_size: tuple[int, int],
         cols = cols.reshape(c, hf, chunk, n).permute(2, 1, 0, 3).reshape(chunk, hf, c * n)
         pooled = torch.bmm(ay[idx], cols).reshape(chunk, n, c, n)  # sum_y Ay[i,y] (...)[y]
         m = min(chunk, k - start)
-        out[start:start + m] = pooled[:m].permute(0, 2, 1, 3)
+        out[start : start + m] = pooled[:m].permute(0, 2, 1, 3)
     return out.reshape(k, c * n * n)

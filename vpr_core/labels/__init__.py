@@ -84,9 +84,18 @@ def resolve_label_method(dataset: Any, method: str, labels: Any) -> str:
     return "geometric"
 
 
-def label_matches(dataset: Any, q: int, r: int, boxes_q: np.ndarray, boxes_r: np.ndarray,
-                  matches: np.ndarray, method: str = "auto", iou_threshold: float = 0.5,
-                  labels: Any = None, **options: Any) -> np.ndarray:
+def label_matches(
+    dataset: Any,
+    q: int,
+    r: int,
+    boxes_q: np.ndarray,
+    boxes_r: np.ndarray,
+    matches: np.ndarray,
+    method: str = "auto",
+    iou_threshold: float = 0.5,
+    labels: Any = None,
+    **options: Any,
+) -> np.ndarray:
     """Label the landmark matches of query ``q`` vs reference ``r`` as correct / incorrect.
 
     A match is *correct* when its two boxes show the same physical region of the place.
@@ -149,15 +158,15 @@ def label_matches(dataset: Any, q: int, r: int, boxes_q: np.ndarray, boxes_r: np
         unknown = set(options) - {"image_size_r"}
         if unknown:
             raise TypeError(f"unexpected options for method='exact': {sorted(unknown)}")
-        return label_matches_exact(dataset, q, r, boxes_q, boxes_r, matches, iou_threshold,
-                                   **options)
+        return label_matches_exact(
+            dataset, q, r, boxes_q, boxes_r, matches, iou_threshold, **options
+        )
     if method == "file":
         unknown = set(options) - {"on_unmatched"}
         if unknown:
             raise TypeError(f"unexpected options for method='file': {sorted(unknown)}")
         return label_matches_file(labels, q, r, boxes_q, boxes_r, matches, **options)
-    return label_pair_geometric(dataset, q, r, boxes_q, boxes_r, matches, iou_threshold,
-                                **options)
+    return label_pair_geometric(dataset, q, r, boxes_q, boxes_r, matches, iou_threshold, **options)
 
 
 @dataclass(frozen=True)
@@ -184,15 +193,21 @@ class PairMatches:
 
     def summary(self) -> str:
         """e.g. ``"query 0 vs reference 0 (ground truth); 40/61 matches correct; S = 0.41"``."""
-        counts = (f"{int(self.labels.sum())}/{len(self.labels)} matches correct"
-                  if self.labels is not None else f"{len(self.matches)} matches, unlabelled")
+        counts = (
+            f"{int(self.labels.sum())}/{len(self.labels)} matches correct"
+            if self.labels is not None
+            else f"{len(self.matches)} matches, unlabelled"
+        )
         kind = "ground truth" if self.ground_truth else "irrelevant"
-        return (f"query {self.query} vs reference {self.reference} ({kind}); {counts}; "
-                f"S = {self.similarity:.3f}")
+        return (
+            f"query {self.query} vs reference {self.reference} ({kind}); {counts}; "
+            f"S = {self.similarity:.3f}"
+        )
 
 
-def pair_matches(dataset: Any, result: Any, query: int = 0, reference: int | None = None
-                 ) -> PairMatches:
+def pair_matches(
+    dataset: Any, result: Any, query: int = 0, reference: int | None = None
+) -> PairMatches:
     """Match and label the landmarks of one pair of a run (the data of Fig. 1-3 and 8).
 
     Args:
@@ -208,8 +223,10 @@ def pair_matches(dataset: Any, result: Any, query: int = 0, reference: int | Non
     from ..matching import match_landmarks
 
     if result.descriptors is None:
-        raise ValueError(f"pair_matches needs the descriptors of {result.label!r}: run it with "
-                         "run_method(..., keep_descriptors=True)")
+        raise ValueError(
+            f"pair_matches needs the descriptors of {result.label!r}: run it with "
+            "run_method(..., keep_descriptors=True)"
+        )
     gt = np.asarray(dataset.ground_truth, dtype=bool)
     q = int(query)
     if reference is None:
@@ -219,17 +236,16 @@ def pair_matches(dataset: Any, result: Any, query: int = 0, reference: int | Non
         reference = refs[0]
     r = int(reference)
     bq, br = result.boxes["query"][q], result.boxes["reference"][r]
-    m = match_landmarks(result.descriptors["query"][q], bq, result.descriptors["reference"][r],
-                        br)
+    m = match_landmarks(result.descriptors["query"][q], bq, result.descriptors["reference"][r], br)
     note = ""
     if gt[q, r]:
         try:
             labels = label_matches(dataset, q, r, bq, br, m.matches)
         except LabelUnavailableError as exc:
             labels, note = None, str(exc)
-            logging.getLogger("vpr_core").warning("pair (%d, %d) cannot be labelled: %s", q, r,
-                                                   exc)
+            logging.getLogger("vpr_core").warning("pair (%d, %d) cannot be labelled: %s", q, r, exc)
     else:
         labels = np.zeros(len(m.matches), dtype=bool)
-    return PairMatches(q, r, bool(gt[q, r]), np.asarray(m.matches), labels,
-                       float(m.similarity), note)
+    return PairMatches(
+        q, r, bool(gt[q, r]), np.asarray(m.matches), labels, float(m.similarity), note
+    )

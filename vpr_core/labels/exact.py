@@ -20,7 +20,10 @@ __all__ = [
     "LabelUnavailableError",
     "check_matches",
     "dataset_image_size",
-    "is_ground_truth","label_matches_exact", "map_boxes"]
+    "is_ground_truth",
+    "label_matches_exact",
+    "map_boxes",
+]
 
 
 # ---- what every labeller shares (exact, geometric, file) ------------------------------------
@@ -75,8 +78,9 @@ def is_ground_truth(dataset: Any, q: int, r: int) -> bool:
 
 
 # ---- exact labels -----------------------------------------------------------------------------
-def map_boxes(boxes: np.ndarray, homography: np.ndarray,
-              image_size: tuple[int, int] | None = None) -> np.ndarray:
+def map_boxes(
+    boxes: np.ndarray, homography: np.ndarray, image_size: tuple[int, int] | None = None
+) -> np.ndarray:
     """Map boxes through a homography: axis-aligned bounding box of the 4 mapped corners.
 
     Args:
@@ -113,9 +117,16 @@ def map_boxes(boxes: np.ndarray, homography: np.ndarray,
     return out
 
 
-def label_matches_exact(dataset: Any, q: int, r: int, boxes_q: np.ndarray, boxes_r: np.ndarray,
-                        matches: np.ndarray, iou_threshold: float = 0.5,
-                        image_size_r: tuple[int, int] | None = None) -> np.ndarray:
+def label_matches_exact(
+    dataset: Any,
+    q: int,
+    r: int,
+    boxes_q: np.ndarray,
+    boxes_r: np.ndarray,
+    matches: np.ndarray,
+    iou_threshold: float = 0.5,
+    image_size_r: tuple[int, int] | None = None,
+) -> np.ndarray:
     """Exact labels from the generator's homography (``synthetic``).
 
     See :func:`vpr_core.labels.label_matches` (``method="exact"``) for the rule.
@@ -144,17 +155,20 @@ def label_matches_exact(dataset: Any, q: int, r: int, boxes_q: np.ndarray, boxes
     if Hs is None:
         raise LabelUnavailableError(
             f"exact labels need dataset.homographies; dataset {getattr(dataset, 'name', '?')!r} "
-            "has none: use method='geometric' or method='file'")
+            "has none: use method='geometric' or method='file'"
+        )
     if not is_ground_truth(dataset, q, r):
         return np.zeros(len(m), dtype=bool)  # not the same place: every match is wrong
     if r != q:
         raise LabelUnavailableError(
             f"pair (q={q}, r={r}) is ground truth only through the tolerance; the generator's "
             f"homography is known for (q, q) only. Label (q={q}, r={q}), or use "
-            "method='geometric' for neighbouring references")
+            "method='geometric' for neighbouring references"
+        )
     if len(m) == 0:
         return np.zeros(0, dtype=bool)
-    size_r = image_size_r if image_size_r is not None else dataset_image_size(dataset,
-                                                                              "reference", r)
+    size_r = (
+        image_size_r if image_size_r is not None else dataset_image_size(dataset, "reference", r)
+    )
     mapped = map_boxes(bq[m[:, 0]], np.asarray(Hs)[q], size_r)
     return paired_iou(mapped, br[m[:, 1]]) >= iou_threshold

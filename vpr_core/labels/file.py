@@ -37,8 +37,9 @@ def _parse_bool(values: Iterable[Any]) -> np.ndarray:
         elif s in falsy:
             out.append(False)
         else:
-            raise ValueError(f"label file: 'correct' value {v!r} is not a boolean "
-                             "(use 1/0, true/false, yes/no)")
+            raise ValueError(
+                f"label file: 'correct' value {v!r} is not a boolean (use 1/0, true/false, yes/no)"
+            )
     return np.asarray(out, dtype=bool)
 
 
@@ -70,8 +71,10 @@ def read_label_file(path: str | PathLike) -> Any:
 def _validate_label_frame(df: Any, source: str = "labels") -> Any:
     missing = [c for c in LABEL_COLUMNS if c not in df.columns]
     if missing:
-        raise ValueError(f"label file {source}: missing column(s) {missing}; expected header "
-                         f"'{','.join(LABEL_COLUMNS)}' (got {list(df.columns)})")
+        raise ValueError(
+            f"label file {source}: missing column(s) {missing}; expected header "
+            f"'{','.join(LABEL_COLUMNS)}' (got {list(df.columns)})"
+        )
     out = df[list(LABEL_COLUMNS)].copy()
     for c in LABEL_COLUMNS[:4]:
         col = out[c]
@@ -98,18 +101,28 @@ def _pair_table(df: Any, q: int, r: int, n_q: int, n_r: int) -> dict[tuple[int, 
         raise ValueError(
             f"label file: pair (q={q}, r={r}) has {int(bad.sum())} row(s) with a box index out "
             f"of range (e.g. query_box_index={qi[k]}, reference_box_index={ri[k]}; the pair has "
-            f"{n_q} query and {n_r} reference boxes): labels of another landmark set?")
+            f"{n_q} query and {n_r} reference boxes): labels of another landmark set?"
+        )
     table: dict[tuple[int, int], bool] = {}
-    for a, b, c in zip(qi.tolist(), ri.tolist(), cv.tolist()):
+    for a, b, c in zip(qi.tolist(), ri.tolist(), cv.tolist(), strict=False):
         if (a, b) in table and table[(a, b)] != c:
-            raise ValueError(f"label file: pair (q={q}, r={r}) labels match ({a}, {b}) both "
-                             "correct and incorrect")
+            raise ValueError(
+                f"label file: pair (q={q}, r={r}) labels match ({a}, {b}) both "
+                "correct and incorrect"
+            )
         table[(a, b)] = c
     return table
 
 
-def label_matches_file(labels: Any, q: int, r: int, boxes_q: np.ndarray, boxes_r: np.ndarray,
-                       matches: np.ndarray, on_unmatched: str = "warn") -> np.ndarray:
+def label_matches_file(
+    labels: Any,
+    q: int,
+    r: int,
+    boxes_q: np.ndarray,
+    boxes_r: np.ndarray,
+    matches: np.ndarray,
+    on_unmatched: str = "warn",
+) -> np.ndarray:
     """Labels looked up in a manual-label CSV (path or already-read DataFrame).
 
     Rules for rows of pair (q, r):
@@ -139,8 +152,9 @@ def label_matches_file(labels: Any, q: int, r: int, boxes_q: np.ndarray, boxes_r
     if on_unmatched not in ("warn", "ignore", "error"):
         raise ValueError(f"on_unmatched must be 'warn', 'ignore' or 'error', got {on_unmatched!r}")
     if labels is None:
-        raise ValueError("method='file' needs labels=<path to CSV> with header "
-                         f"'{','.join(LABEL_COLUMNS)}'")
+        raise ValueError(
+            f"method='file' needs labels=<path to CSV> with header '{','.join(LABEL_COLUMNS)}'"
+        )
     if isinstance(labels, (str, PathLike)):
         df = read_label_file(labels)
     else:
@@ -149,13 +163,17 @@ def label_matches_file(labels: Any, q: int, r: int, boxes_q: np.ndarray, boxes_r
     keys = [(int(a), int(b)) for a, b in m]
     missing = [k for k in keys if k not in table]
     if missing:
-        raise ValueError(f"label file: {len(missing)} of {len(keys)} matches of pair (q={q}, "
-                         f"r={r}) have no label row, e.g. {missing[:5]} "
-                         "(query_box_index, reference_box_index)")
+        raise ValueError(
+            f"label file: {len(missing)} of {len(keys)} matches of pair (q={q}, "
+            f"r={r}) have no label row, e.g. {missing[:5]} "
+            "(query_box_index, reference_box_index)"
+        )
     extra = sorted(set(table) - set(keys))
     if extra:
-        msg = (f"label file: {len(extra)} labelled pair(s) of (q={q}, r={r}) are not among the "
-               f"matches, e.g. {extra[:5]}; ignored")
+        msg = (
+            f"label file: {len(extra)} labelled pair(s) of (q={q}, r={r}) are not among the "
+            f"matches, e.g. {extra[:5]}; ignored"
+        )
         if on_unmatched == "error":
             raise ValueError(msg)
         if on_unmatched == "warn":

@@ -15,7 +15,12 @@ import numpy as np
 from ..boxes import check_boxes, paired_iou
 from .exact import LabelUnavailableError, check_matches, is_ground_truth, map_boxes
 
-__all__ = ["PairGeometry", "estimate_pair_geometry", "label_matches_geometric", "label_pair_geometric"]
+__all__ = [
+    "PairGeometry",
+    "estimate_pair_geometry",
+    "label_matches_geometric",
+    "label_pair_geometric",
+]
 
 
 @dataclass
@@ -76,8 +81,10 @@ def _homography_is_sane(H: np.ndarray, size_q: tuple[int, int]) -> bool:
     c = corners[:, :2] / corners[:, 2:]
     # signed area (shoelace) and convexity: all cross products of consecutive edges same sign
     edges = np.roll(c, -1, axis=0) - c
-    cross = edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(edges, -1,
-                                                                                      axis=0)[:, 0]
+    cross = (
+        edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1]
+        - edges[:, 1] * np.roll(edges, -1, axis=0)[:, 0]
+    )
     if not ((cross > 0).all() or (cross < 0).all()):
         return False
     area = 0.5 * abs(np.sum(c[:, 0] * np.roll(c[:, 1], -1) - np.roll(c[:, 0], -1) * c[:, 1]))
@@ -85,9 +92,16 @@ def _homography_is_sane(H: np.ndarray, size_q: tuple[int, int]) -> bool:
     return 1.0 / 16 <= ratio <= 16.0 and bool(cross[0] > 0)
 
 
-def _ratio_test_points(img_q: np.ndarray, img_r: np.ndarray, ratio: float, max_features: int,
-                       equalize: bool, contrast_threshold: float, denoise: float,
-                       upscale: float) -> tuple[np.ndarray, np.ndarray] | None:
+def _ratio_test_points(
+    img_q: np.ndarray,
+    img_r: np.ndarray,
+    ratio: float,
+    max_features: int,
+    equalize: bool,
+    contrast_threshold: float,
+    denoise: float,
+    upscale: float,
+) -> tuple[np.ndarray, np.ndarray] | None:
     """SIFT correspondences that pass Lowe's ratio test, in original pixel coordinates.
 
     Returns:
@@ -112,8 +126,9 @@ def _ratio_test_points(img_q: np.ndarray, img_r: np.ndarray, ratio: float, max_f
     return pq, pr
 
 
-def _fit_models(pq: np.ndarray, pr: np.ndarray, robust: str, h_threshold: float,
-                f_threshold: float, seed: int) -> tuple[Any, np.ndarray, Any, np.ndarray]:
+def _fit_models(
+    pq: np.ndarray, pr: np.ndarray, robust: str, h_threshold: float, f_threshold: float, seed: int
+) -> tuple[Any, np.ndarray, Any, np.ndarray]:
     """RANSAC (or MAGSAC) homography and fundamental matrix of ``(N, 2)`` correspondences.
 
     Returns:
@@ -125,8 +140,9 @@ def _fit_models(pq: np.ndarray, pr: np.ndarray, robust: str, h_threshold: float,
     h_method = cv2.RANSAC if robust == "ransac" else cv2.USAC_MAGSAC
     f_method = cv2.FM_RANSAC if robust == "ransac" else cv2.USAC_MAGSAC
     cv2.setRNGSeed(int(seed))
-    H, mask_h = cv2.findHomography(pq, pr, h_method, float(h_threshold), maxIters=5000,
-                                   confidence=0.999)
+    H, mask_h = cv2.findHomography(
+        pq, pr, h_method, float(h_threshold), maxIters=5000, confidence=0.999
+    )
     inl_h = mask_h.ravel().astype(bool) if mask_h is not None else np.zeros(n_put, bool)
     cv2.setRNGSeed(int(seed))
     F, mask_f = cv2.findFundamentalMat(pq, pr, f_method, float(f_threshold), 0.999, 5000)
@@ -136,15 +152,26 @@ def _fit_models(pq: np.ndarray, pr: np.ndarray, robust: str, h_threshold: float,
     return H, inl_h, F, inl_f
 
 
-def estimate_pair_geometry(img_q: np.ndarray, img_r: np.ndarray, *, ratio: float = 0.8,
-                           max_features: int = 4000, equalize: bool = True,
-                           h_threshold: float = 4.0, f_threshold: float = 2.0,
-                           min_inliers: int = 15, min_inlier_ratio: float = 0.3,
-                           min_inliers_f: int = 20, min_inlier_ratio_f: float = 0.45,
-                           h_share: float = 0.7,
-                           contrast_threshold: float = 0.01, denoise: float = 0.0,
-                           upscale: float = 1.0, robust: str = "ransac",
-                           seed: int = 0) -> PairGeometry:
+def estimate_pair_geometry(
+    img_q: np.ndarray,
+    img_r: np.ndarray,
+    *,
+    ratio: float = 0.8,
+    max_features: int = 4000,
+    equalize: bool = True,
+    h_threshold: float = 4.0,
+    f_threshold: float = 2.0,
+    min_inliers: int = 15,
+    min_inlier_ratio: float = 0.3,
+    min_inliers_f: int = 20,
+    min_inlier_ratio_f: float = 0.45,
+    h_share: float = 0.7,
+    contrast_threshold: float = 0.01,
+    denoise: float = 0.0,
+    upscale: float = 1.0,
+    robust: str = "ransac",
+    seed: int = 0,
+) -> PairGeometry:
     """SIFT keypoints, Lowe ratio test, RANSAC homography and fundamental matrix for one pair.
 
     Model choice: the homography is kept when it has at least ``min_inliers`` inliers (at
@@ -192,8 +219,9 @@ def estimate_pair_geometry(img_q: np.ndarray, img_r: np.ndarray, *, ratio: float
     size_r = (int(img_r.shape[0]), int(img_r.shape[1]))
     empty = np.zeros((0, 2), dtype=np.float64)
     cv2.setRNGSeed(int(seed))
-    points = _ratio_test_points(img_q, img_r, ratio, max_features, equalize, contrast_threshold,
-                                denoise, upscale)
+    points = _ratio_test_points(
+        img_q, img_r, ratio, max_features, equalize, contrast_threshold, denoise, upscale
+    )
     if points is None:
         return PairGeometry("none", None, None, empty, empty, 0, 0, 0, size_q, size_r)
     pq, pr = points
@@ -204,13 +232,20 @@ def estimate_pair_geometry(img_q: np.ndarray, img_r: np.ndarray, *, ratio: float
         raise ValueError(f"robust must be 'ransac' or 'magsac', got {robust!r}")
     H, inl_h, F, inl_f = _fit_models(pq, pr, robust, h_threshold, f_threshold, seed)
     n_h, n_f = int(inl_h.sum()), int(inl_f.sum())
-    if (H is not None and n_h >= min_inliers and n_h >= min_inlier_ratio * n_put
-            and _homography_is_sane(H, size_q) and n_h >= h_share * max(n_f, 1)):
-        return PairGeometry("homography", H, F, pq[inl_h], pr[inl_h], n_put, n_h, n_f, size_q,
-                            size_r)
+    if (
+        H is not None
+        and n_h >= min_inliers
+        and n_h >= min_inlier_ratio * n_put
+        and _homography_is_sane(H, size_q)
+        and n_h >= h_share * max(n_f, 1)
+    ):
+        return PairGeometry(
+            "homography", H, F, pq[inl_h], pr[inl_h], n_put, n_h, n_f, size_q, size_r
+        )
     if F is not None and n_f >= min_inliers_f and n_f >= min_inlier_ratio_f * n_put:
-        return PairGeometry("fundamental", None, F, pq[inl_f], pr[inl_f], n_put, n_h, n_f, size_q,
-                            size_r)
+        return PairGeometry(
+            "fundamental", None, F, pq[inl_f], pr[inl_f], n_put, n_h, n_f, size_q, size_r
+        )
     return PairGeometry("none", None, None, empty, empty, n_put, n_h, n_f, size_q, size_r)
 
 
@@ -223,10 +258,17 @@ def _inside(points: np.ndarray, boxes: np.ndarray) -> np.ndarray:
     return (x >= bx) & (x <= bx + bw) & (y >= by) & (y <= by + bh)
 
 
-def label_matches_geometric(boxes_q: np.ndarray, boxes_r: np.ndarray, matches: np.ndarray,
-                            geometry: PairGeometry, *, iou_threshold: float = 0.5,
-                            model: str = "auto", min_points: int = 2,
-                            point_iou: float = 0.4) -> np.ndarray:
+def label_matches_geometric(
+    boxes_q: np.ndarray,
+    boxes_r: np.ndarray,
+    matches: np.ndarray,
+    geometry: PairGeometry,
+    *,
+    iou_threshold: float = 0.5,
+    model: str = "auto",
+    min_points: int = 2,
+    point_iou: float = 0.4,
+) -> np.ndarray:
     """Geometric-verification labels from a :class:`PairGeometry`.
 
     See :func:`vpr_core.labels.label_matches` (``method="geometric"``) for the two rules.
@@ -256,7 +298,8 @@ def label_matches_geometric(boxes_q: np.ndarray, boxes_r: np.ndarray, matches: n
     if geometry.kind == "none":
         raise LabelUnavailableError(
             f"no two-view geometry for this pair ({geometry.n_putative} ratio-test matches, "
-            f"{geometry.n_inliers_h} homography / {geometry.n_inliers_f} fundamental inliers)")
+            f"{geometry.n_inliers_h} homography / {geometry.n_inliers_f} fundamental inliers)"
+        )
     if len(m) == 0:
         return np.zeros(0, dtype=bool)
     use_h = model == "homography" or (model == "auto" and geometry.kind == "homography")
@@ -275,9 +318,16 @@ def label_matches_geometric(boxes_q: np.ndarray, boxes_r: np.ndarray, matches: n
     return (n_qr >= min_points) & (piou >= point_iou)
 
 
-def label_pair_geometric(dataset: Any, q: int, r: int, boxes_q: np.ndarray, boxes_r: np.ndarray,
-                         matches: np.ndarray, iou_threshold: float = 0.5,
-                         **options: Any) -> np.ndarray:
+def label_pair_geometric(
+    dataset: Any,
+    q: int,
+    r: int,
+    boxes_q: np.ndarray,
+    boxes_r: np.ndarray,
+    matches: np.ndarray,
+    iou_threshold: float = 0.5,
+    **options: Any,
+) -> np.ndarray:
     """``method="geometric"`` of :func:`vpr_core.labels.label_matches` for one dataset pair.
 
     A non-ground-truth pair is all incorrect (no image matching is run). Otherwise the pair's
@@ -316,5 +366,4 @@ def label_pair_geometric(dataset: Any, q: int, r: int, boxes_q: np.ndarray, boxe
         geometry = estimate_pair_geometry(images[0], images[1], **options)
         if cache is not None:
             cache[(q, r)] = geometry
-    return label_matches_geometric(bq, br, m, geometry, iou_threshold=iou_threshold,
-                                   **rule_opts)
+    return label_matches_geometric(bq, br, m, geometry, iou_threshold=iou_threshold, **rule_opts)

@@ -19,8 +19,9 @@ from .file import LABEL_COLUMNS
 __all__ = ["append_labels", "label_widget", "pair_label_widget"]
 
 
-def append_labels(path: str | Path, q: int, r: int, matches: np.ndarray,
-                  correct: np.ndarray) -> Path:
+def append_labels(
+    path: str | Path, q: int, r: int, matches: np.ndarray, correct: np.ndarray
+) -> Path:
     """Append (or create) a labels CSV with one row per match of pair ``(q, r)``.
 
     Args:
@@ -36,21 +37,29 @@ def append_labels(path: str | Path, q: int, r: int, matches: np.ndarray,
     matches = np.asarray(matches, dtype=np.int64).reshape(-1, 2)
     correct = np.asarray(correct, dtype=bool).reshape(-1)
     if len(matches) != len(correct):
-        raise ValueError(f"{len(matches)} matches but {len(correct)} labels: give one label "
-                         "per match.")
+        raise ValueError(
+            f"{len(matches)} matches but {len(correct)} labels: give one label per match."
+        )
     path = Path(path)
     new = not path.exists()
     with path.open("a", newline="") as f:
         w = csv.writer(f)
         if new:
             w.writerow(LABEL_COLUMNS)
-        for (i, j), c in zip(matches, correct):
+        for (i, j), c in zip(matches, correct, strict=False):
             w.writerow([q, r, int(i), int(j), int(bool(c))])
     return path
 
 
-def label_widget(dataset: Any, q: int, r: int, boxes_q: np.ndarray, boxes_r: np.ndarray,
-                 matches: np.ndarray, out: str | Path = "labels.csv") -> Any:
+def label_widget(
+    dataset: Any,
+    q: int,
+    r: int,
+    boxes_q: np.ndarray,
+    boxes_r: np.ndarray,
+    matches: np.ndarray,
+    out: str | Path = "labels.csv",
+) -> Any:
     """Step through the matches of one pair, answer correct / wrong, then save to ``out``.
 
     Args:
@@ -106,6 +115,7 @@ def label_widget(dataset: Any, q: int, r: int, boxes_q: np.ndarray, boxes_r: np.
                 labels[state["k"]] = value
                 state["k"] += 1
             show()
+
         return _cb
 
     yes.on_click(answer(True))
@@ -114,8 +124,13 @@ def label_widget(dataset: Any, q: int, r: int, boxes_q: np.ndarray, boxes_r: np.
     return widgets.VBox([widgets.HBox([yes, no, status]), output])
 
 
-def pair_label_widget(dataset: Any, result: Any, query: int = 0, reference: int | None = None,
-                      out: str | Path = "labels.csv") -> Any:
+def pair_label_widget(
+    dataset: Any,
+    result: Any,
+    query: int = 0,
+    reference: int | None = None,
+    out: str | Path = "labels.csv",
+) -> Any:
     """:func:`label_widget` for one pair of a run: its boxes and reciprocal matches are taken
     from the run (nothing to compute by hand).
 
@@ -128,5 +143,12 @@ def pair_label_widget(dataset: Any, result: Any, query: int = 0, reference: int 
     from . import pair_matches
 
     pm = pair_matches(dataset, result, query, reference)
-    return label_widget(dataset, pm.query, pm.reference, result.boxes["query"][pm.query],
-                        result.boxes["reference"][pm.reference], pm.matches, out=out)
+    return label_widget(
+        dataset,
+        pm.query,
+        pm.reference,
+        result.boxes["query"][pm.query],
+        result.boxes["reference"][pm.reference],
+        pm.matches,
+        out=out,
+    )

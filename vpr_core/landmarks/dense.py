@@ -88,5 +88,5 @@ def dense_sampling(
                 f"per_scale has {len(counts)} counts but there are {scales_arr.size} scales; "
                 "give one count per scale or a single int"
             )
-    blocks = [_grid_boxes(a, _grid_side(c), H, W) for a, c in zip(scales_arr, counts)]
+    blocks = [_grid_boxes(a, _grid_side(c), H, W) for a, c in zip(scales_arr, counts, strict=False)]
     return np.concatenate(blocks, axis=0)

@@ -156,8 +156,13 @@ def _gradient_edges(
     return mag.astype(np.float32), orient
 
 
-def _proposals(edges: np.ndarray, orient: np.ndarray, p: dict[str, Any], max_boxes: int,
-               image_size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+def _proposals(
+    edges: np.ndarray,
+    orient: np.ndarray,
+    p: dict[str, Any],
+    max_boxes: int,
+    image_size: tuple[int, int],
+) -> tuple[np.ndarray, np.ndarray]:
     """Run ``cv2.ximgproc`` Edge Boxes on an edge map.
 
     Args:
@@ -264,7 +269,9 @@ def edge_boxes(
         source = "gradient"
     if source not in _LOGGED_SOURCES:
         _LOGGED_SOURCES.add(source)
-        detail = f"structured-edge model {model_path}" if model_path else "gradient (Scharr) edge map"
+        detail = (
+            f"structured-edge model {model_path}" if model_path else "gradient (Scharr) edge map"
+        )
         logger.info("edge_boxes: using %s", detail)
     boxes, scores = _proposals(edges, orient, p, max_boxes, image.shape[:2])
     return EdgeBoxes(boxes, scores, source)

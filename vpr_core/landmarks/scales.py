@@ -67,7 +67,9 @@ def scale_index(
         ratios = np.asarray(boxes_or_ratios, dtype=np.float64)
         scalar = ratios.ndim == 0
         if ratios.ndim == 2 and ratios.shape[1] == 4:
-            raise ValueError("scale_index got (K, 4) boxes without image_size; pass image_size=(H, W)")
+            raise ValueError(
+                "scale_index got (K, 4) boxes without image_size; pass image_size=(H, W)"
+            )
         if ratios.ndim > 1:
             raise ValueError(
                 f"scale_index expects (K, 4) boxes with image_size or 1-D ratios, got {ratios.shape}"
@@ -79,9 +81,7 @@ def scale_index(
     return int(idx[0]) if scalar else idx
 
 
-def scale_histogram(
-    boxes: np.ndarray, image_size: Sequence[int] | None = None
-) -> np.ndarray:
+def scale_histogram(boxes: np.ndarray, image_size: Sequence[int] | None = None) -> np.ndarray:
     """Count of boxes per Table-1 scale (Fig. 6).
 
     Args:
@@ -103,7 +103,6 @@ def scale_distribution(result: Any, dataset: Any) -> Any:
         ``reference``.
     """
     import pandas as pd
-
 
     counts = {}
     for side in ("query", "reference"):

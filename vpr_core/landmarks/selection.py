@@ -33,7 +33,10 @@ logger = logging.getLogger("vpr_core")
 
 #: The Edge Box landmark schemes :func:`select_from_candidates` knows.
 EDGE_BOX_SCHEMES: tuple[str, ...] = (
-    "edge_boxes", "selection_scheme1", "selection_scheme2", "overlap_scheme1",
+    "edge_boxes",
+    "selection_scheme1",
+    "selection_scheme2",
+    "overlap_scheme1",
 )
 
 
@@ -46,8 +49,12 @@ def _result(boxes: np.ndarray, idx: list[int] | np.ndarray, return_indices: bool
 def _warn_undersupply(name: str, got: int, n: int, k: int) -> None:
     if got < n:
         logger.warning(
-            "%s: only %d of the requested %d landmarks qualify among %d candidates; "
-            "returning %d", name, got, n, k, got
+            "%s: only %d of the requested %d landmarks qualify among %d candidates; returning %d",
+            name,
+            got,
+            n,
+            k,
+            got,
         )
 
 
@@ -163,15 +170,20 @@ def reduce_overlap(
             break
         if i == 0 or max_iou[i] <= t:
             kept.append(i)
-            np.maximum(max_iou[i + 1:], box_iou(b[i : i + 1], b[i + 1:])[0], out=max_iou[i + 1:])
+            np.maximum(max_iou[i + 1 :], box_iou(b[i : i + 1], b[i + 1 :])[0], out=max_iou[i + 1 :])
     _warn_undersupply("reduce_overlap", len(kept), n, b.shape[0])
     return _result(b, kept, return_indices)
 
 
-def select_from_candidates(candidates: np.ndarray, image_size: Any, scheme: str,
-                           n: int = N_LANDMARKS, min_index: int = MIN_SCALE_INDEX,
-                           order: Sequence[int] = SCALE_PRIORITY_ORDER,
-                           iou_threshold: float = NMS_IOU) -> np.ndarray:
+def select_from_candidates(
+    candidates: np.ndarray,
+    image_size: Any,
+    scheme: str,
+    n: int = N_LANDMARKS,
+    min_index: int = MIN_SCALE_INDEX,
+    order: Sequence[int] = SCALE_PRIORITY_ORDER,
+    iou_threshold: float = NMS_IOU,
+) -> np.ndarray:
     """The landmarks an Edge Box scheme keeps from a list of proposals.
 
     Args:

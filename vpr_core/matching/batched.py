@@ -29,12 +29,19 @@ __all__ = ["check_pairs", "similarity_matrix", "similarity_pairs"]
 BLOCK_BYTES = 8 << 20
 
 
-def similarity_matrix(query_desc: LandmarkSets, query_boxes: LandmarkSets,
-                      reference_desc: LandmarkSets, reference_boxes: LandmarkSets,
-                      soft_nms_iou: float | None = None, sigma: float = SOFT_NMS_SIGMA,
-                      device: str | torch.device = "cpu", batch_size: int | None = None,
-                      ref_batch_size: int | None = None, matmul_dtype: str = "float32",
-                      show_progress: bool = True) -> np.ndarray:
+def similarity_matrix(
+    query_desc: LandmarkSets,
+    query_boxes: LandmarkSets,
+    reference_desc: LandmarkSets,
+    reference_boxes: LandmarkSets,
+    soft_nms_iou: float | None = None,
+    sigma: float = SOFT_NMS_SIGMA,
+    device: str | torch.device = "cpu",
+    batch_size: int | None = None,
+    ref_batch_size: int | None = None,
+    matmul_dtype: str = "float32",
+    show_progress: bool = True,
+) -> np.ndarray:
     """Eq. (1) similarity of every query x reference image pair, vectorised in torch.
 
     Descriptors are L2-normalised, zero padded to the largest landmark count (padded entries are
@@ -67,8 +74,16 @@ def similarity_matrix(query_desc: LandmarkSets, query_boxes: LandmarkSets,
         (Eq. 1's convention; to exclude such images from ranking, set their entries to NaN,
         which :mod:`vpr_core.evaluation` treats as "not ranked").
     """
-    ctx = _Context.build(query_desc, query_boxes, reference_desc, reference_boxes, soft_nms_iou,
-                         sigma, device, matmul_dtype)
+    ctx = _Context.build(
+        query_desc,
+        query_boxes,
+        reference_desc,
+        reference_boxes,
+        soft_nms_iou,
+        sigma,
+        device,
+        matmul_dtype,
+    )
     q, r = ctx.q, ctx.r
     out = torch.zeros((q.n, r.n), dtype=torch.float64, device=ctx.dev)
     if ctx.empty:  # no landmark anywhere on one side
@@ -81,18 +96,26 @@ def similarity_matrix(query_desc: LandmarkSets, query_boxes: LandmarkSets,
         q1, r1 = min(q0 + bq, q.n), min(r0 + br, r.n)
         out[q0:q1, r0:r1] = ctx.block(slice(q0, q1), slice(r0, r1))
 
-    tasks = [lambda q0=q0, r0=r0: task(q0, r0)
-             for q0 in range(0, q.n, bq) for r0 in range(0, r.n, br)]
+    tasks = [
+        lambda q0=q0, r0=r0: task(q0, r0) for q0 in range(0, q.n, bq) for r0 in range(0, r.n, br)
+    ]
     _run(ctx, tasks, show_progress)
     return out.cpu().numpy()
 
 
-def similarity_pairs(query_desc: LandmarkSets, query_boxes: LandmarkSets,
-                     reference_desc: LandmarkSets, reference_boxes: LandmarkSets,
-                     pairs: np.ndarray | Sequence, soft_nms_iou: float | None = None,
-                     sigma: float = SOFT_NMS_SIGMA, device: str | torch.device = "cpu",
-                     ref_batch_size: int | None = None, matmul_dtype: str = "float32",
-                     show_progress: bool = True) -> np.ndarray:
+def similarity_pairs(
+    query_desc: LandmarkSets,
+    query_boxes: LandmarkSets,
+    reference_desc: LandmarkSets,
+    reference_boxes: LandmarkSets,
+    pairs: np.ndarray | Sequence,
+    soft_nms_iou: float | None = None,
+    sigma: float = SOFT_NMS_SIGMA,
+    device: str | torch.device = "cpu",
+    ref_batch_size: int | None = None,
+    matmul_dtype: str = "float32",
+    show_progress: bool = True,
+) -> np.ndarray:
     """Eq. (1) similarity of the listed (query, reference) image pairs only (e.g. a shortlist).
 
     Pairs are grouped by query; each query is compared with its listed references by one matmul
@@ -113,8 +136,16 @@ def similarity_pairs(query_desc: LandmarkSets, query_boxes: LandmarkSets,
     Returns:
         ``(P,)`` float64 similarities, in the order of ``pairs``.
     """
-    ctx = _Context.build(query_desc, query_boxes, reference_desc, reference_boxes, soft_nms_iou,
-                         sigma, device, matmul_dtype)
+    ctx = _Context.build(
+        query_desc,
+        query_boxes,
+        reference_desc,
+        reference_boxes,
+        soft_nms_iou,
+        sigma,
+        device,
+        matmul_dtype,
+    )
     q, r = ctx.q, ctx.r
     pr = check_pairs(pairs, q.n, r.n)
     out = np.zeros(pr.shape[0], dtype=np.float64)
@@ -128,7 +159,7 @@ def similarity_pairs(query_desc: LandmarkSets, query_boxes: LandmarkSets,
     def task(rows: np.ndarray) -> None:
         qi = int(pr[rows[0], 0])
         for c0 in range(0, rows.shape[0], br):
-            chunk = rows[c0:c0 + br]
+            chunk = rows[c0 : c0 + br]
             ridx = torch.from_numpy(pr[chunk, 1]).to(ctx.dev)
             out[chunk] = ctx.block(slice(qi, qi + 1), ridx)[0].cpu().numpy()
 
@@ -142,16 +173,19 @@ def check_pairs(pairs: np.ndarray | Sequence, nq: int, nr: int) -> np.ndarray:
     if arr.size == 0:
         return np.zeros((0, 2), dtype=np.int64)
     if arr.ndim != 2 or arr.shape[1] != 2:
-        raise ValueError(f"pairs must be a (P, 2) array of (query index, reference index), got "
-                         f"shape {arr.shape}")
+        raise ValueError(
+            f"pairs must be a (P, 2) array of (query index, reference index), got shape {arr.shape}"
+        )
     if not np.issubdtype(arr.dtype, np.integer):
         raise ValueError(f"pairs must hold integer indices, got dtype {arr.dtype}")
     arr = arr.astype(np.int64)
     for col, n, what in ((0, nq, "query"), (1, nr, "reference")):
         bad = np.flatnonzero((arr[:, col] < 0) | (arr[:, col] >= n))
         if bad.size:
-            raise ValueError(f"pairs[{bad[0]}] has {what} index {arr[bad[0], col]}, outside "
-                             f"0..{n - 1} ({n} {what} images)")
+            raise ValueError(
+                f"pairs[{bad[0]}] has {what} index {arr[bad[0], col]}, outside "
+                f"0..{n - 1} ({n} {what} images)"
+            )
     return arr
 
 
@@ -168,8 +202,17 @@ class _Context:
     empty: bool
 
     @classmethod
-    def build(cls, query_desc, query_boxes, reference_desc, reference_boxes, soft_nms_iou,
-              sigma, device, matmul_dtype) -> _Context:
+    def build(
+        cls,
+        query_desc,
+        query_boxes,
+        reference_desc,
+        reference_boxes,
+        soft_nms_iou,
+        sigma,
+        device,
+        matmul_dtype,
+    ) -> _Context:
         """Check the inputs and prepare both sides (see :func:`similarity_matrix`)."""
         check_soft_nms(soft_nms_iou, sigma)
         if matmul_dtype not in ("float32", "float64"):
@@ -210,7 +253,8 @@ class _Context:
             # float64 cosines for soft-NMS scores: Algorithm 4's argmax is discontinuous at
             # ties, so its scores must match the pairwise path to ~1e-15
             s64 = (q.unit_images64(qsel) @ r.unit_images64(rsel).T).view(
-                a.shape[0] // q.k, q.k, b.shape[0] // r.k, r.k)
+                a.shape[0] // q.k, q.k, b.shape[0] // r.k, r.k
+            )
         return score_block(s, q, r, qsel, rsel, self.margin, self.nms, s64, work)
 
 
@@ -236,7 +280,9 @@ def _run(ctx: _Context, tasks: list[Callable[[], None]], show_progress: bool) ->
     the cores are used by running different blocks at once. Blocks write disjoint outputs, so
     the result is the same for any number of workers.
     """
-    bar = progress(None, total=len(tasks), desc="similarity", unit="block") if show_progress else None
+    bar = (
+        progress(None, total=len(tasks), desc="similarity", unit="block") if show_progress else None
+    )
     threads = torch.get_num_threads()
     workers = min(threads, len(tasks)) if ctx.dev.type == "cpu" else 1
     try:

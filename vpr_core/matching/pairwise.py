@@ -77,7 +77,9 @@ def _check_pair(desc_a, boxes_a, desc_b, boxes_b):
     a = _check_desc(desc_a, "desc_a")
     b = _check_desc(desc_b, "desc_b")
     if a.shape[1] != b.shape[1]:
-        raise ValueError(f"descriptor dimensions differ: desc_a D={a.shape[1]}, desc_b D={b.shape[1]}")
+        raise ValueError(
+            f"descriptor dimensions differ: desc_a D={a.shape[1]}, desc_b D={b.shape[1]}"
+        )
     ba = check_boxes(boxes_a, "boxes_a", a.shape[0])
     bb = check_boxes(boxes_b, "boxes_b", b.shape[0])
     return a, ba, b, bb
@@ -89,8 +91,6 @@ def check_soft_nms(soft_nms_iou: float | None, sigma: float) -> None:
         raise ValueError(f"soft_nms_iou must be in [0, 1] or None, got {soft_nms_iou}")
     if not float(sigma) > 0:
         raise ValueError(f"sigma must be > 0, got {sigma}")
-
-
 
 
 def _normalize(d: np.ndarray) -> np.ndarray:
@@ -111,7 +111,9 @@ def cosine_similarity(desc_a: ArrayLike, desc_b: ArrayLike) -> np.ndarray:
     a = _check_desc(desc_a, "desc_a")
     b = _check_desc(desc_b, "desc_b")
     if a.shape[1] != b.shape[1]:
-        raise ValueError(f"descriptor dimensions differ: desc_a D={a.shape[1]}, desc_b D={b.shape[1]}")
+        raise ValueError(
+            f"descriptor dimensions differ: desc_a D={a.shape[1]}, desc_b D={b.shape[1]}"
+        )
     return np.clip(_normalize(a) @ _normalize(b).T, -1.0, 1.0)
 
 
@@ -163,6 +165,7 @@ def reciprocal_matches(desc_a: ArrayLike, desc_b: ArrayLike) -> np.ndarray:
 
 def shape_terms(wa, wb, ha, hb, xp=np):
     """Eq. (2) from broadcastable widths and heights (``xp``: ``numpy`` or ``torch``)."""
+
     def term(u, v):
         m = xp.maximum(u, v)
         safe = xp.where(m > 0, m, xp.ones_like(m))
@@ -211,8 +214,9 @@ def match_overlaps(boxes_a: ArrayLike, boxes_b: ArrayLike, matches: ArrayLike) -
     return np.minimum(iou_a[np.ix_(i, i)], iou_b[np.ix_(j, j)])
 
 
-def soft_nms_scores(scores: ArrayLike, overlaps: ArrayLike, iou_threshold: float,
-                    sigma: float = SOFT_NMS_SIGMA) -> np.ndarray:
+def soft_nms_scores(
+    scores: ArrayLike, overlaps: ArrayLike, iou_threshold: float, sigma: float = SOFT_NMS_SIGMA
+) -> np.ndarray:
     """Algorithm 4 (overlap reduction scheme 2): Gaussian soft-NMS of match scores.
 
     Repeatedly takes the remaining pair with the highest current score (scores within
@@ -272,8 +276,14 @@ class MatchResult:
     n_b: int
 
 
-def match_landmarks(desc_a: ArrayLike, boxes_a: ArrayLike, desc_b: ArrayLike, boxes_b: ArrayLike,
-                    soft_nms_iou: float | None = None, sigma: float = SOFT_NMS_SIGMA) -> MatchResult:
+def match_landmarks(
+    desc_a: ArrayLike,
+    boxes_a: ArrayLike,
+    desc_b: ArrayLike,
+    boxes_b: ArrayLike,
+    soft_nms_iou: float | None = None,
+    sigma: float = SOFT_NMS_SIGMA,
+) -> MatchResult:
     """Match the landmarks of two images and score them (Eq. 1-2, optional Algorithm 4).
 
     Args:
@@ -303,9 +313,14 @@ def match_landmarks(desc_a: ArrayLike, boxes_a: ArrayLike, desc_b: ArrayLike, bo
     return MatchResult(m, dist, shp, np.array(scores, dtype=np.float64), sim, raw, na, nb)
 
 
-def pair_scores(desc_a: ArrayLike, boxes_a: ArrayLike, desc_b: ArrayLike, boxes_b: ArrayLike,
-                soft_nms_iou: float | None = None, sigma: float = SOFT_NMS_SIGMA
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pair_scores(
+    desc_a: ArrayLike,
+    boxes_a: ArrayLike,
+    desc_b: ArrayLike,
+    boxes_b: ArrayLike,
+    soft_nms_iou: float | None = None,
+    sigma: float = SOFT_NMS_SIGMA,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Reciprocal matches and their per-pair scores ``1 - d * s``.
 
     Args:
@@ -319,8 +334,14 @@ def pair_scores(desc_a: ArrayLike, boxes_a: ArrayLike, desc_b: ArrayLike, boxes_
     return r.matches, r.raw_scores, r.scores
 
 
-def image_similarity(desc_a: ArrayLike, boxes_a: ArrayLike, desc_b: ArrayLike, boxes_b: ArrayLike,
-                     soft_nms_iou: float | None = None, sigma: float = SOFT_NMS_SIGMA) -> float:
+def image_similarity(
+    desc_a: ArrayLike,
+    boxes_a: ArrayLike,
+    desc_b: ArrayLike,
+    boxes_b: ArrayLike,
+    soft_nms_iou: float | None = None,
+    sigma: float = SOFT_NMS_SIGMA,
+) -> float:
     """Eq. (1) similarity of two images from their landmarks.
 
     ``S = sum over reciprocal pairs (1 - d_ij * s_ij) / sqrt(na * nb)``; with ``soft_nms_iou``
@@ -338,4 +359,3 @@ def image_similarity(desc_a: ArrayLike, boxes_a: ArrayLike, desc_b: ArrayLike, b
         The similarity (float; 0 if an image has no landmark).
     """
     return match_landmarks(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou, sigma).similarity
-

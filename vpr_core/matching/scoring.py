@@ -27,9 +27,17 @@ from ..boxes import box_iou, check_boxes
 from .pairwise import TIE_TOL, shape_terms
 from .soft_nms import nms_block
 
-__all__ = ["PAD", "LandmarkSets", "Selection", "Side", "cos64", "iou_stack", "prepare_side",
-           "resolve_ties", "score_block"]
-
+__all__ = [
+    "PAD",
+    "LandmarkSets",
+    "Selection",
+    "Side",
+    "cos64",
+    "iou_stack",
+    "prepare_side",
+    "resolve_ties",
+    "score_block",
+]
 
 
 # ---- padded landmark sets ----------------------------------------------------------------
@@ -61,7 +69,7 @@ class Side:
             sel: a ``slice`` of image indices (a view, no copy) or an int64 index tensor.
         """
         if isinstance(sel, slice):
-            return self.d32[sel.start * self.k: sel.stop * self.k]
+            return self.d32[sel.start * self.k : sel.stop * self.k]
         return self.d32.view(self.n, self.k, -1).index_select(0, sel).view(-1, self.dim)
 
     def unit_images64(self, sel: slice | torch.Tensor) -> torch.Tensor:
@@ -69,7 +77,7 @@ class Side:
         if self._unit64 is None:
             self._unit64 = self.raw.double() / self.norm64()[:, None]
         if isinstance(sel, slice):
-            return self._unit64[sel.start * self.k: sel.stop * self.k]
+            return self._unit64[sel.start * self.k : sel.stop * self.k]
         return self._unit64.view(self.n, self.k, -1).index_select(0, sel).view(-1, self.dim)
 
     def build_caches(self, unit64: bool) -> None:
@@ -99,8 +107,9 @@ def _as_list(x: LandmarkSets, name: str, kind: str) -> list[np.ndarray]:
         raise ValueError(f"{name} must be a sequence of arrays or one (N, K, ...) array") from e
 
 
-def prepare_side(desc: LandmarkSets, boxes: LandmarkSets, side: str, mm_dtype: torch.dtype,
-                 device: torch.device) -> Side:
+def prepare_side(
+    desc: LandmarkSets, boxes: LandmarkSets, side: str, mm_dtype: torch.dtype, device: torch.device
+) -> Side:
     """Check, pad and normalise one side's landmark sets.
 
     Args:
@@ -152,7 +161,7 @@ def prepare_side(desc: LandmarkSets, boxes: LandmarkSets, side: str, mm_dtype: t
     wh = np.zeros((n, k, 2), dtype=np.float64)
     mask = np.zeros((n, k), dtype=bool)
     bs = []
-    for i, (c, b) in enumerate(zip(counts, bl)):
+    for i, (c, b) in enumerate(zip(counts, bl, strict=False)):
         b = check_boxes(b, f"{side}_boxes[{i}]", c)
         bs.append(b)
         wh[i, :c] = b[:, 2:]
@@ -218,7 +227,7 @@ def resolve_ties(vals: torch.Tensor, best: torch.Tensor, margin: float, sim64_fn
     sims = torch.empty(rows.shape[0], dtype=torch.float64, device=vals.device)
     step = 1024  # keeps the gathered float64 rows in cache
     for s in range(0, rows.shape[0], step):
-        sims[s:s + step] = sim64_fn(rows[s:s + step], cols[s:s + step])
+        sims[s : s + step] = sim64_fn(rows[s : s + step], cols[s : s + step])
     sims = sims.clamp(-1.0, 1.0)
     mx = torch.full((n,), -math.inf, dtype=torch.float64, device=vals.device)
     mx = mx.scatter_reduce(0, rows, sims, reduce="amax")
@@ -256,7 +265,8 @@ def _index_ones(k: int, dtype: torch.dtype, device: torch.device) -> torch.Tenso
     key = (k, dtype, device)
     if key not in _INDEX_ONES:
         _INDEX_ONES[key] = torch.stack(
-            [torch.arange(k, dtype=dtype, device=device), torch.ones(k, dtype=dtype, device=device)])
+            [torch.arange(k, dtype=dtype, device=device), torch.ones(k, dtype=dtype, device=device)]
+        )
     return _INDEX_ONES[key]
 
 
@@ -286,8 +296,11 @@ def _maxima(s: torch.Tensor, margin: float, work: torch.Tensor | None):
     cv = torch.empty((nq, nr, kr), dtype=dt, device=dev)  # ... of each reference landmark
     rsum = torch.empty((nq, 2, kq * nr), dtype=dt, device=dev)  # [index sum, count] per row
     csum = torch.empty((nq, 2, nr * kr), dtype=dt, device=dev)  # ... per column
-    w = (torch.empty(s.shape[1:], dtype=dt, device=dev) if work is None
-         else work[: s[0].numel()].view(s.shape[1:]))
+    w = (
+        torch.empty(s.shape[1:], dtype=dt, device=dev)
+        if work is None
+        else work[: s[0].numel()].view(s.shape[1:])
+    )
     idx_r = _index_ones(kr, dt, dev)  # (2, Kr)
     idx_q = _index_ones(kq, dt, dev)  # (2, Kq)
     for g in range(nq):
@@ -306,9 +319,20 @@ def _maxima(s: torch.Tensor, margin: float, work: torch.Tensor | None):
     return rv, cv, ri, ci, one_r, one_c
 
 
-def _decide_near_ties(s: torch.Tensor, q: Side, r: Side, qsel: Selection, rsel: Selection,
-                      margin: float, rv: torch.Tensor, cv: torch.Tensor, ri: torch.Tensor,
-                      ci: torch.Tensor, amb_r: torch.Tensor, amb_c: torch.Tensor) -> torch.Tensor:
+def _decide_near_ties(
+    s: torch.Tensor,
+    q: Side,
+    r: Side,
+    qsel: Selection,
+    rsel: Selection,
+    margin: float,
+    rv: torch.Tensor,
+    cv: torch.Tensor,
+    ri: torch.Tensor,
+    ci: torch.Tensor,
+    amb_r: torch.Tensor,
+    amb_c: torch.Tensor,
+) -> torch.Tensor:
     """Re-decide ambiguous rows (``amb_r``) and columns (``amb_c``) in float64, in place.
 
     Args:
@@ -362,9 +386,17 @@ def _decide_near_ties(s: torch.Tensor, q: Side, r: Side, qsel: Selection, rsel: 
     return rv
 
 
-def score_block(s: torch.Tensor, q: Side, r: Side, qsel: Selection, rsel: Selection,
-                 margin: float, nms: tuple | None, s64: torch.Tensor | None = None,
-                 work: torch.Tensor | None = None) -> torch.Tensor:
+def score_block(
+    s: torch.Tensor,
+    q: Side,
+    r: Side,
+    qsel: Selection,
+    rsel: Selection,
+    margin: float,
+    nms: tuple | None,
+    s64: torch.Tensor | None = None,
+    work: torch.Tensor | None = None,
+) -> torch.Tensor:
     """Eq. (1) for a block of image pairs from its landmark cosines.
 
     Args:

@@ -16,8 +16,14 @@ from .pairwise import NMS_TIE_TOL
 __all__ = ["nms_block", "soft_nms_batched"]
 
 
-def soft_nms_batched(scores: torch.Tensor, alive: torch.Tensor, oq: torch.Tensor,
-                      orf: torch.Tensor, t: float, sigma: float) -> torch.Tensor:
+def soft_nms_batched(
+    scores: torch.Tensor,
+    alive: torch.Tensor,
+    oq: torch.Tensor,
+    orf: torch.Tensor,
+    t: float,
+    sigma: float,
+) -> torch.Tensor:
     """Algorithm 4 on G image pairs in lockstep.
 
     Args:
@@ -50,9 +56,18 @@ def soft_nms_batched(scores: torch.Tensor, alive: torch.Tensor, oq: torch.Tensor
     return out
 
 
-def nms_block(score: torch.Tensor, shp: torch.Tensor, recip: torch.Tensor, ri_p: torch.Tensor,
-               s64: torch.Tensor, iou_q: torch.Tensor, iou_r: torch.Tensor, t: float,
-               sigma: float, group: int = 1024) -> torch.Tensor:
+def nms_block(
+    score: torch.Tensor,
+    shp: torch.Tensor,
+    recip: torch.Tensor,
+    ri_p: torch.Tensor,
+    s64: torch.Tensor,
+    iou_q: torch.Tensor,
+    iou_r: torch.Tensor,
+    t: float,
+    sigma: float,
+    group: int = 1024,
+) -> torch.Tensor:
     """Soft-NMS for a block of image pairs.
 
     Pair scores are recomputed from float64 cosines so that ties break as in the pairwise path.
@@ -75,7 +90,7 @@ def nms_block(score: torch.Tensor, shp: torch.Tensor, recip: torch.Tensor, ri_p:
         return score
     score = score.clone()
     for s0 in range(0, qi.numel(), group):
-        gq, gr = qi[s0:s0 + group], rj[s0:s0 + group]
+        gq, gr = qi[s0 : s0 + group], rj[s0 : s0 + group]
         alive0 = recip[gq, gr]  # (G, Kq)
         p = int(npair[gq, gr].max().item())
         # compact matched landmarks to the front, keeping query-landmark order (pair index)

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..utils import logger, short_hash
+import contextlib
 
 __all__ = ["ForeignEntryError", "atomic_savez", "dataset_fingerprint", "load_npz", "n_images"]
 
@@ -36,9 +37,12 @@ class ForeignEntryError(ValueError):
 
 def _cache_folder_error(path: Path, exc: OSError) -> OSError:
     """The error for a cache folder that cannot be written, naming it and the fix."""
-    return type(exc)(exc.errno, f"cannot write the cache entry {path} ({exc.strerror}); the "
-                     f"cache folder comes from VPR_CACHE_DIR (or <output root>/.cache): point "
-                     "VPR_CACHE_DIR at a writable folder with free space")
+    return type(exc)(
+        exc.errno,
+        f"cannot write the cache entry {path} ({exc.strerror}); the "
+        f"cache folder comes from VPR_CACHE_DIR (or <output root>/.cache): point "
+        "VPR_CACHE_DIR at a writable folder with free space",
+    )
 
 
 def atomic_savez(path: Path, identity: str | None = None, **arrays: Any) -> None:
@@ -69,9 +73,12 @@ def atomic_savez(path: Path, identity: str | None = None, **arrays: Any) -> None
             os.remove(tmp)
 
 
-def load_npz(path: Path, keys: tuple[str, ...], identity: str | None = None,
-             check: Callable[[dict[str, np.ndarray]], str | None] | None = None
-             ) -> dict[str, np.ndarray] | None:
+def load_npz(
+    path: Path,
+    keys: tuple[str, ...],
+    identity: str | None = None,
+    check: Callable[[dict[str, np.ndarray]], str | None] | None = None,
+) -> dict[str, np.ndarray] | None:
     """Read ``keys`` from a cached ``.npz``; ``None`` if it is absent, unreadable or foreign.
 
     An unreadable file (``BadZipFile``, ``EOFError``, a missing key, a damaged array), one whose
@@ -104,14 +111,20 @@ def load_npz(path: Path, keys: tuple[str, ...], identity: str | None = None,
     except _UNREADABLE as exc:
         if str(path) not in _REPORTED:
             _REPORTED.add(str(path))
-            what = "does not hold what it is named for" if isinstance(
-                exc, ForeignEntryError) else "is unreadable"
-            logger.warning("cache entry %s %s (%s: %s); removed, recomputing it",
-                           path, what, type(exc).__name__, exc)
-        try:
+            what = (
+                "does not hold what it is named for"
+                if isinstance(exc, ForeignEntryError)
+                else "is unreadable"
+            )
+            logger.warning(
+                "cache entry %s %s (%s: %s); removed, recomputing it",
+                path,
+                what,
+                type(exc).__name__,
+                exc,
+            )
+        with contextlib.suppress(FileNotFoundError):
             path.unlink()
-        except FileNotFoundError:
-            pass
         return None
 
 

@@ -23,8 +23,14 @@ from .cache import SIDES, atomic_savez, load_npz, n_images
 __all__ = ["encoder_kwargs", "extract_features", "features_for_image", "get_encoder"]
 
 
-def get_encoder(backbone: str = "efficientnet_lite0", dim: int = PROJECTION_DIM, seed: int = 0,
-                weights: str | None = None, pooling: str = "crop", device: str = "cpu"):
+def get_encoder(
+    backbone: str = "efficientnet_lite0",
+    dim: int = PROJECTION_DIM,
+    seed: int = 0,
+    weights: str | None = None,
+    pooling: str = "crop",
+    device: str = "cpu",
+):
     """A shared :class:`~vpr_core.features.LandmarkEncoder` (model loading is the slow part).
 
     The same arguments return the same object, however they are passed.
@@ -33,12 +39,18 @@ def get_encoder(backbone: str = "efficientnet_lite0", dim: int = PROJECTION_DIM,
 
 
 @lru_cache(maxsize=4)
-def _cached_encoder(backbone: str, dim: int, seed: int, weights: str | None, pooling: str,
-                    device: str):
+def _cached_encoder(
+    backbone: str, dim: int, seed: int, weights: str | None, pooling: str, device: str
+):
     from ..features import LandmarkEncoder
 
-    kwargs: dict[str, Any] = {"backbone": backbone, "dim": dim, "seed": seed, "pooling": pooling,
-                              "device": device}
+    kwargs: dict[str, Any] = {
+        "backbone": backbone,
+        "dim": dim,
+        "seed": seed,
+        "pooling": pooling,
+        "device": device,
+    }
     if weights is not None:
         kwargs["weights"] = weights
     enc = LandmarkEncoder(**kwargs)
@@ -88,8 +100,11 @@ def _read_store(path, dim: int, overwrite: bool = False):
             return f"{len(b)} boxes, {len(d)} descriptors and {len(c)} costs"
         return None
 
-    stored = None if overwrite else load_npz(path, ("boxes", "desc", "cost"),
-                                             identity=_store_identity(path), check=check)
+    stored = (
+        None
+        if overwrite
+        else load_npz(path, ("boxes", "desc", "cost"), identity=_store_identity(path), check=check)
+    )
     if stored is None:
         return np.zeros((0, 4)), np.zeros((0, dim), np.float32), np.zeros((0,))
     return stored["boxes"].reshape(-1, 4), stored["desc"], stored["cost"]
@@ -122,8 +137,9 @@ def _rows(store, boxes: np.ndarray) -> tuple[np.ndarray, float]:
     return s_desc[rows].astype(np.float32), float(s_cost[rows].sum())
 
 
-def features_for_image(encoder, dataset, side: str, i: int, boxes: np.ndarray,
-                       overwrite: bool = False) -> tuple[np.ndarray, float]:
+def features_for_image(
+    encoder, dataset, side: str, i: int, boxes: np.ndarray, overwrite: bool = False
+) -> tuple[np.ndarray, float]:
     """Descriptors of ``boxes`` in one image, from the per-image store; computes what is missing.
 
     Returns:
@@ -181,13 +197,18 @@ def _extract_side_crop_batched(boxes: list, dataset, side: str, encoder) -> tupl
         start = 0
         for i, k in owners:
             job = pending[i]
-            job["desc"].append(desc[start:start + k])
+            job["desc"].append(desc[start : start + k])
             job["seconds"] += per_row * k
             job["left"] -= k
             start += k
             if job["left"] == 0:
-                store = _add_to_store(job["path"], job["store"], job["new"],
-                                      np.concatenate(job["desc"]), job["seconds"])
+                store = _add_to_store(
+                    job["path"],
+                    job["store"],
+                    job["new"],
+                    np.concatenate(job["desc"]),
+                    job["seconds"],
+                )
                 results[i] = _rows(store, job["boxes"])
                 del pending[i]
 
@@ -202,8 +223,15 @@ def _extract_side_crop_batched(boxes: list, dataset, side: str, encoder) -> tupl
         image = dataset.load_image(side, i)
         t0 = time.perf_counter()
         crops = encoder.crops(image, new_boxes)
-        pending[i] = {"path": path, "store": store, "new": new_boxes, "boxes": all_boxes,
-                      "desc": [], "left": len(new_boxes), "seconds": time.perf_counter() - t0}
+        pending[i] = {
+            "path": path,
+            "store": store,
+            "new": new_boxes,
+            "boxes": all_boxes,
+            "desc": [],
+            "left": len(new_boxes),
+            "seconds": time.perf_counter() - t0,
+        }
         queue.append((i, crops))
         run(final=False)
     run(final=True)
@@ -214,8 +242,10 @@ def encoder_kwargs(encoder) -> dict[str, Any]:
     """The JSON-serialisable keyword arguments that rebuild ``encoder`` on a Dask worker."""
     kwargs = getattr(encoder, "_vpr_kwargs", None)
     if kwargs is None:
-        raise ValueError("this encoder was not made by vpr_core.pipeline.get_encoder; build it "
-                         "with get_encoder(...) to run it on a Dask cluster")
+        raise ValueError(
+            "this encoder was not made by vpr_core.pipeline.get_encoder; build it "
+            "with get_encoder(...) to run it on a Dask cluster"
+        )
     return dict(kwargs)
 
 
@@ -232,9 +262,10 @@ def _extract_side_distributed(client, boxes: list, dataset, side: str, encoder) 
     todo = [i for i in range(n) if len(missing[i])]
     if todo:
         new = [missing[i] for i in todo]
-        descs, secs = extract_features_distributed(client, dataset, side, encoder_kwargs(encoder),
-                                                   indices=todo, boxes=new)
-        for i, nb, d, s in zip(todo, new, descs, secs):
+        descs, secs = extract_features_distributed(
+            client, dataset, side, encoder_kwargs(encoder), indices=todo, boxes=new
+        )
+        for i, nb, d, s in zip(todo, new, descs, secs, strict=False):
             stores[i] = _add_to_store(paths_[i], stores[i], nb, d, s)
     out = [_rows(stores[i], all_boxes[i]) for i in range(n)]
     return [d for d, _ in out], [s for _, s in out]

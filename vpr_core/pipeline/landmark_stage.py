@@ -33,32 +33,43 @@ def _check_boxes_entry(arrays: dict) -> str | None:
     return None
 
 
-def edge_box_candidates(dataset, side: str, i: int, n_candidates: int = N_CANDIDATES,
-                        overwrite: bool = False) -> tuple[np.ndarray, float]:
+def edge_box_candidates(
+    dataset, side: str, i: int, n_candidates: int = N_CANDIDATES, overwrite: bool = False
+) -> tuple[np.ndarray, float]:
     """The ``n_candidates`` Edge Box proposals of one image, cached.
 
     Returns:
         ``(boxes (K, 4), seconds)``: proposals in proposal order (descending score) and the
         seconds the extraction took when it was computed.
     """
-    params = {"n_candidates": int(n_candidates), "sed": settings.sed_model() or "",
-              "code": code_version("landmarks")}
+    params = {
+        "n_candidates": int(n_candidates),
+        "sed": settings.sed_model() or "",
+        "code": code_version("landmarks"),
+    }
     folder = cache_dir("landmarks", config_slug("edge_boxes", params))
     key = dataset.image_key(side, i)
     path = folder / f"{key}.npz"
     identity = f"edge_boxes {config_slug('edge_boxes', params)} {key}"
-    cached = None if overwrite else load_npz(path, ("boxes", "seconds"), identity=identity,
-                                             check=_check_boxes_entry)
+    cached = (
+        None
+        if overwrite
+        else load_npz(path, ("boxes", "seconds"), identity=identity, check=_check_boxes_entry)
+    )
     if cached is not None:
         return cached["boxes"].astype(np.float64).reshape(-1, 4), float(cached["seconds"])
     image = dataset.load_image(side, i)
     t0 = time.perf_counter()
     res = lm.edge_boxes(image, max_boxes=n_candidates)
     seconds = time.perf_counter() - t0
-    atomic_savez(path, identity=identity,
-                 boxes=np.asarray(res.boxes, dtype=np.float64).reshape(-1, 4),
-                 scores=np.asarray(res.scores, dtype=np.float64),
-                 edge_source=np.array(res.edge_source), seconds=np.array(seconds))
+    atomic_savez(
+        path,
+        identity=identity,
+        boxes=np.asarray(res.boxes, dtype=np.float64).reshape(-1, 4),
+        scores=np.asarray(res.scores, dtype=np.float64),
+        edge_source=np.array(res.edge_source),
+        seconds=np.array(seconds),
+    )
     return np.asarray(res.boxes, dtype=np.float64).reshape(-1, 4), seconds
 
 
@@ -67,8 +78,9 @@ def _image_name(dataset, side: str, i: int) -> str:
     return f"{side} image {i} ({paths[i]})"
 
 
-def landmarks_for_image(conf: dict[str, Any], dataset, side: str, i: int, fresh: bool = False
-                        ) -> tuple[np.ndarray, float]:
+def landmarks_for_image(
+    conf: dict[str, Any], dataset, side: str, i: int, fresh: bool = False
+) -> tuple[np.ndarray, float]:
     """Landmarks of one image for a method's landmark config.
 
     A scheme that yields fewer landmarks than asked logs a warning naming the image.
@@ -90,19 +102,28 @@ def landmarks_for_image(conf: dict[str, Any], dataset, side: str, i: int, fresh:
         h, w = size
         return np.array([[0.0, 0.0, float(w), float(h)]]), time.perf_counter() - t0
     if scheme not in EDGE_BOX_SCHEMES:
-        raise ValueError(f"Unknown landmark scheme {scheme!r}; valid: "
-                         f"{', '.join(LANDMARK_SCHEMES)}.")
-    cands, seconds = edge_box_candidates(dataset, side, i, lconf.get("n_candidates", N_CANDIDATES),
-                                         overwrite=fresh)
+        raise ValueError(
+            f"Unknown landmark scheme {scheme!r}; valid: {', '.join(LANDMARK_SCHEMES)}."
+        )
+    cands, seconds = edge_box_candidates(
+        dataset, side, i, lconf.get("n_candidates", N_CANDIDATES), overwrite=fresh
+    )
     options = {k: lconf[k] for k in ("n", "min_index", "order", "iou_threshold") if k in lconf}
     t0 = time.perf_counter()
-    boxes = np.asarray(lm.select_from_candidates(cands, size, scheme, **options),
-                       dtype=np.float64).reshape(-1, 4)
+    boxes = np.asarray(
+        lm.select_from_candidates(cands, size, scheme, **options), dtype=np.float64
+    ).reshape(-1, 4)
     seconds += time.perf_counter() - t0
     n = lconf.get("n")
     if n is not None and len(boxes) < n:
-        logger.warning("%s gave %d of the %d landmarks asked for %s (%d Edge Box candidates)",
-                       scheme, len(boxes), n, _image_name(dataset, side, i), len(cands))
+        logger.warning(
+            "%s gave %d of the %d landmarks asked for %s (%d Edge Box candidates)",
+            scheme,
+            len(boxes),
+            n,
+            _image_name(dataset, side, i),
+            len(cands),
+        )
     return boxes, seconds
 
 

@@ -14,8 +14,16 @@ __all__ = ["INTERVAL_COLUMNS", "MethodResult", "peer_result"]
 
 
 #: Interval columns of :meth:`MethodResult.row` (95% bootstrap over queries).
-INTERVAL_COLUMNS = ["AUC lo", "AUC hi", "R@100P lo", "R@100P hi", "R@1 lo", "R@1 hi", "R@5 lo",
-                    "R@5 hi"]
+INTERVAL_COLUMNS = [
+    "AUC lo",
+    "AUC hi",
+    "R@100P lo",
+    "R@100P hi",
+    "R@1 lo",
+    "R@1 hi",
+    "R@5 lo",
+    "R@5 hi",
+]
 
 
 @dataclass
@@ -78,10 +86,13 @@ class MethodResult:
 
         iv = ", ".join(f"{k} {format_interval(*v)}" for k, v in self.intervals.items())
         nq, nr = np.shape(self.similarity)
-        return (f"MethodResult({self.label!r} on {self.dataset!r}, tolerance {self.tolerance}, "
-                f"{self.protocol}: {iv or 'no intervals'}; {self.queries_with_gt[0]} of "
-                f"{self.queries_with_gt[1]} queries with ground truth, similarity {nq}x{nr}"
-                + (f"; {len(self.warnings)} warning(s)" if self.warnings else "") + ")")
+        return (
+            f"MethodResult({self.label!r} on {self.dataset!r}, tolerance {self.tolerance}, "
+            f"{self.protocol}: {iv or 'no intervals'}; {self.queries_with_gt[0]} of "
+            f"{self.queries_with_gt[1]} queries with ground truth, similarity {nq}x{nr}"
+            + (f"; {len(self.warnings)} warning(s)" if self.warnings else "")
+            + ")"
+        )
 
     def row(self) -> dict:
         """One table row: label, run key, metrics with their 95% intervals, coverage, costs."""
@@ -91,24 +102,30 @@ class MethodResult:
             value = m.get(key, m.get(key.replace("@", "_at_")))
             lo, hi = (iv[key][1], iv[key][2]) if key in iv else (np.nan, np.nan)
             row[name], row[f"{name} lo"], row[f"{name} hi"] = float(value), float(lo), float(hi)
-        row.update({"queries": int(self.queries_with_gt[0]),
-                    "landmarks/img": float(t["landmarks_per_image"]),
-                    "landmarks s/img": float(t["landmarks_s_per_image"]),
-                    "features s/img": float(t["features_s_per_image"]),
-                    "matching s/pair": float(t["matching_s_per_pair"]),
-                    "pairs scored": float(t.get("pairs", np.nan))})
+        row.update(
+            {
+                "queries": int(self.queries_with_gt[0]),
+                "landmarks/img": float(t["landmarks_per_image"]),
+                "landmarks s/img": float(t["landmarks_s_per_image"]),
+                "features s/img": float(t["features_s_per_image"]),
+                "matching s/pair": float(t["matching_s_per_pair"]),
+                "pairs scored": float(t.get("pairs", np.nan)),
+            }
+        )
         return row
 
     def curve(self, protocol: str | None = None):
         """PR curve of this result under ``protocol`` (default: the result's own)."""
         from ..evaluation import pr_curve
 
-        return pr_curve(self.similarity, self.ground_truth, protocol=protocol or self.protocol,
-                        warn=False)
+        return pr_curve(
+            self.similarity, self.ground_truth, protocol=protocol or self.protocol, warn=False
+        )
 
 
-def peer_result(peer, dataset, n_bootstrap: int = N_BOOTSTRAP, label: str | None = None,
-                protocol: str = "ratio") -> MethodResult:
+def peer_result(
+    peer, dataset, n_bootstrap: int = N_BOOTSTRAP, label: str | None = None, protocol: str = "ratio"
+) -> MethodResult:
     """A VPR-Bench peer (:class:`~vpr_core.baselines.PeerResult`) as a result beside ours.
 
     Its similarity matrix is checked against ``dataset`` (shape, query order) and evaluated with
@@ -129,16 +146,32 @@ def peer_result(peer, dataset, n_bootstrap: int = N_BOOTSTRAP, label: str | None
     sim = peer_similarity_for(dataset, peer)
     gt = np.asarray(dataset.ground_truth, dtype=bool)
     nq, nr = gt.shape
-    timings = {"landmarks_s_per_image": float("nan"), "landmarks_per_image": float("nan"),
-               "features_s_per_image": float(peer.encode_seconds),
-               "matching_s_per_pair": float(peer.match_seconds), "pairs": float(nq * nr)}
+    timings = {
+        "landmarks_s_per_image": float("nan"),
+        "landmarks_per_image": float("nan"),
+        "features_s_per_image": float(peer.encode_seconds),
+        "matching_s_per_pair": float(peer.match_seconds),
+        "pairs": float(nq * nr),
+    }
     source = None if peer.source is None else str(peer.source)
     return MethodResult(
-        method=f"peer:{peer.name}", label=label or f"{peer.name} (VPR-Bench)",
-        dataset=dataset.name, config={"name": f"peer:{peer.name}", "source": source},
-        encoder={}, similarity=sim, ground_truth=gt, boxes={"query": [], "reference": []},
-        metrics=evaluate(sim, gt, protocol=protocol), timings=timings,
-        intervals=(bootstrap_metrics(sim, gt, n=n_bootstrap, seed=0, protocol=protocol)
-                   if n_bootstrap else {}),
-        queries_with_gt=ground_truth_coverage(gt), tolerance=dataset.tolerance,
-        root=None if dataset.root is None else str(dataset.root), protocol=protocol)
+        method=f"peer:{peer.name}",
+        label=label or f"{peer.name} (VPR-Bench)",
+        dataset=dataset.name,
+        config={"name": f"peer:{peer.name}", "source": source},
+        encoder={},
+        similarity=sim,
+        ground_truth=gt,
+        boxes={"query": [], "reference": []},
+        metrics=evaluate(sim, gt, protocol=protocol),
+        timings=timings,
+        intervals=(
+            bootstrap_metrics(sim, gt, n=n_bootstrap, seed=0, protocol=protocol)
+            if n_bootstrap
+            else {}
+        ),
+        queries_with_gt=ground_truth_coverage(gt),
+        tolerance=dataset.tolerance,
+        root=None if dataset.root is None else str(dataset.root),
+        protocol=protocol,
+    )

@@ -38,23 +38,31 @@ def _exclude_empty(sim: np.ndarray, boxes: dict, dataset) -> np.ndarray:
     sim = sim.copy()
     sim[empty["query"], :] = np.nan
     sim[:, empty["reference"]] = np.nan
-    names = [f"{s} {i} ({(dataset.query_paths if s == 'query' else dataset.reference_paths)[i]})"
-             for s in SIDES for i in empty[s]]
-    notice(f"no landmarks in {len(names)} image(s), excluded from ranking (their pairs count as "
-           f"not retrieved): {'; '.join(names[:10])}{' ...' if len(names) > 10 else ''}")
+    names = [
+        f"{s} {i} ({(dataset.query_paths if s == 'query' else dataset.reference_paths)[i]})"
+        for s in SIDES
+        for i in empty[s]
+    ]
+    notice(
+        f"no landmarks in {len(names)} image(s), excluded from ranking (their pairs count as "
+        f"not retrieved): {'; '.join(names[:10])}{' ...' if len(names) > 10 else ''}"
+    )
     return sim
 
 
 def _check_shortlist(shortlist: Any, n_ref: int) -> int | None:
     if shortlist is None:
         return None
-    if isinstance(shortlist, bool) or not isinstance(shortlist, (int, np.integer)) \
-            or shortlist < 1:
-        raise ValueError(f"shortlist must be a positive integer k (references re-ranked per "
-                         f"query) or None for exhaustive matching, got {shortlist!r}")
+    if isinstance(shortlist, bool) or not isinstance(shortlist, (int, np.integer)) or shortlist < 1:
+        raise ValueError(
+            f"shortlist must be a positive integer k (references re-ranked per "
+            f"query) or None for exhaustive matching, got {shortlist!r}"
+        )
     if shortlist == 1:
-        logger.warning("shortlist=1 leaves no second-best reference: the ratio protocol then "
-                       "sets S2 := S1 (ratio 1); use k >= 2")
+        logger.warning(
+            "shortlist=1 leaves no second-best reference: the ratio protocol then "
+            "sets S2 := S1 (ratio 1); use k >= 2"
+        )
     return int(shortlist) if shortlist < n_ref else None  # k >= Nr is exhaustive
 
 
@@ -64,15 +72,21 @@ def _features(boxes: dict, dataset, encoder, shortlist: int | None, client):
         return extract_features(boxes, dataset, encoder, client=client), None
     from ..engine.shortlist import split_whole_image, with_whole_image_boxes
 
-    feats = extract_features(with_whole_image_boxes(boxes, dataset), dataset, encoder,
-                             client=client)
+    feats = extract_features(
+        with_whole_image_boxes(boxes, dataset), dataset, encoder, client=client
+    )
     return split_whole_image(feats)
 
 
-def match(boxes: dict[str, Any], feats: dict[str, Any], soft_nms_iou: float | None = None,
-          sigma: float = SOFT_NMS_SIGMA, shortlist: int | None = None,
-          global_desc: dict[str, np.ndarray] | None = None, client=None
-          ) -> tuple[np.ndarray, dict[str, float]]:
+def match(
+    boxes: dict[str, Any],
+    feats: dict[str, Any],
+    soft_nms_iou: float | None = None,
+    sigma: float = SOFT_NMS_SIGMA,
+    shortlist: int | None = None,
+    global_desc: dict[str, np.ndarray] | None = None,
+    client=None,
+) -> tuple[np.ndarray, dict[str, float]]:
     """Eq. (1) similarities: exhaustive in-process (the paper's path: one
     :func:`~vpr_core.matching.similarity_matrix` call), or on each query's shortlist, or on a
     Dask client (:mod:`vpr_core.engine`, imported only then).
@@ -101,10 +115,14 @@ def match(boxes: dict[str, Any], feats: dict[str, Any], soft_nms_iou: float | No
         else:
             from ..engine.blocks import similarity_blocks_distributed
 
-            sim = similarity_blocks_distributed(client, *args, soft_nms_iou=soft_nms_iou,
-                                                sigma=sigma)
-        return sim, {"pairs": float(nq * nr), "shortlist_s": 0.0,
-                     "matching_s": time.perf_counter() - t0}
+            sim = similarity_blocks_distributed(
+                client, *args, soft_nms_iou=soft_nms_iou, sigma=sigma
+            )
+        return sim, {
+            "pairs": float(nq * nr),
+            "shortlist_s": 0.0,
+            "matching_s": time.perf_counter() - t0,
+        }
     if global_desc is None:
         raise ValueError("shortlist=k needs the whole-image descriptors (global_desc)")
     from ..engine.blocks import similarity_pairs_distributed
@@ -112,21 +130,39 @@ def match(boxes: dict[str, Any], feats: dict[str, Any], soft_nms_iou: float | No
 
     pairs, _ = shortlist_pairs(global_desc["query"], global_desc["reference"], shortlist)
     t1 = time.perf_counter()
-    vals = similarity_pairs_distributed(client, *args, pairs, soft_nms_iou=soft_nms_iou,
-                                        sigma=sigma)  # client None: one similarity_pairs call
+    vals = similarity_pairs_distributed(
+        client, *args, pairs, soft_nms_iou=soft_nms_iou, sigma=sigma
+    )  # client None: one similarity_pairs call
     sim = rerank(vals, pairs, nq, nr)
     t2 = time.perf_counter()
-    logger.info("shortlist k=%d: Eq. (1) on %d of %d pairs (%.1f s ranking, %.1f s matching)",
-                shortlist, len(pairs), nq * nr, t1 - t0, t2 - t1)
+    logger.info(
+        "shortlist k=%d: Eq. (1) on %d of %d pairs (%.1f s ranking, %.1f s matching)",
+        shortlist,
+        len(pairs),
+        nq * nr,
+        t1 - t0,
+        t2 - t1,
+    )
     return sim, {"pairs": float(len(pairs)), "shortlist_s": t1 - t0, "matching_s": t2 - t1}
 
 
-def run_method(method: str | dict, dataset, backbone: str = "efficientnet_lite0",
-               dim: int = PROJECTION_DIM, seed: int = 0, weights: str | None = None,
-               keep_descriptors: bool = False, label: str | None = None,
-               pooling: str = "crop", device: str = "cpu", shortlist: int | None = None,
-               scheduler: str | None = None, n_bootstrap: int = N_BOOTSTRAP,
-               protocol: str = "ratio", **overrides: Any) -> MethodResult:
+def run_method(
+    method: str | dict,
+    dataset,
+    backbone: str = "efficientnet_lite0",
+    dim: int = PROJECTION_DIM,
+    seed: int = 0,
+    weights: str | None = None,
+    keep_descriptors: bool = False,
+    label: str | None = None,
+    pooling: str = "crop",
+    device: str = "cpu",
+    shortlist: int | None = None,
+    scheduler: str | None = None,
+    n_bootstrap: int = N_BOOTSTRAP,
+    protocol: str = "ratio",
+    **overrides: Any,
+) -> MethodResult:
     """Run a named method (or a config from :func:`~vpr_core.methods.get_method`) on a dataset.
 
     Args:
@@ -156,18 +192,48 @@ def run_method(method: str | dict, dataset, backbone: str = "efficientnet_lite0"
     """
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", VPRWarning)
-        result = _run_method(method, dataset, backbone, dim, seed, weights, keep_descriptors,
-                             label, pooling, device, shortlist, scheduler, n_bootstrap,
-                             protocol, overrides)
+        result = _run_method(
+            method,
+            dataset,
+            backbone,
+            dim,
+            seed,
+            weights,
+            keep_descriptors,
+            label,
+            pooling,
+            device,
+            shortlist,
+            scheduler,
+            n_bootstrap,
+            protocol,
+            overrides,
+        )
     for w in caught:  # hand every warning on to the caller's filters, and record ours
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    result.warnings = list(dict.fromkeys(str(w.message) for w in caught
-                                         if issubclass(w.category, VPRWarning)))
+    result.warnings = list(
+        dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, VPRWarning))
+    )
     return result
 
 
-def _run_method(method, dataset, backbone, dim, seed, weights, keep_descriptors, label, pooling,
-                device, shortlist, scheduler, n_bootstrap, protocol, overrides) -> MethodResult:
+def _run_method(
+    method,
+    dataset,
+    backbone,
+    dim,
+    seed,
+    weights,
+    keep_descriptors,
+    label,
+    pooling,
+    device,
+    shortlist,
+    scheduler,
+    n_bootstrap,
+    protocol,
+    overrides,
+) -> MethodResult:
     from ..evaluation import (
         PROTOCOLS,
         bootstrap_metrics,
@@ -191,9 +257,13 @@ def _run_method(method, dataset, backbone, dim, seed, weights, keep_descriptors,
     try:
         boxes = extract_landmarks(conf, dataset)
         feats, glob = _features(boxes, dataset, encoder, k, client)
-        key = {"dataset": dataset_fingerprint(dataset), "landmarks": landmark_config(conf),
-               "matching": conf["matching"], "encoder": dict(encoder.config),
-               "code": {stage: code_version(stage) for stage in STAGE_SOURCES}}
+        key = {
+            "dataset": dataset_fingerprint(dataset),
+            "landmarks": landmark_config(conf),
+            "matching": conf["matching"],
+            "encoder": dict(encoder.config),
+            "code": {stage: code_version(stage) for stage in STAGE_SOURCES},
+        }
         if k is not None:
             key["shortlist"] = k
         folder = cache_dir("results", f"{dataset.name}-{key['dataset']}")
@@ -202,30 +272,46 @@ def _run_method(method, dataset, backbone, dim, seed, weights, keep_descriptors,
 
         def check(a: dict) -> str | None:
             shape = a["similarity"].shape
-            return None if shape == (nq, nr) else f"a similarity matrix of shape {shape}, " \
-                f"expected ({nq}, {nr}) for this dataset"
+            return (
+                None
+                if shape == (nq, nr)
+                else f"a similarity matrix of shape {shape}, expected ({nq}, {nr}) for this dataset"
+            )
 
-        cached = load_npz(path, ("similarity", "seconds_per_pair", "pairs"), identity=identity,
-                          check=check)
+        cached = load_npz(
+            path, ("similarity", "seconds_per_pair", "pairs"), identity=identity, check=check
+        )
         if cached is not None:
             sim, match_s = cached["similarity"], float(cached["seconds_per_pair"])
             n_pairs = float(cached["pairs"])
         else:
-            sim, info = match(boxes, feats, soft_nms_iou=conf["matching"]["soft_nms_iou"],
-                              sigma=conf["matching"]["sigma"], shortlist=k, global_desc=glob,
-                              client=client)
+            sim, info = match(
+                boxes,
+                feats,
+                soft_nms_iou=conf["matching"]["soft_nms_iou"],
+                sigma=conf["matching"]["sigma"],
+                shortlist=k,
+                global_desc=glob,
+                client=client,
+            )
             n_pairs = info["pairs"]
             match_s = (info["matching_s"] + info["shortlist_s"]) / max(n_pairs, 1)
-            atomic_savez(path, identity=identity, similarity=sim, seconds_per_pair=np.array(match_s),
-                         pairs=np.array(n_pairs))
+            atomic_savez(
+                path,
+                identity=identity,
+                similarity=sim,
+                seconds_per_pair=np.array(match_s),
+                pairs=np.array(n_pairs),
+            )
     finally:
         if client is not None:
             client.close()
     sim = _exclude_empty(np.asarray(sim, dtype=np.float64), boxes, dataset)
     gt = np.asarray(dataset.ground_truth, dtype=bool)
     metrics = evaluate(sim, gt, protocol=protocol)
-    intervals = (bootstrap_metrics(sim, gt, n=n_bootstrap, seed=0, protocol=protocol)
-                 if n_bootstrap else {})
+    intervals = (
+        bootstrap_metrics(sim, gt, n=n_bootstrap, seed=0, protocol=protocol) if n_bootstrap else {}
+    )
     saturation_notice(gt, intervals)
     n_img = nq + nr
     timings = {
@@ -235,19 +321,37 @@ def _run_method(method, dataset, backbone, dim, seed, weights, keep_descriptors,
         "landmarks_per_image": float(np.mean([len(b) for s in SIDES for b in boxes[s]])),
         "pairs": n_pairs,
     }
-    logger.info("%s on %s: %d images, %.0f landmarks/img; landmarks %.2f s/img, features %.3f "
-                "s/img, Eq. (1) on %d pairs%s; AUC(%s) %.3f, R@1 %.3f",
-                label or method_label(conf), dataset.name, n_img,
-                timings["landmarks_per_image"], timings["landmarks_s_per_image"],
-                timings["features_s_per_image"], int(n_pairs),
-                " (read from the cache)" if cached is not None else "", protocol,
-                metrics["auc"], metrics["r@1"])
+    logger.info(
+        "%s on %s: %d images, %.0f landmarks/img; landmarks %.2f s/img, features %.3f "
+        "s/img, Eq. (1) on %d pairs%s; AUC(%s) %.3f, R@1 %.3f",
+        label or method_label(conf),
+        dataset.name,
+        n_img,
+        timings["landmarks_per_image"],
+        timings["landmarks_s_per_image"],
+        timings["features_s_per_image"],
+        int(n_pairs),
+        " (read from the cache)" if cached is not None else "",
+        protocol,
+        metrics["auc"],
+        metrics["r@1"],
+    )
     return MethodResult(
-        method=conf["name"], label=label or method_label(conf), dataset=dataset.name,
-        config=conf, encoder=dict(encoder.config), similarity=sim, ground_truth=gt,
-        boxes={s: boxes[s] for s in SIDES}, metrics=metrics, timings=timings,
+        method=conf["name"],
+        label=label or method_label(conf),
+        dataset=dataset.name,
+        config=conf,
+        encoder=dict(encoder.config),
+        similarity=sim,
+        ground_truth=gt,
+        boxes={s: boxes[s] for s in SIDES},
+        metrics=metrics,
+        timings=timings,
         descriptors={s: feats[s] for s in SIDES} if keep_descriptors else None,
-        intervals=intervals, shortlist=k, queries_with_gt=ground_truth_coverage(gt),
-        tolerance=dataset.tolerance, root=None if dataset.root is None else str(dataset.root),
+        intervals=intervals,
+        shortlist=k,
+        queries_with_gt=ground_truth_coverage(gt),
+        tolerance=dataset.tolerance,
+        root=None if dataset.root is None else str(dataset.root),
         protocol=protocol,
     )

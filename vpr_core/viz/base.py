@@ -31,8 +31,9 @@ def png_metadata(suffix: str) -> dict:
     return {"Software": None} if suffix == ".png" else {"CreationDate": None, "Producer": None}
 
 
-def save_figure(fig: matplotlib.figure.Figure, name: str | Path, dataset: str | None = None,
-                dpi: int = SAVE_DPI) -> Path:
+def save_figure(
+    fig: matplotlib.figure.Figure, name: str | Path, dataset: str | None = None, dpi: int = SAVE_DPI
+) -> Path:
     """Save ``fig`` as ``<output root>/figures/<dataset>/<name>.png``, byte-identical for
     identical inputs.
 
@@ -56,8 +57,13 @@ def save_figure(fig: matplotlib.figure.Figure, name: str | Path, dataset: str | 
     make_dir(path.parent, "--out / VPR_OUTPUT_DIR (default: the current folder)")
     tmp = path.with_name(path.name + ".tmp")
     try:  # written whole or not at all (a full disk leaves no half PNG)
-        fig.savefig(tmp, dpi=dpi, metadata=png_metadata(path.suffix), bbox_inches=None,
-                    format=path.suffix[1:])
+        fig.savefig(
+            tmp,
+            dpi=dpi,
+            metadata=png_metadata(path.suffix),
+            bbox_inches=None,
+            format=path.suffix[1:],
+        )
         tmp.replace(path)
     finally:
         tmp.unlink(missing_ok=True)
@@ -102,26 +108,45 @@ def layout_problems(fig: matplotlib.figure.Figure) -> list[str]:
     renderer = fig.canvas.get_renderer()
     canvas = fig.bbox
     problems = []
-    parts = [(f"axes {ax.get_title()[:50]!r} (its title, tick or axis labels)",
-              ax.get_tightbbox(renderer)) for ax in fig.axes if ax.get_visible()]
-    parts += [(f"text {t.get_text()[:50]!r}", t.get_window_extent(renderer))
-              for t in fig.texts if t.get_visible() and t.get_text().strip()]
+    parts = [
+        (
+            f"axes {ax.get_title()[:50]!r} (its title, tick or axis labels)",
+            ax.get_tightbbox(renderer),
+        )
+        for ax in fig.axes
+        if ax.get_visible()
+    ]
+    parts += [
+        (f"text {t.get_text()[:50]!r}", t.get_window_extent(renderer))
+        for t in fig.texts
+        if t.get_visible() and t.get_text().strip()
+    ]
     parts += [("a figure legend", leg.get_window_extent(renderer)) for leg in fig.legends]
     for what, bb in parts:
         if bb is None:
             continue
-        if bb.x0 < canvas.x0 - 1 or bb.y0 < canvas.y0 - 1 or bb.x1 > canvas.x1 + 1 or \
-                bb.y1 > canvas.y1 + 1:
+        if (
+            bb.x0 < canvas.x0 - 1
+            or bb.y0 < canvas.y0 - 1
+            or bb.x1 > canvas.x1 + 1
+            or bb.y1 > canvas.y1 + 1
+        ):
             problems.append(f"{what} extends beyond the canvas")
     for leg in _legend_boxes(fig):
         bb = leg.get_window_extent(renderer)
         for ax in fig.axes:
             pts = _data_points(ax)
-            inside = ((pts[:, 0] > bb.x0) & (pts[:, 0] < bb.x1) & (pts[:, 1] > bb.y0)
-                      & (pts[:, 1] < bb.y1))
+            inside = (
+                (pts[:, 0] > bb.x0)
+                & (pts[:, 0] < bb.x1)
+                & (pts[:, 1] > bb.y0)
+                & (pts[:, 1] < bb.y1)
+            )
             if inside.any():
-                problems.append(f"the legend covers {int(inside.sum())} data point(s) of the "
-                                f"axes {ax.get_title()[:40]!r}")
+                problems.append(
+                    f"the legend covers {int(inside.sum())} data point(s) of the "
+                    f"axes {ax.get_title()[:40]!r}"
+                )
     return problems
 
 
@@ -148,23 +173,20 @@ def save(obj, name: str, label: str, out: str | Path | None = None) -> Path:
     import pandas as pd
 
     if not label or not isinstance(label, str):
-        raise ValueError(f"save(): label must name the dataset (a non-empty string), got "
-                         f"{label!r}")
+        raise ValueError(f"save(): label must name the dataset (a non-empty string), got {label!r}")
     root = None if out is None else Path(out).expanduser().resolve()
     from ..paths import make_dir
 
     setting = "--out / VPR_OUTPUT_DIR (default: the current folder)"
     if isinstance(obj, matplotlib.figure.Figure):
-        folder = figures_dir(label) if root is None else make_dir(root / "figures" / label,
-                                                                  setting)
+        folder = figures_dir(label) if root is None else make_dir(root / "figures" / label, setting)
         from ..notices import notice
 
         for problem in layout_problems(obj):
             notice(f"layout of {name}: {problem}")
         return save_figure(obj, folder / f"{name}.png")
     if isinstance(obj, pd.DataFrame):
-        folder = results_dir(label) if root is None else make_dir(root / "results" / label,
-                                                                  setting)
+        folder = results_dir(label) if root is None else make_dir(root / "results" / label, setting)
         path = folder / f"{name}.csv"
         tmp = path.with_name(path.name + ".tmp")
         try:
@@ -173,8 +195,9 @@ def save(obj, name: str, label: str, out: str | Path | None = None) -> Path:
         finally:
             tmp.unlink(missing_ok=True)
         return path
-    raise TypeError(f"save() writes a matplotlib Figure or a pandas DataFrame, got "
-                    f"{type(obj).__name__}")
+    raise TypeError(
+        f"save() writes a matplotlib Figure or a pandas DataFrame, got {type(obj).__name__}"
+    )
 
 
 def draw_boxes(ax, boxes: np.ndarray, color="yellow", lw: float = 1.0, alpha: float = 0.9) -> None:

@@ -16,8 +16,9 @@ from .base import METHOD_COLORS
 __all__ = ["dataset_line", "plot_metric_bars", "plot_pr_curves", "plot_scale_distribution"]
 
 
-def plot_scale_distribution(hists: dict, title: str | None = None, ax=None,
-                            normalize: bool = False) -> matplotlib.figure.Figure:
+def plot_scale_distribution(
+    hists: dict, title: str | None = None, ax=None, normalize: bool = False
+) -> matplotlib.figure.Figure:
     """Fig. 6: landmark counts per Table-1 scale, bars grouped by label (e.g. query/reference).
 
     Args:
@@ -67,12 +68,15 @@ def dataset_line(results) -> str:
     name = r.dataset
     if name == "folder" and getattr(r, "root", None):  # name the data, not the loader
         name = f"{Path(r.root).name} (folder)"
-    return (f"{name}: {n_gt} of {n_q} queries with ground truth, tolerance {r.tolerance}, "
-            f"protocol {getattr(r, 'protocol', 'ratio')}")
+    return (
+        f"{name}: {n_gt} of {n_q} queries with ground truth, tolerance {r.tolerance}, "
+        f"protocol {getattr(r, 'protocol', 'ratio')}"
+    )
 
 
-def plot_pr_curves(results, title: str | None = None, colors: dict | None = None
-                   ) -> matplotlib.figure.Figure:
+def plot_pr_curves(
+    results, title: str | None = None, colors: dict | None = None
+) -> matplotlib.figure.Figure:
     """Precision (y) against recall (x) of several results; the legend (beside the axes, never
     over the curves) gives each AUC with its 95% bootstrap interval.
 
@@ -98,10 +102,13 @@ def plot_pr_curves(results, title: str | None = None, colors: dict | None = None
     colors = dict(colors or {})
     spare = iter([f"C{i}" for i in range(10)] + [plt.cm.tab20(i) for i in range(20)])
     used: set[str] = set()
-    for r, twin in zip(results, identical_to(results)):
+    for r, twin in zip(results, identical_to(results), strict=False):
         iv = getattr(r, "intervals", {}).get("auc")
-        auc = (f"AUC {iv[0]:.3f} [{iv[1]:.3f}, {iv[2]:.3f}]" if iv is not None
-               else f"AUC {auc_pr(r.curve()):.3f}")
+        auc = (
+            f"AUC {iv[0]:.3f} [{iv[1]:.3f}, {iv[2]:.3f}]"
+            if iv is not None
+            else f"AUC {auc_pr(r.curve()):.3f}"
+        )
         if twin is not None:  # same matrix: same curve; say so instead of hiding it
             ax.plot([], [], lw=0, label=f"{r.label} (= {twin}, {auc})")
             continue
@@ -116,8 +123,14 @@ def plot_pr_curves(results, title: str | None = None, colors: dict | None = None
     ax.set_xlabel("recall")
     ax.set_ylabel("precision")
     ax.grid(alpha=0.3)
-    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8, frameon=False,
-              title="AUC with 95% CI", title_fontsize=8)
+    ax.legend(
+        loc="upper left",
+        bbox_to_anchor=(1.02, 1.0),
+        fontsize=8,
+        frameon=False,
+        title="AUC with 95% CI",
+        title_fontsize=8,
+    )
     head = f"{title}\n" if title else ""
     ax.set_title(head + dataset_line(results), fontsize=9, loc="left")
     fig.draw_without_rendering()  # lay out once, then freeze: every later render is the same
@@ -125,8 +138,9 @@ def plot_pr_curves(results, title: str | None = None, colors: dict | None = None
     return fig
 
 
-def plot_metric_bars(table, metric: str = "auc", title: str | None = None, ax=None,
-                     colors: dict | None = None) -> matplotlib.figure.Figure:
+def plot_metric_bars(
+    table, metric: str = "auc", title: str | None = None, ax=None, colors: dict | None = None
+) -> matplotlib.figure.Figure:
     """Bar chart of one metric column of ``evaluation.metrics_table`` (one bar per method).
 
     Args:

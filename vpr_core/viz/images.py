@@ -11,12 +11,20 @@ import pandas as pd
 from ..paper import DENSE_PER_SCALE, DENSE_SCALES
 from .base import draw_boxes, landmark_canvas, show_canvas
 
-__all__ = ["plot_coverage", "plot_coverage_comparison", "plot_dataset_overview",
-           "plot_dense_scales", "plot_examples", "plot_landmark_panels", "plot_landmarks"]
+__all__ = [
+    "plot_coverage",
+    "plot_coverage_comparison",
+    "plot_dataset_overview",
+    "plot_dense_scales",
+    "plot_examples",
+    "plot_landmark_panels",
+    "plot_landmarks",
+]
 
 
-def plot_examples(dataset, indices=(0, 1, 2), boxes=None,
-                  title: str | None = None) -> matplotlib.figure.Figure:
+def plot_examples(
+    dataset, indices=(0, 1, 2), boxes=None, title: str | None = None
+) -> matplotlib.figure.Figure:
     """Reference / query example pairs: one row per pair, columns ``reference | query``.
 
     Args:
@@ -44,7 +52,7 @@ def plot_examples(dataset, indices=(0, 1, 2), boxes=None,
             raise IndexError(f"plot_examples: query {q} has no ground-truth reference to show.")
         rows.append((q, r))
     fig, axes = plt.subplots(len(rows), 2, figsize=(9.0, 2.6 * len(rows)), squeeze=False)
-    for (q, r), (ax_r, ax_q) in zip(rows, axes):
+    for (q, r), (ax_r, ax_q) in zip(rows, axes, strict=False):
         for ax, side, i in ((ax_r, "reference", r), (ax_q, "query", q)):
             img = dataset.load_image(side, i)
             ax.imshow(img)
@@ -55,8 +63,10 @@ def plot_examples(dataset, indices=(0, 1, 2), boxes=None,
             ax.set_xticks([])
             ax.set_yticks([])
     tol = getattr(dataset, "tolerance", None)
-    fig.suptitle(title if title is not None else
-                 f"{dataset.name}: reference | query (tolerance {tol})", fontsize=10)
+    fig.suptitle(
+        title if title is not None else f"{dataset.name}: reference | query (tolerance {tol})",
+        fontsize=10,
+    )
     fig.tight_layout()
     return fig
 
@@ -82,15 +92,23 @@ def plot_dataset_overview(dataset, n: int = 6) -> matplotlib.figure.Figure:
             ax.set_xticks([])
             ax.set_yticks([])
             ax.set_title(f"{side[0]}{int(i)}", fontsize=8)
-    fig.suptitle(f"{dataset.name}: {len(dataset)} queries, {len(dataset.reference_paths)} "
-                 "references (top: reference, bottom: query)", fontsize=9)
+    fig.suptitle(
+        f"{dataset.name}: {len(dataset)} queries, {len(dataset.reference_paths)} "
+        "references (top: reference, bottom: query)",
+        fontsize=9,
+    )
     fig.tight_layout()
     return fig
 
 
-
-def plot_landmarks(image: np.ndarray, boxes: np.ndarray, ax=None, color: str = "yellow",
-                   title: str | None = None, lw: float = 1.0) -> matplotlib.figure.Figure:
+def plot_landmarks(
+    image: np.ndarray,
+    boxes: np.ndarray,
+    ax=None,
+    color: str = "yellow",
+    title: str | None = None,
+    lw: float = 1.0,
+) -> matplotlib.figure.Figure:
     """Draw ``(K, 4)`` ``(x, y, w, h)`` landmark boxes on an ``(H, W, 3)`` image.
 
     Returns the figure (a new one when ``ax`` is None).
@@ -109,8 +127,9 @@ def plot_landmarks(image: np.ndarray, boxes: np.ndarray, ax=None, color: str = "
     return fig
 
 
-def plot_dense_scales(image_or_size, scales=DENSE_SCALES,
-                      per_scale=DENSE_PER_SCALE) -> matplotlib.figure.Figure:
+def plot_dense_scales(
+    image_or_size, scales=DENSE_SCALES, per_scale=DENSE_PER_SCALE
+) -> matplotlib.figure.Figure:
     """Fig. 9: one panel per dense-sampling scale level with that level's boxes.
 
     Args:
@@ -127,8 +146,12 @@ def plot_dense_scales(image_or_size, scales=DENSE_SCALES,
     ncols = 2 if n == 4 else min(n, 3)
     nrows = int(np.ceil(n / ncols))
     panel_w = 4.2
-    fig, axes = plt.subplots(nrows, ncols, squeeze=False,
-                             figsize=(panel_w * ncols, (panel_w * size[0] / size[1] + 0.5) * nrows))
+    fig, axes = plt.subplots(
+        nrows,
+        ncols,
+        squeeze=False,
+        figsize=(panel_w * ncols, (panel_w * size[0] / size[1] + 0.5) * nrows),
+    )
     colors = plt.get_cmap("tab10").colors
     for k, ax in enumerate(axes.ravel()):
         if k >= n:
@@ -138,14 +161,23 @@ def plot_dense_scales(image_or_size, scales=DENSE_SCALES,
         show_canvas(ax, img, size)
         for j, box in enumerate(boxes):
             draw_boxes(ax, box[None], color=colors[j % len(colors)], lw=1.0)
-        ax.set_title(f"({chr(ord('a') + k)}) scale {k + 1}: {len(boxes)} landmarks, "
-                     f"{scales[k]:g} normalized scale", fontsize=9)
+        ax.set_title(
+            f"({chr(ord('a') + k)}) scale {k + 1}: {len(boxes)} landmarks, "
+            f"{scales[k]:g} normalized scale",
+            fontsize=9,
+        )
     fig.tight_layout()
     return fig
 
 
-def plot_coverage(image: np.ndarray, boxes: np.ndarray, ax=None, cmap: str = "viridis",
-                  alpha: float = 0.6, title: str | None = None) -> matplotlib.figure.Figure:
+def plot_coverage(
+    image: np.ndarray,
+    boxes: np.ndarray,
+    ax=None,
+    cmap: str = "viridis",
+    alpha: float = 0.6,
+    title: str | None = None,
+) -> matplotlib.figure.Figure:
     """Fig. 14: how many landmarks cover each pixel, as a heatmap over the (grey) image.
 
     The default title gives the share of pixels covered by at least one box.
@@ -163,11 +195,13 @@ def plot_coverage(image: np.ndarray, boxes: np.ndarray, ax=None, cmap: str = "vi
     im = ax.imshow(shown, cmap=cmap, alpha=alpha, vmin=0, vmax=max(1.0, float(cov.max())))
     fig.colorbar(im, ax=ax, fraction=0.046, pad=0.02, label="boxes covering the pixel")
     covered = float((cov > 0).mean())
-    ax.set_title(title if title is not None else
-                 f"coverage of {len(np.asarray(boxes).reshape(-1, 4))} landmarks: "
-                 f"{100 * covered:.0f}% of pixels")
+    ax.set_title(
+        title
+        if title is not None
+        else f"coverage of {len(np.asarray(boxes).reshape(-1, 4))} landmarks: "
+        f"{100 * covered:.0f}% of pixels"
+    )
     return fig
-
 
 
 def plot_coverage_comparison(dataset, results, index: int = 0, side: str = "reference"):
@@ -182,14 +216,20 @@ def plot_coverage_comparison(dataset, results, index: int = 0, side: str = "refe
     image = dataset.load_image(side, index)
     fig, axes = plt.subplots(1, len(results), figsize=(5.5 * len(results), 3.4), squeeze=False)
     rows = []
-    for k, (ax, res) in enumerate(zip(axes[0], results)):
+    for k, (ax, res) in enumerate(zip(axes[0], results, strict=False)):
         plot_coverage(image, res.boxes[side][index], ax=ax)
-        ax.set_title(f"({chr(ord('a') + k)}) {res.label}: {len(res.boxes[side][index])} "
-                     "landmarks")
-        shares = [float((landmark_coverage(b, dataset.image_size(side, i)) > 0).mean())
-                  for i, b in enumerate(res.boxes[side])]
-        rows.append({"method": res.label, "covered share (this image)": shares[index],
-                     "covered share (mean)": float(np.mean(shares))})
+        ax.set_title(f"({chr(ord('a') + k)}) {res.label}: {len(res.boxes[side][index])} landmarks")
+        shares = [
+            float((landmark_coverage(b, dataset.image_size(side, i)) > 0).mean())
+            for i, b in enumerate(res.boxes[side])
+        ]
+        rows.append(
+            {
+                "method": res.label,
+                "covered share (this image)": shares[index],
+                "covered share (mean)": float(np.mean(shares)),
+            }
+        )
     from .curves import dataset_line
 
     fig.suptitle(f"landmark coverage of {side} {index}; {dataset_line(results)}", fontsize=9)
@@ -197,9 +237,12 @@ def plot_coverage_comparison(dataset, results, index: int = 0, side: str = "refe
     return fig, pd.DataFrame(rows).set_index("method")
 
 
-def plot_landmark_panels(panels: dict, colors_by: np.ndarray | None = None,
-                         title: str | None = None, group_labels: dict | None = None
-                         ) -> matplotlib.figure.Figure:
+def plot_landmark_panels(
+    panels: dict,
+    colors_by: np.ndarray | None = None,
+    title: str | None = None,
+    group_labels: dict | None = None,
+) -> matplotlib.figure.Figure:
     """Several images side by side, each with its landmark boxes (pipeline tour, step 1).
 
     Args:
@@ -217,7 +260,7 @@ def plot_landmark_panels(panels: dict, colors_by: np.ndarray | None = None,
         raise ValueError("plot_landmark_panels: panels is empty; pass {title: (image, boxes)}.")
     fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.6), squeeze=False)
     palette = plt.get_cmap("tab10").colors
-    for ax, (name, (image, boxes)) in zip(axes[0], panels.items()):
+    for ax, (name, (image, boxes)) in zip(axes[0], panels.items(), strict=False):
         boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
         img, size = landmark_canvas(image)
         show_canvas(ax, img, size)
@@ -226,8 +269,10 @@ def plot_landmark_panels(panels: dict, colors_by: np.ndarray | None = None,
         else:
             groups = np.asarray(colors_by).reshape(-1)
             if len(groups) != len(boxes):
-                raise ValueError(f"colors_by has {len(groups)} entries for {len(boxes)} boxes "
-                                 f"in panel {name!r}; give one group per box.")
+                raise ValueError(
+                    f"colors_by has {len(groups)} entries for {len(boxes)} boxes "
+                    f"in panel {name!r}; give one group per box."
+                )
             for g in np.unique(groups):
                 draw_boxes(ax, boxes[groups == g], color=palette[int(g) % len(palette)], lw=0.8)
         ax.set_title(f"{name}: {len(boxes)} landmarks", fontsize=9)
@@ -239,9 +284,17 @@ def plot_landmark_panels(panels: dict, colors_by: np.ndarray | None = None,
 
         groups = np.unique(np.asarray(colors_by).reshape(-1))
         names = group_labels or {}
-        handles = [Patch(facecolor="none", edgecolor=palette[int(g) % len(palette)], lw=1.5,
-                         label=names.get(int(g), f"group {int(g)}")) for g in groups]
+        handles = [
+            Patch(
+                facecolor="none",
+                edgecolor=palette[int(g) % len(palette)],
+                lw=1.5,
+                label=names.get(int(g), f"group {int(g)}"),
+            )
+            for g in groups
+        ]
         fig.subplots_adjust(bottom=0.16)
-        fig.legend(handles=handles, loc="lower center", ncol=len(handles), frameon=False,
-                   fontsize=9)
+        fig.legend(
+            handles=handles, loc="lower center", ncol=len(handles), frameon=False, fontsize=9
+        )
     return fig

@@ -13,10 +13,18 @@ from .base import draw_boxes
 __all__ = ["plot_descriptor_matrices", "plot_labelled_matches", "plot_pair", "plot_pair_terms"]
 
 
-def plot_labelled_matches(img_q: np.ndarray, img_r: np.ndarray, boxes_q: np.ndarray,
-                          boxes_r: np.ndarray, matches: np.ndarray, labels: np.ndarray | None,
-                          ax=None, gap: int = 12, lw: float = 1.2,
-                          title: str | None = None) -> matplotlib.figure.Figure:
+def plot_labelled_matches(
+    img_q: np.ndarray,
+    img_r: np.ndarray,
+    boxes_q: np.ndarray,
+    boxes_r: np.ndarray,
+    matches: np.ndarray,
+    labels: np.ndarray | None,
+    ax=None,
+    gap: int = 12,
+    lw: float = 1.2,
+    title: str | None = None,
+) -> matplotlib.figure.Figure:
     """Fig. 1-2: query and reference side by side, matched landmark boxes coloured by label.
 
     Args:
@@ -45,9 +53,11 @@ def plot_labelled_matches(img_q: np.ndarray, img_r: np.ndarray, boxes_q: np.ndar
         import cv2
 
         scale_r = iq.shape[0] / ir.shape[0]
-        ir = cv2.resize(np.ascontiguousarray(ir[..., :3]),
-                        (max(1, round(ir.shape[1] * scale_r)), iq.shape[0]),
-                        interpolation=cv2.INTER_AREA)
+        ir = cv2.resize(
+            np.ascontiguousarray(ir[..., :3]),
+            (max(1, round(ir.shape[1] * scale_r)), iq.shape[0]),
+            interpolation=cv2.INTER_AREA,
+        )
     hh = iq.shape[0]
     canvas = np.full((hh, iq.shape[1] + gap + ir.shape[1], 3), 255, dtype=np.uint8)
     canvas[:, : iq.shape[1]] = iq[..., :3]
@@ -77,21 +87,28 @@ def plot_labelled_matches(img_q: np.ndarray, img_r: np.ndarray, boxes_q: np.ndar
         b = br[j] + np.array([off, 0.0, 0.0, 0.0])
         draw_boxes(ax, a[None], color=color, lw=lw)
         draw_boxes(ax, b[None], color=color, lw=lw)
-        ax.plot([a[0] + a[2] / 2, b[0] + b[2] / 2], [a[1] + a[3] / 2, b[1] + b[3] / 2],
-                color=color, lw=lw * 0.8, alpha=0.8)
+        ax.plot(
+            [a[0] + a[2] / 2, b[0] + b[2] / 2],
+            [a[1] + a[3] / 2, b[1] + b[3] / 2],
+            color=color,
+            lw=lw * 0.8,
+            alpha=0.8,
+        )
     if title is None:
         if lab is None:
             title = f"{len(m)} matches (unlabelled)"
         else:
-            title = f"{len(m)} matches: {int(lab.sum())} correct (green), " \
-                    f"{int((~lab).sum())} incorrect (red)"
+            title = (
+                f"{len(m)} matches: {int(lab.sum())} correct (green), "
+                f"{int((~lab).sum())} incorrect (red)"
+            )
     ax.set_title(title, fontsize=10)
     return fig
 
 
-
-def plot_descriptor_matrices(descriptors: dict, title: str | None = None
-                             ) -> matplotlib.figure.Figure:
+def plot_descriptor_matrices(
+    descriptors: dict, title: str | None = None
+) -> matplotlib.figure.Figure:
     """Landmark descriptor matrices as heatmaps, one panel per image (pipeline tour, step 2).
 
     Args:
@@ -109,12 +126,14 @@ def plot_descriptor_matrices(descriptors: dict, title: str | None = None
         if m.ndim != 2:
             raise ValueError(f"descriptors[{k!r}] must have shape (K, D), got {m.shape}")
     vmax = max(float(np.abs(m).max()) if m.size else 0.0 for m in mats.values()) or 1.0
-    fig, axes = plt.subplots(1, len(mats), figsize=(5.2 * len(mats), 3.6), squeeze=False,
-                             layout="constrained")
+    fig, axes = plt.subplots(
+        1, len(mats), figsize=(5.2 * len(mats), 3.6), squeeze=False, layout="constrained"
+    )
     im = None
-    for ax, (name, m) in zip(axes[0], mats.items()):
-        im = ax.imshow(m, aspect="auto", cmap="RdBu_r", vmin=-vmax, vmax=vmax,
-                       interpolation="nearest")
+    for ax, (name, m) in zip(axes[0], mats.items(), strict=False):
+        im = ax.imshow(
+            m, aspect="auto", cmap="RdBu_r", vmin=-vmax, vmax=vmax, interpolation="nearest"
+        )
         ax.set_title(f"{name}: {m.shape[0]} x {m.shape[1]}", fontsize=9)
         ax.set_xlabel("descriptor dimension")
         ax.set_ylabel("landmark")
@@ -124,8 +143,14 @@ def plot_descriptor_matrices(descriptors: dict, title: str | None = None
     return fig
 
 
-def plot_pair_terms(distances: np.ndarray, shape: np.ndarray, n_a: int, n_b: int,
-                    similarity: float, title: str | None = None) -> matplotlib.figure.Figure:
+def plot_pair_terms(
+    distances: np.ndarray,
+    shape: np.ndarray,
+    n_a: int,
+    n_b: int,
+    similarity: float,
+    title: str | None = None,
+) -> matplotlib.figure.Figure:
     """Eq. (1) as a picture: every reciprocal pair's term ``1 - d*s`` and the image score
     (pipeline tour, step 4).
 
@@ -152,8 +177,9 @@ def plot_pair_terms(distances: np.ndarray, shape: np.ndarray, n_a: int, n_b: int
     ax_a.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
     ax_a.set_xlabel("reciprocal pair (sorted by its term)")
     ax_a.set_ylabel("1 - d * s")
-    ax_a.set_title(f"(a) S = {terms.sum():.3f} / sqrt({n_a} x {n_b}) = {similarity:.4f}",
-                   fontsize=9)
+    ax_a.set_title(
+        f"(a) S = {terms.sum():.3f} / sqrt({n_a} x {n_b}) = {similarity:.4f}", fontsize=9
+    )
     sc = ax_b.scatter(d, s, c=terms, cmap="viridis", s=14)
     fig.colorbar(sc, ax=ax_b, label="1 - d * s")
     ax_b.set_xlabel("cosine distance d")
@@ -165,8 +191,9 @@ def plot_pair_terms(distances: np.ndarray, shape: np.ndarray, n_a: int, n_b: int
     return fig
 
 
-def plot_pair(dataset, result, query: int = 0, reference: int | None = None
-              ) -> matplotlib.figure.Figure:
+def plot_pair(
+    dataset, result, query: int = 0, reference: int | None = None
+) -> matplotlib.figure.Figure:
     """Fig. 1-3, 8: the matched landmarks of one pair of a run, coloured correct / incorrect.
 
     Labels from :func:`vpr_core.labels.pair_matches` (``exact`` on ``synthetic``, SIFT +
@@ -179,11 +206,16 @@ def plot_pair(dataset, result, query: int = 0, reference: int | None = None
     from ..labels import pair_matches
 
     pm = pair_matches(dataset, result, query, reference)
-    fig = plot_labelled_matches(dataset.load_image("query", pm.query),
-                                dataset.load_image("reference", pm.reference),
-                                result.boxes["query"][pm.query],
-                                result.boxes["reference"][pm.reference], pm.matches, pm.labels)
+    fig = plot_labelled_matches(
+        dataset.load_image("query", pm.query),
+        dataset.load_image("reference", pm.reference),
+        result.boxes["query"][pm.query],
+        result.boxes["reference"][pm.reference],
+        pm.matches,
+        pm.labels,
+    )
     note = f"\n(labels unavailable: {pm.note[:90]})" if pm.note else ""
-    fig.suptitle(f"{result.label} on {dataset.name}: {pm.summary()}{note}", fontsize=11,
-                 y=0.995, va="top")
+    fig.suptitle(
+        f"{result.label} on {dataset.name}: {pm.summary()}{note}", fontsize=11, y=0.995, va="top"
+    )
     return fig

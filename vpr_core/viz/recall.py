@@ -11,8 +11,9 @@ import numpy as np
 __all__ = ["plot_recall_at_n"]
 
 
-def plot_recall_at_n(results_or_curves: Sequence | Mapping, title: str | None = None,
-                     n_max: int = 20) -> matplotlib.figure.Figure:
+def plot_recall_at_n(
+    results_or_curves: Sequence | Mapping, title: str | None = None, n_max: int = 20
+) -> matplotlib.figure.Figure:
     """RecallRate@N (y) against N (x), one line per method; legend outside the axes, right.
 
     Args:
@@ -29,8 +30,10 @@ def plot_recall_at_n(results_or_curves: Sequence | Mapping, title: str | None = 
     if isinstance(results_or_curves, Mapping):
         curves = {str(k): np.asarray(v, dtype=float) for k, v in results_or_curves.items()}
     else:
-        curves = {r.label: recall_rate_at_n(r.similarity, r.ground_truth, n_max)
-                  for r in results_or_curves}
+        curves = {
+            r.label: recall_rate_at_n(r.similarity, r.ground_truth, n_max)
+            for r in results_or_curves
+        }
     fig, ax = plt.subplots(figsize=(7.0, 3.8), constrained_layout=True)
     for label, y in curves.items():
         ax.plot(np.arange(1, y.size + 1), y, marker="o", ms=3, lw=1.5, label=label)

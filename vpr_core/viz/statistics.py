@@ -23,10 +23,12 @@ def stats_line(stats, wrap: bool = False) -> str:
     / 450 irrelevant pairs"``: the line every statistics figure carries."""
     m = stats.meta or {}
     n_gt, n_q = m.get("queries_with_gt", ("?", "?"))
-    return (f"{m.get('dataset', '?')}: {n_gt} of {n_q} queries with ground truth, tolerance "
-            f"{m.get('tolerance')};{chr(10) if wrap else ' '}labels {m.get('label_method', '?')}; "
-            f"{stats.n_gt_pairs} "
-            f"ground-truth / {stats.n_irrelevant_pairs} irrelevant pairs")
+    return (
+        f"{m.get('dataset', '?')}: {n_gt} of {n_q} queries with ground truth, tolerance "
+        f"{m.get('tolerance')};{chr(10) if wrap else ' '}labels {m.get('label_method', '?')}; "
+        f"{stats.n_gt_pairs} "
+        f"ground-truth / {stats.n_irrelevant_pairs} irrelevant pairs"
+    )
 
 
 def _standalone(fig, ax, stats, own: bool) -> None:
@@ -72,19 +74,28 @@ def plot_cmr(stats, ax=None, color: str = "tab:blue") -> matplotlib.figure.Figur
     ok = np.isfinite(cmr) & np.isfinite(iv).all(axis=1)
     if ok.any():
         err = np.vstack([cmr[ok] - iv[ok, 0], iv[ok, 1] - cmr[ok]]).clip(min=0)
-        ax.errorbar(scales[ok], cmr[ok], yerr=err, fmt="none", ecolor="0.2", elinewidth=0.9,
-                    capsize=2.5)
-    for s, v, k, top in zip(scales, cmr, n, iv[:, 1]):
+        ax.errorbar(
+            scales[ok], cmr[ok], yerr=err, fmt="none", ecolor="0.2", elinewidth=0.9, capsize=2.5
+        )
+    for s, v, k, top in zip(scales, cmr, n, iv[:, 1], strict=False):
         if np.isfinite(v):
             y = max(v, top) if np.isfinite(top) else v
             ax.text(s, y + 0.01, f"{int(k)}", ha="center", va="bottom", fontsize=7)
     ax.set_ylim(0, 1.15)
     if not np.isfinite(cmr).any():
-        ax.text(5, 0.5, "no labelled matches:\nthe pairs could not be verified\n"
-                "(give manual labels: method='file')", ha="center", va="center", fontsize=8,
-                color="0.35")
-    _stats_scale_axis(ax, stats, "(a) correct matching rate (CMR)",
-                      "CMR (bars: 95% CI over queries)")
+        ax.text(
+            5,
+            0.5,
+            "no labelled matches:\nthe pairs could not be verified\n"
+            "(give manual labels: method='file')",
+            ha="center",
+            va="center",
+            fontsize=8,
+            color="0.35",
+        )
+    _stats_scale_axis(
+        ax, stats, "(a) correct matching rate (CMR)", "CMR (bars: 95% CI over queries)"
+    )
     _standalone(fig, ax, stats, own)
     return fig
 
@@ -92,12 +103,23 @@ def plot_cmr(stats, ax=None, color: str = "tab:blue") -> matplotlib.figure.Figur
 def _stats_grouped(ax, gt: np.ndarray, irr: np.ndarray) -> None:
     scales = np.arange(1, 10)
     w = 0.38
-    ax.bar(scales - w / 2, np.nan_to_num(np.asarray(gt, float)[1:10], nan=0.0), width=w,
-           color=_STATS_GT_COLOR, label="ground-truth pairs")
-    ax.bar(scales + w / 2, np.nan_to_num(np.asarray(irr, float)[1:10], nan=0.0), width=w,
-           color=_STATS_IRR_COLOR, label="query-irrelevant pairs")
-    top = np.nanmax(np.concatenate([np.asarray(gt, float)[1:10], np.asarray(irr, float)[1:10],
-                                    [0.0]]))
+    ax.bar(
+        scales - w / 2,
+        np.nan_to_num(np.asarray(gt, float)[1:10], nan=0.0),
+        width=w,
+        color=_STATS_GT_COLOR,
+        label="ground-truth pairs",
+    )
+    ax.bar(
+        scales + w / 2,
+        np.nan_to_num(np.asarray(irr, float)[1:10], nan=0.0),
+        width=w,
+        color=_STATS_IRR_COLOR,
+        label="query-irrelevant pairs",
+    )
+    top = np.nanmax(
+        np.concatenate([np.asarray(gt, float)[1:10], np.asarray(irr, float)[1:10], [0.0]])
+    )
     ax.set_ylim(0, (top if top > 0 else 1.0) * 1.3)  # headroom: the legend sits above the bars
     ax.legend(fontsize=7, loc="upper center", ncol=2, frameon=False)
 
@@ -158,5 +180,3 @@ def plot_scale_statistics(stats, title: str | None = None) -> matplotlib.figure.
     fig.suptitle((f"{title}\n" if title else "") + stats_line(stats), fontsize=10)
     fig.tight_layout()
     return fig
-
-

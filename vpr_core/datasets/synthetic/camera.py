@@ -23,20 +23,26 @@ def canvas_size(image_size: tuple[int, int]) -> tuple[int, int]:
     return round(_CANVAS_SCALE[0] * h), round(_CANVAS_SCALE[1] * w)
 
 
-def _view_corners(center: tuple[float, float], w: float, h: float, zoom: float, angle_deg: float,
-                  keystone: float) -> list[tuple[float, float]]:
+def _view_corners(
+    center: tuple[float, float], w: float, h: float, zoom: float, angle_deg: float, keystone: float
+) -> list[tuple[float, float]]:
     """Canvas corners (TL, TR, BR, BL) of a view as 4 ``(x, y)`` Python floats."""
     hw, hh = 0.5 * w / zoom, 0.5 * h / zoom
     # keystone: the left edge is taller than the right one (a facade seen at an angle)
-    pts = [(-hw, -hh * (1 + keystone)), (hw, -hh * (1 - keystone)),
-           (hw, hh * (1 - keystone)), (-hw, hh * (1 + keystone))]
+    pts = [
+        (-hw, -hh * (1 + keystone)),
+        (hw, -hh * (1 - keystone)),
+        (hw, hh * (1 - keystone)),
+        (-hw, hh * (1 + keystone)),
+    ]
     a = math.radians(angle_deg)
     c, s = to_grid(math.cos(a)), to_grid(math.sin(a))
     return [(c * x - s * y + center[0], s * x + c * y + center[1]) for x, y in pts]
 
 
-def _place_views(seed: int, i: int, image_size: tuple[int, int],
-                 diff: SyntheticDifficulty) -> tuple[list, list]:
+def _place_views(
+    seed: int, i: int, image_size: tuple[int, int], diff: SyntheticDifficulty
+) -> tuple[list, list]:
     """Canvas corners of the reference and the query view of place ``i``."""
     h, w = image_size
     hc, wc = canvas_size(image_size)
@@ -47,14 +53,20 @@ def _place_views(seed: int, i: int, image_size: tuple[int, int],
     c_ref = (0.5 * wc - 0.5 * shift, cy)
     c_q = (0.5 * wc + 0.5 * shift, cy + rng.uniform(-diff.vertical, diff.vertical) * h)
     ref = _view_corners(c_ref, w, h, 1.0, rng.uniform(-1.0, 1.0), -side * rng.uniform(0.0, 0.04))
-    qry = _view_corners(c_q, w, h, rng.uniform(*diff.zoom),
-                        rng.uniform(-diff.rotation_deg, diff.rotation_deg),
-                        side * rng.uniform(*diff.keystone))
+    qry = _view_corners(
+        c_q,
+        w,
+        h,
+        rng.uniform(*diff.zoom),
+        rng.uniform(-diff.rotation_deg, diff.rotation_deg),
+        side * rng.uniform(*diff.keystone),
+    )
     return ref, qry
 
 
-def _place_geometry(seed: int, i: int, image_size: tuple[int, int],
-                    diff: SyntheticDifficulty) -> tuple[Matrix3, Matrix3, Matrix3]:
+def _place_geometry(
+    seed: int, i: int, image_size: tuple[int, int], diff: SyntheticDifficulty
+) -> tuple[Matrix3, Matrix3, Matrix3]:
     """View->canvas maps of the reference and the query, and the query->reference map."""
     h, w = image_size
     ref, qry = _place_views(seed, i, image_size, diff)
@@ -65,8 +77,12 @@ def _place_geometry(seed: int, i: int, image_size: tuple[int, int],
     return canvas_from_ref, canvas_from_qry, mat3_mul(ref_from_canvas, canvas_from_qry)
 
 
-def synthetic_homography(seed: int, i: int, image_size: tuple[int, int] = (360, 640),
-                         difficulty: str | SyntheticDifficulty = "default") -> np.ndarray:
+def synthetic_homography(
+    seed: int,
+    i: int,
+    image_size: tuple[int, int] = (360, 640),
+    difficulty: str | SyntheticDifficulty = "default",
+) -> np.ndarray:
     """Query-``i`` -> reference-``i`` pixel mapping of the synthetic place ``i``.
 
     Args:

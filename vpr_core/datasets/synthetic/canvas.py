@@ -28,8 +28,18 @@ class _World:
         self.lamps: list[tuple[int, int, float]] = []  # glare centres + radius
 
 
-def _fill_textured(world: _World, x0: int, y0: int, x1: int, y1: int, color: Sequence[float],
-                   tex: str, scale: float, gain: float, rng: np.random.Generator) -> None:
+def _fill_textured(
+    world: _World,
+    x0: int,
+    y0: int,
+    x1: int,
+    y1: int,
+    color: Sequence[float],
+    tex: str,
+    scale: float,
+    gain: float,
+    rng: np.random.Generator,
+) -> None:
     """Fill a canvas rectangle with ``color * (1 + gain * texture)`` (clipped to the canvas)."""
     hc, wc = world.img.shape[:2]
     x0, x1, y0, y1 = max(0, x0), min(wc, x1), max(0, y0), min(hc, y1)
@@ -41,8 +51,9 @@ def _fill_textured(world: _World, x0: int, y0: int, x1: int, y1: int, color: Seq
     world.img[y0:y1, x0:x1] = np.clip(region, 0, 255).astype(np.uint8)
 
 
-def _paste_poster(world: _World, x0: int, y0: int, w: int, h: int,
-                  rng: np.random.Generator) -> None:
+def _paste_poster(
+    world: _World, x0: int, y0: int, w: int, h: int, rng: np.random.Generator
+) -> None:
     """Paste a random crop of a bundled image, framed, into ``(x0, y0, w, h)`` (if it fits)."""
     hc, wc = world.img.shape[:2]
     if w < 6 or h < 6 or x0 < 0 or y0 < 0 or x0 + w > wc or y0 + h > hc:
@@ -55,17 +66,25 @@ def _paste_poster(world: _World, x0: int, y0: int, w: int, h: int,
     cw = min(sw, max(8, int(ch * aspect)))
     ch = min(sh, max(8, int(cw / aspect)))
     oy, ox = int(rng.integers(0, sh - ch + 1)), int(rng.integers(0, sw - cw + 1))
-    crop = src[oy:oy + ch, ox:ox + cw]
+    crop = src[oy : oy + ch, ox : ox + cw]
     if rng.random() < 0.5:
         crop = crop[:, ::-1]
     b = max(1, int(0.008 * world.unit))
-    world.img[y0:y0 + h, x0:x0 + w] = (30, 30, 30)
+    world.img[y0 : y0 + h, x0 : x0 + w] = (30, 30, 30)
     small = resize_area(crop, (h - 2 * b, w - 2 * b))
-    world.img[y0 + b:y0 + h - b, x0 + b:x0 + w - b] = np.floor(small + 0.5).astype(np.uint8)
+    world.img[y0 + b : y0 + h - b, x0 + b : x0 + w - b] = np.floor(small + 0.5).astype(np.uint8)
 
 
-def _put_text_fit(img: np.ndarray, text: str, x0: int, y0: int, x1: int, y1: int,
-                  color: tuple, thickness_scale: float = 1.0) -> None:
+def _put_text_fit(
+    img: np.ndarray,
+    text: str,
+    x0: int,
+    y0: int,
+    x1: int,
+    y1: int,
+    color: tuple,
+    thickness_scale: float = 1.0,
+) -> None:
     """Centre ``text`` in a rectangle, scaled to fit (Hershey font, ``LINE_8``: integer-exact)."""
     font = cv2.FONT_HERSHEY_DUPLEX
     w, h = max(1, x1 - x0), max(1, y1 - y0)

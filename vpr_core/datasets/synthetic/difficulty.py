@@ -71,8 +71,9 @@ class SyntheticDifficulty:
 
     def as_dict(self) -> dict:
         """Plain JSON-able dict (for cache keys and manifests)."""
-        return {k: list(v) if isinstance(v, tuple) else v
-                for k, v in dataclasses.asdict(self).items()}
+        return {
+            k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()
+        }
 
 
 #: Named presets. ``easy`` is the generator of SYNTHETIC_VERSION 5 (saturated: most methods
@@ -81,16 +82,40 @@ class SyntheticDifficulty:
 DIFFICULTIES: dict[str, SyntheticDifficulty] = {
     "easy": SyntheticDifficulty(),
     "default": SyntheticDifficulty(
-        shift=(0.18, 0.33), zoom=(0.78, 1.26), rotation_deg=7.5, keystone=(0.045, 0.11),
-        vertical=0.075, occluders=(1, 3), day_occluder=0.5, style_share=0.9,
-        repeat_facades=0.45, facade_pool=5, night_ambient=(0.3, 0.5), night_gamma=1.15,
-        lit_windows=0.35, glow=0.45, noise=(0.025, 0.045), blur=(0.6, 1.1),
+        shift=(0.18, 0.33),
+        zoom=(0.78, 1.26),
+        rotation_deg=7.5,
+        keystone=(0.045, 0.11),
+        vertical=0.075,
+        occluders=(1, 3),
+        day_occluder=0.5,
+        style_share=0.9,
+        repeat_facades=0.45,
+        facade_pool=5,
+        night_ambient=(0.3, 0.5),
+        night_gamma=1.15,
+        lit_windows=0.35,
+        glow=0.45,
+        noise=(0.025, 0.045),
+        blur=(0.6, 1.1),
     ),
     "hard": SyntheticDifficulty(
-        shift=(0.22, 0.38), zoom=(0.72, 1.32), rotation_deg=9.0, keystone=(0.06, 0.13),
-        vertical=0.09, occluders=(2, 4), day_occluder=0.6, style_share=1.0,
-        repeat_facades=0.55, facade_pool=5, night_ambient=(0.2, 0.35), night_gamma=1.3,
-        lit_windows=0.3, glow=0.55, noise=(0.035, 0.06), blur=(0.8, 1.4),
+        shift=(0.22, 0.38),
+        zoom=(0.72, 1.32),
+        rotation_deg=9.0,
+        keystone=(0.06, 0.13),
+        vertical=0.09,
+        occluders=(2, 4),
+        day_occluder=0.6,
+        style_share=1.0,
+        repeat_facades=0.55,
+        facade_pool=5,
+        night_ambient=(0.2, 0.35),
+        night_gamma=1.3,
+        lit_windows=0.3,
+        glow=0.55,
+        noise=(0.035, 0.06),
+        blur=(0.8, 1.4),
     ),
 }
 

@@ -177,7 +177,7 @@ def solve_homography(src: Sequence[Sequence[float]], dst: Sequence[Sequence[floa
     Gauss-Jordan elimination with partial pivoting on the 8x8 system, in Python floats.
     """
     rows: list[list[float]] = []
-    for (x, y), (u, v) in zip(src, dst):
+    for (x, y), (u, v) in zip(src, dst, strict=False):
         x, y, u, v = float(x), float(y), float(u), float(v)
         rows.append([x, y, 1.0, 0.0, 0.0, 0.0, -x * u, -y * u, u])
         rows.append([0.0, 0.0, 0.0, x, y, 1.0, -x * v, -y * v, v])
@@ -192,15 +192,17 @@ def solve_homography(src: Sequence[Sequence[float]], dst: Sequence[Sequence[floa
         for r in range(n):
             if r != col and rows[r][col] != 0.0:
                 f = rows[r][col]
-                rows[r] = [a - f * b for a, b in zip(rows[r], rows[col])]
+                rows[r] = [a - f * b for a, b in zip(rows[r], rows[col], strict=False)]
     h = [rows[r][8] for r in range(n)]
     return ((h[0], h[1], h[2]), (h[3], h[4], h[5]), (h[6], h[7], 1.0))
 
 
 def mat3_mul(a: Matrix3, b: Matrix3) -> Matrix3:
     """``a @ b`` in Python floats (fixed summation order)."""
-    return tuple(tuple(a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j]
-                       for j in range(3)) for i in range(3))  # type: ignore[return-value]
+    return tuple(
+        tuple(a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j] for j in range(3))
+        for i in range(3)
+    )  # type: ignore[return-value]
 
 
 def normalise_h(m: Matrix3) -> np.ndarray:

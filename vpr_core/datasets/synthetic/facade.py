@@ -10,9 +10,36 @@ from .exact import normal
 from .textures import _WALL_TEXTURES
 
 _SHOP_WORDS = (
-    "CAFE", "BAR", "BOOKS", "BAKERY", "HOTEL", "BANK", "MARKET", "PIZZA", "KIOSK", "SALON",
-    "DELI", "TAXI", "POST", "OPTIK", "APOTHEKE", "SUSHI", "FLORIST", "GYM", "CINEMA", "LAUNDRY",
-    "TOYS", "SHOES", "DINER", "TEA", "MUSIC", "PRINT", "BIKES", "GELATO", "RAMEN", "CAFE",
+    "CAFE",
+    "BAR",
+    "BOOKS",
+    "BAKERY",
+    "HOTEL",
+    "BANK",
+    "MARKET",
+    "PIZZA",
+    "KIOSK",
+    "SALON",
+    "DELI",
+    "TAXI",
+    "POST",
+    "OPTIK",
+    "APOTHEKE",
+    "SUSHI",
+    "FLORIST",
+    "GYM",
+    "CINEMA",
+    "LAUNDRY",
+    "TOYS",
+    "SHOES",
+    "DINER",
+    "TEA",
+    "MUSIC",
+    "PRINT",
+    "BIKES",
+    "GELATO",
+    "RAMEN",
+    "CAFE",
 )
 
 
@@ -24,10 +51,20 @@ def _style_bank(seed: int, n: int = 6) -> list[dict]:
 
 def _random_style(rng: np.random.Generator) -> dict:
     """One facade style: colour, wall texture, window grid, frames, shutters, roof."""
-    base = rng.choice([
-        (200, 170, 140), (180, 90, 70), (225, 215, 190), (150, 150, 155), (210, 190, 120),
-        (120, 140, 160), (190, 120, 100), (235, 235, 230), (170, 160, 120), (140, 100, 80),
-    ])
+    base = rng.choice(
+        [
+            (200, 170, 140),
+            (180, 90, 70),
+            (225, 215, 190),
+            (150, 150, 155),
+            (210, 190, 120),
+            (120, 140, 160),
+            (190, 120, 100),
+            (235, 235, 230),
+            (170, 160, 120),
+            (140, 100, 80),
+        ]
+    )
     return {
         "color": tuple(int(c) for c in np.clip(base + normal(rng, 0, 12, 3), 30, 250)),
         "texture": str(rng.choice(_WALL_TEXTURES, p=[0.4, 0.2, 0.3, 0.1])),
@@ -38,8 +75,12 @@ def _random_style(rng: np.random.Generator) -> dict:
         "gap_x": float(rng.uniform(0.04, 0.09)),
         "gap_y": float(rng.uniform(0.05, 0.09)),
         "glass": tuple(int(c) for c in rng.integers(30, 110, 3)),
-        "frame": tuple(int(c) for c in rng.choice([(240, 240, 235), (60, 50, 45), (120, 30, 30),
-                                                     (30, 60, 40), (200, 190, 160)])),
+        "frame": tuple(
+            int(c)
+            for c in rng.choice(
+                [(240, 240, 235), (60, 50, 45), (120, 30, 30), (30, 60, 40), (200, 190, 160)]
+            )
+        ),
         "mullion": bool(rng.random() < 0.6),
         "shutters": bool(rng.random() < 0.3),
         "shutter_color": tuple(int(c) for c in rng.integers(20, 200, 3)),
@@ -49,8 +90,16 @@ def _random_style(rng: np.random.Generator) -> dict:
     }
 
 
-def _draw_building(world: _World, x0: int, x1: int, top: int, base: int, style: dict,
-                   rng: np.random.Generator, lit_windows: float = 0.35) -> None:
+def _draw_building(
+    world: _World,
+    x0: int,
+    x1: int,
+    top: int,
+    base: int,
+    style: dict,
+    rng: np.random.Generator,
+    lit_windows: float = 0.35,
+) -> None:
     """Draw one building (wall, roof, window grid, ground floor) between ``x0`` and ``x1``.
 
     Args:
@@ -63,8 +112,18 @@ def _draw_building(world: _World, x0: int, x1: int, top: int, base: int, style: 
     """
     u = world.unit
     color = np.clip(np.asarray(style["color"], float) + normal(rng, 0, 6, 3), 20, 250)
-    _fill_textured(world, x0, top, x1, base, color, style["texture"], style["tex_scale"],
-                   style["tex_gain"], rng)
+    _fill_textured(
+        world,
+        x0,
+        top,
+        x1,
+        base,
+        color,
+        style["texture"],
+        style["tex_scale"],
+        style["tex_gain"],
+        rng,
+    )
     dark = tuple(int(c * 0.55) for c in color)
     _draw_roof(world, x0, x1, top, style, color, dark, rng)
     floor_h = int(style["floor_h"] * u)
@@ -82,32 +141,59 @@ def _draw_building(world: _World, x0: int, x1: int, top: int, base: int, style: 
         _paste_poster(world, bx, by, bw2, bh2, rng)
 
 
-def _draw_roof(world: _World, x0: int, x1: int, top: int, style: dict, color: np.ndarray,
-               dark: tuple, rng: np.random.Generator) -> None:
+def _draw_roof(
+    world: _World,
+    x0: int,
+    x1: int,
+    top: int,
+    style: dict,
+    color: np.ndarray,
+    dark: tuple,
+    rng: np.random.Generator,
+) -> None:
     """Cornice or gable (with tile rows) above the roof line; flat roofs draw nothing."""
     u, img = world.unit, world.img
     if style["roof"] == "cornice":
         ch = max(2, int(0.03 * u))
         cv2.rectangle(img, (x0 - 2, top), (x1 + 2, top + ch), dark, -1)
-        cv2.rectangle(img, (x0 - 2, top + ch), (x1 + 2, top + ch + max(1, ch // 3)),
-                      tuple(int(c * 0.8) for c in color), -1)
+        cv2.rectangle(
+            img,
+            (x0 - 2, top + ch),
+            (x1 + 2, top + ch + max(1, ch // 3)),
+            tuple(int(c * 0.8) for c in color),
+            -1,
+        )
     elif style["roof"] == "gable":
         peak = top - int(rng.uniform(0.1, 0.22) * u)
         pts = np.array([[x0, top], [(x0 + x1) // 2, peak], [x1, top]], np.int32)
         roof_col = tuple(int(c) for c in rng.choice([(120, 50, 40), (70, 70, 80), (90, 60, 40)]))
         cv2.fillPoly(img, [pts], roof_col)
-        world.sky[max(0, peak):top, x0:x1] = False
+        world.sky[max(0, peak) : top, x0:x1] = False
         for k in range(1, 6):  # roof tile rows, inside the gable
             y = top - (top - peak) * k // 6
             half = (x1 - x0) * (1 - k / 6) / 2
             xm = (x0 + x1) / 2
-            cv2.line(img, (int(xm - half), y), (int(xm + half), y),
-                     tuple(int(c * 0.7) for c in roof_col), 1)
+            cv2.line(
+                img,
+                (int(xm - half), y),
+                (int(xm + half), y),
+                tuple(int(c * 0.7) for c in roof_col),
+                1,
+            )
         cv2.fillPoly(world.sky.view(np.uint8), [pts], 0)
 
 
-def _draw_windows(world: _World, x0: int, x1: int, top: int, gf_top: int, style: dict,
-                  dark: tuple, rng: np.random.Generator, lit_windows: float) -> None:
+def _draw_windows(
+    world: _World,
+    x0: int,
+    x1: int,
+    top: int,
+    gf_top: int,
+    style: dict,
+    dark: tuple,
+    rng: np.random.Generator,
+    lit_windows: float,
+) -> None:
     """The window grid of the upper floors; some windows are registered as lit at night."""
     u, img = world.unit, world.img
     ww, wh = int(style["win_w"] * u), int(style["win_h"] * u)
@@ -129,15 +215,22 @@ def _draw_windows(world: _World, x0: int, x1: int, top: int, gf_top: int, style:
                 if style["shutters"]:
                     sw = ww // 3
                     cv2.rectangle(img, (wx - sw, y), (wx, y + wh), style["shutter_color"], -1)
-                    cv2.rectangle(img, (wx + ww, y), (wx + ww + sw, y + wh),
-                                  style["shutter_color"], -1)
+                    cv2.rectangle(
+                        img, (wx + ww, y), (wx + ww + sw, y + wh), style["shutter_color"], -1
+                    )
                 cv2.rectangle(img, (wx, y), (wx + ww, y + wh), glass_t, -1)
                 # sky reflection on the upper part of the glass
-                cv2.rectangle(img, (wx, y), (wx + ww, y + wh // 3),
-                              tuple(min(255, v + 35) for v in glass_t), -1)
+                cv2.rectangle(
+                    img,
+                    (wx, y),
+                    (wx + ww, y + wh // 3),
+                    tuple(min(255, v + 35) for v in glass_t),
+                    -1,
+                )
                 if style["arch"]:
-                    cv2.ellipse(img, (wx + ww // 2, y), (ww // 2, max(1, ww // 3)), 0, 180, 360,
-                                glass_t, -1)
+                    cv2.ellipse(
+                        img, (wx + ww // 2, y), (ww // 2, max(1, ww // 3)), 0, 180, 360, glass_t, -1
+                    )
                 cv2.rectangle(img, (wx, y), (wx + ww, y + wh), frame, ft)
                 if style["mullion"]:
                     cv2.line(img, (wx + ww // 2, y), (wx + ww // 2, y + wh), frame, ft)
@@ -149,8 +242,9 @@ def _draw_windows(world: _World, x0: int, x1: int, top: int, gf_top: int, style:
             y += wh + gy
 
 
-def _draw_ground_floor(world: _World, x0: int, x1: int, base: int, gf_top: int, floor_h: int,
-                       rng: np.random.Generator) -> None:
+def _draw_ground_floor(
+    world: _World, x0: int, x1: int, base: int, gf_top: int, floor_h: int, rng: np.random.Generator
+) -> None:
     """Door, shop window with its (often lit) sign, and posters on the free wall."""
     u, img = world.unit, world.img
     bw = x1 - x0
@@ -158,24 +252,35 @@ def _draw_ground_floor(world: _World, x0: int, x1: int, base: int, gf_top: int, 
     door_w = int(rng.uniform(0.09, 0.13) * u)
     door_h = int(0.8 * floor_h)
     dx = int(rng.uniform(x0 + 0.05 * bw, max(x0 + 0.05 * bw + 1, x1 - door_w - 0.05 * bw)))
-    door_col = tuple(int(c) for c in rng.choice([(80, 40, 30), (30, 50, 90), (40, 40, 40),
-                                                  (140, 20, 30), (20, 90, 60)]))
+    door_col = tuple(
+        int(c)
+        for c in rng.choice([(80, 40, 30), (30, 50, 90), (40, 40, 40), (140, 20, 30), (20, 90, 60)])
+    )
     cv2.rectangle(img, (dx, base - door_h), (dx + door_w, base), door_col, -1)
-    cv2.rectangle(img, (dx, base - door_h), (dx + door_w, base), (20, 20, 20),
-                  max(1, int(0.008 * u)))
-    cv2.circle(img, (dx + int(door_w * 0.8), base - door_h // 2), max(1, int(0.008 * u)),
-               (220, 200, 60), -1)
+    cv2.rectangle(
+        img, (dx, base - door_h), (dx + door_w, base), (20, 20, 20), max(1, int(0.008 * u))
+    )
+    cv2.circle(
+        img,
+        (dx + int(door_w * 0.8), base - door_h // 2),
+        max(1, int(0.008 * u)),
+        (220, 200, 60),
+        -1,
+    )
     shop = rng.random() < 0.65
-    free = [(x0 + int(0.03 * bw), dx - int(0.03 * bw)), (dx + door_w + int(0.03 * bw),
-                                                        x1 - int(0.03 * bw))]
+    free = [
+        (x0 + int(0.03 * bw), dx - int(0.03 * bw)),
+        (dx + door_w + int(0.03 * bw), x1 - int(0.03 * bw)),
+    ]
     free = [(a, b) for a, b in free if b - a > 0.12 * u]
     if shop and free:
         a, b = free.pop(int(rng.integers(len(free))))
         sh_top = base - int(0.75 * floor_h)
         cv2.rectangle(img, (a, sh_top), (b, base - int(0.05 * u)), (60, 70, 80), -1)
         cv2.rectangle(img, (a, sh_top), (b, sh_top + (base - sh_top) // 3), (90, 100, 110), -1)
-        cv2.rectangle(img, (a, sh_top), (b, base - int(0.05 * u)), (25, 25, 25),
-                      max(1, int(0.01 * u)))
+        cv2.rectangle(
+            img, (a, sh_top), (b, base - int(0.05 * u)), (25, 25, 25), max(1, int(0.01 * u))
+        )
         world.lit.append((a, sh_top, b, base - int(0.05 * u), (255, 240, 200), 0.5))
         # the sign above the shop
         sign_col = tuple(int(c) for c in rng.integers(0, 256, 3))

@@ -23,8 +23,9 @@ SYNTHETIC_VERSION = 6
 
 def _write_png(path: Path, rgb: np.ndarray) -> None:
     """Write ``uint8 (H, W, 3)`` RGB as a PNG atomically (temporary file + rename)."""
-    ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR),
-                           [cv2.IMWRITE_PNG_COMPRESSION, 1])
+    ok, buf = cv2.imencode(
+        ".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 1]
+    )
     if not ok:  # pragma: no cover - encoding a uint8 RGB array does not fail
         raise RuntimeError(f"could not encode {path}")
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
@@ -86,11 +87,19 @@ def load_synthetic(
             "e.g. image_size=(360, 640)."
         )
     n_places, seed = int(n_places), int(seed)
-    params = {"generator": "synthetic", "version": SYNTHETIC_VERSION, "seed": seed,
-              "image_size": list(size), "difficulty": diff_name,
-              "difficulty_settings": diff.as_dict()}
-    out = Path(root).expanduser() if root is not None else \
-        cache_dir("datasets", f"synthetic-{short_hash(params)}")
+    params = {
+        "generator": "synthetic",
+        "version": SYNTHETIC_VERSION,
+        "seed": seed,
+        "image_size": list(size),
+        "difficulty": diff_name,
+        "difficulty_settings": diff.as_dict(),
+    }
+    out = (
+        Path(root).expanduser()
+        if root is not None
+        else cache_dir("datasets", f"synthetic-{short_hash(params)}")
+    )
     (out / "query").mkdir(parents=True, exist_ok=True)
     (out / "reference").mkdir(parents=True, exist_ok=True)
     qp = [out / "query" / f"{i:04d}.png" for i in range(n_places)]
@@ -98,8 +107,15 @@ def load_synthetic(
     missing = [i for i in range(n_places) if not (qp[i].is_file() and rp[i].is_file())]
     homs = np.zeros((n_places, 3, 3), np.float64)
     if missing:
-        logger.info("synthetic: generating %d of %d places (seed=%d, %dx%d) into %s",
-                    len(missing), n_places, seed, size[0], size[1], out)
+        logger.info(
+            "synthetic: generating %d of %d places (seed=%d, %dx%d) into %s",
+            len(missing),
+            n_places,
+            seed,
+            size[0],
+            size[1],
+            out,
+        )
     for i in progress(missing, desc="synthetic places", total=len(missing)):
         ref, qry, _ = _render(seed, i, size, diff)
         _write_png(rp[i], ref)
@@ -109,18 +125,26 @@ def load_synthetic(
     if missing:
         manifest_path = out / "manifest.json"
         have = sorted(int(p.stem) for p in (out / "query").glob("[0-9][0-9][0-9][0-9].png"))
-        manifest = dict(params, places=len(have), files="query/NNNN.png, reference/NNNN.png",
-                        note="homographies map query pixels to reference pixels; "
-                             "recomputed from (seed, i) by synthetic_homography",
-                        homographies={
-                            str(i): synthetic_homography(seed, i, size, diff).round(10).tolist()
-                            for i in have})
+        manifest = dict(
+            params,
+            places=len(have),
+            files="query/NNNN.png, reference/NNNN.png",
+            note="homographies map query pixels to reference pixels; "
+            "recomputed from (seed, i) by synthetic_homography",
+            homographies={
+                str(i): synthetic_homography(seed, i, size, diff).round(10).tolist() for i in have
+            },
+        )
         tmp = manifest_path.with_name(f".manifest.{os.getpid()}.tmp")
         tmp.write_text(json.dumps(manifest, indent=1))
         os.replace(tmp, manifest_path)
     gt = _frame_aligned(n_places, n_places, tolerance)
-    meta = dict(params, n_places=n_places, ground_truth_rule=f"frame-aligned |q-r|<={tolerance}",
-                exact_geometry=True)
+    meta = dict(
+        params,
+        n_places=n_places,
+        ground_truth_rule=f"frame-aligned |q-r|<={tolerance}",
+        exact_geometry=True,
+    )
     return PlaceDataset("synthetic", qp, rp, gt, tolerance, root=out, homographies=homs, meta=meta)
 
 

@@ -30,7 +30,7 @@ def _block_mean4(a: np.ndarray) -> np.ndarray:
     acc = np.zeros((hq, wq) + a.shape[2:], np.float64)
     for dy in range(4):
         for dx in range(4):
-            acc = acc + a[dy:4 * hq:4, dx:4 * wq:4]
+            acc = acc + a[dy : 4 * hq : 4, dx : 4 * wq : 4]
     return acc / 16.0
 
 
@@ -57,10 +57,10 @@ def _night(world: _World, rng: np.random.Generator, diff: SyntheticDifficulty) -
     for x0, y0, x1, y1, col, alpha in world.lit:
         if rng.random() < 0.85:
             c = np.asarray(col, np.float64) / 255.0 * rng.uniform(0.4, 0.7)
-            region = world.img[max(0, y0):y1, max(0, x0):x1].astype(np.float64) / 255.0
+            region = world.img[max(0, y0) : y1, max(0, x0) : x1].astype(np.float64) / 255.0
             lit = c * ((1.0 - alpha) + alpha * region)  # lit from behind: keeps the structure
-            night[max(0, y0):y1, max(0, x0):x1] = lit
-            light[max(0, y0):y1, max(0, x0):x1] = c
+            night[max(0, y0) : y1, max(0, x0) : x1] = lit
+            light[max(0, y0) : y1, max(0, x0) : x1] = c
     for cx, cy, r in world.lamps:
         cv2.circle(light, (int(cx), int(cy)), max(2, int(r * 0.35)), (1.0, 0.9, 0.65), -1)
     # glow: blurred light at a quarter resolution
@@ -77,4 +77,3 @@ def _vignette(h: int, w: int) -> np.ndarray:
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float64)
     dx, dy = (xx - w / 2) / (w / 2), (yy - h / 2) / (h / 2)
     return 1.0 - 0.175 * (dx * dx + dy * dy)
-

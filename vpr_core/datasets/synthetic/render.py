@@ -17,7 +17,9 @@ from .world import _render_world
 
 
 def render_synthetic_place(
-    seed: int, i: int, image_size: tuple[int, int] = (360, 640),
+    seed: int,
+    i: int,
+    image_size: tuple[int, int] = (360, 640),
     difficulty: str | SyntheticDifficulty = "default",
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Render place ``i`` of the synthetic route (independent of how many places are asked for).

@@ -47,9 +47,17 @@ def _draw_lamp(world: _World, x: int, ground: int, rng: np.random.Generator) -> 
     arm = int(0.06 * u) * (1 if rng.random() < 0.5 else -1)
     cv2.line(world.img, (x, top), (x + arm, top), (45, 45, 50), w)
     head = (x + arm, top + max(2, int(0.012 * u)))
-    cv2.ellipse(world.img, head, (max(2, int(0.03 * u)), max(1, int(0.012 * u))), 0, 0, 360,
-                (200, 200, 190), -1)
-    world.sky[max(0, top - 2):ground, max(0, x - w):x + w] = False
+    cv2.ellipse(
+        world.img,
+        head,
+        (max(2, int(0.03 * u)), max(1, int(0.012 * u))),
+        0,
+        0,
+        360,
+        (200, 200, 190),
+        -1,
+    )
+    world.sky[max(0, top - 2) : ground, max(0, x - w) : x + w] = False
     world.lamps.append((head[0], head[1], float(rng.uniform(0.06, 0.11) * u)))
 
 
@@ -70,11 +78,14 @@ def _draw_traffic_sign(world: _World, x: int, ground: int, rng: np.random.Genera
         # arrow: shaft + head as integer polygons (no anti-aliasing, no trigonometry)
         t = max(1, r // 10)
         cv2.rectangle(world.img, (c[0] - r // 2, c[1] - t), (c[0], c[1] + t), (250, 250, 250), -1)
-        head = np.array([[c[0], c[1] - r // 3], [c[0] + r // 2, c[1]], [c[0], c[1] + r // 3]],
-                        np.int32)
+        head = np.array(
+            [[c[0], c[1] - r // 3], [c[0] + r // 2, c[1]], [c[0], c[1] + r // 3]], np.int32
+        )
         cv2.fillPoly(world.img, [head], (250, 250, 250))
     else:
-        pts = np.array([[c[0], c[1] - r], [c[0] - r, c[1] + r * 3 // 4],
-                        [c[0] + r, c[1] + r * 3 // 4]], np.int32)
+        pts = np.array(
+            [[c[0], c[1] - r], [c[0] - r, c[1] + r * 3 // 4], [c[0] + r, c[1] + r * 3 // 4]],
+            np.int32,
+        )
         cv2.fillPoly(world.img, [pts], (200, 20, 20))
         cv2.fillPoly(world.img, [((pts - c) * 0.65 + c).astype(np.int32)], (245, 240, 230))

@@ -31,13 +31,21 @@ def _texture_sources() -> dict[str, object]:
     grey = {"brick": skd.brick(), "gravel": skd.gravel(), "grass": skd.grass()}
     grey["plaster"] = np.floor(gaussian_blur(skd.gravel(), 3.0)).astype(np.uint8)
     out: dict[str, object] = {k: (v, _int_stats(v)) for k, v in grey.items()}
-    out["posters"] = [skd.coffee(), skd.astronaut(), skd.chelsea(), skd.rocket(),
-                      skd.hubble_deep_field(), skd.immunohistochemistry(), skd.colorwheel(),
-                      np.repeat(skd.text()[..., None], 3, axis=2),
-                      np.repeat(skd.coins()[..., None], 3, 2),
-                      np.repeat(skd.moon()[..., None], 3, axis=2),
-                      np.repeat(skd.page()[..., None], 3, 2),
-                      skd.logo()[..., :3], np.repeat(skd.camera()[..., None], 3, axis=2)]
+    out["posters"] = [
+        skd.coffee(),
+        skd.astronaut(),
+        skd.chelsea(),
+        skd.rocket(),
+        skd.hubble_deep_field(),
+        skd.immunohistochemistry(),
+        skd.colorwheel(),
+        np.repeat(skd.text()[..., None], 3, axis=2),
+        np.repeat(skd.coins()[..., None], 3, 2),
+        np.repeat(skd.moon()[..., None], 3, axis=2),
+        np.repeat(skd.page()[..., None], 3, 2),
+        skd.logo()[..., :3],
+        np.repeat(skd.camera()[..., None], 3, axis=2),
+    ]
     return out
 
 
@@ -61,4 +69,4 @@ def _tex_patch(name: str, scale: float, h: int, w: int, rng: np.random.Generator
     reps = (math.ceil((h + oy) / th), math.ceil((w + ox) / tw))
     if reps != (1, 1):
         t = np.tile(t, reps)
-    return t[oy:oy + h, ox:ox + w]
+    return t[oy : oy + h, ox : ox + w]

@@ -14,8 +14,9 @@ from .street import _draw_lamp, _draw_traffic_sign, _draw_tree
 _POOL_KEY = 7_919
 
 
-def _render_world(seed: int, i: int, hc: int, wc: int, unit: float,
-                  diff: SyntheticDifficulty) -> _World:
+def _render_world(
+    seed: int, i: int, hc: int, wc: int, unit: float, diff: SyntheticDifficulty
+) -> _World:
     """The day canvas of place ``i``: sky, buildings, sidewalk, road, trees, lamps, signs.
 
     Args:
@@ -51,7 +52,7 @@ def _render_world(seed: int, i: int, hc: int, wc: int, unit: float,
         else:
             style = _random_style(b_rng)
         x1 = min(wc, x + bw)
-        world.sky[top:base, max(0, x):x1] = False
+        world.sky[top:base, max(0, x) : x1] = False
         _draw_building(world, x, x1, top, base, style, b_rng, diff.lit_windows)
         x = x1 + (int(rng.uniform(0.02, 0.12) * unit) if rng.random() < 0.3 else 0)
     # sidewalk and road
@@ -59,15 +60,35 @@ def _render_world(seed: int, i: int, hc: int, wc: int, unit: float,
     _fill_textured(world, 0, base, wc, base + side_h, (165, 160, 150), "gravel", 0.5, 0.12, rng)
     for k in range(0, wc, max(8, int(0.18 * unit))):  # paving joints
         cv2.line(img, (k, base), (k - int(0.05 * unit), base + side_h), (135, 130, 125), 1)
-    cv2.rectangle(img, (0, base + side_h), (wc, base + side_h + max(2, int(0.015 * unit))),
-                  (200, 200, 195), -1)
-    _fill_textured(world, 0, base + side_h + max(2, int(0.015 * unit)), wc, hc, (70, 70, 75),
-                   "gravel", 0.4, 0.18, rng)
+    cv2.rectangle(
+        img,
+        (0, base + side_h),
+        (wc, base + side_h + max(2, int(0.015 * unit))),
+        (200, 200, 195),
+        -1,
+    )
+    _fill_textured(
+        world,
+        0,
+        base + side_h + max(2, int(0.015 * unit)),
+        wc,
+        hc,
+        (70, 70, 75),
+        "gravel",
+        0.4,
+        0.18,
+        rng,
+    )
     lane_y = base + side_h + int(0.17 * unit)
     off = int(rng.uniform(0, 0.3 * unit))
     for k in range(-off, wc, int(0.35 * unit)):
-        cv2.rectangle(img, (k, lane_y), (k + int(0.18 * unit), lane_y + max(2, int(0.015 * unit))),
-                      (225, 225, 215), -1)
+        cv2.rectangle(
+            img,
+            (k, lane_y),
+            (k + int(0.18 * unit), lane_y + max(2, int(0.015 * unit))),
+            (225, 225, 215),
+            -1,
+        )
     # street furniture in front of the facades
     ground = base + int(0.06 * hc)
     for _ in range(int(rng.integers(0, 3))):
