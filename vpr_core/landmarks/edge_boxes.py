@@ -6,6 +6,7 @@ or on a gradient edge map. Boxes come back in proposal order (descending objectn
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import os
 from dataclasses import dataclass
@@ -19,7 +20,7 @@ from ..boxes import check_image
 from ..paper import N_LANDMARKS
 from ._checks import check_count
 
-__all__ = ["EDGE_BOXES_DEFAULTS", "EdgeBoxes", "edge_boxes"]
+__all__ = ["EDGE_BOXES_DEFAULTS", "EdgeBoxes", "edge_boxes", "edge_model_id"]
 
 logger = logging.getLogger("vpr_core")
 
@@ -90,6 +91,19 @@ def _resolve_model(model: str | os.PathLike | None) -> Path | None:
     if not path.is_file():
         raise FileNotFoundError(_missing_model_message(path))
     return path
+
+
+def edge_model_id(model: str | os.PathLike | None = None) -> str:
+    """Identity of the edge map Edge Boxes will use: ``"gradient"`` or ``"sha256:<hex>"`` of the
+    structured-edge model file's contents (``model``, else ``$VPR_SED_MODEL``)."""
+    path = _resolve_model(model)
+    if path is None:
+        return "gradient"
+    digest = hashlib.sha256()
+    with path.open("rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(chunk)
+    return f"sha256:{digest.hexdigest()}"
 
 
 def _structured_edges(image: np.ndarray, path: Path) -> tuple[np.ndarray, np.ndarray]:
