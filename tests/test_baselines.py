@@ -17,6 +17,7 @@ from vpr_core.baselines import (
     peer_similarity_for,
 )
 from vpr_core.datasets import PlaceDataset
+from vpr_core.evaluation import auc_pr, pr_curve, recall_at_100_precision
 
 
 def _write(path: Path, sim: np.ndarray, queries=None, encode=0.0123, match=0.0045, as_list=False):
@@ -166,7 +167,7 @@ def test_peer_from_matrix_and_distance(tmp_path):
     assert np.array_equal(peer_similarity_for(_dataset(2, 3), peer), sim)
     dist = peer_from_matrix(1 - sim, "mine_d", distance=True)
     assert dist.source is None and np.array_equal(dist.top1_reference, [0, 1])
-    assert np.allclose(dist.similarity, sim - 1)
+    assert np.allclose(dist.similarity, 0.9 / (1 - sim))  # 1 / (d / max d)
     with pytest.raises(ValueError, match=r"the peer has 2 x 3 .*has 3 x 3: compute the peer on"):
         peer_similarity_for(_dataset(3, 3), peer)
     bad = sim.copy()
@@ -180,7 +181,7 @@ def test_peer_from_matrix_and_distance(tmp_path):
     ):
         peer_from_matrix(np.ones(3), "x")
     np.save(tmp_path / "obj.npy", np.array([[1, "a"]], dtype=object), allow_pickle=True)
-    with pytest.raises(ValueError, match="obj.npy is not a numeric .npy array"):
+    with pytest.raises(ValueError, match=r"obj.npy is not a readable .npy file .*Python objects"):
         peer_from_matrix(tmp_path / "obj.npy", "x")
     with pytest.raises(FileNotFoundError, match="similarity matrix file not found"):
         peer_from_matrix(tmp_path / "none.npy", "x")
@@ -197,8 +198,8 @@ def test_peer_from_descriptors_cosine_and_l2(tmp_path):
     want = np.array([[a @ b / np.linalg.norm(a) / np.linalg.norm(b) for b in r] for a in q])
     assert peer.similarity.shape == (3, 5) and np.allclose(peer.similarity, want, atol=1e-6)
     l2 = peer_from_descriptors(q, r, "mine", metric="L2")
-    want = -np.array([[np.linalg.norm(a - b) for b in r] for a in q])
-    assert np.allclose(l2.similarity, want)
+    d = np.array([[np.linalg.norm(a - b) for b in r] for a in q])
+    assert np.allclose(l2.similarity, d.max() / d)
     with pytest.raises(ValueError, match="query descriptors are 8-d but database descriptors 4-d"):
         peer_from_descriptors(q, r[:, :4], "x")
     with pytest.raises(ValueError, match="metric must be 'cosine' or 'l2'"):
@@ -207,3 +208,75 @@ def test_peer_from_descriptors_cosine_and_l2(tmp_path):
         peer_from_descriptors(np.zeros((1, 8)), r, "x")
     with pytest.raises(ValueError, match=r"query descriptors in the array has shape \(3, 2, 4\)"):
         peer_from_descriptors(q.reshape(3, 2, 4), r, "x")
+
+
+# the hand example of issue 25: two queries, both with reference 0 as the place; query 0's best
+# match (d = 1) is right with ratio d1/d2 = 1/4, query 1's (d = 2, reference 1) wrong with 2/3.
+# Accept query 0 first: (R, P) = (0.5, 1), then both: (1, 0.5) -> AUC 0.5 + 0.375 = 0.875.
+HAND_D = np.array([[1.0, 4.0, 5.0], [3.0, 2.0, 6.0]])
+HAND_GT = np.array([[True, False, False], [True, False, False]])
+
+
+def _ratio_metrics(sim: np.ndarray) -> tuple[float, float]:
+    curve = pr_curve(sim, HAND_GT, protocol="ratio")
+    return auc_pr(curve), recall_at_100_precision(curve)
+
+
+def test_distance_peer_ratio_is_d1_over_d2():
+    peer = peer_from_matrix(HAND_D, "dist", distance=True)
+    sim = peer.similarity
+    assert (sim > 0).all()
+    s_sorted = np.sort(sim, axis=1)[:, ::-1]
+    np.testing.assert_allclose(s_sorted[:, 1] / s_sorted[:, 0], [1 / 4, 2 / 3])
+    auc, r100 = _ratio_metrics(sim)
+    assert auc == pytest.approx(0.875) and r100 == pytest.approx(0.5)
+    # the same distances from l2 descriptors (1-d points: q 0, 10; r 1, 14, 5 -> hand D rows
+    # [1, 14, 5] and [9, 4, 5]: q0 right with 1/5, q1 wrong (reference 1) with 4/5)
+    q, r = np.array([[0.0], [10.0]]), np.array([[1.0], [14.0], [5.0]])
+    l2 = peer_from_descriptors(q, r, "l2", metric="l2")
+    np.testing.assert_array_equal(l2.top1_reference, [0, 1])
+    assert _ratio_metrics(l2.similarity) == pytest.approx((0.875, 0.5))
+    # huge magnitudes do not overflow (the ratio is scale-free)
+    big = peer_from_descriptors(q * 1e300, r * 1e300, "big", metric="l2")
+    np.testing.assert_allclose(big.similarity, l2.similarity)
+
+
+def test_distance_peer_zero_and_negative():
+    d = np.array([[0.0, 2.0, 3.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]])
+    sim = peer_from_matrix(d, "z", distance=True).similarity
+    assert np.isfinite(sim).all() and (sim > 0).all()
+    assert sim[0, 1] / sim[0, 0] < 1e-100  # an exact match: ratio ~ 0
+    assert sim[1, 0] == sim[1, 1] and sim[2, 0] == sim[2, 2]  # ties stay ties: ratio 1
+    with pytest.raises(ValueError, match=r"1 negative values; distances must be >= 0"):
+        peer_from_matrix(np.array([[1.0, -1.0]]), "n", distance=True)
+
+
+@pytest.mark.parametrize(
+    "matrix",
+    [
+        np.array([[1 + 1j, 0.5], [0.2, 0.9]]),
+        np.array([["2020-01-01", "2020-01-02"]], dtype="datetime64[D]"),
+        np.array([[np.timedelta64(1, "s"), np.timedelta64(2, "s")]]),
+        np.array([["0.1", "0.2"]]),
+    ],
+)
+def test_peer_matrix_refuses_non_real(matrix, tmp_path):
+    with pytest.raises(ValueError, match="is not real numbers"):
+        peer_from_matrix(matrix, "x")
+    np.save(tmp_path / "m.npy", matrix)
+    with pytest.raises(ValueError, match=r"m.npy is not real numbers .*save a float array"):
+        peer_from_matrix(tmp_path / "m.npy", "x")
+
+
+def test_cosine_descriptors_of_huge_magnitude():
+    q = np.array([[1e300, 1e300], [1e300, -1e300]])
+    r = np.array([[1e300, 1e300], [-1e300, 1e300]])
+    peer = peer_from_descriptors(q, r, "big")
+    np.testing.assert_allclose(peer.similarity, [[1.0, 0.0], [0.0, -1.0]], atol=1e-12)
+
+
+def test_vprbench_file_with_a_complex_matrix_is_refused(tmp_path):
+    path = tmp_path / "precomputed_matches" / "DS" / "T" / PRECOMPUTED_FILE
+    _write(path, np.array([[1 + 2j, 0.5], [0.1, 0.9]]))
+    with pytest.raises(ValueError, match=r"item 3 \(similarity matrix\) is not a numeric"):
+        load_vprbench_precomputed(path)

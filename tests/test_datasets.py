@@ -8,6 +8,7 @@ import hashlib
 import http.server
 import io
 import threading
+import time
 import zipfile
 from pathlib import Path
 
@@ -177,7 +178,7 @@ def test_gardens_point_archive_folder_and_errors(tmp_path):
     base = tmp_path / "GardensPointWalking"
     _write_images(base / "day_left", ["Image000.jpg", "Image001.jpg"])
     _write_images(base / "night_right", ["Image000.jpg"])
-    with pytest.raises(ValueError, match="same count"):
+    with pytest.raises(ValueError, match=r"reference side lacks frame\(s\) 1 \(Image001.jpg\)"):
         load_dataset("gardens_point", root=tmp_path)
     _write_images(base / "night_right", ["Image001.jpg"])
     assert load_dataset("gardens_point", root=tmp_path).root == base
@@ -185,6 +186,58 @@ def test_gardens_point_archive_folder_and_errors(tmp_path):
     _write_images(other / "day_left", ["Image000.jpg"])
     with pytest.raises(FileNotFoundError, match="night_right"):
         load_dataset("gardens_point", root=other)
+
+
+def test_gardens_point_pairs_by_frame_number(tmp_path):
+    # one frame missing on each side: the counts agree, positions would pair 2 with 3
+    _write_images(tmp_path / "day_left", [f"Image{i:03d}.jpg" for i in (0, 1, 3, 4)])
+    _write_images(tmp_path / "night_right", [f"Image{i:03d}.jpg" for i in (0, 1, 2, 4)])
+    with pytest.raises(
+        ValueError,
+        match=r"query side lacks frame\(s\) 2 \(Image002.jpg\); the reference side lacks "
+        r"frame\(s\) 3 \(Image003.jpg\)",
+    ):
+        load_dataset("gardens_point", root=tmp_path)
+    _write_images(tmp_path / "night_right", ["Image003.jpg"])
+    _write_images(tmp_path / "day_left", ["Image002.jpg"])
+    ds = load_dataset("gardens_point", root=tmp_path)
+    assert [p.name for p in ds.query_paths] == [p.name for p in ds.reference_paths]
+    (tmp_path / "night_right" / "renamed.jpg").write_bytes(b"")
+    with pytest.raises(ValueError, match=r"renamed\.jpg has none"):
+        load_dataset("gardens_point", root=tmp_path)
+
+
+def test_folder_refuses_a_frame_missing_on_each_side(tmp_path):
+    _write_images(tmp_path / "query", ["0.jpg", "1.jpg", "3.jpg"])
+    _write_images(tmp_path / "reference", ["0.jpg", "1.jpg", "2.jpg"])
+    with pytest.raises(ValueError, match=r"folder: .*query side lacks frame\(s\) 2 \(2.jpg\)"):
+        load_dataset("folder", root=tmp_path)
+    # numbers that never meet (e.g. per-traverse timestamps) keep pairing by position
+    _write_images(tmp_path / "t" / "query", ["1000.jpg", "1001.jpg"])
+    _write_images(tmp_path / "t" / "reference", ["5.jpg", "6.jpg"])
+    assert load_dataset("folder", root=tmp_path / "t").gt_pairs() == [(0, 0), (1, 1)]
+
+
+def test_file_based_datasets_are_named_by_their_data_folder(tmp_path):
+    """Issue 26 item 3: outputs and titles name the data (``corridor``), not the loader."""
+    for side in ("query", "reference", "ref"):
+        _write_images(tmp_path / "corridor" / side, ["0.png", "1.png"])
+    np.save(
+        tmp_path / "corridor" / "ground_truth_new.npy", np.array([[0, [0]], [1, [1]]], dtype=object)
+    )
+    (tmp_path / "corridor" / "ground_truth.csv").write_text("0,0\n1,1\n")
+    for t in ("day_left", "night_right"):
+        _write_images(tmp_path / "gp" / "GardensPointWalking" / t, ["Image000.jpg", "Image001.jpg"])
+    for loader, root, name in [
+        ("folder", tmp_path / "corridor", "corridor"),
+        ("vpr_bench", tmp_path / "corridor", "corridor"),
+        ("mapillary_berlin", tmp_path / "corridor", "corridor"),
+        ("gardens_point", tmp_path / "gp", "GardensPointWalking"),
+        ("folder", tmp_path / "corridor" / "query" / "..", "corridor"),
+    ]:
+        ds = load_dataset(loader, root)
+        assert (ds.name, ds.meta["loader"]) == (name, loader)
+    assert load_dataset("synthetic", n_places=2, image_size=SMALL).name == "synthetic"
 
 
 def test_mapillary_berlin_layout(tmp_path):
@@ -415,3 +468,87 @@ def test_irrelevant_sampling_and_gt_references():
     g2 = np.zeros((2, 5), dtype=bool)
     g2[0, [1, 2, 4]] = True
     assert ground_truth_references(g2, 0) == [2] and ground_truth_references(g2, 1) == []
+
+
+# -- issue 25 item 10: short bodies, slow servers, archive bombs -------------------------------
+
+
+@pytest.fixture()
+def hostile_server():
+    """A local server (127.0.0.1 only) whose paths misbehave: ``/short`` announces 1,000 bytes
+    and sends 10, ``/slow`` sends a byte every 0.2 s for ever, others serve ``state["zip"]``."""
+    state: dict = {"zip": b"", "stop": threading.Event()}
+
+    class Handler(http.server.BaseHTTPRequestHandler):
+        def log_message(self, *args):
+            pass
+
+        def do_GET(self):
+            self.send_response(200)
+            if self.path.startswith("/short"):
+                self.send_header("Content-Length", "1000")
+                self.end_headers()
+                self.wfile.write(b"x" * 10)
+            elif self.path.startswith("/slow"):
+                self.end_headers()
+                while not state["stop"].wait(0.2):
+                    try:
+                        self.wfile.write(b"x")
+                        self.wfile.flush()
+                    except OSError:
+                        return
+            else:
+                self.send_header("Content-Length", str(len(state["zip"])))
+                self.end_headers()
+                self.wfile.write(state["zip"])
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+    server.daemon_threads = True
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{server.server_address[1]}", state
+    finally:
+        state["stop"].set()
+        server.shutdown()
+        server.server_close()
+
+
+def test_download_closed_early_is_not_recorded_as_done(hostile_server, tmp_path):
+    base, _ = hostile_server
+    dest = tmp_path / "data"
+    for _ in range(2):  # the second call must try again, not say "already downloaded"
+        with pytest.raises(OSError, match=r"sent 10 of the 1,000 bytes it announced"):
+            download_dataset("x", dest, url=f"{base}/short.zip")
+        assert sorted(p.name for p in dest.iterdir()) == []
+
+
+def test_download_has_an_overall_deadline(hostile_server, tmp_path):
+    base, _ = hostile_server
+    dest = tmp_path / "data"
+    start = time.monotonic()
+    with pytest.raises(OSError, match=r"not finished after 1 s"):
+        download_dataset("x", dest, url=f"{base}/slow.zip", deadline_s=1)
+    assert time.monotonic() - start < 10
+    assert list(dest.iterdir()) == []
+
+
+def test_download_archive_bomb_is_refused_and_nothing_is_kept(hostile_server, tmp_path):
+    base, state = hostile_server
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("big/zeros.bin", b"\0" * 2_000_000)  # ~2 kB compressed
+        zf.writestr("big/ok.txt", b"fine")
+    state["zip"] = buf.getvalue()
+    dest = tmp_path / "data"
+    with pytest.raises(ValueError, match=r"expands to 2,000,004 bytes, more than max_extract"):
+        download_dataset("x", dest, url=f"{base}/b.zip", max_extract_bytes=1_000_000)
+    assert [p.name for p in dest.iterdir()] == ["b.zip"]  # the archive, no marker, no files
+    root = download_dataset("x", dest, url=f"{base}/b.zip", max_extract_bytes=3_000_000)
+    assert root == dest / "big" and (root / "zeros.bin").stat().st_size == 2_000_000
+    assert not list(dest.glob(".extract-*")) and (dest / ".vpr_download.json").is_file()
+
+
+def test_download_deadline_must_be_finite(tmp_path):
+    with pytest.raises(ValueError, match=r"deadline_s must be a finite number"):
+        download_dataset("x", tmp_path, url="http://127.0.0.1:9/x.zip", deadline_s=float("inf"))

@@ -28,7 +28,8 @@ NAMES = [f"images-{10 * i:05d}.png" for i in range(1, 13)]  # 12 places
 def test_nordland_tree_step_tolerance_and_names(tmp_path):
     _tree(tmp_path, {"summer": NAMES, "winter": NAMES, "spring": NAMES[:2]})
     ds = load_dataset("nordland", tmp_path)
-    assert ds.name == "nordland" and ds.tolerance == 1 and len(ds) == 12
+    assert ds.name == tmp_path.name and ds.meta["loader"] == "nordland"
+    assert ds.tolerance == 1 and len(ds) == 12
     assert (
         ds.query_paths[0].parent.name == "winter" and ds.reference_paths[0].parent.name == "summer"
     )

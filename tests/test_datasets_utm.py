@@ -65,6 +65,43 @@ def test_utm_paths_list_sets_the_order(tmp_path):
         load_dataset("utm", tmp_path)
 
 
+def test_utm_paths_list_stays_inside_its_folder(tmp_path):
+    _utm_tree(tmp_path)
+    _img(tmp_path / "outside.jpg")
+    listing = tmp_path / "database_images_paths.txt"
+    for line in ("../outside.jpg", str(tmp_path / "outside.jpg"), "sub/../../outside.jpg"):
+        listing.write_text(_name(543256.96, 4178906.93) + "\n" + line + "\n")
+        with pytest.raises(ValueError, match=r"paths.txt line 2 names .* which is outside"):
+            load_dataset("utm", tmp_path)
+
+
+def _zone_tree(root: Path, query_zone: str, database_zone: str, extra: str | None = None) -> None:
+    for side, zone in (("queries", query_zone), ("database", database_zone)):
+        z, band = zone[:-1], zone[-1]
+        _img(root / side / f"@543256.96@4178906.93@{z}@{band}@@@.jpg")
+    if extra is not None:
+        _img(root / "database" / f"@543300.00@4178906.93@{extra[:-1]}@{extra[-1]}@@@.jpg")
+
+
+@pytest.mark.parametrize(
+    ("query", "database", "extra"),
+    [("32T", "33T", None), ("33H", "33T", None), ("33T", "33T", "32T")],
+)
+def test_utm_mixed_zones_are_refused(tmp_path, query, database, extra):
+    _zone_tree(tmp_path, query, database, extra)
+    with pytest.raises(ValueError, match=r"different UTM zones or hemispheres .*not comparable"):
+        load_dataset("utm", tmp_path)
+
+
+def test_utm_one_zone_and_bands_of_one_hemisphere_load(tmp_path):
+    _zone_tree(tmp_path, "33T", "33U")  # T and U: both north of the equator, one grid
+    ds = load_dataset("utm", tmp_path)
+    assert ds.meta["utm_zone"] == "33N" and ds.ground_truth.tolist() == [[True]]
+    _img(tmp_path / "database" / "@543256.96@4178906.93@99@T@@@.jpg")
+    with pytest.raises(ValueError, match=r"'99', 'T'\) are not a UTM zone"):
+        load_dataset("utm", tmp_path)
+
+
 def test_utm_names_without_coordinates(tmp_path):
     _utm_tree(tmp_path)
     _img(tmp_path / "database" / "0001.jpg")

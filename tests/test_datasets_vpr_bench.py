@@ -19,7 +19,7 @@ def _images(folder: Path, names) -> None:
 
 
 def _save_gt(path: Path, rows, two_d: bool = True) -> None:
-    """Write rows [query index, [reference indices]] as a pickled object array, as VPR-Bench does."""
+    """Write rows [query index, [reference indices]] as a pickled object array (as VPR-Bench)."""
     if two_d:
         arr = np.empty((len(rows), 2), dtype=object)
         for k, (q, refs) in enumerate(rows):
@@ -42,7 +42,8 @@ def test_vpr_bench_layout_rows_lists_arrays_scalars(tmp_path, two_d):
     rows = [(0, [0, 1]), (1, np.array([2])), (np.int64(2), 3), (3, [4, 3])]
     _save_gt(tmp_path / "ground_truth_new.npy", rows, two_d)
     ds = load_dataset("vpr_bench", tmp_path)
-    assert ds.name == "vpr_bench" and ds.tolerance == 0 and ds.meta["dataset"] == tmp_path.name
+    assert ds.name == tmp_path.name == ds.meta["dataset"] and ds.meta["loader"] == "vpr_bench"
+    assert ds.tolerance == 0
     assert ds.reference_paths[3].parent.name == "ref"
     assert ds.gt_pairs() == [(0, 0), (0, 1), (1, 2), (2, 3), (3, 3), (3, 4)]
     wide = load_dataset("vpr_bench", tmp_path, tolerance=1)

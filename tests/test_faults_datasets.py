@@ -4,6 +4,8 @@ damaged image files, images below the minimum size. Each test fails if its prote
 from __future__ import annotations
 
 import logging
+import struct
+import zlib
 from pathlib import Path
 
 import cv2
@@ -171,3 +173,132 @@ def test_images_below_min_side_are_refused(tmp_path):
     ds = load_dataset("folder", tmp_path / "ds")
     with pytest.raises(ValueError, match=r"query/1\.png is too small"):
         ds.load_image("query", 1)
+
+
+# -- issue 25 item 6: damaged JPEGs whose end marker is intact; folders named like images -----
+
+
+def _jpeg_bytes(seed: int = 0) -> bytes:
+    rng = np.random.default_rng(seed)
+    ok, buf = cv2.imencode(".jpg", rng.integers(0, 256, (96, 128, 3), dtype=np.uint8))
+    assert ok
+    return buf.tobytes()
+
+
+def test_jpeg_with_corrupted_scan_data_is_refused_by_name(tmp_path):
+    data = bytearray(_jpeg_bytes())
+    sos = data.rfind(b"\xff\xda")
+    for i in range(sos + 200, sos + 400, 7):  # stray markers in the entropy-coded data
+        data[i] = 0xFF if data[i] != 0xFF else 0x00
+    bad = tmp_path / "corrupt.jpg"
+    bad.write_bytes(bytes(data))
+    assert cv2.imread(str(bad)) is not None  # OpenCV alone decodes it with garbled areas
+    with pytest.raises(ValueError, match=r"corrupt\.jpg is a damaged JPEG .*Corrupt JPEG data"):
+        read_image(bad)
+
+
+def test_truncated_jpeg_with_end_marker_appended_is_refused(tmp_path):
+    data = _jpeg_bytes(1)
+    bad = tmp_path / "cut_eoi.jpg"
+    bad.write_bytes(data[: data.rfind(b"\xff\xda") + 300] + b"\xff\xd9")
+    assert cv2.imread(str(bad)) is not None
+    with pytest.raises(ValueError, match=r"cut_eoi\.jpg is a damaged JPEG"):
+        read_image(bad)
+    good = tmp_path / "good.jpg"  # a clean JPEG decodes to OpenCV's pixels, nothing printed
+    good.write_bytes(data)
+    expected = cv2.cvtColor(cv2.imread(str(good)), cv2.COLOR_BGR2RGB)
+    np.testing.assert_array_equal(read_image(good), expected)
+
+
+def test_folder_named_like_an_image_is_reported_with_skipped_files(tmp_path, caplog):
+    _images(tmp_path / "query", 2)
+    _images(tmp_path / "reference", 2)
+    (tmp_path / "query" / "7.jpg").mkdir()
+    (tmp_path / "query" / "notes.txt").write_text("x")
+    (tmp_path / "ground_truth.csv").write_text("0,0\n1,1\n")
+    with caplog.at_level(logging.WARNING, logger="vpr_core"):
+        ds = load_dataset("folder", tmp_path)
+    assert len(ds.query_paths) == 2
+    assert "skipped 2 file(s)" in caplog.text and "7.jpg" in caplog.text
+
+
+# -- issue 25 item 9: header bombs are refused before anything is allocated -------------------
+
+
+def _png_claiming(path: Path, width: int, height: int) -> None:
+    """A tiny PNG whose IHDR claims ``width x height`` (the pixel data is one deflate stream)."""
+
+    def chunk(kind: bytes, body: bytes) -> bytes:
+        crc = struct.pack(">I", zlib.crc32(kind + body))
+        return struct.pack(">I", len(body)) + kind + body + crc
+
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    path.write_bytes(
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", ihdr)
+        + chunk(b"IDAT", zlib.compress(b"\x00" * 100))
+        + chunk(b"IEND", b"")
+    )
+
+
+@pytest.mark.parametrize("size", [(40_000, 40_000), (100_000, 2_000)])
+def test_png_header_bomb_is_refused_by_name(tmp_path, size):
+    bomb = tmp_path / "bomb.png"
+    _png_claiming(bomb, *size)
+    with pytest.raises(ValueError, match=rf"bomb\.png claims {size[0]} x {size[1]} pixels"):
+        read_image(bomb)
+
+
+def test_jpeg_header_bomb_is_refused_by_name(tmp_path):
+    data = bytearray(_jpeg_bytes(2))
+    sof = data.find(b"\xff\xc0")
+    data[sof + 5 : sof + 9] = (60_000).to_bytes(2, "big") + (60_000).to_bytes(2, "big")
+    bomb = tmp_path / "bomb.jpg"
+    bomb.write_bytes(bytes(data))
+    with pytest.raises(ValueError, match=r"bomb\.jpg claims 60000 x 60000 pixels"):
+        read_image(bomb)
+
+
+# -- issue 25 errors: one line naming the file and line, never a raw int() error -------------
+
+
+@pytest.mark.parametrize(
+    ("cell", "match"),
+    [
+        ("\u00b2", r"line 2: query image '\u00b2' is not in the query folder"),
+        ("9" * 5000, r"line 2: query index 9{20}\.\.\. out of range"),
+        ("\u0663", r"line 2: query image '\u0663' is not in the query folder"),  # Arabic-Indic 3
+    ],
+)
+def test_csv_cells_that_int_refuses_name_file_and_line(tmp_path, cell, match):
+    _images(tmp_path / "query", 2)
+    _images(tmp_path / "reference", 2)
+    (tmp_path / "ground_truth.csv").write_text(f"0,0\n{cell},1\n", encoding="utf-8")
+    with pytest.raises(ValueError, match=r"ground_truth\.csv, " + match) as exc:
+        load_dataset("folder", tmp_path)
+    assert "\n" not in str(exc.value) and len(str(exc.value)) < 400
+
+
+@pytest.mark.parametrize("root", ["", "  "])
+def test_empty_root_is_refused_not_the_current_folder(tmp_path, monkeypatch, root):
+    _images(tmp_path / "query", 2)  # a valid dataset in the current folder must not be used
+    _images(tmp_path / "reference", 2)
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ValueError, match=r"needs root=<folder> \(got an empty string; use '\.'"):
+        load_dataset("folder", root)
+    assert load_dataset("folder", ".").n_query == 2
+
+
+def test_root_of_the_wrong_type_is_one_line(tmp_path):
+    with pytest.raises(ValueError, match=r"root must be a folder path \(str or Path\), got int"):
+        load_dataset("folder", 123)
+
+
+def test_other_format_header_bomb_is_named(tmp_path):
+    """Formats without our header check still fail as one line naming the file (OpenCV's limit)."""
+    bomb = tmp_path / "bomb.bmp"
+    info = struct.pack("<IiiHHIIiiII", 40, 40_000, 40_000, 1, 24, 0, 100, 0, 0, 0, 0)
+    bomb.write_bytes(b"BM" + struct.pack("<IHHI", 154, 0, 0, 54) + info + b"\0" * 100)
+    with pytest.raises(ValueError, match=r"bomb\.bmp cannot be decoded by OpenCV") as exc:
+        read_image(bomb)
+    assert "\n" not in str(exc.value)

@@ -1,4 +1,5 @@
-"""Untrusted files stay data (issue 17 items 1 and 5): the restricted unpickler, ground truth as written."""
+"""Untrusted files stay data (issue 17 items 1 and 5, issue 25 items 8 and 9): the restricted,
+size-bounded unpickler, .npy headers checked against the file, ground truth as written."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import cv2
 import numpy as np
 import pytest
 
-from vpr_core.baselines import load_vprbench_precomputed
+from vpr_core.baselines import load_vprbench_precomputed, peer_from_matrix
 from vpr_core.datasets import load_dataset
 from vpr_core.datasets.safe_pickle import UnsafePickleError, read_npy, restricted_loads
 
@@ -181,4 +182,74 @@ def test_latin1_csv_names_file_line_and_encoding(tmp_path):
         match=r"ground_truth.csv, line 3: not UTF-8 text \(byte 0xe9"
         r".*save the file as UTF-8",
     ):
+        load_dataset("folder", tmp_path)
+
+
+# -- issue 25 items 8 and 9: nothing builds more than the file holds ---------------------------
+
+
+def _shared_list_bomb(levels: int = 5, width: int = 100) -> bytes:
+    """A tiny pickle whose nested lists all reuse one inner list: ``width ** levels`` leaves."""
+    inner: list = [0] * width
+    for _ in range(levels - 1):
+        inner = [inner] * width
+    return pickle.dumps(inner, protocol=2)
+
+
+def test_shared_reference_pickle_bomb_is_refused(tmp_path):
+    data = _shared_list_bomb()
+    assert len(data) < 2_000  # 10^10 leaves from a few hundred bytes
+    with pytest.raises(ValueError, match=r"mem would expand to more than .* elements"):
+        restricted_loads(data, "mem")
+    # the same inside a VPR-Bench ground truth (an object .npy) and as a bare pickle file
+    _images(tmp_path / "query", 2)
+    _images(tmp_path / "ref", 2)
+    gt = tmp_path / "ground_truth_new.npy"
+    row = [0, [[0] * 100] * 100]
+    np.save(gt, _object_array(*([row] * 100)), allow_pickle=True)
+    with pytest.raises(ValueError, match=r"ground_truth_new\.npy would expand to more than"):
+        read_npy(gt, "x")
+    with pytest.raises(ValueError, match=r"ground_truth_new\.npy would expand"):
+        load_dataset("vpr_bench", tmp_path)
+    bare = tmp_path / "bare.npy"
+    bare.write_bytes(data)
+    with pytest.raises(ValueError, match=r"bare\.npy would expand"):
+        read_npy(bare, "x")
+
+
+def test_deeply_nested_pickle_is_refused_by_name(tmp_path):
+    deep: list = [0]
+    for _ in range(200):
+        deep = [deep]
+    path = tmp_path / "deep.npy"
+    path.write_bytes(pickle.dumps(deep, protocol=2))
+    with pytest.raises(ValueError, match=r"deep\.npy nests containers more than 32 deep"):
+        read_npy(path, "x")
+
+
+def test_large_legitimate_ground_truth_is_within_the_bound(tmp_path):
+    rows = _object_array(*[[q, list(range(q, q + 5))] for q in range(2_000)])
+    path = tmp_path / "gt.npy"
+    np.save(path, rows, allow_pickle=True)
+    assert len(read_npy(path, "x")) == 2_000
+
+
+def _npy_claiming(path: Path, shape: tuple[int, ...], dtype: str = "<f8") -> None:
+    """A ``.npy`` whose header claims ``shape`` but that holds 16 bytes of data."""
+    with open(path, "wb") as f:
+        np.lib.format.write_array_header_1_0(
+            f, {"descr": dtype, "fortran_order": False, "shape": shape}
+        )
+        f.write(b"\0" * 16)
+
+
+def test_npy_header_bomb_is_refused_before_allocating(tmp_path):
+    bomb = tmp_path / "peer.npy"
+    _npy_claiming(bomb, (10**6, 10**6))
+    with pytest.raises(ValueError, match=r"peer 'x': .*peer\.npy .*claims .*\(1000000, 1000000\)"):
+        peer_from_matrix(bomb, "x")
+    _images(tmp_path / "query", 2)
+    _images(tmp_path / "reference", 2)
+    _npy_claiming(tmp_path / "ground_truth.npy", (10**6, 10**6), "|b1")
+    with pytest.raises(ValueError, match=r"ground_truth\.npy is not a readable .npy file .*claims"):
         load_dataset("folder", tmp_path)

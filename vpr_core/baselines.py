@@ -119,9 +119,18 @@ def _items(path: Path) -> list:
     return list(data)
 
 
+def _as_real(value: Any) -> np.ndarray:
+    """``value`` as a float64 array; TypeError for complex, dates, strings and other non-reals
+    (``np.asarray(..., float64)`` would drop an imaginary part or parse dates)."""
+    raw = np.asarray(value)
+    if raw.dtype.kind not in "biufO":
+        raise TypeError(f"dtype {raw.dtype} is not real numbers")
+    return raw.astype(np.float64)
+
+
 def _vector(path: Path, value: Any, k: int, n: int | None, integral: bool) -> np.ndarray:
     try:
-        arr = np.asarray(value, dtype=np.float64).ravel()
+        arr = _as_real(value).ravel()
     except (TypeError, ValueError):
         raise _bad(path, f"item {k} ({_ITEMS[k]}) is not numeric") from None
     if n is not None and arr.size != n:
@@ -146,7 +155,7 @@ def _seconds(path: Path, value: Any, k: int) -> float:
 
 def _matrix(path: Path, value: Any) -> np.ndarray:
     try:
-        sim = np.asarray(value, dtype=np.float64)
+        sim = _as_real(value)
     except (TypeError, ValueError):
         raise _bad(
             path, "item 3 (similarity matrix) is not a numeric (Nq, Nr) matrix (ragged rows?)"
@@ -216,23 +225,20 @@ def _user_array(value: Any, name: str, what: str, ndim: int) -> tuple[np.ndarray
         source = Path(value).expanduser()
         if not source.is_file():
             raise FileNotFoundError(f"peer {name!r}: {what} file not found: {source}.")
-        try:
-            value = np.load(source, allow_pickle=False)
-        except (OSError, ValueError, EOFError) as exc:
-            raise ValueError(
-                f"peer {name!r}: {source} is not a numeric .npy array ({exc}); save "
-                f"the {what} with np.save(path, array)."
-            ) from None
-        if not isinstance(value, np.ndarray):
-            raise ValueError(
-                f"peer {name!r}: {source} is a .npz archive; save the {what} alone "  # noqa: TRY004
-                "with np.save(path, array)."
+        try:  # the header's shape is checked against the file before anything is allocated
+            value = read_npy(
+                source, f"the {what} saved with np.save(path, array)", allow_pickle=False
             )
+        except ValueError as exc:
+            raise ValueError(f"peer {name!r}: {exc}") from None
     where = source or "the array"
     try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"peer {name!r}: the {what} in {where} is not numeric.") from None
+        arr = _as_real(value)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise ValueError(
+            f"peer {name!r}: the {what} in {where} is not real numbers ({exc}: complex, dates, "
+            "strings and objects are refused); save a float array."
+        ) from None
     if arr.ndim != ndim or 0 in arr.shape:
         shape = "(Nq, Nr)" if what.endswith("matrix") else "(N, D)"
         raise ValueError(
@@ -246,6 +252,38 @@ def _user_array(value: Any, name: str, what: str, ndim: int) -> tuple[np.ndarray
             "output (every entry must be a finite number)."
         )
     return arr, source
+
+
+#: Smallest rescaled distance used by :func:`_distance_similarity` (a distance of 0 maps here).
+_MIN_SCALED_DISTANCE = 1e-300
+
+
+def _distance_similarity(dist: np.ndarray, name: str, where: object) -> np.ndarray:
+    """Similarity ``1 / d`` of a distance matrix, so that the ratio test's ``S2 / S1`` is the
+    ``d1 / d2`` of Sunderhauf et al. (see docs/DEFINITIONS.md); rankings are unchanged.
+
+    Args:
+        dist: ``(Nq, Nr)`` finite distances, ``>= 0``.
+        name: The peer's name (for errors).
+        where: The file or "the array" (for errors).
+
+    Returns:
+        ``float64 (Nq, Nr)`` positive: ``1 / max(d / max(d), 1e-300)`` (the rescaling keeps it
+        finite; a distance of 0 counts as ``1e-300`` of the largest distance).
+
+    Raises:
+        ValueError: a negative distance.
+    """
+    if (dist < 0).any():
+        raise ValueError(
+            f"peer {name!r}: the distance matrix in {where} holds {int((dist < 0).sum())} "
+            "negative values; distances must be >= 0 (pass a similarity matrix without "
+            "--peer-distance / distance=False if higher means more similar)."
+        )
+    top = float(dist.max())
+    if top == 0.0:
+        return np.ones_like(dist)
+    return 1.0 / np.maximum(dist / top, _MIN_SCALED_DISTANCE)
 
 
 def _user_peer(name: str, sim: np.ndarray, source: Path | None) -> PeerResult:
@@ -274,7 +312,8 @@ def peer_from_matrix(
         matrix_or_path: ``(Nq, Nr)`` array or ``.npy`` file (read with ``allow_pickle=False``);
             row ``q`` = query ``q`` in the dataset's order, higher = more similar.
         name: The method's name in tables and figures.
-        distance: True when the matrix holds distances (lower = more similar); it is negated.
+        distance: True when the matrix holds distances (``>= 0``, lower = more similar); the
+            similarity is ``1 / d`` (rescaled), so the ratio protocol scores ``d1 / d2``.
 
     Returns:
         A :class:`PeerResult` (``similarity`` ``float64 (Nq, Nr)``, times NaN); check it against a
@@ -282,12 +321,15 @@ def peer_from_matrix(
 
     Raises:
         FileNotFoundError: no such file.
-        ValueError: not a 2-d numeric matrix, NaN / inf entries, empty name.
+        ValueError: not a 2-d real matrix (complex, dates refused), NaN / inf entries, a
+            negative distance, empty name.
     """
     sim, source = _user_array(
         matrix_or_path, name, "distance matrix" if distance else "similarity matrix", 2
     )
-    return _user_peer(name, -sim if distance else sim, source)
+    if distance:
+        sim = _distance_similarity(sim, name, source or "the array")
+    return _user_peer(name, sim, source)
 
 
 def peer_from_descriptors(
@@ -303,8 +345,8 @@ def peer_from_descriptors(
             ``queries_descriptors.npy``), rows in the dataset's query order.
         database_path_or_array: ``(Nr, D)`` array or file (``database_descriptors.npy``).
         name: The method's name in tables and figures.
-        metric: ``"cosine"`` (similarity = cosine) or ``"l2"`` (similarity = minus the Euclidean
-            distance).
+        metric: ``"cosine"`` (similarity = cosine) or ``"l2"`` (Euclidean distance ``d``,
+            similarity ``1 / d`` as in :func:`peer_from_matrix` with ``distance=True``).
 
     Returns:
         A :class:`PeerResult` with ``similarity`` ``float64 (Nq, Nr)``.
@@ -325,8 +367,15 @@ def peer_from_descriptors(
             f"descriptors {r.shape[1]}-d; give both files of the same method run."
         )
     if metric == "l2":
+        # one common scale keeps the squares finite; 1 / d depends only on distance ratios
+        scale = max(float(np.abs(q).max()), float(np.abs(r).max())) or 1.0
+        q, r = q / scale, r / scale
         sq = (q * q).sum(1)[:, None] + (r * r).sum(1)[None, :] - 2 * q @ r.T
-        return _user_peer(name, -np.sqrt(np.maximum(sq, 0.0)), q_src)
+        dist = np.sqrt(np.maximum(sq, 0.0))
+        return _user_peer(name, _distance_similarity(dist, name, q_src or "the array"), q_src)
+    # each row scaled by its largest entry first: cosine is scale-free, the norm cannot overflow
+    q = q / np.maximum(np.abs(q).max(axis=1, keepdims=True), np.finfo(np.float64).tiny)
+    r = r / np.maximum(np.abs(r).max(axis=1, keepdims=True), np.finfo(np.float64).tiny)
     nq, nr = np.linalg.norm(q, axis=1), np.linalg.norm(r, axis=1)
     if not (nq > 0).all() or not (nr > 0).all():
         raise ValueError(

@@ -7,7 +7,8 @@ Where things live:
 * :mod:`.ground_truth`: ground-truth files, the frame-aligned rule, tolerance widening, coverage
   checks (:func:`check_ground_truth`);
 * one module per loader: :mod:`.gardens_point`, :mod:`.mapillary_berlin`, :mod:`.freiburg`,
-  :mod:`.folder`, :mod:`.nordland`, :mod:`.vpr_bench`, :mod:`.utm`, and :mod:`.synthetic` (the embedded default);
+  :mod:`.folder`, :mod:`.nordland`, :mod:`.vpr_bench`, :mod:`.utm`, and :mod:`.synthetic`
+  (the embedded default);
 * :mod:`.download`: :func:`download_dataset`;
 * here: the registry :data:`DATASETS` and :func:`load_dataset`.
 """

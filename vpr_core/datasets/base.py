@@ -1,20 +1,16 @@
-"""The dataset model and image files: :class:`PlaceDataset`, :func:`read_image`, :func:`list_images`.
+"""Dataset model and image files: :class:`PlaceDataset`, :func:`read_image`, :func:`list_images`.
 
-Every dataset is a :class:`PlaceDataset`: two lists of image files (query and reference traverses)
-and a boolean ground-truth matrix ``(Nq, Nr)`` with the tolerance already applied.
-
-Images are refused by name when they cannot be trusted:
-
-* a file that does not decode, or that is **truncated** (a JPEG without its end-of-image marker
-  after the last scan, a PNG without its ``IEND`` chunk): OpenCV would decode such a JPEG as a
-  partly grey picture with only an anonymous libjpeg warning, silently changing the results;
-* an image whose short side is below :data:`MIN_IMAGE_SIDE` pixels (see there why).
+Damaged, truncated, oversized and tiny images are refused by name (see :func:`read_image`).
 """
 
 from __future__ import annotations
 
 import os
 import re
+import sys
+import tempfile
+import threading
+import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,6 +22,7 @@ from ..utils import file_fingerprint
 
 __all__ = [
     "IMAGE_EXTENSIONS",
+    "MAX_IMAGE_PIXELS",
     "MIN_IMAGE_SIDE",
     "SIDES",
     "PlaceDataset",
@@ -66,6 +63,9 @@ IMAGE_EXTENSIONS = (
 #: SeqSLAM-style Nordland frames loadable: their smallest dense landmark (area ratio 0.16) is
 #: still about 26x13 pixels.
 MIN_IMAGE_SIDE = 32
+#: Largest accepted image, in pixels (W x H), checked in the file's header before decoding:
+#: 100 megapixels (300 MB as RGB); VPR datasets' images are far smaller.
+MAX_IMAGE_PIXELS = 100_000_000
 
 
 # ----------------------------------------------------------------------------------------------
@@ -76,23 +76,62 @@ _JPEG_SOI, _JPEG_SOS, _JPEG_EOI = b"\xff\xd8", b"\xff\xda", b"\xff\xd9"
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
-def check_image_file(path: str | os.PathLike) -> None:
-    """Raise if a JPEG or PNG file is truncated (structural check of the bytes, no decoding).
+def _jpeg_size(data: bytes) -> tuple[int, int] | None:
+    """``(W, H)`` from a JPEG's start-of-frame header, or None if none precedes the scan."""
+    i = 2
+    while i + 9 <= len(data) and data[i] == 0xFF:
+        marker = data[i + 1]
+        if marker == 0xFF:  # fill byte
+            i += 1
+            continue
+        if marker == 0xDA:
+            return None
+        length = int.from_bytes(data[i + 2 : i + 4], "big")
+        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+            return int.from_bytes(data[i + 7 : i + 9], "big"), int.from_bytes(
+                data[i + 5 : i + 7], "big"
+            )
+        i += 2 + length
+    return None
+
+
+def _header_size(data: bytes) -> tuple[int, int] | None:
+    """``(W, H)`` a JPEG or PNG header claims, or None (other formats, no header found)."""
+    if data[:2] == _JPEG_SOI:
+        return _jpeg_size(data)
+    if data[:8] == _PNG_SIGNATURE and data[12:16] == b"IHDR":
+        return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+    return None
+
+
+def check_image_file(path: str | os.PathLike) -> bool:
+    """Raise if a JPEG or PNG file is truncated or claims too many pixels (no decoding).
 
     A JPEG must hold a start-of-scan marker and, after the last one, the end-of-image marker
     (inside entropy-coded data ``0xFF`` is always followed by ``0x00`` or a restart marker, so the
     marker cannot appear by chance). A PNG must start with the PNG signature and hold an ``IEND``
-    chunk. Other formats are left to the decoder (OpenCV refuses truncated BMP, PPM and TIFF).
+    chunk. The size in a JPEG or PNG header must not exceed :data:`MAX_IMAGE_PIXELS` (checked
+    before anything is allocated). Other formats are left to the decoder.
 
     Args:
         path: The image file.
 
+    Returns:
+        True when the file is a JPEG.
+
     Raises:
-        ValueError: the file is damaged; the message names it and the fix.
+        ValueError: the file is damaged or too large; the message names it and the fix.
     """
     path = Path(path)
     data = path.read_bytes()
     problem = None
+    size = _header_size(data)
+    if size is not None and size[0] * size[1] > MAX_IMAGE_PIXELS:
+        raise ValueError(
+            f"{path} claims {size[0]} x {size[1]} pixels (W x H) in a {len(data)}-byte file, "
+            f"more than MAX_IMAGE_PIXELS = {MAX_IMAGE_PIXELS:,}: refused before decoding. "
+            "Downscale the image or remove it from the dataset."
+        )
     if data[:2] == _JPEG_SOI:
         sos = data.rfind(_JPEG_SOS)
         if sos < 0:
@@ -106,13 +145,48 @@ def check_image_file(path: str | os.PathLike) -> None:
             f"{path} is {problem}, {len(data)} bytes: it would decode partly grey and change the "
             "results. Re-download the file or remove it from the dataset."
         )
+    return data[:2] == _JPEG_SOI
+
+
+#: libjpeg's warnings that mean lost image data (printed to stderr; the decode still "succeeds").
+_JPEG_DAMAGE = re.compile(
+    r"Corrupt JPEG data(?!: \d+ extraneous bytes)|Premature end of JPEG|Huffman|Invalid SOS"
+    r"|Inconsistent progression|Bogus"
+)
+_DECODE_LOCK = threading.Lock()
+
+
+def _imread_jpeg(path: Path) -> tuple[np.ndarray | None, str]:
+    """``cv2.imread`` of a JPEG with libjpeg's stderr captured (fd 2, serialised by a lock).
+
+    Returns:
+        The BGR image (or None) and libjpeg's damage warnings (``""`` when clean); any other
+        text printed meanwhile is passed on to stderr.
+    """
+    with _DECODE_LOCK, tempfile.TemporaryFile() as capture:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        try:
+            os.dup2(capture.fileno(), 2)
+            img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        capture.seek(0)
+        text = capture.read().decode("utf-8", "replace")
+    damage = [line for line in text.splitlines() if _JPEG_DAMAGE.search(line)]
+    other = [line for line in text.splitlines() if line and line not in damage]
+    if other:
+        print("\n".join(other), file=sys.stderr)
+    return img, "; ".join(damage)
 
 
 def read_image(path: str | os.PathLike, min_side: int = MIN_IMAGE_SIDE) -> np.ndarray:
     """Read an image file as ``uint8 (H, W, 3)`` RGB (grey images are expanded to 3 channels).
 
     The pixels are OpenCV's (``cv2.imread``, BGR -> RGB); before decoding, JPEG and PNG files are
-    checked for truncation (:func:`check_image_file`).
+    checked for truncation (:func:`check_image_file`), and a JPEG whose decoding makes libjpeg
+    report damaged data (corrupt scan data, a premature end) is refused.
 
     Args:
         path: The image file.
@@ -124,13 +198,30 @@ def read_image(path: str | os.PathLike, min_side: int = MIN_IMAGE_SIDE) -> np.nd
 
     Raises:
         FileNotFoundError: the file does not exist.
-        ValueError: OpenCV cannot decode it, it is truncated, or it is smaller than ``min_side``.
+        ValueError: OpenCV cannot decode it, it is truncated or damaged, too many pixels
+            (:func:`check_image_file`), or it is smaller than ``min_side``.
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"image file not found: {path}")
-    check_image_file(path)
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    is_jpeg = check_image_file(path)
+    damage = ""
+    try:
+        if is_jpeg:
+            img, damage = _imread_jpeg(path)
+        else:
+            img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    except cv2.error as exc:  # e.g. OpenCV's own pixel limit in a header it parses
+        reason = str(exc).strip().splitlines()[-1][-160:]
+        raise ValueError(
+            f"{path} cannot be decoded by OpenCV ({reason}); replace or remove the file."
+        ) from None
+    if damage:
+        raise ValueError(
+            f"{path} is a damaged JPEG (the decoder reports: {damage[:200]}): it would decode "
+            "with grey or garbled areas and change the results. Re-download the file or remove "
+            "it from the dataset."
+        )
     if img is None:
         raise ValueError(
             f"{path} is not a readable image (OpenCV could not decode it; the file may be "
@@ -147,8 +238,16 @@ def read_image(path: str | os.PathLike, min_side: int = MIN_IMAGE_SIDE) -> np.nd
 
 
 def natural_key(name: str) -> list:
-    """Sort key that orders digit runs by value: ``2.jpg`` before ``10.jpg``."""
-    return [(0, int(t), t) if t.isdigit() else (1, 0, t.lower()) for t in re.split(r"(\d+)", name)]
+    """Sort key that orders digit runs by value: ``2.jpg`` before ``10.jpg`` (runs of any length
+    or script: compared as digit strings, never through ``int()``)."""
+    key: list = []
+    for i, t in enumerate(re.split(r"(\d+)", name)):
+        if i % 2:  # a run of decimal digits
+            digits = "".join(str(unicodedata.decimal(c)) for c in t).lstrip("0")
+            key.append((0, len(digits), digits, t))
+        else:
+            key.append((1, 0, t.lower(), t))
+    return key
 
 
 def _broken_link(p: Path) -> str | None:
@@ -170,7 +269,8 @@ def scan_images(
     """Image files directly inside ``folder`` (naturally sorted) and the other files it skipped.
 
     Images are files with an extension of :data:`IMAGE_EXTENSIONS` (any case); hidden files and
-    sub-folders are ignored; every other file is returned as skipped.
+    sub-folders are ignored, except a folder named like an image (``1.jpg/``), which is returned as
+    skipped like every other file.
 
     Raises:
         FileNotFoundError: ``folder`` does not exist or is not a folder.
@@ -196,15 +296,17 @@ def scan_images(
             raise ValueError(f"{what}: {p} is {broken}; fix or remove the link.")
         if p.is_file() and is_image:
             files.append(p)
-        elif p.is_file() or broken:
-            skipped.append(p)
+        elif p.is_file() or broken or (is_image and p.is_dir()):
+            skipped.append(p)  # a folder named like an image is reported, never used
     if not files:
         raise ValueError(
             f"{what} {folder} contains no images (looked for {', '.join(IMAGE_EXTENSIONS)}, "
             "any case); copy the images there or point `root` at the right folder."
         )
+
     def key(p):
         return natural_key(p.name)
+
     return sorted(files, key=key), sorted(skipped, key=key)
 
 
@@ -245,7 +347,8 @@ class PlaceDataset:
     """Two traverses of image files and their ground truth.
 
     Attributes:
-        name: Dataset name (``"synthetic"``, ``"gardens_point"``, ...).
+        name: Dataset name: ``"synthetic"``, or a file-based dataset's data folder
+            (``"gardens_point_mini"``; see :func:`~vpr_core.datasets.layout.data_name`).
         query_paths: ``Nq`` query image files, in traverse order.
         reference_paths: ``Nr`` reference image files, in traverse order.
         ground_truth: ``bool (Nq, Nr)``; ``ground_truth[q, r]`` is True when reference ``r``

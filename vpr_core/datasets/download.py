@@ -6,6 +6,9 @@ import hashlib
 import json
 import logging
 import os
+import shutil
+import tempfile
+import time
 import urllib.request
 import zipfile
 from pathlib import Path
@@ -27,15 +30,31 @@ DOWNLOADS: dict[str, dict[str, str | None]] = {
 }
 
 _MARKER = ".vpr_download.json"
+#: Default overall deadline of one download, in seconds (a per-read timeout alone lets a server
+#: that sends a byte now and then hold the download for ever).
+DOWNLOAD_DEADLINE_S = 6 * 3600.0
+#: Default bound on what an archive may expand to, in bytes (also never more than the free disk).
+MAX_EXTRACT_BYTES = 64 * 2**30
+_READ_TIMEOUT_S = 60.0
 
 
-def _safe_extract(zf: zipfile.ZipFile, dest: Path) -> list[str]:
+def _safe_extract(zf: zipfile.ZipFile, dest: Path, max_bytes: int) -> list[str]:
+    """Extract ``zf`` into ``dest``: every entry inside ``dest``, the total declared size (which
+    :mod:`zipfile` enforces while reading) at most ``max_bytes`` and the free disk space."""
     dest_r = dest.resolve()
     names = zf.namelist()
     for n in names:
         target = (dest / n).resolve()
         if target != dest_r and dest_r not in target.parents:
             raise ValueError(f"refusing to extract {n!r}: it would land outside {dest}.")
+    total = sum(info.file_size for info in zf.infolist())
+    free = shutil.disk_usage(dest).free
+    if total > min(max_bytes, free):
+        limit = "the free disk space" if free < max_bytes else f"max_extract_bytes={max_bytes:,}"
+        raise ValueError(
+            f"refusing to extract {zf.filename}: it expands to {total:,} bytes, more than {limit} "
+            f"({min(max_bytes, free):,} bytes); free space or raise max_extract_bytes."
+        )
     zf.extractall(dest)
     return names
 
@@ -46,14 +65,18 @@ def download_dataset(
     url: str | None = None,
     sha256: str | None = None,
     overwrite: bool = False,
+    deadline_s: float = DOWNLOAD_DEADLINE_S,
+    max_extract_bytes: int = MAX_EXTRACT_BYTES,
 ) -> Path:
     """Download (and unzip) a dataset for users with internet access.
 
     Streams ``url`` (default: the :data:`DOWNLOADS` entry of ``name``) into ``root`` with a
     progress bar, checks its SHA-256 (``sha256`` or the registry's; when neither is known the
     computed hash is logged so it can be pinned), extracts a ``.zip`` into ``root`` and removes
-    the archive. A marker file records a finished download; a second call returns at once
-    unless ``overwrite``.
+    the archive. The body must have the announced ``Content-Length`` and arrive within
+    ``deadline_s``; the archive is extracted into a temporary folder first and moved into place
+    only when complete. A marker file, written last, records a finished download; a second call
+    returns at once unless ``overwrite``. Whatever fails leaves no partial file behind.
 
     Args:
         name: Dataset name (a :data:`DOWNLOADS` key unless ``url`` is given).
@@ -61,15 +84,18 @@ def download_dataset(
         url: Override the download URL (any ``http(s)://`` or ``file://`` URL).
         sha256: Expected SHA-256 hex digest of the downloaded file.
         overwrite: Download again even if a finished download is recorded.
+        deadline_s: Overall time limit of the transfer, in seconds.
+        max_extract_bytes: Largest total size the archive may expand to.
 
     Returns:
         The folder to pass as ``root=`` to :func:`load_dataset`: ``root`` itself, or its single
         top-level folder when the archive holds exactly one.
 
     Raises:
-        ValueError: unknown name without ``url``, checksum mismatch (the file is removed), or a
-            bad archive.
-        OSError: network or file-system errors (with the URL in the message).
+        ValueError: unknown name without ``url``, checksum mismatch (the file is removed), a bad
+            deadline, or a bad or too large archive (nothing is left extracted).
+        OSError: network or file-system errors, a body shorter or longer than its
+            ``Content-Length``, the deadline passed (with the URL in the message).
     """
     entry = DOWNLOADS.get(name)
     if entry is None and url is None:
@@ -79,6 +105,8 @@ def download_dataset(
             "docstring."
         )
     url = url or str(entry["url"])  # type: ignore[index]
+    if not isinstance(deadline_s, (int, float)) or not 0 < deadline_s < float("inf"):
+        raise ValueError(f"deadline_s must be a finite number of seconds > 0, got {deadline_s!r}.")
     expected = sha256 or (entry or {}).get("sha256") or None
     expected = expected.lower().strip() if expected else None
     root = Path(root).expanduser()
@@ -86,12 +114,15 @@ def download_dataset(
     marker = root / _MARKER
     if marker.is_file() and not overwrite:
         info = json.loads(marker.read_text())
-        log.info("%s already downloaded into %s (overwrite=True to fetch again)", name, root)
-        return root / info.get("top", "") if info.get("top") else root
+        done = root / info["top"] if info.get("top") else root
+        if done.is_dir():
+            log.info("%s already downloaded into %s (overwrite=True to fetch again)", name, root)
+            return done
+    marker.unlink(missing_ok=True)  # from here until the end, nothing is recorded as done
     fname = Path(urllib.request.url2pathname(url.split("?")[0].rstrip("/").split("/")[-1])).name
     fname = fname or f"{name}.download"
     part = root / (fname + ".part")
-    got = _stream(name, url, part, root)
+    got = _stream(name, url, part, root, deadline_s)
     if expected is not None and got != expected:
         part.unlink(missing_ok=True)
         raise ValueError(
@@ -107,18 +138,26 @@ def download_dataset(
         )
     target = root / fname
     os.replace(part, target)
-    top = _unzip(name, target, root) if zipfile.is_zipfile(target) else ""
-    marker.write_text(json.dumps({"name": name, "url": url, "sha256": got, "top": top}))
+    top = _unzip(name, target, root, max_extract_bytes) if zipfile.is_zipfile(target) else ""
+    tmp_marker = marker.with_name(marker.name + ".tmp")
+    tmp_marker.write_text(json.dumps({"name": name, "url": url, "sha256": got, "top": top}))
+    os.replace(tmp_marker, marker)
     return root / top if top else root
 
 
-def _stream(name: str, url: str, part: Path, root: Path) -> str:
-    """Stream ``url`` into ``part`` with a progress bar; return the SHA-256 hex digest."""
+def _stream(name: str, url: str, part: Path, root: Path, deadline_s: float) -> str:
+    """Stream ``url`` into ``part`` with a progress bar; return the SHA-256 hex digest.
+
+    The body must match its ``Content-Length`` (when sent) and arrive within ``deadline_s``
+    seconds; otherwise ``part`` is removed and OSError raised.
+    """
     from tqdm.auto import tqdm
 
     digest = hashlib.sha256()
+    start = time.monotonic()
+    received = 0
     try:
-        with urllib.request.urlopen(url, timeout=60) as resp:
+        with urllib.request.urlopen(url, timeout=min(_READ_TIMEOUT_S, deadline_s)) as resp:
             total = int(resp.headers.get("Content-Length") or 0) or None
             with (
                 open(part, "wb") as f,
@@ -131,28 +170,53 @@ def _stream(name: str, url: str, part: Path, root: Path) -> str:
                     disable=settings.progress_disabled(),
                 ) as bar,
             ):
-                for chunk in iter(lambda: resp.read(1 << 20), b""):
+                # read1: whatever has arrived (read() would wait for a full chunk)
+                for chunk in iter(lambda: resp.read1(1 << 20), b""):
                     f.write(chunk)
                     digest.update(chunk)
+                    received += len(chunk)
                     bar.update(len(chunk))
-    except OSError as exc:
+                    if time.monotonic() - start > deadline_s:
+                        raise TimeoutError(
+                            f"not finished after {deadline_s:g} s ({received:,} bytes received; "
+                            "deadline_s=... allows more)"
+                        )
+            if total is not None and received != total:
+                raise OSError(
+                    f"the server sent {received:,} of the {total:,} bytes it announced "
+                    "(connection closed early)"
+                )
+    except (OSError, ValueError) as exc:  # ValueError: http.client's malformed responses
         part.unlink(missing_ok=True)
         raise OSError(
-            f"download of {name!r} from {url} failed: {exc}; check the URL and your "
-            f"connection, or download it by hand into {root}."
+            f"download of {name!r} from {url} failed: {exc}; nothing was kept. Check the URL "
+            f"and your connection and retry, or download it by hand into {root}."
         ) from exc
     return digest.hexdigest()
 
 
-def _unzip(name: str, target: Path, root: Path) -> str:
-    """Extract the zip ``target`` into ``root``, remove it; return its single top folder or ""."""
+def _unzip(name: str, target: Path, root: Path, max_bytes: int) -> str:
+    """Extract the zip ``target`` into ``root`` (via a temporary folder, moved into place when
+    complete), remove it; return its single top folder or ""."""
+    staging = Path(tempfile.mkdtemp(prefix=".extract-", dir=root))
     try:
         with zipfile.ZipFile(target) as zf:
-            names = _safe_extract(zf, root)
-    except zipfile.BadZipFile as exc:
+            names = _safe_extract(zf, staging, max_bytes)
+        for entry in staging.iterdir():
+            dest = root / entry.name
+            if dest.exists() or dest.is_symlink():
+                if dest.is_dir() and not dest.is_symlink():
+                    shutil.rmtree(dest)
+                else:
+                    dest.unlink()
+            os.replace(entry, dest)
+    except (zipfile.BadZipFile, OSError, EOFError) as exc:
         raise ValueError(
-            f"{target} is not a valid zip archive ({exc}); download it again with overwrite=True."
+            f"{target} could not be extracted ({type(exc).__name__}: {exc}); nothing was kept. "
+            "Download it again with overwrite=True."
         ) from None
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
     target.unlink()
     log.info("%s: extracted %d entries into %s", name, len(names), root)
     tops = {n.split("/")[0] for n in names if n.strip("/")}

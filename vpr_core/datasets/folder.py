@@ -7,13 +7,14 @@ from typing import Any
 
 from .base import PlaceDataset, list_images, scan_images
 from .ground_truth import (
+    check_frame_pairs,
     check_ground_truth,
     check_tolerance,
     frame_aligned,
     read_ground_truth,
     widen,
 )
-from .layout import check_root, resolve_file, traverse_dir
+from .layout import check_root, data_name, resolve_file, traverse_dir
 
 __all__ = ["FOLDER_LAYOUT", "load_folder"]
 
@@ -115,6 +116,8 @@ def load_folder(
                 "pair images of different places; give a ground-truth file (ground_truth.npy / "
                 ".csv in root, or ground_truth=<path>) or remove those files."
             )
+        check_frame_pairs(qp, rp, "folder", strict=False)
         gt = frame_aligned(len(qp), len(rp), tolerance)
         meta["ground_truth_rule"] = f"frame-aligned |q-r|<={tolerance}"
-    return PlaceDataset("folder", qp, rp, gt, tolerance, root=root, meta=meta)
+    meta["loader"] = "folder"
+    return PlaceDataset(data_name(root), qp, rp, gt, tolerance, root=root, meta=meta)

@@ -1,4 +1,5 @@
-"""Freiburg Across Seasons (Naseer et al. AAAI 2014), Summer 2015 vs Winter 2012 (layout unverified)."""
+"""Freiburg Across Seasons (Naseer et al. AAAI 2014), Summer 2015 vs Winter 2012 (layout
+unverified)."""
 
 from __future__ import annotations
 

@@ -6,8 +6,8 @@ import logging
 import os
 
 from .base import PlaceDataset, list_images
-from .ground_truth import check_tolerance, frame_aligned
-from .layout import check_root, traverse_dir
+from .ground_truth import check_frame_pairs, check_tolerance, frame_aligned
+from .layout import check_root, data_name, traverse_dir
 
 __all__ = ["GARDENS_POINT_LAYOUT", "GARDENS_POINT_TRAVERSES", "load_gardens_point"]
 
@@ -37,7 +37,8 @@ def load_gardens_point(
 
     A root that holds a single ``GardensPointWalking/`` folder with that layout (as extracted
     from the archive) is accepted too. The traverses are frame-aligned: ground truth is
-    ``|q - r| <= tolerance``. Tolerances in use differ (0, +-2 in VPR-Bench, +-3 in IROS-2015
+    ``|q - r| <= tolerance``, paired by the frame number in the file names (a frame missing on
+    one side is named in an error). Tolerances in use differ (0, +-2 in VPR-Bench, +-3 in IROS-2015
     reproductions): always report the tolerance beside a number.
 
     Args:
@@ -54,7 +55,8 @@ def load_gardens_point(
     for t in (query, reference):
         if t not in GARDENS_POINT_TRAVERSES:
             raise ValueError(
-                f"gardens_point: unknown traverse {t!r}; valid: {', '.join(GARDENS_POINT_TRAVERSES)}."
+                f"gardens_point: unknown traverse {t!r}; "
+                f"valid: {', '.join(GARDENS_POINT_TRAVERSES)}."
             )
     base = root
     if not (root / query).is_dir() and (root / "GardensPointWalking" / query).is_dir():
@@ -68,11 +70,7 @@ def load_gardens_point(
         traverse_dir(base, reference, "gardens_point", GARDENS_POINT_LAYOUT),
         f"gardens_point {reference} folder",
     )
-    if len(qp) != len(rp):
-        raise ValueError(
-            f"gardens_point: {query} has {len(qp)} images but {reference} has {len(rp)}; the "
-            "traverses are frame-aligned and must have the same count (re-extract the dataset)."
-        )
+    check_frame_pairs(qp, rp, f"gardens_point {query} vs {reference}")
     gt = frame_aligned(len(qp), len(rp), tolerance)
     meta = {
         "query_traverse": query,
@@ -80,4 +78,5 @@ def load_gardens_point(
         "ground_truth_rule": f"frame-aligned |q-r|<={tolerance}",
         "layout": GARDENS_POINT_LAYOUT,
     }
-    return PlaceDataset("gardens_point", qp, rp, gt, tolerance, root=base, meta=meta)
+    meta["loader"] = "gardens_point"
+    return PlaceDataset(data_name(base), qp, rp, gt, tolerance, root=base, meta=meta)

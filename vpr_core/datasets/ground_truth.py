@@ -4,10 +4,11 @@ pairs picked from it (a query's ground-truth references, sampled query-irrelevan
 Ground-truth files accepted by the file-based loaders:
 
 * ``*.npy``: a ``(Nq, Nr)`` matrix of bools or 0/1 numbers.
-* ``*.csv`` (UTF-8, a byte-order mark allowed): rows ``query,reference`` (an optional header row ``query,reference``; ``#``
-  comments allowed). Each cell is a 0-based index into the naturally sorted image list
-  (when it is all digits) or an image file name (``12.jpg``), a stem (``12`` is read as an
-  index, so use the file name for numeric stems) or a path relative to the traverse folder.
+* ``*.csv`` (UTF-8, a byte-order mark allowed): rows ``query,reference`` (an optional header
+  row ``query,reference``; ``#`` comments allowed). Each cell is a 0-based index into the
+  naturally sorted image list (when it is all ASCII digits) or an image file name
+  (``12.jpg``), a stem (``12`` is read as an index, so use the file name for numeric stems)
+  or a path relative to the traverse folder.
   Several rows per query (one-to-many) and several queries per reference (many-to-one) are
   allowed; queries without a row have no ground truth (the evaluation drops them, and
   :func:`check_ground_truth` warns with the count). When one side's numeric cells look 1-based
@@ -21,9 +22,11 @@ reference sequence by ``tolerance`` frames (:func:`widen`; ``0``: exactly the li
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import os
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -32,11 +35,12 @@ import numpy as np
 
 from ..notices import notice
 from .safe_pickle import read_npy
-import contextlib
 
 __all__ = [
+    "check_frame_pairs",
     "check_ground_truth",
     "check_tolerance",
+    "frame_number",
     "frame_aligned",
     "ground_truth_coverage",
     "ground_truth_references",
@@ -58,6 +62,70 @@ def frame_aligned(nq: int, nr: int, tolerance: int) -> np.ndarray:
     q = np.arange(nq)[:, None]
     r = np.arange(nr)[None, :]
     return np.abs(q - r) <= tolerance
+
+
+def frame_number(path: str | os.PathLike) -> int | None:
+    """The frame number in a file name: its stem's last run of digits (``Image012.jpg`` -> 12)."""
+    digits = re.findall(r"\d+", Path(path).stem)
+    return int(digits[-1]) if digits and len(digits[-1]) <= 18 else None
+
+
+def check_frame_pairs(
+    query: Sequence[Path], reference: Sequence[Path], loader: str, strict: bool = True
+) -> None:
+    """Check that query ``i`` and reference ``i`` carry the same frame number in their names.
+
+    The frame-aligned rule pairs by position; a frame missing on one side (and another on the
+    other, so the counts still agree) would silently pair different places.
+
+    Args:
+        query: Query image files in dataset order.
+        reference: Reference image files in dataset order.
+        loader: The loader's name, for errors.
+        strict: True (datasets named by frame number, e.g. Gardens Point): every name must carry
+            a number. False (``folder``): checked only when every name on both sides carries a
+            distinct number and the two sides share at least one (timestamps per traverse, or
+            names without numbers, keep pairing by position).
+
+    Raises:
+        ValueError: the counts differ or a frame is missing on one side (the message names the
+            missing frames and their files).
+    """
+    qn = [frame_number(p) for p in query]
+    rn = [frame_number(p) for p in reference]
+    numbered = None not in qn and None not in rn
+    distinct = numbered and len(set(qn)) == len(qn) and len(set(rn)) == len(rn)
+    if not strict and (not distinct or not set(qn) & set(rn)):
+        return
+    if strict and not distinct:
+        bad = [str(p) for p, n in zip([*query, *reference], [*qn, *rn], strict=True) if n is None]
+        raise ValueError(
+            f"{loader}: pairing is by the frame number in the file name, but "
+            + (f"{bad[0]} has none" if bad else "two files carry the same number")
+            + "; restore the dataset's original file names."
+        )
+    if qn == rn:
+        return
+    q_nums = [n for n in qn if n is not None]  # all numbered here
+    r_nums = [n for n in rn if n is not None]
+    q_files = dict(zip(q_nums, query, strict=True))
+    r_files = dict(zip(r_nums, reference, strict=True))
+    only_q = sorted(set(q_nums) - set(r_nums))
+    only_r = sorted(set(r_nums) - set(q_nums))
+    parts = []
+    for side, only, files in (("query", only_r, r_files), ("reference", only_q, q_files)):
+        if only:
+            listed = ", ".join(f"{n} ({files[n].name})" for n in only[:5])
+            more = " ..." if len(only) > 5 else ""
+            parts.append(f"{side} side lacks frame(s) {listed}{more}")
+    if not parts:
+        parts.append("the two sides list the same frames in a different order")
+    raise ValueError(
+        f"{loader}: query i and reference i must be the same frame, but the "
+        + "; the ".join(parts)
+        + ". Restore the missing images, or remove their counterparts from the other side"
+        + (" (or give a ground-truth file)." if not strict else ".")
+    )
 
 
 def widen(gt: np.ndarray, tolerance: int) -> np.ndarray:
@@ -190,9 +258,14 @@ def _csv_rows(path: Path) -> list[tuple[int, str, str]]:
     return rows
 
 
+def _is_index(cell: str) -> bool:
+    """True for a cell of ASCII digits (``str.isdigit`` also accepts ``²`` and other scripts)."""
+    return cell.isascii() and cell.isdigit()
+
+
 def _looks_one_based(path: Path, cells: list[str], paths: Sequence[Path], side: str) -> bool:
     """Warn when a side's numeric cells look 1-based; return True if they do."""
-    values = {int(c) for c in cells if c.isdigit()}
+    values = {int(c) for c in cells if _is_index(c) and len(c) <= 18}
     if len(values) < 2 or 0 in values or max(values) != len(values):
         return False
     first = paths[1].name if len(paths) > 1 else "(none)"
@@ -208,12 +281,13 @@ def _looks_one_based(path: Path, cells: list[str], paths: Sequence[Path], side: 
 def _resolve(
     path: Path, line: int, cell: str, names: dict[str, int], n: int, side: str, one_based: bool
 ) -> int:
-    if cell.isdigit():
-        j = int(cell)
+    if _is_index(cell):
+        j = int(cell) if len(cell) <= 18 else n  # int() refuses > 4,300 digits: out of range
         if j >= n:
             hint = " (the cells look 1-based: subtract 1)" if one_based else ""
             raise ValueError(
-                f"{path}, line {line}: {side} index {j} out of range (the dataset has {n} "
+                f"{path}, line {line}: {side} index {cell[:20]}{'...' if len(cell) > 20 else ''} "
+                f"out of range (the dataset has {n} "
                 f"{side} images, indices 0..{n - 1}){hint}; fix the file or the image folder."
             )
         return j

@@ -9,7 +9,14 @@ from pathlib import Path
 from .base import PlaceDataset, list_images
 from .ground_truth import check_ground_truth, read_ground_truth, widen
 
-__all__ = ["check_root", "correspondence_dataset", "resolve_file", "traverse_dir"]
+__all__ = [
+    "check_root",
+    "correspondence_dataset",
+    "data_name",
+    "listed_paths",
+    "resolve_file",
+    "traverse_dir",
+]
 
 
 def check_root(root: str | os.PathLike | None, name: str, layout: str) -> Path:
@@ -21,15 +28,21 @@ def check_root(root: str | os.PathLike | None, name: str, layout: str) -> Path:
         layout: The expected layout, quoted in the messages.
 
     Raises:
-        ValueError: ``root`` is None.
+        ValueError: ``root`` is None, empty (it would mean the current folder) or not a path.
         FileNotFoundError: it does not exist or is not a folder.
     """
     from .download import DOWNLOADS
 
-    if root is None:
+    if root is None or (isinstance(root, (str, os.PathLike)) and not str(root).strip()):
         raise ValueError(
-            f"dataset {name!r} needs root=<folder>: call load_dataset({name!r}, root='/path/to/"
-            f"{name}'). Expected layout: {layout}"
+            f"dataset {name!r} needs root=<folder>"
+            + (" (got an empty string; use '.' for the current folder)" if root is not None else "")
+            + f": call load_dataset({name!r}, root='/path/to/{name}'). Expected layout: {layout}"
+        )
+    if not isinstance(root, (str, os.PathLike)):
+        raise ValueError(
+            f"dataset {name!r}: root must be a folder path (str or Path), got "
+            f"{type(root).__name__} {root!r}."
         )
     root = Path(root).expanduser()
     if not root.exists():
@@ -41,6 +54,13 @@ def check_root(root: str | os.PathLike | None, name: str, layout: str) -> Path:
     if not root.is_dir():
         raise FileNotFoundError(f"dataset root {root} is not a folder. Expected layout: {layout}")
     return root
+
+
+def data_name(folder: Path) -> str:
+    """The name of a file-based dataset: its data folder's name (``corridor``,
+    ``gardens_point_mini``), as outputs and titles call it; the loader is in ``meta["loader"]``."""
+    resolved = folder.expanduser().resolve()
+    return resolved.name or str(resolved)
 
 
 def traverse_dir(base: Path, sub: str, name: str, layout: str) -> Path:
@@ -61,6 +81,29 @@ def resolve_file(base: Path, path: str | os.PathLike) -> Path:
     return path if path.is_absolute() else base / path
 
 
+def listed_paths(listing: Path, folder: Path, name: str) -> list[Path]:
+    """The files a paths list names (one per line, relative to ``folder``; blank lines skipped).
+
+    Raises:
+        ValueError: an absolute path or one that leaves ``folder`` (``..``, a symlink out): listed
+            paths stay under their folder.
+    """
+    lines = [s.strip() for s in listing.read_text(encoding="utf-8-sig").splitlines()]
+    inside = folder.resolve()
+    paths = []
+    for n, line in enumerate(lines, 1):
+        if not line:
+            continue
+        path = folder / line
+        if Path(line).is_absolute() or not path.resolve().is_relative_to(inside):
+            raise ValueError(
+                f"{name}: {listing} line {n} names {line!r}, which is outside {folder}; paths in "
+                "the list must be relative to that folder and stay inside it. Fix the line."
+            )
+        paths.append(path)
+    return paths
+
+
 def correspondence_dataset(
     name: str,
     base: Path,
@@ -73,7 +116,8 @@ def correspondence_dataset(
     """A dataset whose ground truth is a correspondence file, widened by ``tolerance``.
 
     Args:
-        name: Dataset name.
+        name: The loader's name (messages, ``meta["loader"]``; the dataset is named by
+            :func:`data_name` of ``base``).
         base: The dataset's root folder.
         query_dir: Query image folder.
         reference_dir: Reference image folder.
@@ -88,5 +132,7 @@ def correspondence_dataset(
     rp = list_images(reference_dir, f"{name} reference folder")
     gt = widen(read_ground_truth(gt_file, qp, rp), tolerance)
     check_ground_truth(gt, str(gt_file))
-    meta = dict(meta, ground_truth_file=str(gt_file), ground_truth_rule="correspondence file")
-    return PlaceDataset(name, qp, rp, gt, tolerance, root=base, meta=meta)
+    meta = dict(
+        meta, loader=name, ground_truth_file=str(gt_file), ground_truth_rule="correspondence file"
+    )
+    return PlaceDataset(data_name(base), qp, rp, gt, tolerance, root=base, meta=meta)

@@ -1,4 +1,5 @@
-"""Mapillary Berlin (Sunderhauf et al. RSS 2015): query/reference folders and a correspondence list."""
+"""Mapillary Berlin (Sunderhauf et al. RSS 2015): query/reference folders and a correspondence
+list."""
 
 from __future__ import annotations
 

@@ -13,7 +13,7 @@ from typing import Any
 
 from .base import PlaceDataset, list_images
 from .ground_truth import check_tolerance, frame_aligned
-from .layout import check_root
+from .layout import check_root, data_name
 
 __all__ = ["NORDLAND_LAYOUT", "load_nordland"]
 
@@ -127,4 +127,5 @@ def load_nordland(
         "layout": NORDLAND_LAYOUT,
         "ground_truth_rule": f"same file name, |i-j|<={tolerance} kept places",
     }
-    return PlaceDataset("nordland", qp, rp, gt, tolerance, root=root, meta=meta)
+    meta["loader"] = "nordland"
+    return PlaceDataset(data_name(root), qp, rp, gt, tolerance, root=root, meta=meta)

@@ -1,13 +1,6 @@
-"""Pickled inputs read as data, never as code: one restricted unpickler for every pickle we read.
-
-VPR-Bench's ``ground_truth_new.npy`` and ``precomputed_data_corrected.npy`` are numpy object arrays,
-i.e. a ``.npy`` header followed by a pickle. numpy's pickle-enabled loading would let such a file run
-any code (a pickle can ask to call ``os.system``). :func:`read_npy` parses the ``.npy`` header itself
-and unpickles the rest with :class:`RestrictedUnpickler`, which rebuilds only what those formats
-contain: numpy arrays, dtypes and scalars, lists, tuples, dicts, numbers, strings, bytes, None and
-bools. Anything else is refused with :class:`UnsafePickleError`, naming the file and the callable
-the pickle asked for, before anything runs.
-"""
+"""Pickled and ``.npy`` inputs read as data, never as code, and never larger than the file allows:
+one restricted, size-bounded unpickler (:class:`RestrictedUnpickler`, :func:`read_npy`) for every
+pickle we read (VPR-Bench's ``ground_truth_new.npy`` and ``precomputed_data_corrected.npy``)."""
 
 from __future__ import annotations
 
@@ -22,6 +15,7 @@ from numpy.lib import format as npy_format
 
 __all__ = [
     "ALLOWED_GLOBALS",
+    "MAX_PICKLE_DEPTH",
     "RestrictedUnpickler",
     "UnsafePickleError",
     "read_npy",
@@ -40,6 +34,12 @@ ALLOWED_GLOBALS = frozenset(
     | {(core + ".numeric", "_frombuffer") for core in ("numpy.core", "numpy._core")}
     | {("numpy", "ndarray"), ("numpy", "dtype"), ("_codecs", "encode")}
 )
+#: Deepest nesting of containers accepted in a pickle (VPR-Bench's files nest 3 levels).
+MAX_PICKLE_DEPTH = 32
+#: Elements (container items and array entries, each reference counted) a pickle may hold per
+#: byte of the file, plus a fixed allowance: a pickle needs at least one byte per stored item,
+#: so more means one object referenced again and again, which ``np.asarray`` would expand.
+_ELEMENTS_PER_BYTE, _ELEMENTS_FLOOR = 8, 10_000
 _NPY_MAGIC, _ZIP_MAGIC = b"\x93NUMPY", b"PK\x03\x04"
 _HEADERS = {
     (1, 0): npy_format.read_array_header_1_0,
@@ -81,32 +81,91 @@ class RestrictedUnpickler(pickle.Unpickler):
         )
 
 
+def _check_bounded(obj: Any, source: str, n_bytes: int) -> Any:
+    """Return ``obj`` if it holds at most ``8 * n_bytes + 10,000`` elements (shared sub-objects
+    counted at every reference) nested at most :data:`MAX_PICKLE_DEPTH` deep; the walk stops as
+    soon as a bound is passed, so it costs at most the bound.
+
+    Raises:
+        ValueError: a bound is exceeded (names ``source``).
+    """
+    budget = _ELEMENTS_PER_BYTE * n_bytes + _ELEMENTS_FLOOR
+    count = 0
+    stack: list[tuple[Any, int]] = [(obj, 0)]
+    while stack:
+        item, depth = stack.pop()
+        if depth > MAX_PICKLE_DEPTH:
+            raise ValueError(
+                f"{source} nests containers more than {MAX_PICKLE_DEPTH} deep; it was not loaded "
+                "(damaged or hostile file): use the file from its original source."
+            )
+        children: Any = ()
+        if isinstance(item, np.ndarray):
+            count += item.size
+            if item.dtype.hasobject:
+                children = item.flat
+        elif isinstance(item, (list, tuple)):
+            count += len(item)
+            children = item
+        elif isinstance(item, dict):
+            count += 2 * len(item)
+            children = [*item.keys(), *item.values()]
+        else:
+            count += 1
+        if count > budget:
+            raise ValueError(
+                f"{source} would expand to more than {budget:,} elements from a {n_bytes:,}-byte "
+                "pickle (one object referenced again and again); it was not loaded (damaged or "
+                "hostile file): use the file from its original source."
+            )
+        stack.extend((child, depth + 1) for child in children)
+    return obj
+
+
 def restricted_loads(data: bytes, source: str, encoding: str = "latin1") -> Any:
-    """Unpickle ``data`` with :class:`RestrictedUnpickler` (``source`` is named in errors)."""
-    return RestrictedUnpickler(io.BytesIO(data), source, encoding).load()
+    """Unpickle ``data`` with :class:`RestrictedUnpickler`, size-bounded (``source`` is named in
+    errors)."""
+    obj = RestrictedUnpickler(io.BytesIO(data), source, encoding).load()
+    return _check_bounded(obj, source, len(data))
 
 
-def read_npy(path: str | os.PathLike, expected: str, encoding: str = "latin1") -> Any:
+def _check_npy_size(path: Path, shape: tuple[int, ...], dtype: np.dtype, n_data: int) -> None:
+    """Refuse a ``.npy`` whose header claims more data than the file holds (before allocating)."""
+    claimed = int(np.prod(shape, dtype=object)) * dtype.itemsize
+    if claimed > n_data:
+        raise ValueError(
+            f"its header claims a {dtype} array of shape {shape} ({claimed:,} bytes) but the "
+            f"file holds {n_data:,} bytes of data: the file is truncated or damaged"
+        )
+
+
+def read_npy(
+    path: str | os.PathLike, expected: str, encoding: str = "latin1", allow_pickle: bool = True
+) -> Any:
     """Read a ``.npy`` file, object arrays included, without ever running code from it.
 
-    A plain ``.npy`` is read by numpy with ``allow_pickle=False``; an object array's pickle is
-    rebuilt with :class:`RestrictedUnpickler`; a file that is a bare pickle (no ``.npy`` header)
-    is unpickled the same way.
+    A plain ``.npy`` is read by numpy with ``allow_pickle=False`` after checking that its header's
+    shape fits the file; an object array's pickle is rebuilt with :class:`RestrictedUnpickler` and
+    bounded (elements per byte of the file, depth); a file that is a bare pickle (no ``.npy``
+    header) is unpickled the same way.
 
     Args:
         path: The file.
         expected: The format the caller expects, quoted in the errors.
         encoding: Decoding of Python-2 strings in the pickle.
+        allow_pickle: False refuses object arrays and bare pickles.
 
     Returns:
         An ``np.ndarray`` (or, for a bare pickle, the object it holds).
 
     Raises:
         UnsafePickleError: the pickle names anything but arrays, numbers and strings.
-        ValueError: a ``.npz`` archive or another format, a damaged file (the message names the
-            file and the expected format).
+        ValueError: a ``.npz`` archive or another format, a damaged file, a header claiming more
+            than the file holds, a pickle expanding beyond its bound (the message names the file
+            and the expected format).
     """
     path = Path(path)
+    n_bytes = path.stat().st_size
     with open(path, "rb") as f:
         head = f.read(6)
         f.seek(0)
@@ -114,15 +173,22 @@ def read_npy(path: str | os.PathLike, expected: str, encoding: str = "latin1") -
             if head.startswith(_ZIP_MAGIC):
                 raise ValueError("it is a .npz (zip) archive, not a .npy array")
             if head != _NPY_MAGIC:
-                return RestrictedUnpickler(f, str(path), encoding).load()
+                if not allow_pickle:
+                    raise ValueError("it has no .npy header")
+                obj = RestrictedUnpickler(f, str(path), encoding).load()
+                return _check_bounded(obj, str(path), n_bytes)
             version = npy_format.read_magic(f)
             if version not in _HEADERS:
                 raise ValueError(f".npy format version {version} is not supported")
-            _, _, dtype = _HEADERS[version](f)
+            shape, _, dtype = _HEADERS[version](f)
             if not dtype.hasobject:
+                _check_npy_size(path, shape, dtype, n_bytes - f.tell())
                 f.seek(0)
                 return np.load(f, allow_pickle=False)
-            return RestrictedUnpickler(f, str(path), encoding).load()
+            if not allow_pickle:
+                raise ValueError("it holds Python objects (an object array), not numbers")
+            obj = RestrictedUnpickler(f, str(path), encoding).load()
+            return _check_bounded(obj, str(path), n_bytes)
         except UnsafePickleError:
             raise
         except (
@@ -132,8 +198,11 @@ def read_npy(path: str | os.PathLike, expected: str, encoding: str = "latin1") -
             TypeError,
             AttributeError,
             IndexError,
+            MemoryError,
             pickle.UnpicklingError,
         ) as exc:
+            if str(path) in str(exc):  # already names the file (bounds above)
+                raise
             raise ValueError(
                 f"{path} is not a readable .npy file ({type(exc).__name__}: {exc}); expected "
                 f"{expected}."

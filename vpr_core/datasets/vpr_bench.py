@@ -1,25 +1,6 @@
-"""VPR-Bench's dataset layout (Zaffar et al. IJCV 2021): ``query/``, ``ref/``, ``ground_truth_new.npy``.
-
-Each VPR-Bench dataset (Gardens Point, Nordland, SPEDTest, ESSEX3IN1, 17places, Living room,
-Corridor, ...) is a folder::
-
-    <root>/query/*.jpg
-    <root>/ref/*.jpg
-    <root>/ground_truth_new.npy      # pickled numpy object array, one row per query:
-                                     # [query index, [reference indices]]
-
-The indices in ``ground_truth_new.npy`` index the sorted image lists. Which sort VPR-Bench uses
-could not be checked here, so they are read against the **naturally** sorted lists
-(``2.jpg`` before ``10.jpg``; the usual names ``0.jpg, 1.jpg, ...`` are numbered in that order)
-by default; ``order="lexicographic"`` reads them against plain string order instead. When the two
-orders differ for a folder, loading says so. Names that are zero-padded (``Image000.jpg``) sort
-the same either way.
-
-The ``.npy`` is a pickle: it is read with the restricted unpickler of :mod:`.safe_pickle`, which
-rebuilds arrays, lists and numbers only and refuses a file that asks to run anything else. A row's
-references may also be a boolean mask over the references (``[q, array([True, False, ...])]``): it is
-read as a mask when its length is the number of references, and refused otherwise.
-"""
+"""VPR-Bench's dataset layout (Zaffar et al. IJCV 2021): ``query/``, ``ref/``,
+``ground_truth_new.npy`` (a restricted, size-bounded pickle); :func:`load_vpr_bench` documents
+the layout, the index order and the mask rows."""
 
 from __future__ import annotations
 
@@ -32,7 +13,7 @@ import numpy as np
 
 from .base import PlaceDataset, list_images
 from .ground_truth import check_ground_truth, check_tolerance, widen
-from .layout import check_root, resolve_file, traverse_dir
+from .layout import check_root, data_name, resolve_file, traverse_dir
 from .safe_pickle import read_npy
 
 __all__ = ["VPR_BENCH_LAYOUT", "load_vpr_bench", "read_vprbench_ground_truth"]
@@ -166,7 +147,24 @@ def load_vpr_bench(
     ground_truth: str | os.PathLike = "ground_truth_new.npy",
     order: str = "natural",
 ) -> PlaceDataset:
-    """A dataset in VPR-Bench's layout (see the module docstring).
+    """A dataset in VPR-Bench's layout.
+
+    Each VPR-Bench dataset (Gardens Point, Nordland, SPEDTest, ESSEX3IN1, 17places, Living room,
+    Corridor, ...) is a folder::
+
+        <root>/query/*.jpg
+        <root>/ref/*.jpg
+        <root>/ground_truth_new.npy      # pickled numpy object array, one row per query:
+                                         # [query index, [reference indices]]
+
+    The indices in ``ground_truth_new.npy`` index the sorted image lists. Which sort VPR-Bench
+    uses could not be checked here, so they are read against the **naturally** sorted lists
+    (``2.jpg`` before ``10.jpg``) by default; ``order="lexicographic"`` reads them against plain
+    string order instead. When the two orders differ for a folder, loading says so. Zero-padded
+    names (``Image000.jpg``) sort the same either way. The ``.npy`` is read with the restricted,
+    size-bounded unpickler of :mod:`.safe_pickle`. A row's references may also be a boolean mask
+    over the references (``[q, array([True, False, ...])]``), read as a mask when its length is
+    the number of references and refused otherwise.
 
     Args:
         root: The dataset folder (holding ``query/``, ``ref/``, ``ground_truth_new.npy``).
@@ -179,7 +177,8 @@ def load_vpr_bench(
             indices refer to.
 
     Returns:
-        PlaceDataset named ``vpr_bench`` (``meta["dataset"]`` is the folder name).
+        PlaceDataset named after its folder (e.g. ``corridor``; ``meta["loader"]`` is
+        ``"vpr_bench"``, ``meta["dataset"]`` the folder name too).
 
     Raises:
         ValueError: bad options, a malformed file, out-of-range indices, no positive pair.
@@ -215,4 +214,5 @@ def load_vpr_bench(
         "ground_truth_file": str(gt_file),
         "ground_truth_rule": "VPR-Bench ground_truth_new.npy",
     }
-    return PlaceDataset("vpr_bench", qp, rp, gt, tolerance, root=root, meta=meta)
+    meta["loader"] = "vpr_bench"
+    return PlaceDataset(data_name(root), qp, rp, gt, tolerance, root=root, meta=meta)

@@ -13,12 +13,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
 from .. import settings
-from ..boxes import check_image
+from ..checks import check_image
+from ..checks import check_int as check_count
 from ..paper import N_LANDMARKS
-from ._checks import check_count
 
 __all__ = ["EDGE_BOXES_DEFAULTS", "EdgeBoxes", "edge_boxes", "edge_model_id"]
 
@@ -106,19 +107,94 @@ def edge_model_id(model: str | os.PathLike | None = None) -> str:
     return f"sha256:{digest.hexdigest()}"
 
 
-def _structured_edges(image: np.ndarray, path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Structured-edge map and orientation, both ``(H, W)`` float32, NMS-thinned."""
-    import cv2
+#: ``options`` of a structured-edge model file that must be positive integers.
+_SED_OPTIONS = (
+    "stride",
+    "shrinkNumber",
+    "patchSize",
+    "patchInnerSize",
+    "numberOfGradientOrientations",
+    "gradientNormalizationRadius",
+    "selfsimilarityGridSize",
+    "numberOfTrees",
+    "numberOfTreesToEvaluate",
+)
+_SED_TREES = ("childs", "featureIds", "thresholds", "edgeBoundaries", "edgeBins")
 
+
+def _bad_model(path: Path, why: str) -> ValueError:
+    return ValueError(
+        f"structured-edge model {path} cannot be used ({why}); pass the 'model.yml.gz' of "
+        "opencv_extra (testdata/cv/ximgproc) as model=... or in VPR_SED_MODEL, or unset "
+        "VPR_SED_MODEL to use the gradient edge map."
+    )
+
+
+def _tree_sizes(node: Any) -> list[int]:
+    """Lengths of the per-tree sequences of one model field (``[]`` when absent or not a list)."""
+    if node.empty() or not node.isSeq():
+        return []
+    return [node.at(i).size() for i in range(node.size())]
+
+
+def _check_model(path: Path) -> None:
+    """Refuse a structured-edge model file OpenCV would crash on (it divides by the tree count and
+    indexes the trees unchecked): readable FileStorage, positive options, consistent tree arrays."""
+    try:
+        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    except (cv2.error, SystemError) as exc:  # the binding wraps a parse error in SystemError
+        reason = str(exc.__cause__ or exc.__context__ or exc).strip().splitlines()[-1][-120:]
+        raise _bad_model(path, f"not a readable OpenCV FileStorage: {reason}") from None
+    try:
+        if not fs.isOpened():
+            raise _bad_model(path, "not a readable OpenCV FileStorage")
+        options = fs.getNode("options")
+        if options.empty() or not options.isMap():
+            raise _bad_model(path, "no 'options' map")
+        opt = {}
+        for key in _SED_OPTIONS:
+            node = options.getNode(key)
+            value = node.real() if node.isInt() or node.isReal() else 0.0
+            if value < 1 or value != int(value):
+                raise _bad_model(path, f"options.{key} must be a positive integer")
+            opt[key] = int(value)
+        if opt["patchInnerSize"] > opt["patchSize"] or (
+            opt["numberOfTreesToEvaluate"] > opt["numberOfTrees"]
+        ):
+            raise _bad_model(path, "inconsistent options (patch sizes or tree counts)")
+        sizes = {key: _tree_sizes(fs.getNode(key)) for key in _SED_TREES}
+        if len(sizes["childs"]) != opt["numberOfTrees"] or not all(sizes["childs"]):
+            raise _bad_model(path, f"'childs' must hold {opt['numberOfTrees']} non-empty trees")
+        for key in ("featureIds", "thresholds"):
+            if sizes[key] != sizes["childs"]:
+                raise _bad_model(path, f"'{key}' does not match the trees of 'childs'")
+        if sum(sizes["edgeBoundaries"]) < sum(sizes["childs"]) or not sizes["edgeBins"]:
+            raise _bad_model(path, "'edgeBoundaries' / 'edgeBins' missing or too short")
+    finally:
+        fs.release()
+
+
+def _structured_edges(image: np.ndarray, path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Structured-edge map and orientation, both ``(H, W)`` float32, NMS-thinned.
+
+    Raises:
+        ValueError: the model file cannot be read or is not a structured-edge model (names the
+            file and ``VPR_SED_MODEL``).
+    """
     key = str(path.resolve())
     sed = _SED_CACHE.get(key)
     if sed is None:
-        sed = cv2.ximgproc.createStructuredEdgeDetection(key)
+        _check_model(path)
+        try:
+            sed = cv2.ximgproc.createStructuredEdgeDetection(key)
+        except cv2.error as exc:
+            raise _bad_model(path, str(exc).strip().splitlines()[-1][-160:]) from None
         _SED_CACHE[key] = sed
     rgb = image if image.ndim == 3 else np.repeat(image[:, :, None], 3, axis=2)
-    edges = sed.detectEdges(rgb.astype(np.float32) / 255.0)
+    edges = sed.detectEdges(np.ascontiguousarray(rgb, dtype=np.float32) / 255.0)
     orient = sed.computeOrientation(edges)
-    edges = sed.edgesNms(edges, orient, 2, 0, 1, True)
+    # keywords: OpenCV 5's Python signature is edgesNms(edge, orient[, dst[, r[, s[, m[, par]]]]])
+    edges = sed.edgesNms(edges, orient, r=2, s=0, m=1.0, isParallel=True)
     return edges.astype(np.float32), orient.astype(np.float32)
 
 
@@ -149,10 +225,8 @@ def _gradient_edges(
     by non-maximum suppression across the edge. The orientation is the gradient (edge-normal)
     direction modulo pi, the convention of ``StructuredEdgeDetection.computeOrientation``.
     """
-    import cv2
-
     gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
-    g = gray.astype(np.float32) / 255.0
+    g: np.ndarray = gray.astype(np.float32) / 255.0
     if blur_sigma and blur_sigma > 0:
         g = cv2.GaussianBlur(g, (0, 0), float(blur_sigma))
     gx = cv2.Scharr(g, cv2.CV_32F, 1, 0)
@@ -190,8 +264,6 @@ def _proposals(
         ``(K, 4)`` float64 0-based boxes clipped to the image, sorted by descending score, and
         their ``(K,)`` scores; ``K <= max_boxes``.
     """
-    import cv2
-
     H, W = image_size
     eb = cv2.ximgproc.createEdgeBoxes(
         alpha=float(p["alpha"]),
@@ -261,13 +333,15 @@ def edge_boxes(
     Raises:
         ValueError / TypeError: bad image shape or dtype, bad ``max_boxes``, unknown params.
         FileNotFoundError: the model file does not exist (message says how to get it).
+        ValueError: the model file is not a readable structured-edge model.
     """
     image = check_image(image, allow_gray=True, min_size=2)
     max_boxes = check_count(max_boxes, "max_boxes")
     unknown = set(params) - set(EDGE_BOXES_DEFAULTS)
     if unknown:
         raise ValueError(
-            f"unknown edge_boxes parameter(s) {sorted(unknown)}; valid: {sorted(EDGE_BOXES_DEFAULTS)}"
+            f"unknown edge_boxes parameter(s) {sorted(unknown)}; "
+            f"valid: {sorted(EDGE_BOXES_DEFAULTS)}"
         )
     p = {**EDGE_BOXES_DEFAULTS, **params}
     model_path = _resolve_model(model)

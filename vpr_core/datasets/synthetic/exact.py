@@ -39,7 +39,7 @@ def to_grid(x, bits: int = GRID_BITS):
 
 
 def normal(rng: np.random.Generator, loc=0.0, scale=1.0, size=None):
-    """``loc + scale * z`` with standard normals ``z`` rounded to the grid (float or float64 array)."""
+    """``loc + scale * z``, standard normals ``z`` rounded to the grid (float or float64 array)."""
     z = to_grid(rng.standard_normal(size))
     if size is None:
         return float(loc + scale * z)

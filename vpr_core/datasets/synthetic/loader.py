@@ -50,8 +50,9 @@ def load_synthetic(
     (dark, colour cast, lit windows, lamp glare, noise, blur, vignetting) from the other side
     (horizontal shift, zoom, rotation, keystone perspective) with pedestrian / car occluders;
     ``difficulty`` sets how strong each of these is and how many buildings are exact copies
-    of buildings elsewhere on the route (docs/SYNTHETIC.md). Query ``i`` shows the place of reference ``i``; ``homographies[i]`` maps
-    query-``i`` pixels to reference-``i`` pixels exactly (occluders aside).
+    of buildings elsewhere on the route (docs/SYNTHETIC.md). Query ``i`` shows the place of
+    reference ``i``; ``homographies[i]`` maps query-``i`` pixels to reference-``i`` pixels
+    exactly (occluders aside).
 
     Files: ``<dir>/query/0000.png``, ``<dir>/reference/0000.png`` and ``<dir>/manifest.json``
     where ``<dir>`` is ``root`` if given, else ``cache_dir("datasets", "synthetic-<hash>")``
