@@ -106,6 +106,6 @@ stats.to_frame()
 
 # %% [markdown]
 # ### Labelling by hand (optional, interactive only)
-# `vpr_core.labels.pair_label_widget(ds, run, query=0)` shows one pair's matches and writes a CSV
+# `vpr_core.viz.pair_label_widget(ds, run, query=0)` shows one pair's matches and writes a CSV
 # usable with `label_matches(..., method="file")`. It needs `ipywidgets` (`make lab` installs
 # it with JupyterLab) and is not used by the headless run.

@@ -1,8 +1,9 @@
-"""Tests of vpr_core.labels: exact, geometric and file match labels, the dispatcher, the CSV helper."""
+"""Tests of vpr_core.labels: exact, geometric and file labels, the dispatcher, the CSV helper."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -17,6 +18,7 @@ from vpr_core.labels import (
     label_matches,
     label_matches_geometric,
     map_boxes,
+    pair_matches,
     read_label_file,
     resolve_label_method,
 )
@@ -99,29 +101,9 @@ def test_exact_labels_translation(fake):
     assert label_matches(fake, 0, 0, boxes_q, boxes_r, np.zeros((0, 2), int)).shape == (0,)
 
 
-def test_exact_tolerance_pair_and_missing_geometry(fake):
-    fake.ground_truth = np.array([[1, 1, 0], [1, 1, 1], [0, 1, 1]], dtype=bool)
-    b = np.array([[0.0, 0.0, 10.0, 10.0]])
-    with pytest.raises(LabelUnavailableError, match="homography is known for"):
-        label_matches(fake, 0, 1, b, b, [[0, 0]], method="exact")
-    fake.homographies = None
-    with pytest.raises(LabelUnavailableError, match="homographies"):
-        label_matches(fake, 0, 0, b, b, [[0, 0]], method="exact")
-    with pytest.raises(ValueError, match="outside"):
-        label_matches(
-            fake.__class__(np.eye(3, dtype=bool), np.stack([np.eye(3)] * 3)), 0, 0, b, b, [[0, 3]]
-        )
-
-
 # ---------------------------------------------------------------------------------------------
 # method dispatch
 # ---------------------------------------------------------------------------------------------
-
-
-def test_unknown_method(fake):
-    b = np.zeros((1, 4))
-    with pytest.raises(ValueError, match="auto, exact, geometric, file"):
-        label_matches(fake, 0, 0, b, b, [[0, 0]], method="manual")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -151,37 +133,10 @@ def test_file_labels(tmp_path, fake):
     fake.homographies = None
     lab = label_matches(fake, 1, 1, b, b, [[0, 0]], labels=p)
     np.testing.assert_array_equal(lab, [False])
-    # a match without a row -> error
-    with pytest.raises(ValueError, match="no label row"):
-        label_matches(fake, 0, 0, b, b, [[0, 0], [3, 3]], labels=p)
     # a labelled pair that is not among the matches -> warning only
     with pytest.warns(UserWarning, match="not among the matches"):
         lab = label_matches(fake, 0, 0, b, b, [[0, 0]], labels=p)
     assert lab.tolist() == [True]
-    with pytest.raises(ValueError, match="not among the matches"):
-        label_matches(fake, 0, 0, b, b, [[0, 0]], labels=p, on_unmatched="error")
-
-
-def test_file_labels_bad_rows(tmp_path, fake):
-    b = np.zeros((3, 4))
-    p = write_csv(tmp_path / "oob.csv", CSV)  # reference_box_index 3 with only 3 boxes
-    with pytest.raises(ValueError, match="out of range"):
-        label_matches(fake, 0, 0, b, b, [[0, 0]], method="file", labels=p)
-    p = write_csv(tmp_path / "hdr.csv", "q,r,i,j,ok\n0,0,0,0,1\n")
-    with pytest.raises(
-        ValueError, match="query,reference,query_box_index,reference_box_index,correct"
-    ):
-        read_label_file(p)
-    p = write_csv(tmp_path / "val.csv", CSV.replace("true", "maybe"))
-    with pytest.raises(ValueError, match="not a boolean"):
-        read_label_file(p)
-    p = write_csv(tmp_path / "dup.csv", CSV + "0,0,0,0,0\n")
-    with pytest.raises(ValueError, match="both correct and incorrect"):
-        label_matches(
-            fake, 0, 0, np.zeros((4, 4)), np.zeros((4, 4)), [[0, 0]], method="file", labels=p
-        )
-    with pytest.raises(ValueError, match="labels="):
-        label_matches(fake, 0, 0, b, b, [[0, 0]], method="file")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -265,9 +220,6 @@ def test_geometric_point_rule_by_hand():
     assert lab.tolist() == [True, False, True, False]
     lab = label_matches_geometric(bq, br, [[0, 2]], geo, point_iou=0.9)
     assert lab.tolist() == [False]
-    none = PairGeometry("none", None, None, pq[:0], pr[:0], 3, 0, 0, (200, 200), (200, 200))
-    with pytest.raises(LabelUnavailableError, match="no two-view geometry"):
-        label_matches_geometric(bq, br, [[0, 0]], none)
 
 
 def test_geometric_unrelated_images_have_no_homography():
@@ -302,8 +254,6 @@ def test_labelling_helper_csv_round_trips_through_file_labels(tmp_path, tiny_syn
     path = append_labels(tmp_path / "labels.csv", 0, 0, matches, [True, False])
     got = label_matches(tiny_synthetic, 0, 0, boxes, boxes, matches, method="file", labels=path)
     assert got.tolist() == [True, False]
-    with pytest.raises(ValueError, match="one label per match"):
-        append_labels(tmp_path / "x.csv", 0, 0, matches, [True])
 
 
 def test_resolve_label_method(fake):
@@ -313,28 +263,6 @@ def test_resolve_label_method(fake):
     assert resolve_label_method(fake, "auto", "labels.csv") == "file"
     assert resolve_label_method(fake, "auto", None) == "geometric"
     assert resolve_label_method(fake, "file", None) == "file"
-    with pytest.raises(ValueError, match="valid: auto, exact"):
-        resolve_label_method(fake, "hand", None)
-
-
-def test_exact_rejects_options_of_other_labellers(fake):
-    b = np.zeros((1, 4))
-    with pytest.raises(TypeError, match="method='exact'"):
-        label_matches(fake, 0, 0, b, b, [[0, 0]], method="exact", on_unmatched="warn")
-    with pytest.raises(TypeError, match="method='file'"):
-        label_matches(fake, 0, 0, b, b, [[0, 0]], method="file", labels="x.csv", model="points")
-
-
-def test_bad_boxes_and_matches_are_named(fake):
-    b = np.array([[0.0, 0.0, 10.0, 10.0]])
-    with pytest.raises(ValueError, match="boxes_q must have shape"):
-        label_matches(fake, 0, 0, b[:, :3], b, [[0, 0]])
-    with pytest.raises(ValueError, match="boxes_r contains NaN"):
-        label_matches(fake, 0, 0, b, b * np.nan, [[0, 0]])
-    with pytest.raises(ValueError, match=r"matches must be \(P, 2\)"):
-        label_matches(fake, 0, 0, b, b, [0, 0, 0])
-    with pytest.raises(IndexError, match="outside the ground truth"):
-        label_matches(fake, 5, 0, b, b, [[0, 0]])
 
 
 def test_homography_sanity_rejects_degenerate_maps():
@@ -345,21 +273,211 @@ def test_homography_sanity_rejects_degenerate_maps():
     assert not _homography_is_sane(np.full((3, 3), np.nan), size)
 
 
-def test_pair_label_widget_starts_from_a_run_and_says_when_saved(tiny_synthetic, tmp_path):
-    import matplotlib
+# ---------------------------------------------------------------------------------------------
+# every bad input of the labels boundary: one clear error line each
+# ---------------------------------------------------------------------------------------------
 
-    matplotlib.use("Agg")
-    from vpr_core.labels import pair_label_widget, read_label_file
-    from vpr_core.pipeline import run_method
+B1 = np.array([[0.0, 0.0, 10.0, 10.0]])
+B3 = np.zeros((3, 4))
+NO_GEOMETRY = PairGeometry(
+    "none", None, None, np.zeros((0, 2)), np.zeros((0, 2)), 3, 0, 0, (200, 200), (200, 200)
+)
 
-    res = run_method("dense", tiny_synthetic, keep_descriptors=True, backbone="hog", n_bootstrap=0)
-    out = tmp_path / "labels.csv"
-    box = pair_label_widget(tiny_synthetic, res, query=0, out=out)
-    yes, no, status = box.children[0].children
-    n = int(status.value.split("/")[1])
-    assert status.value == f"match 1/{n}" and n > 0
-    for k in range(n):
-        (yes if k % 2 == 0 else no).click()
-    assert status.value == f"saved {n} labels to {out}" and yes.disabled and no.disabled
-    rows = read_label_file(out)
-    assert len(rows) == n
+
+def _file(tmp_path, text: str = CSV):
+    return write_csv(tmp_path / "labels.csv", text)
+
+
+def _tolerance_pair(fake, tmp_path):
+    fake.ground_truth = np.array([[1, 1, 0], [1, 1, 1], [0, 1, 1]], dtype=bool)
+    label_matches(fake, 0, 1, B1, B1, [[0, 0]], method="exact")
+
+
+def _no_homographies(fake, tmp_path):
+    fake.homographies = None
+    label_matches(fake, 0, 0, B1, B1, [[0, 0]], method="exact")
+
+
+def _no_descriptors(fake, tmp_path):
+    pair_matches(fake, SimpleNamespace(descriptors=None, label="dense"))
+
+
+def _no_ground_truth_reference(fake, tmp_path):
+    fake.ground_truth = np.zeros((3, 3), dtype=bool)
+    pair_matches(fake, SimpleNamespace(descriptors={}, label="dense"), query=1)
+
+
+#: id -> (call(fake, tmp_path), exception, message)
+BAD_LABEL_CALLS = {
+    "method": (
+        lambda f, t: label_matches(f, 0, 0, B1, B1, [[0, 0]], method="manual"),
+        ValueError,
+        "unknown label method 'manual'; valid: auto, exact, geometric, file",
+    ),
+    "resolve method": (
+        lambda f, t: resolve_label_method(f, "hand", None),
+        ValueError,
+        "valid: auto, exact",
+    ),
+    "boxes shape": (
+        lambda f, t: label_matches(f, 0, 0, B1[:, :3], B1, [[0, 0]]),
+        ValueError,
+        r"boxes_q must have shape \(K, 4\)",
+    ),
+    "boxes NaN": (
+        lambda f, t: label_matches(f, 0, 0, B1, B1 * np.nan, [[0, 0]]),
+        ValueError,
+        "boxes_r contains NaN",
+    ),
+    "boxes negative": (
+        lambda f, t: label_matches(f, 0, 0, [[0, 0, -1, 2]], B1, [[0, 0]]),
+        ValueError,
+        "boxes_q has negative width",
+    ),
+    "matches shape": (
+        lambda f, t: label_matches(f, 0, 0, B1, B1, [0, 0, 0]),
+        ValueError,
+        r"matches must have shape \(P, 2\)",
+    ),
+    "match index": (
+        lambda f, t: label_matches(f, 0, 0, B1, B1, [[0, 3]]),
+        ValueError,
+        r"reference boxes outside 0\.\.0",
+    ),
+    "pair outside ground truth": (
+        lambda f, t: label_matches(f, 5, 0, B1, B1, [[0, 0]]),
+        IndexError,
+        r"pair \(q=5, r=0\) outside the ground truth of shape \(3, 3\)",
+    ),
+    "exact: option": (
+        lambda f, t: label_matches(f, 0, 0, B1, B1, [[0, 0]], method="exact", on_unmatched="warn"),
+        TypeError,
+        "unexpected options for method='exact'",
+    ),
+    "file: option": (
+        lambda f, t: label_matches(
+            f, 0, 0, B1, B1, [[0, 0]], method="file", labels="x.csv", model="points"
+        ),
+        TypeError,
+        "unexpected options for method='file'",
+    ),
+    "exact: tolerance pair": (_tolerance_pair, LabelUnavailableError, "homography is known for"),
+    "exact: no homographies": (
+        _no_homographies,
+        LabelUnavailableError,
+        "need dataset.homographies",
+    ),
+    "geometric: no geometry": (
+        lambda f, t: label_matches_geometric(B1, B1, [[0, 0]], NO_GEOMETRY),
+        LabelUnavailableError,
+        "no two-view geometry",
+    ),
+    "geometric: model": (
+        lambda f, t: label_matches_geometric(B1, B1, [[0, 0]], NO_GEOMETRY, model="box"),
+        ValueError,
+        "unknown model 'box'; valid: auto, homography, points",
+    ),
+    "geometric: estimator": (
+        lambda f, t: estimate_pair_geometry(np.zeros((9, 9, 3), np.uint8), B3, robust="lmeds"),
+        ValueError,
+        "unknown robust estimator 'lmeds'; valid: ransac, magsac",
+    ),
+    "file: no labels": (
+        lambda f, t: label_matches(f, 0, 0, B3, B3, [[0, 0]], method="file"),
+        ValueError,
+        "method='file' needs labels=<path to CSV> with header",
+    ),
+    "file: on_unmatched": (
+        lambda f, t: label_matches(
+            f, 0, 0, B3, B3, [[0, 0]], method="file", labels=_file(t), on_unmatched="x"
+        ),
+        ValueError,
+        "unknown on_unmatched 'x'; valid: warn, ignore, error",
+    ),
+    "file: no row": (
+        lambda f, t: label_matches(
+            f,
+            0,
+            0,
+            np.zeros((4, 4)),
+            np.zeros((4, 4)),
+            [[0, 0], [3, 3]],
+            labels=_file(t),
+            method="file",
+        ),
+        ValueError,
+        "1 of 2 matches of pair .* have no label row",
+    ),
+    "file: unmatched label": (
+        lambda f, t: label_matches(
+            f,
+            0,
+            0,
+            np.zeros((4, 4)),
+            np.zeros((4, 4)),
+            [[0, 0]],
+            method="file",
+            labels=_file(t),
+            on_unmatched="error",
+        ),
+        ValueError,
+        "labelled pair.* are not among the matches",
+    ),
+    "file: index out of range": (
+        lambda f, t: label_matches(f, 0, 0, B3, B3, [[0, 0]], method="file", labels=_file(t)),
+        ValueError,
+        "box index out of range .* labels of another landmark set",
+    ),
+    "file: header": (
+        lambda f, t: read_label_file(_file(t, "q,r,i,j,ok\n0,0,0,0,1\n")),
+        ValueError,
+        "expected header 'query,reference,query_box_index,reference_box_index,correct'",
+    ),
+    "file: integers": (
+        lambda f, t: read_label_file(_file(t, CSV.replace("1,1,0,0", "1,x,0,0"))),
+        ValueError,
+        "column 'reference' must hold integers",
+    ),
+    "file: boolean": (
+        lambda f, t: read_label_file(_file(t, CSV.replace("true", "maybe"))),
+        ValueError,
+        "'correct' value 'maybe' is not a boolean",
+    ),
+    "file: contradiction": (
+        lambda f, t: label_matches(
+            f,
+            0,
+            0,
+            np.zeros((4, 4)),
+            np.zeros((4, 4)),
+            [[0, 0]],
+            method="file",
+            labels=_file(t, CSV + "0,0,0,0,0\n"),
+        ),
+        ValueError,
+        r"labels match \(0, 0\) both correct and incorrect",
+    ),
+    "append: label count": (
+        lambda f, t: append_labels(t / "x.csv", 0, 0, [[0, 1], [2, 0]], [True]),
+        ValueError,
+        "2 matches but 1 labels: give one label per match",
+    ),
+    "pair: no descriptors": (
+        _no_descriptors,
+        ValueError,
+        "run_method\\(..., keep_descriptors=True",
+    ),
+    "pair: no reference": (
+        _no_ground_truth_reference,
+        ValueError,
+        "query 1 has no ground-truth reference; pick another query",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", BAD_LABEL_CALLS)
+def test_bad_label_inputs_raise_one_clear_line(case, fake, tmp_path):
+    call, exc, match = BAD_LABEL_CALLS[case]
+    with pytest.raises(exc, match=match) as info:
+        call(fake, tmp_path)
+    assert "\n" not in str(info.value)

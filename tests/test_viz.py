@@ -45,10 +45,6 @@ def test_landmark_panels_colour_groups_and_check_them(tmp_path):
         tmp_path / "c.png",
     )
     assert a == b and a != c
-    with pytest.raises(ValueError, match="one group per box"):
-        viz.plot_landmark_panels({"q": (img, boxes)}, colors_by=[0, 1])
-    with pytest.raises(ValueError, match="empty"):
-        viz.plot_landmark_panels({})
 
 
 def test_descriptor_matrices_and_pair_terms(tmp_path):
@@ -56,14 +52,10 @@ def test_descriptor_matrices_and_pair_terms(tmp_path):
     d = {"query": rng.normal(size=(10, 32)), "reference": rng.normal(size=(12, 32))}
     a = _bytes(viz.plot_descriptor_matrices(d, title="t"), tmp_path / "d1.png")
     assert a == _bytes(viz.plot_descriptor_matrices(d, title="t"), tmp_path / "d2.png")
-    with pytest.raises(ValueError, match=r"\(K, D\)"):
-        viz.plot_descriptor_matrices({"q": np.zeros(5)})
     dist, shape = rng.uniform(0, 1, 7), rng.uniform(1, 2.7, 7)
     fig = viz.plot_pair_terms(dist, shape, 10, 12, 0.25)
     title = fig.axes[0].get_title()
     assert f"{(1 - dist * shape).sum():.3f}" in title and "sqrt(10 x 12)" in title
-    with pytest.raises(ValueError, match="one entry per pair"):
-        viz.plot_pair_terms(dist, shape[:3], 10, 12, 0.25)
 
 
 def _result(label, sim, gt, auc=None):
@@ -105,7 +97,9 @@ def test_pr_curves_legend_outside_identical_curves_said_and_dataset_named():
     assert texts[0] == "dense (AUC 0.500 [0.250, 0.750])"
     assert texts[1].startswith("x (AUC ") and "[" not in texts[1]
     assert texts[2].startswith("y (= dense")  # same matrix: drawn once, said in the legend
-    assert len([ln for ln in ax.lines if len(ln.get_xdata())]) == 2
+    drawn = [ln for ln in ax.lines if len(ln.get_xdata())]
+    curves = [ln for ln in drawn if ln.get_linestyle() != "--"]  # "--": the chance level
+    assert len(curves) == 2 and len(drawn) == 3
     assert to_hex(ax.lines[0].get_color()) == to_hex(METHOD_COLORS["dense"])
     assert "toy: 6 of 6 queries with ground truth, tolerance 0" in ax.get_title(loc="left")
     fig.canvas.draw()
@@ -133,7 +127,11 @@ def test_pr_curves_same_curve_is_said_and_colours_never_repeat():
     ax = fig.axes[0]
     texts = [t.get_text() for t in ax.get_legend().get_texts()]
     assert texts[1].startswith("s2 (= classical")
-    drawn = [to_hex(ln.get_color()) for ln in ax.lines if len(ln.get_xdata())]
+    drawn = [
+        to_hex(ln.get_color())
+        for ln in ax.lines
+        if len(ln.get_xdata()) and ln.get_linestyle() != "--"  # "--": the chance level
+    ]
     assert len(drawn) == 3 and len(set(drawn)) == 3  # classical's blue is not reused
 
 
@@ -194,3 +192,90 @@ def test_save_warns_about_a_broken_layout(tmp_path):
     with pytest.warns(VPRWarning, match="layout of bad"):
         viz.save(fig, "bad", "t", out=tmp_path)
     plt.close(fig)
+
+
+def test_pair_label_widget_starts_from_a_run_and_says_when_saved(tiny_synthetic, tmp_path):
+    from vpr_core.labels import read_label_file
+    from vpr_core.pipeline import run_method
+
+    res = run_method("dense", tiny_synthetic, keep_descriptors=True, backbone="hog", n_bootstrap=0)
+    out = tmp_path / "labels.csv"
+    box = viz.pair_label_widget(tiny_synthetic, res, query=0, out=out)
+    yes, no, status = box.children[0].children
+    n = int(status.value.split("/")[1])
+    assert status.value == f"match 1/{n}" and n > 0
+    for k in range(n):
+        (yes if k % 2 == 0 else no).click()
+    assert status.value == f"saved {n} labels to {out}" and yes.disabled and no.disabled
+    rows = read_label_file(out)
+    assert len(rows) == n and rows["correct"].tolist() == [k % 2 == 0 for k in range(n)]
+
+
+class _ThreePlaces:
+    ground_truth = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 0]], dtype=bool)
+
+
+IMG = np.zeros((60, 80, 3), np.uint8)
+BOXES = np.array([[0, 0, 10, 10], [5, 5, 20, 20], [30, 30, 10, 10]], float)
+
+#: id -> (call, exception, message) of every bad input of the figure functions.
+BAD_VIZ_CALLS = {
+    "panels: groups": (
+        lambda: viz.plot_landmark_panels({"q": (IMG, BOXES)}, colors_by=[0, 1]),
+        ValueError,
+        "colors_by has 2 entries for 3 boxes in panel 'q'; give one group per box",
+    ),
+    "panels: empty": (
+        lambda: viz.plot_landmark_panels({}),
+        ValueError,
+        "panels is empty",
+    ),
+    "landmarks: boxes": (
+        lambda: viz.plot_landmarks(IMG, np.zeros((2, 3))),
+        ValueError,
+        r"boxes must have shape \(K, 4\)",
+    ),
+    "descriptors: shape": (
+        lambda: viz.plot_descriptor_matrices({"q": np.zeros(5)}),
+        ValueError,
+        r"descriptors\['q'\] must have shape \(K, D\)",
+    ),
+    "descriptors: empty": (
+        lambda: viz.plot_descriptor_matrices({}),
+        ValueError,
+        "descriptors is empty",
+    ),
+    "pair terms": (
+        lambda: viz.plot_pair_terms(np.zeros(7), np.ones(3), 10, 12, 0.25),
+        ValueError,
+        r"distances \(7,\) and shape \(3,\) must have one entry per pair",
+    ),
+    "matches: labels": (
+        lambda: viz.plot_labelled_matches(IMG, IMG, BOXES, BOXES, [[0, 0]], [True, False]),
+        ValueError,
+        r"labels \(2\) must have one entry per match \(1\)",
+    ),
+    "matches: boxes": (
+        lambda: viz.plot_labelled_matches(IMG, IMG, BOXES[:, :3], BOXES, [[0, 0]], None),
+        ValueError,
+        r"boxes_q must have shape \(K, 4\)",
+    ),
+    "examples: none": (
+        lambda: viz.plot_examples(_ThreePlaces(), indices=()),
+        ValueError,
+        "indices is empty; pass at least one query index",
+    ),
+    "examples: index": (
+        lambda: viz.plot_examples(_ThreePlaces(), indices=(5,)),
+        IndexError,
+        r"query index 5 out of range 0\.\.2",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", BAD_VIZ_CALLS)
+def test_bad_viz_inputs_raise_one_clear_line(case):
+    call, exc, match = BAD_VIZ_CALLS[case]
+    with pytest.raises(exc, match=match) as info:
+        call()
+    assert "\n" not in str(info.value)

@@ -1,7 +1,6 @@
-"""Warnings that change what a number means: logged on ``vpr_core`` AND raised with ``warnings.warn``.
+"""Warnings that change what a number means: logged on ``vpr_core`` and raised as VPRWarning.
 
-A Python user sees them without configuring logging (DESIGN habit 12); the CLI and notebooks see
-them in their log. Filter them with ``warnings.simplefilter("ignore", VPRWarning)``.
+Filter them with ``warnings.simplefilter("ignore", VPRWarning)``.
 """
 
 from __future__ import annotations
@@ -19,12 +18,11 @@ class VPRWarning(UserWarning):
 
 
 def notice(message: str, stacklevel: int = 3) -> str:
-    """Log ``message`` as a warning on the ``vpr_core`` logger and raise it as a :class:`VPRWarning`.
+    """Log ``message`` on the ``vpr_core`` logger and raise it as a :class:`VPRWarning`.
 
     Args:
         message: the full sentence (what happened, what it changes, the fix).
-        stacklevel: passed to ``warnings.warn``; the default 3 points at the caller of the function
-            that calls ``notice``.
+        stacklevel: for ``warnings.warn``; 3 points at the caller of ``notice``'s caller.
 
     Returns:
         ``message``, so a caller can also record it (e.g. on a result's ``.warnings``).

@@ -1,38 +1,14 @@
-"""The paper's constants, written once.
+"""The paper's constants, written once: every other module imports them from here.
 
-Every number the paper fixes lives here; every other module imports it from here and never
-writes the literal again. Section, table, equation and algorithm numbers refer to "Towards A Deep
-Insight into Landmark-based Visual Place Recognition: Methodology and Practice".
-
-=========================  ===================================================================
-name                       paper item
-=========================  ===================================================================
-``N_LANDMARKS``            100 landmarks per image (Sec. 2.1, all schemes)
-``N_CANDIDATES``           1,000 Edge Box candidates that Algorithms 1-3 select from (Sec. 3.2)
-``SCALE_EDGES``            Table 1: inner normalised-scale edges of Scales 1-9 (Eq. 3)
-``N_SCALES``               Table 1: nine scales
-``SCALE_RANGES``           Table 1: ``(low, high)`` of Scale i at ``SCALE_RANGES[i - 1]``
-``SCALE_LABELS``           ``"Scale 1"`` .. ``"Scale 9"``
-``SCALE_RANGE_LABELS``     Table 1's range labels, ``"0.02~0.05"``
-``MIN_SCALE_INDEX``        Algorithm 1 (Scheme 1): keep landmarks "> Scale 3", i.e. index >= 4
-``SCALE_PRIORITY_ORDER``   Algorithm 2 (Scheme 2): scale priority 5, 6, 7, 8, 9, 4
-``NMS_IOU``                Algorithm 3 (Overlap Scheme 1): default IoU threshold 0.5
-``SOFT_NMS_IOU``           Algorithm 4 (Overlap Scheme 2): default overlap threshold 0.5
-``SOFT_NMS_SIGMA``         Algorithm 4: Gaussian decay ``exp(-IoU^2 / sigma)``, sigma 0.5
-``FIG7_NMS_THRESHOLDS``    Fig. 7a: the NMS thresholds swept
-``FIG7_SOFT_NMS_THRESHOLDS``  Fig. 7b: the soft-NMS thresholds swept
-``DENSE_SCALES``           Sec. 4: the proposed dense sampling, 4 scales ...
-``DENSE_PER_SCALE``        ... x 25 landmarks each
-``TABLE2``                 Table 2: number of scale levels
-``TABLE3``                 Table 3: landmarks per scale
-``TABLE4``                 Table 4: normalised scales
-``PROJECTION_DIM``         Sec. 2.1: conv3 features random-projected to 1,024-d
-``ALEXNET_INPUT``          Sec. 2.1: landmark crops resized to 227 x 227 for AlexNet
-``ALEXNET_CONV3_DIM``      Sec. 2.1: 13 x 13 x 384 = 64,896-d conv3 descriptor
-=========================  ===================================================================
+Section, table, equation and algorithm numbers are the paper's; docs/PAPER_MAP.md maps them to code.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import pandas as pd
 
 __all__ = [
     "ALEXNET_CONV3_DIM",
@@ -142,15 +118,8 @@ ALEXNET_CONV3_DIM: int = 13 * 13 * 384
 
 
 # ---- the tables as a reader sees them -----------------------------------------------------------
-def table1():
-    """Table 1: the nine landmark scales and their normalised-scale ranges.
-
-    Returns:
-        ``(9, 3)`` pandas DataFrame indexed ``Scale 1`` .. ``Scale 9``: the range label and the
-        lower (inclusive) and upper edges.
-    """
-    import pandas as pd
-
+def table1() -> pd.DataFrame:
+    """Table 1: ``(9, 3)`` DataFrame of each scale's range label, lower (incl.) and upper edge."""
     return pd.DataFrame(
         {
             "scale index": list(SCALE_LABELS),
@@ -161,11 +130,8 @@ def table1():
     ).set_index("scale index")
 
 
-def dense_settings(table: dict):
-    """One of :data:`TABLE2`, :data:`TABLE3`, :data:`TABLE4` as a DataFrame (setting, scales,
-    landmarks per scale, total)."""
-    import pandas as pd
-
+def dense_settings(table: dict[str, Any]) -> pd.DataFrame:
+    """:data:`TABLE2`, :data:`TABLE3` or :data:`TABLE4` as a DataFrame, one row per setting."""
     rows = []
     for name, (scales, per_scale) in table.items():
         counts = per_scale if isinstance(per_scale, tuple) else (per_scale,) * len(scales)
@@ -180,7 +146,7 @@ def dense_settings(table: dict):
     return pd.DataFrame(rows).set_index("setting")
 
 
-def dense_set_label(name: str, scales, per_scale) -> str:
+def dense_set_label(name: str, scales: Sequence[float], per_scale: int | tuple[int, ...]) -> str:
     """Legend label of a dense setting, e.g. ``"Set 3: 0.25/0.49 x 49"``."""
     n = "/".join(map(str, per_scale)) if isinstance(per_scale, tuple) else str(per_scale)
     return f"{name}: {'/'.join(f'{s:g}' for s in scales)} x {n}"

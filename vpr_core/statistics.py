@@ -1,15 +1,6 @@
-"""Section 3.1 of the paper: scale statistics of landmark matches (CMR, CLS, ASL of Fig. 4).
+"""Section 3.1: CMR, CLS and ASL of landmark matches per Table-1 scale (Fig. 4).
 
-:func:`scale_statistics` matches landmarks on query-dependent ground-truth pairs and on sampled
-query-irrelevant pairs, labels the ground-truth matches (:func:`vpr_core.labels.label_matches`)
-and bins everything by the Table-1 scale of the query-side landmark. :func:`scale_statistics_from_matches`
-is the same computation from pre-built :class:`MatchRecord` s (any landmark method, any matcher).
-
-Arrays of :class:`ScaleStats` have length 10 and are indexed by the Table-1 scale 1..9 (index 0
-is unused and NaN / 0). The labellers live in :mod:`vpr_core.labels` (:func:`label_matches` is
-re-exported here, its DESIGN.md home); the pairs the statistics use are picked from the ground
-truth by :func:`vpr_core.datasets.ground_truth.ground_truth_references` and
-:func:`~vpr_core.datasets.ground_truth.sample_irrelevant_references`.
+Definitions in docs/DEFINITIONS.md ("Scale statistics"); arrays are indexed by scale 1..9.
 """
 
 from __future__ import annotations
@@ -21,17 +12,21 @@ from os import PathLike
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
-from .boxes import check_boxes
+from .checks import check_boxes, check_image_size
 from .datasets.ground_truth import ground_truth_references, sample_irrelevant_references
+from .evaluation.bootstrap import N_BOOTSTRAP
 from .labels import (
     LabelUnavailableError,
+    _label_parsed,
     dataset_image_size,
     label_matches,
     read_label_file,
     resolve_label_method,
 )
-from .landmarks.scales import scale_index
+from .landmarks.scales import _box_scale_index
+from .matching import match_landmarks
 from .paper import N_SCALES, SCALE_RANGE_LABELS
 from .utils import progress
 
@@ -51,14 +46,11 @@ class MatchRecord:
     """Matches of one image pair, reduced to what the scale statistics need.
 
     Attributes:
-        scales: ``(P,)`` int Table-1 scale index (1..9) of each match's *query-side* landmark.
-        scores: ``(P,)`` float pair score ``1 - d*s`` (Eq. (1) summand) of each match.
-        labels: ``(P,)`` bool correct/incorrect, or ``None`` when unlabelled (irrelevant pairs
-            need none; an unlabelled ground-truth pair does not enter CMR).
-        is_gt_pair: True for a query-dependent ground-truth pair, False for query-irrelevant.
-        q: query index (informative).
-        r: reference index (informative).
-        matches: ``(P, 2)`` landmark indices (query box, reference box) or ``None``.
+        scales: ``(P,)`` int Table-1 scale (1..9) of each match's query-side landmark.
+        scores: ``(P,)`` pair scores ``1 - d*s``.
+        labels: ``(P,)`` bool, or None when unlabelled (then the pair does not enter CMR).
+        is_gt_pair: ground-truth pair (True) or query-irrelevant pair (False).
+        matches: ``(P, 2)`` (query box, reference box) indices, or None.
     """
 
     scales: np.ndarray
@@ -98,26 +90,12 @@ def _zeros10() -> np.ndarray:
 
 @dataclass
 class ScaleStats:
-    """Fig. 4 statistics per Table-1 scale; every array has length 10, index = scale (0 unused).
+    """Fig. 4 statistics; every array has length 10, indexed by scale (0 unused, NaN / 0).
 
-    Attributes:
-        n_matches: int, matches on ground-truth pairs per scale (query-side landmark scale).
-        n_labelled: int, of those, matches with a label (enter CMR).
-        n_correct: int, labelled correct matches on ground-truth pairs.
-        cmr: correct / labelled matches on ground-truth pairs (Fig. 4a); NaN where none.
-        cls_gt: share of the summed positive pair scores ``max(1 - d*s, 0)`` of ground-truth-pair
-            matches coming from each scale (Fig. 4b); sums to 1 over 1..9 (all NaN when there is
-            no positive mass). Negative pair scores lower Eq. (1) instead of contributing to it.
-        cls_irrelevant: the same for query-irrelevant pairs.
-        asl_gt: mean pair score per scale on ground-truth pairs (Fig. 4c); NaN where none.
-        asl_irrelevant: the same on query-irrelevant pairs.
-        n_matches_irrelevant: int, matches on query-irrelevant pairs per scale.
-        n_gt_pairs: number of ground-truth pairs.
-        n_irrelevant_pairs: number of query-irrelevant pairs.
-        n_unlabelled_pairs: ground-truth pairs whose matches could not be labelled.
-        meta: free-form description (dataset, label method, ...).
-        records: the per-pair :class:`MatchRecord` s the statistics were computed from, so that
-            they can be recomputed independently (:meth:`matches_frame`).
+    ``cmr``, ``cls_*`` and ``asl_*`` are defined in docs/DEFINITIONS.md; ``n_matches``,
+    ``n_labelled`` and ``n_correct`` count ground-truth-pair matches per scale,
+    ``n_matches_irrelevant`` those of query-irrelevant pairs. ``records`` keeps the per-pair
+    :class:`MatchRecord` s (:meth:`matches_frame`).
     """
 
     n_matches: np.ndarray = field(default_factory=_zeros10)
@@ -141,18 +119,14 @@ class ScaleStats:
         return np.arange(1, N_SCALES + 1)
 
     def cmr_intervals(self, n: int | None = None, seed: int = 0) -> np.ndarray:
-        """95% bootstrap interval of each scale's CMR, resampling query images (all labelled
-        ground-truth matches of a drawn query count, as observation 1's test does).
+        """95% bootstrap interval of each scale's CMR, resampling query images.
 
         Args:
-            n: resamples (default :data:`~vpr_core.evaluation.N_BOOTSTRAP`). seed: their seed.
+            n: resamples (default ``N_BOOTSTRAP``). seed: their seed.
 
         Returns:
-            ``(10, 2)`` float: ``[scale] = (low, high)``; NaN where the scale has no labelled
-            match (index 0 unused).
+            ``(10, 2)`` ``(low, high)`` per scale; NaN where the scale has no labelled match.
         """
-        from .evaluation.bootstrap import N_BOOTSTRAP
-
         n = N_BOOTSTRAP if n is None else int(n)
         out = np.full((N_SCALES + 1, 2), np.nan)
         recs = [r for r in self.records if r.is_gt_pair and r.labels is not None]
@@ -178,11 +152,7 @@ class ScaleStats:
         return out
 
     def to_frame(self) -> Any:
-        """pandas DataFrame, one row per scale 1..9 (index ``scale``), with the normalised-scale
-        range (``range``), every per-scale array as a column and the CMR's 95% interval
-        (``cmr lo``, ``cmr hi``, :meth:`cmr_intervals`)."""
-        import pandas as pd
-
+        """DataFrame, one row per scale 1..9: ``range``, every array, ``cmr lo`` / ``cmr hi``."""
         s = slice(1, N_SCALES + 1)
         iv = self.cmr_intervals()
         df = pd.DataFrame(
@@ -205,12 +175,8 @@ class ScaleStats:
         return df.set_index("scale")
 
     def matches_frame(self) -> Any:
-        """pandas DataFrame, one row per landmark match the statistics used: ``query``,
-        ``reference``, ``pair`` (``gt`` / ``irrelevant``), ``query_box_index``,
-        ``reference_box_index`` (-1 when unknown), ``scale`` (query-side Table-1 index),
-        ``score`` (``1 - d*s``) and ``correct`` (1 / 0, empty when unlabelled)."""
-        import pandas as pd
-
+        """DataFrame, one row per match: ``query``, ``reference``, ``pair`` (gt / irrelevant),
+        box indices (-1 when unknown), ``scale``, ``score`` and ``correct`` (1 / 0 / empty)."""
         rows = []
         for rec in self.records:
             m = (
@@ -270,12 +236,7 @@ def _cls_asl(scales: np.ndarray, scores: np.ndarray) -> tuple[np.ndarray, np.nda
 def scale_statistics_from_matches(
     records: Iterable[MatchRecord], meta: dict | None = None
 ) -> ScaleStats:
-    """CMR / CLS / ASL per Table-1 scale from per-pair match records.
-
-    Matches are binned by their query-side scale and pooled over all pairs: ``cmr`` from the
-    labelled matches of ground-truth pairs, ``cls_*`` (shares of the positive pair scores, so
-    ``nansum(cls_gt[1:]) == 1``) and ``asl_*`` (mean pair scores) from ground-truth and
-    query-irrelevant pairs; see :class:`ScaleStats` for each array. NaN where a scale has none.
+    """CMR / CLS / ASL per Table-1 scale from per-pair match records (any method, any matcher).
 
     Args:
         records: :class:`MatchRecord` per image pair.
@@ -328,7 +289,7 @@ def _query_records(
     dataset: Any,
     q: int,
     size_q: tuple[int, int],
-    boxes_q: np.ndarray,
+    bq: np.ndarray,
     desc_q: np.ndarray,
     boxes_r: Sequence[np.ndarray],
     desc_r: Sequence[np.ndarray],
@@ -338,22 +299,18 @@ def _query_records(
 ) -> list[MatchRecord]:
     """The :class:`MatchRecord` of query ``q`` against each ``(r, is_gt)`` of ``pairs``.
 
-    Ground-truth pairs are labelled by :func:`label_matches` (``label_options``); a pair the
-    labeller cannot label is logged and kept unlabelled.
+    Boxes are parsed; a ground-truth pair the labeller cannot label is logged and kept unlabelled.
     """
-    from .matching import match_landmarks
-
-    bq = check_boxes(boxes_q, f"boxes_q[{q}]")
-    sc_q = np.asarray(scale_index(bq, size_q), dtype=np.int64).reshape(-1)
+    sc_q = _box_scale_index(bq, size_q)
     records = []
     for r, is_gt in pairs:
-        br = check_boxes(boxes_r[r], f"boxes_r[{r}]")
+        br = boxes_r[r]
         res = match_landmarks(desc_q, bq, desc_r[r], br, **match_options)
         mt = np.asarray(res.matches, dtype=np.int64).reshape(-1, 2)
         lab = None
         if is_gt:
             try:
-                lab = label_matches(dataset, q, r, bq, br, mt, **label_options)
+                lab = _label_parsed(dataset, q, r, bq, br, mt, **label_options)
             except LabelUnavailableError as e:
                 logger.warning("scale_statistics: pair (%d, %d) unlabelled: %s", q, r, e)
         records.append(
@@ -381,35 +338,22 @@ def scale_statistics(
     labels: Any = None,
     **label_options: Any,
 ) -> ScaleStats:
-    """Fig. 4 scale statistics for any landmark method (classical, selection, dense, ...).
+    """Fig. 4 scale statistics of any landmark method (docs/DEFINITIONS.md, "Scale statistics").
 
-    For every query with a ground-truth reference: landmarks are matched (reciprocal nearest
-    neighbours, pair scores ``1 - d*s`` by :func:`vpr_core.matching.match_landmarks`) against
-
-    * its ground-truth reference(s) (:func:`ground_truth_references`, ``gt_pairs="center"``: one
-      per query), whose matches are labelled by :func:`label_matches` (``label_method``);
-    * ``n_irrelevant`` query-irrelevant references (default 5 per query, ``ground_truth`` False,
-      :func:`sample_irrelevant_references` with ``seed``), not labelled.
-
-    Each match is binned by the Table-1 scale of its *query-side* landmark
-    (:func:`vpr_core.landmarks.scale_index` with the query image size). Queries without ground
-    truth are skipped. A ground-truth pair whose labeller has no information
-    (:class:`LabelUnavailableError`) still counts for ``n_matches``, CLS and ASL but not for CMR.
+    Each query with ground truth is matched (:func:`vpr_core.matching.match_landmarks`) with its
+    ground-truth reference(s), labelled by :func:`label_matches`, and with ``n_irrelevant``
+    sampled query-irrelevant references. Queries without ground truth are skipped.
 
     Args:
         dataset: ``PlaceDataset``.
-        boxes_q: per query, ``(Kq_i, 4)`` boxes.
-        boxes_r: per reference, ``(Kr_j, 4)`` boxes.
-        desc_q: per query, ``(Kq_i, D)`` descriptors.
-        desc_r: per reference, ``(Kr_j, D)`` descriptors.
+        boxes_q: per query, ``(Kq_i, 4)`` boxes. boxes_r: per reference, ``(Kr_j, 4)``.
+        desc_q: per query, ``(Kq_i, D)`` descriptors. desc_r: per reference, ``(Kr_j, D)``.
         label_method: see :func:`label_matches`.
-        n_irrelevant: query-irrelevant references per query.
-        seed: sampling seed of the irrelevant references.
-        image_sizes: per query ``(H, W)`` (default: ``dataset.image_size("query", q)``).
+        n_irrelevant: query-irrelevant references per query. seed: their sampling seed.
+        image_sizes: per query ``(H, W)`` (default: asked from the dataset).
         queries: subset of queries (default all).
-        gt_pairs: ``"center"`` or ``"all"`` (see :func:`ground_truth_references`).
-        soft_nms_iou: passed to ``match_landmarks`` (Algorithm 4 rescaled scores).
-        sigma: passed to ``match_landmarks``.
+        gt_pairs: ``"center"`` or ``"all"`` (:func:`ground_truth_references`).
+        soft_nms_iou: Algorithm 4 threshold of the matching, or None. sigma: its width.
         iou_threshold: label IoU threshold.
         labels: label CSV / DataFrame for ``file`` (read once).
         **label_options: further :func:`label_matches` options.
@@ -429,6 +373,8 @@ def scale_statistics(
         )
     if "method" in label_options:
         raise TypeError("scale_statistics takes the labeller as label_method=..., not method=...")
+    boxes_q = [check_boxes(b, f"boxes_q[{i}]") for i, b in enumerate(boxes_q)]
+    boxes_r = [check_boxes(b, f"boxes_r[{j}]") for j, b in enumerate(boxes_r)]
     method = resolve_label_method(dataset, label_method, labels)
     if method == "file" and labels is not None and isinstance(labels, (str, PathLike)):
         labels = read_label_file(labels)
@@ -448,7 +394,7 @@ def scale_statistics(
     records: list[MatchRecord] = []
     for q in progress(qs, desc="scale statistics", unit="query"):
         size_q = (
-            tuple(image_sizes[q])
+            check_image_size(image_sizes[q], f"image_sizes[{q}]")
             if image_sizes is not None
             else dataset_image_size(dataset, "query", q)
         )

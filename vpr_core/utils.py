@@ -1,21 +1,26 @@
-"""Small shared helpers: logging, seeding, cache locations, config slugs, progress bars, CSV rows."""
+"""Small shared helpers: logging, seeding, cache folders, config slugs, progress bars, CSV rows."""
 
 from __future__ import annotations
 
 import csv
+import ctypes
 import hashlib
 import json
 import logging
 import os
 import random
 import sys
+import warnings
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 
 from . import paths, settings
+from .checks import check_choice
+from .notices import VPRWarning
 
 logger = logging.getLogger("vpr_core")
 logger.addHandler(logging.NullHandler())  # library convention: the application configures output
@@ -25,16 +30,11 @@ def make_deterministic(seed: int = 0) -> None:
     """Seed python, numpy and torch and ask torch for deterministic kernels."""
     random.seed(seed)
     np.random.seed(seed)
-    try:
-        import torch
-
-        torch.manual_seed(seed)
-        torch.use_deterministic_algorithms(True, warn_only=True)
-    except ImportError:  # pragma: no cover - torch is a hard dependency
-        pass
+    torch.manual_seed(seed)
+    torch.use_deterministic_algorithms(True, warn_only=True)
 
 
-#: Environment variable: set to ``0`` to leave the C allocator as it is (see :func:`tune_allocator`).
+#: Environment variable: ``0`` leaves the C allocator as it is (see :func:`tune_allocator`).
 ALLOCATOR_ENV = "VPR_TUNE_MALLOC"
 #: Free memory glibc keeps at the top of the heap once :func:`tune_allocator` ran (bytes).
 ALLOCATOR_KEEP_BYTES = 1 << 30
@@ -43,18 +43,10 @@ ALLOCATOR_KEEP_BYTES = 1 << 30
 def tune_allocator() -> bool:
     """Let glibc reuse freed memory for large tensors instead of mapping fresh pages each time.
 
-    glibc serves every allocation above 32 MiB with a new ``mmap`` and unmaps it on free, so each
-    large activation of a batched forward pass (50 crops x 96 x 64 x 64 float32 = 79 MB in Lite0)
-    is page-faulted in again, zero-filled by the kernel, on every call: measured here, that is
-    half of the time of ``crop`` mode (``benchmarks/bench_features.py`` prints both). This sets
-    ``M_MMAP_MAX = 0`` (large blocks come from the heap) and ``M_TRIM_THRESHOLD`` =
-    :data:`ALLOCATOR_KEEP_BYTES` (up to 1 GiB of freed heap is kept for reuse, not returned to
-    the OS), process-wide. It changes where memory lives, never what is computed: descriptors
-    are the same bits (tested). The cost: the process's resident memory stays near its peak.
-
-    Process-wide, so the library never calls it: the CLI, the study runner and a notebook's
-    first cell call it explicitly. No-op off glibc (macOS, Windows, musl) and when
-    ``$VPR_TUNE_MALLOC=0``.
+    Sets ``M_MMAP_MAX = 0`` and ``M_TRIM_THRESHOLD`` = :data:`ALLOCATOR_KEEP_BYTES`, process-wide
+    (about half of ``crop`` mode's time is page faults without it; ``bench_features.py``). Never
+    changes a number; only the CLI, the runner and a notebook's first cell call it. No-op off
+    glibc and when ``$VPR_TUNE_MALLOC=0``.
 
     Returns:
         True when the tuning is in effect in this process after the call.
@@ -62,8 +54,6 @@ def tune_allocator() -> bool:
     if not settings.tune_malloc():
         return False
     try:
-        import ctypes
-
         libc = ctypes.CDLL(None)
         libc.gnu_get_libc_version  # noqa: B018 - AttributeError off glibc
     except (OSError, AttributeError):
@@ -75,13 +65,8 @@ def tune_allocator() -> bool:
 
 
 class _LiveStreamHandler(logging.StreamHandler):
-    """A StreamHandler that writes to whatever ``sys.stderr`` (or ``sys.stdout``) is when a
-    record is emitted.
-
-    A plain StreamHandler keeps the stream it was created with; when that stream is replaced and
-    closed (pytest's capture, a notebook kernel's redirection), every later record would end in
-    "--- Logging error --- ValueError: I/O operation on closed file".
-    """
+    """A StreamHandler writing to whatever ``sys.stderr`` / ``sys.stdout`` is at each record
+    (pytest and notebook kernels replace and close the original stream)."""
 
     def __init__(self, to: str = "stderr") -> None:
         self.to = to
@@ -101,23 +86,13 @@ def configure_logging(
 ) -> logging.Logger:
     """Send ``vpr_core`` log records to ``stream`` as ``[vpr_core LEVEL] message`` (idempotent).
 
-    The library itself only has a NullHandler (and raises :class:`~vpr_core.notices.VPRWarning`
-    for what changes a number's meaning); the CLI calls this with ``stream="stderr"``, the
-    notebooks with ``stream="stdout"`` (Jupyter draws stderr as error boxes).
-
     Args:
-        level: the log level. stream: ``"stderr"`` or ``"stdout"``.
-        silence_warnings: also stop Python from printing :class:`~vpr_core.notices.VPRWarning`
-            a second time (they are already log records; results still record them on
-            ``.warnings``). A process-wide warnings filter: set only when asked (the notebooks).
-
-    Raises:
-        ValueError: ``stream`` is neither ``"stderr"`` nor ``"stdout"``.
+        level: the log level.
+        stream: ``"stderr"`` (the CLI) or ``"stdout"`` (notebooks).
+        silence_warnings: also stop Python printing a :class:`VPRWarning` a second time
+            (a process-wide filter, set only when asked).
     """
-    if stream not in ("stderr", "stdout"):
-        raise ValueError(
-            f"configure_logging(stream=...) takes 'stderr' or 'stdout', got {stream!r}"
-        )
+    check_choice(stream, "configure_logging stream", ("stderr", "stdout"))
     for h in [h for h in logger.handlers if isinstance(h, _LiveStreamHandler)]:
         logger.removeHandler(h)
     h = _LiveStreamHandler(stream)
@@ -126,10 +101,6 @@ def configure_logging(
     logger.setLevel(level)
     logger.propagate = False
     if silence_warnings:
-        import warnings
-
-        from .notices import VPRWarning
-
         warnings.simplefilter("ignore", VPRWarning)
     return logger
 
@@ -151,14 +122,16 @@ def config_slug(name: str, conf: Mapping[str, Any]) -> str:
     return f"{safe}-{short_hash(dict(conf))}"
 
 
-def progress(iterable: Iterable, **kwargs: Any):
-    """A progress bar: ``tqdm.auto`` (a widget in Jupyter), or with ``VPR_PROGRESS=text`` a plain
-    text bar on stdout that stays at its final count (saved / HTML notebooks show it, never a
-    frozen widget); disabled by ``TQDM_DISABLE=1``."""
-    kwargs.setdefault("disable", settings.progress_disabled())
+def progress(iterable: Iterable | None, **kwargs: Any):
+    """A progress bar: ``tqdm.auto`` (a widget in Jupyter, a bar on a terminal), or with
+    ``VPR_PROGRESS=text`` a plain text bar on stdout that stays at its final count (saved / HTML
+    notebooks show it, never a frozen widget). Disabled by ``TQDM_DISABLE=1``, and outside
+    Jupyter when stderr is not a terminal (a redirected log gets no bars and no blank lines
+    from cleared ones)."""
     if settings.progress_style() == "text":
         from tqdm.std import tqdm
 
+        kwargs.setdefault("disable", settings.progress_disabled())
         kwargs.setdefault("file", sys.stdout)
         kwargs.setdefault("leave", True)
         kwargs.setdefault("mininterval", 2.0)
@@ -166,15 +139,19 @@ def progress(iterable: Iterable, **kwargs: Any):
         return tqdm(iterable, **kwargs)
     from tqdm.auto import tqdm
 
+    stream = kwargs.get("file") or sys.stderr
+    in_jupyter = "ipykernel" in sys.modules
+    on_terminal = bool(getattr(stream, "isatty", lambda: False)())
+    kwargs.setdefault("disable", settings.progress_disabled() or not (in_jupyter or on_terminal))
     kwargs.setdefault("leave", False)
     return tqdm(iterable, **kwargs)
 
 
 #: The source files each cached stage's results depend on (folders of ``vpr_core``, or files).
 STAGE_SOURCES: dict[str, tuple[str, ...]] = {
-    "landmarks": ("landmarks", "boxes.py", "pipeline/landmark_stage.py"),
+    "landmarks": ("landmarks", "boxes.py", "checks.py", "pipeline/landmark_stage.py"),
     "features": ("features", "backbones", "pipeline/feature_stage.py"),
-    "matching": ("matching", "pipeline/run.py", "engine"),
+    "matching": ("matching", "boxes.py", "pipeline/run.py", "engine"),
 }
 _CODE_VERSIONS: dict[str, str] = {}
 

@@ -1,11 +1,6 @@
-"""Exact match labels from a known homography (the ``synthetic`` generator knows each pair's).
+"""Exact match labels from a known homography (``synthetic``), and what every labeller shares.
 
-A match is correct when the query box, mapped into the reference image by the pair's homography,
-overlaps the matched reference box with IoU >= the threshold (:func:`vpr_core.boxes.paired_iou`).
-
-Exact labels are the reference every other labeller is measured against, so this module also
-holds what every labeller shares: the error for a pair that cannot be labelled and the
-pair / match checks (``geometric`` and ``file`` import them from here).
+The rule is in docs/DEFINITIONS.md; ``geometric`` and ``file`` import the shared pieces from here.
 """
 
 from __future__ import annotations
@@ -14,44 +9,32 @@ from typing import Any
 
 import numpy as np
 
-from ..boxes import check_boxes, paired_iou
+from ..boxes import _paired_iou
+from ..checks import check_boxes, check_shape
 
 __all__ = [
     "LabelUnavailableError",
     "check_matches",
     "dataset_image_size",
     "is_ground_truth",
-    "label_matches_exact",
     "map_boxes",
 ]
 
 
-# ---- what every labeller shares (exact, geometric, file) ------------------------------------
 class LabelUnavailableError(ValueError):
-    """The chosen labeller cannot label this pair (e.g. no known geometry for it).
-
-    :func:`vpr_core.statistics.scale_statistics` catches it and counts the pair as *unlabelled*
-    (its matches still enter ``n_matches``, CLS and ASL, but not CMR).
-    """
+    """The labeller cannot label this pair; ``scale_statistics`` counts it as unlabelled."""
 
 
 def check_matches(matches: Any, n_q: int, n_r: int) -> np.ndarray:
-    """Return ``matches`` as int64 ``(P, 2)`` (query box index, reference box index).
+    """Return ``matches`` as int64 ``(P, 2)`` (query, reference box index); empty gives ``(0, 2)``.
 
     Args:
-        matches: array-like ``(P, 2)``; an empty input gives ``(0, 2)``.
-        n_q: number of query boxes (valid first column: ``0..n_q - 1``).
-        n_r: number of reference boxes (valid second column: ``0..n_r - 1``).
-
-    Raises:
-        ValueError: wrong shape or an index outside its boxes.
+        matches: array-like index pairs.
+        n_q: number of query boxes. n_r: number of reference boxes.
     """
-    m = np.asarray(matches)
-    if m.size == 0:
+    if np.size(matches) == 0:
         return np.zeros((0, 2), dtype=np.int64)
-    if m.ndim != 2 or m.shape[1] != 2:
-        raise ValueError(f"matches must be (P, 2) index pairs, got shape {m.shape}")
-    m = m.astype(np.int64)
+    m = check_shape(matches, "P 2", "matches").astype(np.int64)
     if (m[:, 0] < 0).any() or (m[:, 0] >= n_q).any():
         raise ValueError(f"matches reference query boxes outside 0..{n_q - 1}")
     if (m[:, 1] < 0).any() or (m[:, 1] >= n_r).any():
@@ -77,24 +60,27 @@ def is_ground_truth(dataset: Any, q: int, r: int) -> bool:
     return bool(gt[q, r])
 
 
-# ---- exact labels -----------------------------------------------------------------------------
 def map_boxes(
     boxes: np.ndarray, homography: np.ndarray, image_size: tuple[int, int] | None = None
 ) -> np.ndarray:
-    """Map boxes through a homography: axis-aligned bounding box of the 4 mapped corners.
+    """Map boxes through a homography: the bounding box of the 4 mapped corners.
 
     Args:
-        boxes: ``(K, 4)`` ``(x, y, w, h)`` boxes in the source image.
-        homography: ``(3, 3)`` mapping source pixel ``(x, y, 1)`` to target pixel coordinates.
-        image_size: ``(H, W)`` of the target image; when given the mapped box is clipped to
-            ``[0, W] x [0, H]``.
+        boxes: ``(K, 4)`` boxes in the source image.
+        homography: ``(3, 3)`` source pixel ``(x, y, 1)`` -> target pixel.
+        image_size: ``(H, W)`` of the target image to clip to, or None.
 
     Returns:
-        ``(K, 4)`` boxes in the target image. A box with a corner mapped to or behind the line at
-        infinity (projective scale <= 0), or clipped away entirely, gets width = height = 0.
+        ``(K, 4)`` boxes; a corner mapped to or behind the line at infinity gives a zero box.
     """
-    b = check_boxes(boxes, "boxes")
-    H = np.asarray(homography, dtype=np.float64).reshape(3, 3)
+    H = check_shape(homography, "3 3", "homography", np.float64)
+    return _map_boxes(check_boxes(boxes), H, image_size)
+
+
+def _map_boxes(
+    b: np.ndarray, H: np.ndarray, image_size: tuple[int, int] | None = None
+) -> np.ndarray:
+    """:func:`map_boxes` of parsed boxes and a ``(3, 3)`` float64 homography (no checks)."""
     if len(b) == 0:
         return b.copy()
     x, y, w, h = b.T
@@ -117,40 +103,22 @@ def map_boxes(
     return out
 
 
-def label_matches_exact(
+def _label_exact(
     dataset: Any,
     q: int,
     r: int,
-    boxes_q: np.ndarray,
-    boxes_r: np.ndarray,
-    matches: np.ndarray,
+    bq: np.ndarray,
+    br: np.ndarray,
+    m: np.ndarray,
     iou_threshold: float = 0.5,
     image_size_r: tuple[int, int] | None = None,
 ) -> np.ndarray:
-    """Exact labels from the generator's homography (``synthetic``).
-
-    See :func:`vpr_core.labels.label_matches` (``method="exact"``) for the rule.
-
-    Args:
-        dataset: a dataset with ``homographies (N, 3, 3)`` (query i -> reference i) and
-            ``ground_truth (Nq, Nr)``.
-        q: query index.
-        r: reference index.
-        boxes_q: ``(Kq, 4)`` query boxes.
-        boxes_r: ``(Kr, 4)`` reference boxes.
-        matches: ``(P, 2)`` (query box index, reference box index).
-        iou_threshold: minimum IoU of mapped query box and reference box.
-        image_size_r: ``(H, W)`` of reference ``r`` (default: asked from the dataset).
-
-    Returns:
-        ``(P,)`` bool labels.
+    """``method="exact"`` of :func:`vpr_core.labels.label_matches` on parsed boxes and matches.
 
     Raises:
-        LabelUnavailableError: no homographies, or (q, r) is a ground-truth pair with ``r != q``
-            (the generator only knows the geometry of the pair (i, i)).
+        LabelUnavailableError: no homographies, or a ground-truth pair (q, r) with ``r != q``
+            (the generator knows the geometry of (i, i) only).
     """
-    bq, br = check_boxes(boxes_q, "boxes_q"), check_boxes(boxes_r, "boxes_r")
-    m = check_matches(matches, len(bq), len(br))
     Hs = getattr(dataset, "homographies", None)
     if Hs is None:
         raise LabelUnavailableError(
@@ -170,5 +138,5 @@ def label_matches_exact(
     size_r = (
         image_size_r if image_size_r is not None else dataset_image_size(dataset, "reference", r)
     )
-    mapped = map_boxes(bq[m[:, 0]], np.asarray(Hs)[q], size_r)
-    return paired_iou(mapped, br[m[:, 1]]) >= iou_threshold
+    mapped = _map_boxes(bq[m[:, 0]], np.asarray(Hs, dtype=np.float64)[q], size_r)
+    return _paired_iou(mapped, br[m[:, 1]]) >= iou_threshold

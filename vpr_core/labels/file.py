@@ -1,22 +1,20 @@
-"""Manual match labels from a CSV (as the paper labelled Gardens Point by hand).
-
-Header: ``query,reference,query_box_index,reference_box_index,correct`` (:data:`LABEL_COLUMNS`);
-:func:`vpr_core.labels.append_labels` writes this format.
-"""
+"""Manual match labels in a CSV (:data:`LABEL_COLUMNS`): read, validate, look up, append."""
 
 from __future__ import annotations
 
+import csv
 import warnings
 from collections.abc import Iterable
 from os import PathLike
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
-from ..boxes import check_boxes
-from .exact import check_matches
+from ..checks import check_choice
 
-__all__ = ["LABEL_COLUMNS", "label_matches_file", "read_label_file"]
+__all__ = ["LABEL_COLUMNS", "append_labels", "read_label_file"]
 
 #: Columns of a manual-label CSV, in order.
 LABEL_COLUMNS = ("query", "reference", "query_box_index", "reference_box_index", "correct")
@@ -44,25 +42,12 @@ def _parse_bool(values: Iterable[Any]) -> np.ndarray:
 
 
 def read_label_file(path: str | PathLike) -> Any:
-    """Read and validate a manual-label CSV.
-
-    The header must contain ``query,reference,query_box_index,reference_box_index,correct``
-    (extra columns are ignored). ``correct`` accepts 1/0, true/false, yes/no.
-
-    Args:
-        path: the CSV file.
+    """Read and validate a manual-label CSV (extra columns are ignored).
 
     Returns:
-        pandas DataFrame with int columns ``query, reference, query_box_index,
-        reference_box_index`` and bool ``correct``.
-
-    Raises:
-        FileNotFoundError: no such file.
-        ValueError: missing columns (the message names the expected header), non-integer indices
-            or non-boolean labels.
+        DataFrame with int ``query, reference, query_box_index, reference_box_index`` and bool
+        ``correct``.
     """
-    import pandas as pd
-
     df = pd.read_csv(path, skipinitialspace=True)
     df.columns = [str(c).strip() for c in df.columns]
     return _validate_label_frame(df, source=str(path))
@@ -114,43 +99,23 @@ def _pair_table(df: Any, q: int, r: int, n_q: int, n_r: int) -> dict[tuple[int, 
     return table
 
 
-def label_matches_file(
+def _label_file(
     labels: Any,
     q: int,
     r: int,
-    boxes_q: np.ndarray,
-    boxes_r: np.ndarray,
-    matches: np.ndarray,
+    bq: np.ndarray,
+    br: np.ndarray,
+    m: np.ndarray,
     on_unmatched: str = "warn",
 ) -> np.ndarray:
-    """Labels looked up in a manual-label CSV (path or already-read DataFrame).
-
-    Rules for rows of pair (q, r):
-
-    * a box index outside ``0..K-1`` of its boxes -> ``ValueError`` (labels of another landmark
-      set);
-    * a match without a row -> ``ValueError`` listing the unlabelled matches;
-    * two rows of the same match that disagree -> ``ValueError``; identical duplicates are fine;
-    * a labelled pair that is not among the matches -> a ``UserWarning`` (``on_unmatched="warn"``,
-      default; e.g. labels made with another matcher setting), ignored (``"ignore"``) or an error
-      (``"error"``).
+    """``method="file"`` of :func:`vpr_core.labels.label_matches` on parsed boxes and matches.
 
     Args:
         labels: CSV path or a DataFrame with :data:`LABEL_COLUMNS`.
-        q: query index.
-        r: reference index.
-        boxes_q: ``(Kq, 4)`` query boxes.
-        boxes_r: ``(Kr, 4)`` reference boxes.
-        matches: ``(P, 2)`` (query box index, reference box index).
-        on_unmatched: ``"warn"``, ``"ignore"`` or ``"error"`` (see above).
-
-    Returns:
-        ``(P,)`` bool labels.
+        on_unmatched: ``"warn"``, ``"ignore"`` or ``"error"`` for a labelled pair that is not
+            among the matches.
     """
-    bq, br = check_boxes(boxes_q, "boxes_q"), check_boxes(boxes_r, "boxes_r")
-    m = check_matches(matches, len(bq), len(br))
-    if on_unmatched not in ("warn", "ignore", "error"):
-        raise ValueError(f"on_unmatched must be 'warn', 'ignore' or 'error', got {on_unmatched!r}")
+    check_choice(on_unmatched, "on_unmatched", ("warn", "ignore", "error"))
     if labels is None:
         raise ValueError(
             f"method='file' needs labels=<path to CSV> with header '{','.join(LABEL_COLUMNS)}'"
@@ -179,3 +144,34 @@ def label_matches_file(
         if on_unmatched == "warn":
             warnings.warn(msg, UserWarning, stacklevel=3)
     return np.asarray([table[k] for k in keys], dtype=bool)
+
+
+def append_labels(
+    path: str | PathLike, q: int, r: int, matches: np.ndarray, correct: np.ndarray
+) -> Path:
+    """Append (or create) a labels CSV with one row per match of pair ``(q, r)``.
+
+    Args:
+        path: CSV file.
+        q: query index. r: reference index.
+        matches: ``(P, 2)`` landmark index pairs.
+        correct: ``(P,)`` bool labels.
+
+    Returns:
+        The CSV path.
+    """
+    matches = np.asarray(matches, dtype=np.int64).reshape(-1, 2)
+    correct = np.asarray(correct, dtype=bool).reshape(-1)
+    if len(matches) != len(correct):
+        raise ValueError(
+            f"{len(matches)} matches but {len(correct)} labels: give one label per match."
+        )
+    path = Path(path)
+    new = not path.exists()
+    with path.open("a", newline="") as f:
+        w = csv.writer(f)
+        if new:
+            w.writerow(LABEL_COLUMNS)
+        for (i, j), c in zip(matches, correct, strict=True):
+            w.writerow([q, r, int(i), int(j), int(bool(c))])
+    return path

@@ -1,8 +1,6 @@
 """Geometric-verification match labels for real images (SIFT + ratio test + RANSAC).
 
-:func:`estimate_pair_geometry` finds the two-view geometry of an image pair; then
-:func:`label_matches_geometric` labels each landmark match by the homography rule (mapped box
-IoU, as ``exact``) or, with only epipolar geometry, by the point rule (shared RANSAC inliers).
+The rules and thresholds are in docs/DEFINITIONS.md ("Match labels").
 """
 
 from __future__ import annotations
@@ -10,17 +8,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
 import numpy as np
 
-from ..boxes import check_boxes, paired_iou
-from .exact import LabelUnavailableError, check_matches, is_ground_truth, map_boxes
+from ..boxes import _paired_iou
+from ..checks import check_boxes, check_choice
+from .exact import LabelUnavailableError, _map_boxes, check_matches, is_ground_truth
 
-__all__ = [
-    "PairGeometry",
-    "estimate_pair_geometry",
-    "label_matches_geometric",
-    "label_pair_geometric",
-]
+__all__ = ["PairGeometry", "estimate_pair_geometry", "label_matches_geometric"]
 
 
 @dataclass
@@ -28,19 +23,14 @@ class PairGeometry:
     """Two-view geometry of one image pair from SIFT + ratio test + RANSAC.
 
     Attributes:
-        kind: ``"homography"`` (one homography explains the verified correspondences),
-            ``"fundamental"`` (only epipolar geometry; the point rule decides) or ``"none"``
-            (too few verified correspondences; the pair cannot be labelled).
-        homography: ``(3, 3)`` query -> reference pixel map when ``kind == "homography"``.
-        fundamental: ``(3, 3)`` fundamental matrix when it could be estimated, else ``None``.
-        points_q: ``(N, 2)`` query pixel positions of the inlier correspondences of the chosen
-            model (for ``"homography"``: the homography inliers).
-        points_r: ``(N, 2)`` matching reference positions.
+        kind: ``"homography"``, ``"fundamental"`` (point rule) or ``"none"`` (unlabelled).
+        homography: ``(3, 3)`` query -> reference pixel map, or None.
+        fundamental: ``(3, 3)`` fundamental matrix, or None.
+        points_q: ``(N, 2)`` query positions of the chosen model's inliers.
+        points_r: ``(N, 2)`` the matching reference positions.
         n_putative: correspondences that passed the ratio test.
-        n_inliers_h: homography RANSAC inliers (0 if not estimated).
-        n_inliers_f: fundamental-matrix RANSAC inliers (0 if not estimated).
-        image_size_q: ``(H, W)`` of the query image.
-        image_size_r: ``(H, W)`` of the reference image.
+        n_inliers_h: homography inliers. n_inliers_f: fundamental-matrix inliers.
+        image_size_q: ``(H, W)``. image_size_r: ``(H, W)``.
     """
 
     kind: str
@@ -56,8 +46,6 @@ class PairGeometry:
 
 
 def _gray(img: np.ndarray, equalize: bool, denoise: float = 0.0) -> np.ndarray:
-    import cv2
-
     a = np.asarray(img)
     if a.ndim == 3:
         a = cv2.cvtColor(a[..., :3].astype(np.uint8), cv2.COLOR_RGB2GRAY)
@@ -70,8 +58,7 @@ def _gray(img: np.ndarray, equalize: bool, denoise: float = 0.0) -> np.ndarray:
 
 
 def _homography_is_sane(H: np.ndarray, size_q: tuple[int, int]) -> bool:
-    """Reject degenerate / wildly distorting homographies (mapped image area ratio outside
-    [1/16, 16], non-convex or flipped image outline)."""
+    """False for a degenerate homography: area ratio outside [1/16, 16], non-convex or flipped."""
     if H is None or not np.isfinite(H).all():
         return False
     h, w = size_q
@@ -108,9 +95,9 @@ def _ratio_test_points(
         ``(points_q (N, 2), points_r (N, 2))`` float64, or None when an image has fewer than
         two keypoints.
     """
-    import cv2
-
-    sift = cv2.SIFT_create(nfeatures=int(max_features), contrastThreshold=float(contrast_threshold))
+    sift = cv2.SIFT_create(  # type: ignore[attr-defined]
+        nfeatures=int(max_features), contrastThreshold=float(contrast_threshold)
+    )
     gq, gr = _gray(img_q, equalize, denoise), _gray(img_r, equalize, denoise)
     if upscale != 1.0:
         gq = cv2.resize(gq, None, fx=upscale, fy=upscale, interpolation=cv2.INTER_LINEAR)
@@ -121,8 +108,8 @@ def _ratio_test_points(
         return None
     knn = cv2.BFMatcher(cv2.NORM_L2).knnMatch(dq, dr, k=2)
     good = [p[0] for p in knn if len(p) == 2 and p[0].distance < ratio * p[1].distance]
-    pq = np.float64([kq[g.queryIdx].pt for g in good]).reshape(-1, 2) / upscale
-    pr = np.float64([kr[g.trainIdx].pt for g in good]).reshape(-1, 2) / upscale
+    pq = np.array([kq[g.queryIdx].pt for g in good], dtype=np.float64).reshape(-1, 2) / upscale
+    pr = np.array([kr[g.trainIdx].pt for g in good], dtype=np.float64).reshape(-1, 2) / upscale
     return pq, pr
 
 
@@ -134,8 +121,6 @@ def _fit_models(
     Returns:
         ``(H or None, inliers_h (N,) bool, F or None, inliers_f (N,) bool)``.
     """
-    import cv2
-
     n_put = len(pq)
     h_method = cv2.RANSAC if robust == "ransac" else cv2.USAC_MAGSAC
     f_method = cv2.FM_RANSAC if robust == "ransac" else cv2.USAC_MAGSAC
@@ -172,49 +157,25 @@ def estimate_pair_geometry(
     robust: str = "ransac",
     seed: int = 0,
 ) -> PairGeometry:
-    """SIFT keypoints, Lowe ratio test, RANSAC homography and fundamental matrix for one pair.
+    """SIFT, Lowe ratio test, RANSAC homography and fundamental matrix for one pair.
 
-    Model choice: the homography is kept when it has at least ``min_inliers`` inliers (at
-    ``h_threshold`` px) forming at least ``min_inlier_ratio`` of the ratio-test matches, is
-    geometrically sane (convex, orientation-preserving, area ratio within [1/16, 16]) and explains
-    at least ``h_share`` of the fundamental-matrix inliers (i.e. the scene looks planar / the
-    viewpoint change is mostly a camera rotation). Otherwise, when the fundamental matrix has at
-    least ``min_inliers_f`` inliers (at ``f_threshold`` px) forming at least
-    ``min_inlier_ratio_f`` of the ratio-test matches, its inliers are kept
-    (``kind="fundamental"``). Otherwise ``kind="none"``.
-
-    The acceptance thresholds were set from the chance level: on query-irrelevant pairs
-    (``synthetic`` seeds 1, 3, 7 and the 10-pair Gardens Point subset, 135 pairs) RANSAC finds up
-    to 30 homography inliers (ratio <= 0.32) and 36 fundamental inliers (ratio <= 0.40) by chance;
-    with the defaults none of them is accepted, while 116 of 120 ``synthetic`` ground-truth pairs
-    get a homography. Day-vs-night Gardens Point pairs mostly stay ``"none"`` (SIFT does not
-    survive the illumination change): label those with ``method="file"``.
+    The model choice and the defaults (set from the chance level) are in docs/DEFINITIONS.md.
 
     Args:
         img_q: ``(Hq, Wq, 3)`` uint8 RGB (or ``(Hq, Wq)`` gray) query image.
         img_r: ``(Hr, Wr, 3)`` uint8 RGB reference image.
-        ratio: Lowe ratio-test threshold (nearest / second nearest descriptor distance).
-        max_features: SIFT keypoints per image (strongest kept).
-        equalize: CLAHE before SIFT (helps with night images).
-        h_threshold: homography RANSAC reprojection threshold in pixels.
-        f_threshold: fundamental-matrix RANSAC threshold in pixels.
-        min_inliers: minimum homography inliers.
-        min_inlier_ratio: minimum homography inliers / ratio-test matches.
-        min_inliers_f: minimum fundamental-matrix inliers.
-        min_inlier_ratio_f: minimum fundamental-matrix inliers / ratio-test matches.
-        h_share: minimum ``n_inliers_h / n_inliers_f`` to accept the homography.
-        contrast_threshold: SIFT contrast threshold (0.01, lower than OpenCV's 0.04: dark
-            images need low-contrast keypoints).
-        denoise: Gaussian blur sigma before SIFT (0: none).
-        upscale: image resize factor before SIFT (points are mapped back).
-        robust: ``"ransac"`` or ``"magsac"`` (OpenCV USAC_MAGSAC) estimator.
-        seed: OpenCV RNG seed (RANSAC is randomised; fixed for determinism).
-
-    Returns:
-        :class:`PairGeometry`.
+        ratio: Lowe ratio-test threshold.
+        max_features: SIFT keypoints per image.
+        equalize: CLAHE before SIFT.
+        h_threshold: homography RANSAC threshold (px). f_threshold: the fundamental matrix's.
+        min_inliers: homography inliers needed. min_inlier_ratio: as a share of the matches.
+        min_inliers_f: fundamental inliers needed. min_inlier_ratio_f: as a share.
+        h_share: ``n_inliers_h / n_inliers_f`` needed to keep the homography.
+        contrast_threshold: SIFT contrast threshold. denoise: Gaussian sigma before SIFT.
+        upscale: resize factor before SIFT. robust: ``"ransac"`` or ``"magsac"``.
+        seed: OpenCV RNG seed.
     """
-    import cv2
-
+    check_choice(robust, "robust estimator", ("ransac", "magsac"))
     size_q = (int(img_q.shape[0]), int(img_q.shape[1]))
     size_r = (int(img_r.shape[0]), int(img_r.shape[1]))
     empty = np.zeros((0, 2), dtype=np.float64)
@@ -228,8 +189,6 @@ def estimate_pair_geometry(
     n_put = len(pq)
     if n_put < max(min(min_inliers, min_inliers_f), 8):
         return PairGeometry("none", None, None, empty, empty, n_put, 0, 0, size_q, size_r)
-    if robust not in ("ransac", "magsac"):
-        raise ValueError(f"robust must be 'ransac' or 'magsac', got {robust!r}")
     H, inl_h, F, inl_f = _fit_models(pq, pr, robust, h_threshold, f_threshold, seed)
     n_h, n_f = int(inl_h.sum()), int(inl_f.sum())
     if (
@@ -269,32 +228,37 @@ def label_matches_geometric(
     min_points: int = 2,
     point_iou: float = 0.4,
 ) -> np.ndarray:
-    """Geometric-verification labels from a :class:`PairGeometry`.
-
-    See :func:`vpr_core.labels.label_matches` (``method="geometric"``) for the two rules.
+    """Geometric-verification labels from a :class:`PairGeometry` (docs/DEFINITIONS.md).
 
     Args:
-        boxes_q: ``(Kq, 4)`` query boxes.
-        boxes_r: ``(Kr, 4)`` reference boxes.
+        boxes_q: ``(Kq, 4)`` query boxes. boxes_r: ``(Kr, 4)`` reference boxes.
         matches: ``(P, 2)`` (query box index, reference box index).
         geometry: the pair's geometry (:func:`estimate_pair_geometry`).
-        iou_threshold: IoU threshold of the homography rule (as ``exact``).
-        model: ``"auto"`` (homography rule when ``geometry.kind == "homography"``, else the point
-            rule), ``"homography"`` or ``"points"`` (force one rule).
-        min_points: point rule: minimum inliers inside both boxes.
-        point_iou: point rule: minimum point-set IoU ``n_qr / (n_q + n_r - n_qr)``.
+        iou_threshold: IoU threshold of the homography rule.
+        model: ``"auto"``, ``"homography"`` or ``"points"`` (force one rule).
+        min_points: point rule: inliers inside both boxes needed.
+        point_iou: point rule: point-set IoU needed.
 
     Returns:
         ``(P,)`` bool labels.
-
-    Raises:
-        LabelUnavailableError: ``geometry.kind == "none"`` (no verified correspondences), or the
-            homography rule was forced without a homography.
     """
     bq, br = check_boxes(boxes_q, "boxes_q"), check_boxes(boxes_r, "boxes_r")
     m = check_matches(matches, len(bq), len(br))
-    if model not in ("auto", "homography", "points"):
-        raise ValueError(f"model must be 'auto', 'homography' or 'points', got {model!r}")
+    check_choice(model, "model", ("auto", "homography", "points"))
+    return _geometric_labels(bq, br, m, geometry, iou_threshold, model, min_points, point_iou)
+
+
+def _geometric_labels(
+    bq: np.ndarray,
+    br: np.ndarray,
+    m: np.ndarray,
+    geometry: PairGeometry,
+    iou_threshold: float = 0.5,
+    model: str = "auto",
+    min_points: int = 2,
+    point_iou: float = 0.4,
+) -> np.ndarray:
+    """:func:`label_matches_geometric` of parsed boxes and matches (no checks)."""
     if geometry.kind == "none":
         raise LabelUnavailableError(
             f"no two-view geometry for this pair ({geometry.n_putative} ratio-test matches, "
@@ -306,8 +270,8 @@ def label_matches_geometric(
     if use_h:
         if geometry.homography is None:
             raise LabelUnavailableError("homography rule requested but the pair has no homography")
-        mapped = map_boxes(bq[m[:, 0]], geometry.homography, geometry.image_size_r)
-        return paired_iou(mapped, br[m[:, 1]]) >= iou_threshold
+        mapped = _map_boxes(bq[m[:, 0]], geometry.homography, geometry.image_size_r)
+        return _paired_iou(mapped, br[m[:, 1]]) >= iou_threshold
     in_q = _inside(geometry.points_q, bq[m[:, 0]])  # (P, N)
     in_r = _inside(geometry.points_r, br[m[:, 1]])
     n_q = in_q.sum(1)
@@ -318,44 +282,30 @@ def label_matches_geometric(
     return (n_qr >= min_points) & (piou >= point_iou)
 
 
-def label_pair_geometric(
+def _label_pair_geometric(
     dataset: Any,
     q: int,
     r: int,
-    boxes_q: np.ndarray,
-    boxes_r: np.ndarray,
-    matches: np.ndarray,
+    bq: np.ndarray,
+    br: np.ndarray,
+    m: np.ndarray,
     iou_threshold: float = 0.5,
     **options: Any,
 ) -> np.ndarray:
-    """``method="geometric"`` of :func:`vpr_core.labels.label_matches` for one dataset pair.
+    """``method="geometric"`` of :func:`vpr_core.labels.label_matches` (parsed inputs).
 
-    A non-ground-truth pair is all incorrect (no image matching is run). Otherwise the pair's
-    geometry is taken from ``geometry=``, else from ``geometry_cache[(q, r)]``, else estimated
-    from ``images=(img_q, img_r)`` or the dataset's images (and stored in ``geometry_cache``).
-
-    Args:
-        dataset: a ``PlaceDataset`` (``ground_truth``, ``load_image``).
-        q: query index.
-        r: reference index.
-        boxes_q: ``(Kq, 4)`` query boxes.
-        boxes_r: ``(Kr, 4)`` reference boxes.
-        matches: ``(P, 2)`` (query box index, reference box index).
-        iou_threshold: IoU threshold of the homography rule.
-        **options: ``images``, ``geometry``, ``geometry_cache``; ``model``, ``min_points``,
-            ``point_iou`` (:func:`label_matches_geometric`); the rest go to
-            :func:`estimate_pair_geometry`.
-
-    Returns:
-        ``(P,)`` bool labels.
+    The geometry comes from ``geometry=``, else ``geometry_cache[(q, r)]``, else is estimated
+    from ``images=(img_q, img_r)`` or the dataset's images (and cached); the other options go
+    to :func:`_geometric_labels` (``model``, ``min_points``, ``point_iou``) or
+    :func:`estimate_pair_geometry`.
     """
     rule_keys = {"model", "min_points", "point_iou"}
     rule_opts = {k: options.pop(k) for k in list(options) if k in rule_keys}
+    if "model" in rule_opts:
+        check_choice(rule_opts["model"], "model", ("auto", "homography", "points"))
     images = options.pop("images", None)
     geometry = options.pop("geometry", None)
     cache = options.pop("geometry_cache", None)
-    bq, br = check_boxes(boxes_q, "boxes_q"), check_boxes(boxes_r, "boxes_r")
-    m = check_matches(matches, len(bq), len(br))
     if not is_ground_truth(dataset, q, r):
         return np.zeros(len(m), dtype=bool)
     if geometry is None and cache is not None:
@@ -366,4 +316,4 @@ def label_pair_geometric(
         geometry = estimate_pair_geometry(images[0], images[1], **options)
         if cache is not None:
             cache[(q, r)] = geometry
-    return label_matches_geometric(bq, br, m, geometry, iou_threshold=iou_threshold, **rule_opts)
+    return _geometric_labels(bq, br, m, geometry, iou_threshold, **rule_opts)

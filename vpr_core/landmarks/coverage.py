@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..boxes import check_boxes, check_image_size
+from ..checks import check_boxes, check_image_size
 
 __all__ = ["landmark_coverage"]
 

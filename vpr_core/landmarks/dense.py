@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
-from ..boxes import check_image_size
+from ..checks import check_image_size
 from ..paper import DENSE_PER_SCALE, DENSE_SCALES
 
 __all__ = ["dense_sampling"]
@@ -28,7 +28,7 @@ def _grid_side(count: Any) -> int:
 
 
 def _grid_boxes(area_ratio: float, g: int, H: int, W: int) -> np.ndarray:
-    """``(g*g, 4)`` boxes of one scale on a ``g x g`` grid, row by row (see dense_sampling)."""
+    """``(g*g, 4)`` boxes of one scale on a ``g x g`` grid, row by row."""
     s = math.sqrt(float(area_ratio))
     w, h = s * W, s * H
     if g == 1:
@@ -51,27 +51,15 @@ def dense_sampling(
     scales: Sequence[float] = DENSE_SCALES,
     per_scale: int | Sequence[int] = DENSE_PER_SCALE,
 ) -> np.ndarray:
-    """Dense multi-scale landmarks (paper Section 4, Fig. 9).
-
-    For each normalized scale (area ratio) ``a`` the box is ``w = sqrt(a) * W``,
-    ``h = sqrt(a) * H`` (image aspect kept). ``g * g`` boxes are laid on a ``g x g`` grid, evenly
-    spaced: the first at the top-left corner ``(0, 0)``, the last flush with the far edges
-    (``x = W - w``, ``y = H - h``); with ``g = 1`` the box is centred.
+    """Dense multi-scale landmarks (Section 4, Fig. 9; the grid is in docs/DEFINITIONS.md).
 
     Args:
-        image_size: ``(H, W)`` in pixels.
-        scales: area ratios in ``(0, 1]``, one per scale level (default
-            :data:`vpr_core.paper.DENSE_SCALES`).
-        per_scale: boxes per scale, a perfect square; an int (same for every scale, default
-            :data:`vpr_core.paper.DENSE_PER_SCALE`) or one count per scale (e.g. Table 3 Set 2).
+        image_size: ``(H, W)``.
+        scales: area ratios in ``(0, 1]``, one per scale level.
+        per_scale: boxes per scale, a perfect square: one int or one count per scale.
 
     Returns:
-        ``(K, 4)`` float64 ``(x, y, w, h)``, ``K = sum(per_scale)``; ordered scale by scale, then
-        row by row (increasing ``y``), and within a row by increasing ``x``.
-
-    Raises:
-        ValueError: bad ``image_size``, a scale outside ``(0, 1]``, a non-square count or a
-            ``per_scale`` sequence whose length differs from ``scales``.
+        ``(sum(per_scale), 4)`` boxes, scale by scale, then row by row, then by increasing ``x``.
     """
     H, W = check_image_size(image_size)
     scales_arr = np.atleast_1d(np.asarray(scales, dtype=np.float64))
@@ -82,7 +70,7 @@ def dense_sampling(
     if np.ndim(per_scale) == 0:
         counts = [per_scale] * scales_arr.size
     else:
-        counts = list(per_scale)
+        counts = list(cast(Sequence[int], per_scale))
         if len(counts) != scales_arr.size:
             raise ValueError(
                 f"per_scale has {len(counts)} counts but there are {scales_arr.size} scales; "

@@ -1,22 +1,10 @@
-"""Plot helpers (``plot_*``) and one deterministic :func:`save_figure`.
-
-Every figure of the study is drawn here; notebooks call these and save with :func:`save`.
-
-- :mod:`~vpr_core.viz.base`: :func:`save` (figures and tables), :func:`save_figure`
-  (byte-identical PNGs), :func:`draw_boxes`.
-- :mod:`~vpr_core.viz.images`: dataset examples, landmarks, dense scales (Fig. 9), coverage
-  (Fig. 14).
-- :mod:`~vpr_core.viz.curves`: PR curves (Fig. 5, 7, 10-13), metric bars, scale distributions
-  (Fig. 6).
-- :mod:`~vpr_core.viz.statistics`: CMR / CLS / ASL (Fig. 4).
-- :mod:`~vpr_core.viz.matches`: labelled matches (Fig. 1-3, 8), descriptor matrices and Eq. (1)
-  pair terms (pipeline tour).
-"""
+"""Every figure of the study (``plot_*``), the labelling widget and :func:`save`."""
 
 from __future__ import annotations
 
 from .base import METHOD_COLORS, SAVE_DPI, draw_boxes, layout_problems, save, save_figure
 from .curves import dataset_line, plot_metric_bars, plot_pr_curves, plot_scale_distribution
+from .disagreements import plot_disagreements
 from .images import (
     plot_coverage,
     plot_coverage_comparison,
@@ -34,12 +22,14 @@ from .matches import (
 )
 from .recall import plot_recall_at_n
 from .statistics import plot_asl, plot_cls, plot_cmr, plot_scale_statistics
+from .widgets import label_widget, pair_label_widget
 
 __all__ = [
     "METHOD_COLORS",
     "SAVE_DPI",
     "dataset_line",
     "draw_boxes",
+    "label_widget",
     "layout_problems",
     "plot_asl",
     "plot_cls",
@@ -49,11 +39,13 @@ __all__ = [
     "plot_dataset_overview",
     "plot_dense_scales",
     "plot_descriptor_matrices",
+    "plot_disagreements",
     "plot_examples",
     "plot_labelled_matches",
     "plot_landmark_panels",
     "plot_landmarks",
     "plot_metric_bars",
+    "pair_label_widget",
     "plot_pair",
     "plot_pair_terms",
     "plot_pr_curves",

@@ -1,15 +1,24 @@
-"""Pictures of images and landmarks: dataset examples, landmark boxes, dense scales (Fig. 9),
-coverage heatmaps (Fig. 14)."""
+"""Images and landmarks: dataset examples, boxes, dense scales (Fig. 9), coverage (Fig. 14)."""
 
 from __future__ import annotations
 
-import matplotlib
+from collections.abc import Sequence
+from typing import Any
+
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from matplotlib.figure import Figure
+from matplotlib.patches import Patch
 
+from ..checks import check_boxes
+from ..landmarks import dense_sampling, landmark_coverage
 from ..paper import DENSE_PER_SCALE, DENSE_SCALES
 from .base import draw_boxes, landmark_canvas, show_canvas
+from .curves import dataset_line
+
+#: matplotlib's ten categorical colours.
+_TAB10: list[Any] = list(plt.get_cmap("tab10").colors)  # type: ignore[attr-defined]
 
 __all__ = [
     "plot_coverage",
@@ -23,8 +32,8 @@ __all__ = [
 
 
 def plot_examples(
-    dataset, indices=(0, 1, 2), boxes=None, title: str | None = None
-) -> matplotlib.figure.Figure:
+    dataset: Any, indices: Sequence[int] = (0, 1, 2), boxes: Any = None, title: str | None = None
+) -> Figure:
     """Reference / query example pairs: one row per pair, columns ``reference | query``.
 
     Args:
@@ -71,7 +80,7 @@ def plot_examples(
     return fig
 
 
-def plot_dataset_overview(dataset, n: int = 6) -> matplotlib.figure.Figure:
+def plot_dataset_overview(dataset: Any, n: int = 6) -> Figure:
     """Thumbnails of ``n`` evenly spaced places: reference row on top, query row below.
 
     Args:
@@ -104,18 +113,16 @@ def plot_dataset_overview(dataset, n: int = 6) -> matplotlib.figure.Figure:
 def plot_landmarks(
     image: np.ndarray,
     boxes: np.ndarray,
-    ax=None,
+    ax: Any = None,
     color: str = "yellow",
     title: str | None = None,
     lw: float = 1.0,
-) -> matplotlib.figure.Figure:
+) -> Figure:
     """Draw ``(K, 4)`` ``(x, y, w, h)`` landmark boxes on an ``(H, W, 3)`` image.
 
     Returns the figure (a new one when ``ax`` is None).
     """
-    boxes = np.asarray(boxes, dtype=float)
-    if boxes.size and (boxes.ndim != 2 or boxes.shape[1] != 4):
-        raise ValueError(f"boxes must have shape (K, 4), got {boxes.shape}")
+    boxes = check_boxes(boxes)
     img, size = landmark_canvas(image)
     if ax is None:
         fig, ax = plt.subplots(figsize=(6.4, 6.4 * size[0] / size[1] + 0.4))
@@ -127,9 +134,7 @@ def plot_landmarks(
     return fig
 
 
-def plot_dense_scales(
-    image_or_size, scales=DENSE_SCALES, per_scale=DENSE_PER_SCALE
-) -> matplotlib.figure.Figure:
+def plot_dense_scales(image_or_size, scales=DENSE_SCALES, per_scale=DENSE_PER_SCALE) -> Figure:
     """Fig. 9: one panel per dense-sampling scale level with that level's boxes.
 
     Args:
@@ -137,8 +142,6 @@ def plot_dense_scales(
         scales: normalized scales (area ratios), one panel each.
         per_scale: boxes per scale (int or one per scale), as in ``dense_sampling``.
     """
-    from ..landmarks import dense_sampling
-
     img, size = landmark_canvas(image_or_size)
     scales = list(np.atleast_1d(np.asarray(scales, dtype=float)))
     counts = [per_scale] * len(scales) if np.ndim(per_scale) == 0 else list(per_scale)
@@ -152,7 +155,7 @@ def plot_dense_scales(
         squeeze=False,
         figsize=(panel_w * ncols, (panel_w * size[0] / size[1] + 0.5) * nrows),
     )
-    colors = plt.get_cmap("tab10").colors
+    colors = _TAB10
     for k, ax in enumerate(axes.ravel()):
         if k >= n:
             ax.axis("off")
@@ -173,17 +176,15 @@ def plot_dense_scales(
 def plot_coverage(
     image: np.ndarray,
     boxes: np.ndarray,
-    ax=None,
+    ax: Any = None,
     cmap: str = "viridis",
     alpha: float = 0.6,
     title: str | None = None,
-) -> matplotlib.figure.Figure:
+) -> Figure:
     """Fig. 14: how many landmarks cover each pixel, as a heatmap over the (grey) image.
 
     The default title gives the share of pixels covered by at least one box.
     """
-    from ..landmarks import landmark_coverage
-
     img, size = landmark_canvas(image)
     cov = landmark_coverage(boxes, size)
     if ax is None:
@@ -204,15 +205,15 @@ def plot_coverage(
     return fig
 
 
-def plot_coverage_comparison(dataset, results, index: int = 0, side: str = "reference"):
+def plot_coverage_comparison(
+    dataset: Any, results: Any, index: int = 0, side: str = "reference"
+) -> tuple[Figure, pd.DataFrame]:
     """Fig. 14: coverage heatmaps of several runs' landmarks on one image, side by side.
 
     Returns:
         ``(figure, table)``: per run, the share of the image covered by at least one landmark
         for this image and averaged over the dataset's images of that side.
     """
-    from ..landmarks import landmark_coverage
-
     image = dataset.load_image(side, index)
     fig, axes = plt.subplots(1, len(results), figsize=(5.5 * len(results), 3.4), squeeze=False)
     rows = []
@@ -230,8 +231,6 @@ def plot_coverage_comparison(dataset, results, index: int = 0, side: str = "refe
                 "covered share (mean)": float(np.mean(shares)),
             }
         )
-    from .curves import dataset_line
-
     fig.suptitle(f"landmark coverage of {side} {index}; {dataset_line(results)}", fontsize=9)
     fig.tight_layout()
     return fig, pd.DataFrame(rows).set_index("method")
@@ -242,7 +241,7 @@ def plot_landmark_panels(
     colors_by: np.ndarray | None = None,
     title: str | None = None,
     group_labels: dict | None = None,
-) -> matplotlib.figure.Figure:
+) -> Figure:
     """Several images side by side, each with its landmark boxes (pipeline tour, step 1).
 
     Args:
@@ -259,7 +258,7 @@ def plot_landmark_panels(
     if not panels:
         raise ValueError("plot_landmark_panels: panels is empty; pass {title: (image, boxes)}.")
     fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.6), squeeze=False)
-    palette = plt.get_cmap("tab10").colors
+    palette = _TAB10
     for ax, (name, (image, boxes)) in zip(axes[0], panels.items(), strict=False):
         boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
         img, size = landmark_canvas(image)
@@ -280,8 +279,6 @@ def plot_landmark_panels(
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     if colors_by is not None:
-        from matplotlib.patches import Patch
-
         groups = np.unique(np.asarray(colors_by).reshape(-1))
         names = group_labels or {}
         handles = [

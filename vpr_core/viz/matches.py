@@ -1,13 +1,17 @@
-"""Landmark matches between two images (Fig. 1-3, 8) and the pipeline-tour pictures of the
-descriptors and of the Eq. (1) pair terms."""
+"""Landmark matches of two images (Fig. 1-3, 8), descriptor matrices and Eq. (1) pair terms."""
 
 from __future__ import annotations
 
-import matplotlib
+from typing import Any
+
+import cv2
 import matplotlib.pyplot as plt
 import matplotlib.ticker
 import numpy as np
+from matplotlib.figure import Figure
 
+from ..checks import check_boxes, check_shape
+from ..labels import pair_matches
 from .base import draw_boxes
 
 __all__ = ["plot_descriptor_matrices", "plot_labelled_matches", "plot_pair", "plot_pair_terms"]
@@ -20,11 +24,11 @@ def plot_labelled_matches(
     boxes_r: np.ndarray,
     matches: np.ndarray,
     labels: np.ndarray | None,
-    ax=None,
+    ax: Any = None,
     gap: int = 12,
     lw: float = 1.2,
     title: str | None = None,
-) -> matplotlib.figure.Figure:
+) -> Figure:
     """Fig. 1-2: query and reference side by side, matched landmark boxes coloured by label.
 
     Args:
@@ -50,8 +54,6 @@ def plot_labelled_matches(
         ir = np.repeat(ir[..., None], 3, axis=2)
     scale_r = 1.0
     if ir.shape[0] != iq.shape[0]:  # draw both at the query's height (boxes scaled along)
-        import cv2
-
         scale_r = iq.shape[0] / ir.shape[0]
         ir = cv2.resize(
             np.ascontiguousarray(ir[..., :3]),
@@ -73,8 +75,8 @@ def plot_labelled_matches(
     ax.imshow(canvas)
     ax.set_axis_off()
     m = np.asarray(matches, dtype=np.int64).reshape(-1, 2)
-    bq = np.asarray(boxes_q, dtype=float).reshape(-1, 4)
-    br = np.asarray(boxes_r, dtype=float).reshape(-1, 4) * scale_r
+    bq = check_boxes(boxes_q, "boxes_q")
+    br = check_boxes(boxes_r, "boxes_r") * scale_r
     lab = None if labels is None else np.asarray(labels, dtype=bool).reshape(-1)
     if lab is not None and len(lab) != len(m):
         raise ValueError(f"labels ({len(lab)}) must have one entry per match ({len(m)})")
@@ -106,9 +108,7 @@ def plot_labelled_matches(
     return fig
 
 
-def plot_descriptor_matrices(
-    descriptors: dict, title: str | None = None
-) -> matplotlib.figure.Figure:
+def plot_descriptor_matrices(descriptors: dict, title: str | None = None) -> Figure:
     """Landmark descriptor matrices as heatmaps, one panel per image (pipeline tour, step 2).
 
     Args:
@@ -121,23 +121,22 @@ def plot_descriptor_matrices(
     """
     if not descriptors:
         raise ValueError("plot_descriptor_matrices: descriptors is empty.")
-    mats = {k: np.asarray(v, dtype=float) for k, v in descriptors.items()}
-    for k, m in mats.items():
-        if m.ndim != 2:
-            raise ValueError(f"descriptors[{k!r}] must have shape (K, D), got {m.shape}")
+    mats = {k: check_shape(v, "K D", f"descriptors[{k!r}]", float) for k, v in descriptors.items()}
     vmax = max(float(np.abs(m).max()) if m.size else 0.0 for m in mats.values()) or 1.0
     fig, axes = plt.subplots(
         1, len(mats), figsize=(5.2 * len(mats), 3.6), squeeze=False, layout="constrained"
     )
-    im = None
+    images = []
     for ax, (name, m) in zip(axes[0], mats.items(), strict=False):
-        im = ax.imshow(
-            m, aspect="auto", cmap="RdBu_r", vmin=-vmax, vmax=vmax, interpolation="nearest"
+        images.append(
+            ax.imshow(
+                m, aspect="auto", cmap="RdBu_r", vmin=-vmax, vmax=vmax, interpolation="nearest"
+            )
         )
         ax.set_title(f"{name}: {m.shape[0]} x {m.shape[1]}", fontsize=9)
         ax.set_xlabel("descriptor dimension")
         ax.set_ylabel("landmark")
-    fig.colorbar(im, ax=list(axes[0]), fraction=0.03, pad=0.02, label="value")
+    fig.colorbar(images[-1], ax=list(axes[0]), fraction=0.03, pad=0.02, label="value")
     if title:
         fig.suptitle(title, fontsize=10)
     return fig
@@ -150,7 +149,7 @@ def plot_pair_terms(
     n_b: int,
     similarity: float,
     title: str | None = None,
-) -> matplotlib.figure.Figure:
+) -> Figure:
     """Eq. (1) as a picture: every reciprocal pair's term ``1 - d*s`` and the image score
     (pipeline tour, step 4).
 
@@ -191,9 +190,7 @@ def plot_pair_terms(
     return fig
 
 
-def plot_pair(
-    dataset, result, query: int = 0, reference: int | None = None
-) -> matplotlib.figure.Figure:
+def plot_pair(dataset: Any, result: Any, query: int = 0, reference: int | None = None) -> Figure:
     """Fig. 1-3, 8: the matched landmarks of one pair of a run, coloured correct / incorrect.
 
     Labels from :func:`vpr_core.labels.pair_matches` (``exact`` on ``synthetic``, SIFT +
@@ -203,8 +200,6 @@ def plot_pair(
         dataset: the run's dataset. result: a run with ``keep_descriptors=True``.
         query: query index. reference: None for its ground-truth reference.
     """
-    from ..labels import pair_matches
-
     pm = pair_matches(dataset, result, query, reference)
     fig = plot_labelled_matches(
         dataset.load_image("query", pm.query),

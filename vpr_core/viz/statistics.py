@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
-import matplotlib
+from typing import Any
+
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from .base import new_axes
 
@@ -18,7 +20,7 @@ _STATS_IRR_COLOR = "tab:gray"
 _PANEL_SIZE = (5.0, 3.4)
 
 
-def stats_line(stats, wrap: bool = False) -> str:
+def stats_line(stats: Any, wrap: bool = False) -> str:
     """``"<dataset>: 18 of 20 queries with ground truth, tolerance 0; labels exact; 90 ground-truth
     / 450 irrelevant pairs"``: the line every statistics figure carries."""
     m = stats.meta or {}
@@ -31,14 +33,14 @@ def stats_line(stats, wrap: bool = False) -> str:
     )
 
 
-def _standalone(fig, ax, stats, own: bool) -> None:
+def _standalone(fig: Figure, ax: Any, stats: Any, own: bool) -> None:
     """A panel drawn in its own figure names its data in a suptitle."""
     if own:
         fig.suptitle(stats_line(stats, wrap=True), fontsize=8)
         fig.tight_layout()
 
 
-def _stats_scale_axis(ax, stats, title: str, ylabel: str) -> None:
+def _stats_scale_axis(ax: Any, stats: Any, title: str, ylabel: str) -> None:
     """Common x axis (Table-1 scales 1..9) of the Fig. 4 panels."""
     scales = np.arange(1, 10)
     ax.set_xticks(scales)
@@ -51,7 +53,7 @@ def _stats_scale_axis(ax, stats, title: str, ylabel: str) -> None:
     ax.set_axisbelow(True)
 
 
-def plot_cmr(stats, ax=None, color: str = "tab:blue") -> matplotlib.figure.Figure:
+def plot_cmr(stats: Any, ax: Any = None, color: str = "tab:blue") -> Figure:
     """Fig. 4a: correct landmark matching rate per scale (bars; empty scales left blank).
 
     Args:
@@ -100,7 +102,7 @@ def plot_cmr(stats, ax=None, color: str = "tab:blue") -> matplotlib.figure.Figur
     return fig
 
 
-def _stats_grouped(ax, gt: np.ndarray, irr: np.ndarray) -> None:
+def _stats_grouped(ax: Any, gt: np.ndarray, irr: np.ndarray) -> None:
     scales = np.arange(1, 10)
     w = 0.38
     ax.bar(
@@ -124,7 +126,7 @@ def _stats_grouped(ax, gt: np.ndarray, irr: np.ndarray) -> None:
     ax.legend(fontsize=7, loc="upper center", ncol=2, frameon=False)
 
 
-def plot_cls(stats, ax=None) -> matplotlib.figure.Figure:
+def plot_cls(stats: Any, ax: Any = None) -> Figure:
     """Fig. 4b: contribution of each scale to the similarity (CLS), ground-truth vs
     query-irrelevant pairs (grouped bars; each group sums to 1 over the scales).
 
@@ -143,7 +145,7 @@ def plot_cls(stats, ax=None) -> matplotlib.figure.Figure:
     return fig
 
 
-def plot_asl(stats, ax=None) -> matplotlib.figure.Figure:
+def plot_asl(stats: Any, ax: Any = None) -> Figure:
     """Fig. 4c: average pair score ``1 - d*s`` of the matched landmarks per scale (ASL),
     ground-truth vs query-irrelevant pairs (grouped bars).
 
@@ -162,7 +164,7 @@ def plot_asl(stats, ax=None) -> matplotlib.figure.Figure:
     return fig
 
 
-def plot_scale_statistics(stats, title: str | None = None) -> matplotlib.figure.Figure:
+def plot_scale_statistics(stats: Any, title: str | None = None) -> Figure:
     """Fig. 4: CMR, CLS and ASL side by side.
 
     Args:

@@ -1,0 +1,163 @@
+"""One-line input checks for the package's boundaries (modelled on kornia's ``KORNIA_CHECK_SHAPE``).
+
+Each returns the parsed value or raises one error line naming the argument, the problem and the fix.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "check_boxes",
+    "check_choice",
+    "check_image",
+    "check_image_size",
+    "check_int",
+    "check_range",
+    "check_shape",
+]
+
+
+def check_shape(x: Any, shape: str, name: str = "x", dtype: Any = None) -> np.ndarray:
+    """Return ``x`` as an array whose shape matches ``shape``, e.g. ``"K 4"`` or ``"N 3 3"``.
+
+    Args:
+        x: array-like.
+        shape: space-separated dimensions; a number is a fixed size, a name any size.
+        name: the argument's name in the message.
+        dtype: convert to this dtype (None: keep).
+
+    Returns:
+        The array.
+    """
+    arr = np.asarray(x, dtype=dtype)
+    dims = shape.split()
+    if arr.ndim != len(dims) or any(
+        d.isdigit() and int(d) != n for d, n in zip(dims, arr.shape, strict=False)
+    ):
+        raise ValueError(f"{name} must have shape ({', '.join(dims)}), got {arr.shape}")
+    return arr
+
+
+def check_boxes(
+    boxes: Any, name: str = "boxes", k: int | None = None, positive: bool = False
+) -> np.ndarray:
+    """Return ``boxes`` as float64 ``(K, 4)`` ``(x, y, w, h)``; an empty input gives ``(0, 4)``.
+
+    Args:
+        boxes: array-like boxes.
+        name: the argument's name in the message.
+        k: the number of rows required (e.g. the descriptor count), or None.
+        positive: require ``w > 0`` and ``h > 0`` (else ``w, h >= 0``).
+    """
+    arr = np.asarray(boxes, dtype=np.float64)
+    if arr.size == 0:
+        arr = arr.reshape(0, 4)
+    if arr.ndim != 2 or arr.shape[1] != 4:
+        raise ValueError(f"{name} must have shape (K, 4) as (x, y, w, h), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} contains NaN or inf")
+    if positive:
+        bad = np.flatnonzero((arr[:, 2] <= 0) | (arr[:, 3] <= 0))
+        if bad.size:
+            raise ValueError(f"{name} must have positive width and height; bad rows: {bad[:10]}")
+    elif np.any(arr[:, 2:] < 0):
+        raise ValueError(f"{name} has negative width or height (expected (x, y, w, h))")
+    if k is not None and arr.shape[0] != k:
+        raise ValueError(f"{name} has {arr.shape[0]} boxes but the descriptors have {k} rows")
+    return arr
+
+
+def check_image(
+    image: Any, name: str = "image", allow_gray: bool = False, min_size: int = 1
+) -> np.ndarray:
+    """Return ``image`` if it is ``(H, W, 3)`` uint8 RGB (or ``(H, W)`` uint8 with ``allow_gray``).
+
+    Args:
+        image: the image.
+        name: the argument's name in the message.
+        allow_gray: accept a 2-D grayscale image.
+        min_size: smallest accepted height and width in pixels.
+    """
+    what = "(H, W, 3) uint8 RGB" + (" or (H, W) uint8 grayscale" if allow_gray else "")
+    if not isinstance(image, np.ndarray):
+        raise TypeError(f"{name} must be a numpy array {what}, got {type(image).__name__}")
+    if image.dtype != np.uint8:
+        raise ValueError(f"{name} must be {what}, got dtype {image.dtype}")
+    if not ((image.ndim == 3 and image.shape[2] == 3) or (allow_gray and image.ndim == 2)):
+        raise ValueError(f"{name} must have shape {what}, got {image.shape}")
+    if image.shape[0] < min_size or image.shape[1] < min_size:
+        raise ValueError(
+            f"{name} is too small: shape {image.shape}, "
+            f"need at least {min_size} x {min_size} pixels"
+        )
+    return image
+
+
+def check_image_size(image_size: Any, name: str = "image_size") -> tuple[int, int]:
+    """Return ``(H, W)`` as positive ints; a 3-tuple ``image.shape`` is accepted too."""
+    if isinstance(image_size, np.ndarray) and image_size.ndim >= 2:
+        raise ValueError(
+            f"{name} must be (H, W), got an array of shape {image_size.shape}; pass image.shape[:2]"
+        )
+    try:
+        seq = tuple(image_size)
+    except TypeError:
+        raise ValueError(f"{name} must be a (H, W) pair, got {image_size!r}") from None
+    if len(seq) not in (2, 3):
+        raise ValueError(f"{name} must be a (H, W) pair, got {image_size!r}")
+    h, w = seq[0], seq[1]
+    try:
+        hi, wi = int(h), int(w)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must hold integers (H, W), got {image_size!r}") from None
+    if hi != h or wi != w or hi <= 0 or wi <= 0:
+        raise ValueError(f"{name} must be positive integers (H, W), got {image_size!r}")
+    return hi, wi
+
+
+def check_int(x: Any, name: str = "n", minimum: int = 0) -> int:
+    """Return ``x`` as an int ``>= minimum`` (a bool or a fractional number is refused)."""
+    try:
+        ok = not isinstance(x, bool) and int(x) == x and x >= minimum
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        what = {0: "a non-negative integer", 1: "a positive integer"}.get(
+            minimum, f"an integer >= {minimum}"
+        )
+        raise ValueError(f"{name} must be {what}, got {x!r}")
+    return int(x)
+
+
+def check_range(
+    x: Any,
+    name: str,
+    low: float = -math.inf,
+    high: float = math.inf,
+    low_open: bool = False,
+    high_open: bool = False,
+) -> float:
+    """Return ``x`` as a float in the interval ``[low, high]`` (``(`` / ``)`` where open)."""
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        v = math.nan
+    above = v > low if low_open else v >= low
+    below = v < high if high_open else v <= high
+    if not (above and below):  # NaN fails both
+        lo, hi = "(" if low_open else "[", ")" if high_open else "]"
+        raise ValueError(f"{name} must be in {lo}{low:g}, {high:g}{hi}, got {x!r}")
+    return v
+
+
+def check_choice(x: Any, name: str, choices: Iterable[Any]) -> Any:
+    """Return ``x`` if it is one of ``choices``; the error lists the valid ones."""
+    valid = tuple(choices)
+    if x not in valid:
+        raise ValueError(f"unknown {name} {x!r}; valid: {', '.join(map(str, valid))}")
+    return x
