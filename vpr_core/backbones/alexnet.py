@@ -1,21 +1,6 @@
-"""AlexNet conv1-conv3: the paper's landmark descriptor (64,896-d at 227x227 input).
-
-Layer layout of torchvision's ``alexnet`` (the "one weird trick" variant whose ImageNet weights
-are ``alexnet-owt-7be5be79.pth``), truncated after the third convolution + ReLU::
-
-    features.0  Conv2d(3, 64, 11, stride 4, padding 2)   227 -> 56
-    features.1  ReLU
-    features.2  MaxPool2d(3, 2)                           56 -> 27
-    features.3  Conv2d(64, 192, 5, padding 2)             27 -> 27
-    features.4  ReLU
-    features.5  MaxPool2d(3, 2)                           27 -> 13
-    features.6  Conv2d(192, 384, 3, padding 1)            13 -> 13
-    features.7  ReLU                                      -> 384 x 13 x 13 = 64,896
-
-Weights are never downloaded. Lookup order: ``weights=`` path, ``$VPR_ALEXNET_WEIGHTS``, the torch
-hub cache file ``<torch.hub.get_dir()>/checkpoints/alexnet-owt-7be5be79.pth``. ``weights="random"``
-gives a seeded random initialisation, flagged loudly (for speed tests and plumbing only).
-"""
+"""AlexNet conv1-conv3 in torchvision's layer layout: the paper's landmark descriptor (64,896-d at
+227x227). Weights are never downloaded: ``weights=`` path, ``$VPR_ALEXNET_WEIGHTS``, or the torch
+hub cache file ``alexnet-owt-7be5be79.pth``; ``weights="random"`` only on request, flagged."""
 
 from __future__ import annotations
 
@@ -28,7 +13,7 @@ from torch import nn
 
 from .. import settings
 from ..paper import ALEXNET_INPUT
-from .checkpoint import load_checkpoint
+from .checkpoint import file_sha256, load_checkpoint, user_weights_label
 
 logger = logging.getLogger("vpr_core")
 
@@ -36,6 +21,8 @@ ALEXNET_URL = "https://download.pytorch.org/models/alexnet-owt-7be5be79.pth"
 ALEXNET_FILENAME = "alexnet-owt-7be5be79.pth"
 ALEXNET_ENV = settings.ALEXNET_ENV
 RANDOM_WEIGHTS_LABEL = "random (NOT pretrained)"
+#: torch hub names a file by the first hex digits of its sha256: torchvision's ImageNet file.
+IMAGENET_SHA256_PREFIX = ALEXNET_FILENAME.split("-")[-1].removesuffix(".pth")
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
 #: What a weights file must hold (for error messages).
@@ -142,7 +129,9 @@ class AlexNetConv3(nn.Module):
         stride: 16, the conv3 output stride (two stride-2 max-pools after the stride-4 conv1).
         feature_offset: 15.5: conv3 cell ``i`` is centred on input pixel ``16 * i + 15``
             (continuous coordinate ``16 * i + 15.5``; conv1 pads 2 with an 11-pixel kernel).
-        weights_source: file name, or ``"random (NOT pretrained)"``.
+        weights_sha256: sha256 of the weights file's contents, or ``"random"``.
+        weights_source: ``"ImageNet (torchvision ...)"`` when the hash is torchvision's file,
+            ``"user weights <first 12 hex>"`` otherwise, or ``"random (NOT pretrained)"``.
 
     ``forward``: ``(B, 3, s, s)`` ImageNet-normalised crops -> ``(B, raw_dim)`` float32;
     ``feature_map``: ``(B, 3, H, W)`` -> ``(B, 384, h, w)``.
@@ -178,7 +167,9 @@ class AlexNetConv3(nn.Module):
                     nn.init.kaiming_normal_(
                         m.weight, mode="fan_out", nonlinearity="relu", generator=gen
                     )
+                    assert m.bias is not None
                     nn.init.zeros_(m.bias)
+            self.weights_sha256 = "random"
             self.weights_source = RANDOM_WEIGHTS_LABEL
             logger.warning(
                 "alexnet_conv3 uses RANDOM weights (weights='random'): descriptors are NOT the "
@@ -187,7 +178,12 @@ class AlexNetConv3(nn.Module):
         else:
             state = load_checkpoint(resolved, EXPECTED_WEIGHTS)
             self.load_state_dict(extract_conv3_state(state, str(resolved)), strict=True)
-            self.weights_source = str(resolved.name)
+            self.weights_sha256 = file_sha256(resolved)
+            self.weights_source = (
+                f"ImageNet (torchvision {ALEXNET_FILENAME})"
+                if self.weights_sha256.startswith(IMAGENET_SHA256_PREFIX)
+                else user_weights_label(self.weights_sha256)
+            )
         self.input_size = int(input_size)
         with torch.inference_mode():
             shape = self.features(torch.zeros(1, 3, self.input_size, self.input_size)).shape[1:]

@@ -1,35 +1,68 @@
-"""Reading weight files: a torch checkpoint that cannot be read is named, with what was expected."""
+"""Weight files: reading a torch checkpoint (errors name the file) and identity by content."""
 
 from __future__ import annotations
 
+import hashlib
 import os
+from collections.abc import Mapping
+from functools import cache
 from pathlib import Path
 
 import torch
 
-__all__ = ["WeightsFileError", "load_checkpoint"]
+__all__ = [
+    "WeightsFileError",
+    "file_sha256",
+    "load_checkpoint",
+    "state_dict_sha256",
+    "user_weights_label",
+]
 
 
 class WeightsFileError(ValueError):
     """A weights file exists but is not the checkpoint the backbone needs (unreadable or wrong)."""
 
 
+@cache
+def _file_sha256(path: str, mtime_ns: int, size: int) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    """Hex sha256 of a file's contents (computed once per path, size and modification time)."""
+    p = Path(path).expanduser().resolve()
+    st = p.stat()
+    return _file_sha256(str(p), st.st_mtime_ns, st.st_size)
+
+
+def state_dict_sha256(state: Mapping[str, torch.Tensor]) -> str:
+    """Hex sha256 over a state dict's names, dtypes, shapes and tensor bytes (in key order)."""
+    digest = hashlib.sha256()
+    for name, tensor in state.items():
+        t = tensor.detach().cpu().contiguous().reshape(-1)
+        digest.update(f"{name}|{tensor.dtype}|{tuple(tensor.shape)}|".encode())
+        digest.update(t.view(torch.uint8).numpy().tobytes())
+    return digest.hexdigest()
+
+
+def user_weights_label(sha256: str) -> str:
+    """What tables print for weights that are not a known published file."""
+    return f"user weights {sha256[:12]}"
+
+
 def load_checkpoint(path: str | os.PathLike, expected: str) -> dict[str, torch.Tensor]:
     """``torch.load`` a state dict on CPU (``weights_only=True``), naming the file on failure.
 
-    A ``{"state_dict": {...}}`` wrapper is unwrapped.
-
     Args:
-        path: the checkpoint file.
-        expected: what the file should hold, for the message (e.g. "a torchvision AlexNet state
-            dict, e.g. alexnet-owt-7be5be79.pth").
-
-    Returns:
-        The state dict (``name -> tensor``).
+        path: the checkpoint file (a ``{"state_dict": {...}}`` wrapper is unwrapped).
+        expected: what the file should hold, for the message.
 
     Raises:
-        WeightsFileError: the file is not a torch checkpoint (not a pickle/zip, truncated, a
-            different format) or does not hold a dict of tensors.
+        WeightsFileError: not a torch checkpoint (truncated, other format) or not a dict of tensors.
     """
     p = Path(path)
     try:
@@ -37,7 +70,6 @@ def load_checkpoint(path: str | os.PathLike, expected: str) -> dict[str, torch.T
     except OSError:
         raise  # missing / unreadable file: the OS error already names it
     except Exception as exc:  # torch's unpickler raises anything on garbage
-        # (UnpicklingError, EOFError, BadZipFile, RuntimeError, IndexError, ...)
         raise WeightsFileError(
             f"cannot read weights file {p} ({p.stat().st_size if p.exists() else 0} bytes): "
             f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}. Expected "

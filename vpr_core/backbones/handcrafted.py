@@ -17,7 +17,7 @@ class HOGBackbone(nn.Module):
     Attributes:
         input_size: square crop side.
         raw_dim: HOG length.
-        weights_source: ``"none (handcrafted)"``.
+        weights_sha256: ``"none"``; weights_source: ``"none (handcrafted)"``.
 
     ``forward``: ``(B, 3, s, s)`` RGB crops in [0, 1] (``mean=0``, ``std=1``: no normalisation)
     -> ``(B, raw_dim)`` float32 on the batch's device (HOG itself runs on the CPU). No
@@ -26,6 +26,7 @@ class HOGBackbone(nn.Module):
 
     mean = (0.0, 0.0, 0.0)
     std = (1.0, 1.0, 1.0)
+    weights_sha256 = "none"
     weights_source = "none (handcrafted)"
 
     def __init__(

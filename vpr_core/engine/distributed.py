@@ -1,41 +1,21 @@
-"""The distributed engine: feature extraction (image shards) and matching (query blocks) on Dask.
-
-With a scheduler address (``scheduler=`` / ``--scheduler`` / ``$VPR_DASK_SCHEDULER``) the two
-heavy stages run as ``dask.distributed`` tasks on an existing cluster; without one, everything
-runs in-process and no cluster (nor Dask) is needed.
-
-**Data path: workers return arrays to the client.** A task gets its inputs from the client
-(image indices and boxes, descriptor blocks), computes, and returns numpy arrays; the client
-assembles them in a fixed order and is the only process that reads or writes the cache. So a
-cluster needs no shared filesystem for the cache. It needs:
-
-* the same ``vpr_core`` version (and torch build) on every worker as on the client: the workers
-  check that their encoder's config equals the client's and refuse otherwise;
-* for feature extraction, the dataset's image files readable at the same paths on every worker
-  (a shared or replicated data folder) and the backbone weights where the encoder looks for them;
-* for matching, nothing on disk: descriptors travel with the tasks.
-
-**Determinism.** The result equals the in-process computation exactly (``np.array_equal``):
-every task runs the same public function (:func:`vpr_core.matching.similarity_matrix`,
-:func:`~vpr_core.matching.similarity_pairs`, ``LandmarkEncoder.encode``) on its block, built so
-that the matcher sees the same padding widths and reference tiling as the in-process call (see
-:mod:`~vpr_core.engine.blocks`: with soft-NMS those change the last bit otherwise); the encoder
-pads every batch to a fixed shape; feature tasks run torch with the client's thread count
-(``roi`` feature maps change in the last bits with it; the matcher's values do not, and its
-tasks keep the worker's single thread); blocks are placed by position, not by completion order.
-``tests/test_distributed.py`` checks all of it on a two-process ``LocalCluster``.
-"""
+"""Feature extraction (image shards) and matching (query blocks) on an existing Dask cluster.
+Workers need the client's vpr_core and torch, and the images and weights at the same paths; they
+return arrays (the client alone touches the cache) equal to the in-process ones bit for bit."""
 
 from __future__ import annotations
 
 import json
 import time
 from collections.abc import Sequence
-from functools import lru_cache
 from typing import Any
 
 import numpy as np
+import torch
+from torch import nn
 
+from ..backbones.checkpoint import state_dict_sha256
+from ..backbones.module import architecture_sha256
+from ..features import LandmarkEncoder
 from ..utils import progress
 from .blocks import similarity_blocks_distributed, similarity_pairs_distributed
 from .client import SCHEDULER_ENV, gather_in_order, get_client, scheduler_address
@@ -53,16 +33,35 @@ __all__ = [
 # ----------------------------------------------------------------------------------------------
 # features
 # ----------------------------------------------------------------------------------------------
-def _encoder_key(encoder_kwargs: dict[str, Any]) -> str:
-    return json.dumps(encoder_kwargs, sort_keys=True, default=str)
+def _encoder_key(encoder_kwargs: dict[str, Any]) -> tuple[str, nn.Module | None]:
+    """JSON key of an encoder's arguments, and its backbone module if it has one (a module
+    travels to the workers as an object; the key names it by class and content)."""
+    kwargs = dict(encoder_kwargs)
+    module = kwargs.get("backbone")
+    if isinstance(module, nn.Module):
+        cls = type(module)
+        kwargs["backbone"] = (
+            f"module {cls.__module__}.{cls.__qualname__} "
+            f"{state_dict_sha256(module.state_dict())} {architecture_sha256(module)}"
+        )
+        return json.dumps(kwargs, sort_keys=True, default=str), module
+    return json.dumps(kwargs, sort_keys=True, default=str), None
 
 
-@lru_cache(maxsize=4)
-def _encoder(key: str):
-    """One encoder per process and config (model loading is the slow part)."""
-    from ..features import LandmarkEncoder
+#: One encoder per process and config (model loading is the slow part), at most 4.
+_ENCODERS: dict[str, LandmarkEncoder] = {}
 
-    return LandmarkEncoder(**json.loads(key))
+
+def _encoder(key: str, module: nn.Module | None = None) -> LandmarkEncoder:
+    """The encoder of ``key`` (built on first use; ``module`` replaces a module's key)."""
+    if key not in _ENCODERS:
+        kwargs = json.loads(key)
+        if module is not None:
+            kwargs["backbone"] = module
+        while len(_ENCODERS) >= 4:
+            _ENCODERS.pop(next(iter(_ENCODERS)))
+        _ENCODERS[key] = LandmarkEncoder(**kwargs)
+    return _ENCODERS[key]
 
 
 def _encode_shard(
@@ -73,6 +72,7 @@ def _encode_shard(
     key: str,
     kind: str,
     threads: int | None = None,
+    module: nn.Module | None = None,
 ) -> tuple[list[np.ndarray], list[float], dict]:
     """Task: descriptors of a shard of images (runs on a worker, or in-process).
 
@@ -85,9 +85,7 @@ def _encode_shard(
         (``kind="landmarks"``) or ``(dim,)`` (``kind="global"``), its compute seconds, and the
         config of the encoder that made them.
     """
-    import torch
-
-    enc = _encoder(key)
+    enc = _encoder(key, module)
     before = torch.get_num_threads()
     if threads is not None:
         torch.set_num_threads(int(threads))
@@ -96,7 +94,10 @@ def _encode_shard(
         for n, i in enumerate(indices):
             image = dataset.load_image(side, int(i))
             t0 = time.perf_counter()
-            d = enc.encode_global(image) if kind == "global" else enc.encode(image, boxes[n])
+            if kind == "global" or boxes is None:
+                d = enc.encode_global(image)
+            else:
+                d = enc.encode(image, boxes[n])
             secs.append(time.perf_counter() - t0)
             descs.append(np.asarray(d, dtype=np.float32))
     finally:
@@ -123,7 +124,8 @@ def extract_features_distributed(
             read.
         side: ``"query"`` or ``"reference"``.
         encoder_kwargs: keyword arguments of :class:`~vpr_core.features.LandmarkEncoder`
-            (JSON-serialisable); every worker builds the same encoder once and reuses it.
+            (JSON-serialisable but for a module ``backbone``, which is sent to the workers);
+            every worker builds the same encoder once and reuses it.
         indices: image indices to encode (default: all of the side), any order.
         boxes: with ``kind="landmarks"``, one ``(K_i, 4)`` array per entry of ``indices``.
         kind: ``"landmarks"`` (``encode(image, boxes)``) or ``"global"`` (``encode_global``).
@@ -156,22 +158,21 @@ def extract_features_distributed(
                 f"{None if boxes is None else len(boxes)} for {len(idx)} images"
             )
         boxes = [np.asarray(b, dtype=np.float64).reshape(-1, 4) for b in boxes]
-    key = _encoder_key(encoder_kwargs)
-    expected = dict(_encoder(key).config)
+    key, module = _encoder_key(encoder_kwargs)
+    expected = dict(_encoder(key, module).config)
     shards = [slice(s, s + int(shard_size)) for s in range(0, len(idx), int(shard_size))]
-    args = [(idx[s], None if kind == "global" else boxes[s]) for s in shards]
+    args = [(idx[s], None if boxes is None or kind == "global" else boxes[s]) for s in shards]
     if client is None:
         results = [
-            _encode_shard(dataset, side, i, b, key, kind)
+            _encode_shard(dataset, side, i, b, key, kind, None, module)
             for i, b in progress(args, desc=f"features {side}")
         ]
     else:
-        import torch
-
         nthreads = int(threads) if threads is not None else torch.get_num_threads()
         ds = client.scatter(dataset, broadcast=False, hash=False)
+        mod = None if module is None else client.scatter(module, broadcast=True, hash=False)
         futures = [
-            client.submit(_encode_shard, ds, side, i, b, key, kind, nthreads, pure=False)
+            client.submit(_encode_shard, ds, side, i, b, key, kind, nthreads, mod, pure=False)
             for i, b in args
         ]
         results = gather_in_order(client, futures, f"features {side} (dask)")

@@ -1,11 +1,6 @@
-"""The ``crop`` pooling mode: each landmark box cropped and resized to the backbone's input.
-
-Every box is cropped with ``kornia.geometry.transform.crop_and_resize`` (box -> 4 corner points
-clipped to the image, bilinear, ``align_corners=True``) to the backbone's square input size.
-Boxes much larger than the input are cropped from a 2x/4x/... average-pooled copy of the image (an
-image pyramid) so that the final bilinear resize never shrinks by 2x or more (anti-aliasing, like
-MATLAB/Caffe ``imresize`` in the original pipeline); ``antialias=False`` turns this off.
-"""
+"""The ``crop`` pooling mode: each box cropped and resized to the backbone's square input (kornia
+``crop_and_resize``, bilinear, ``align_corners=True``); large boxes come from a 2x/4x/... average-
+pooled pyramid so the resize never shrinks by 2x or more (anti-aliasing; ``antialias=False``)."""
 
 from __future__ import annotations
 
@@ -101,7 +96,7 @@ def crop_boxes(
     out = torch.empty((len(boxes), 3, size, size), dtype=torch.float32, device=device)
     if len(boxes) == 0:
         return out
-    levels = pyramid_levels(boxes, size, tuple(image.shape[-2:]), antialias)
+    levels = pyramid_levels(boxes, size, (int(image.shape[-2]), int(image.shape[-1])), antialias)
     pyramid = [image]
     for lvl in np.unique(levels):
         while len(pyramid) <= lvl and min(pyramid[-1].shape[-2:]) >= 2:
@@ -109,9 +104,9 @@ def crop_boxes(
         lvl_eff = min(int(lvl), len(pyramid) - 1)
         img = pyramid[lvl_eff]
         idx = np.flatnonzero(levels == lvl)
-        corners = torch.from_numpy(boxes_to_corners(boxes[idx], tuple(img.shape[-2:]), lvl_eff)).to(
-            device
-        )
+        corners = torch.from_numpy(
+            boxes_to_corners(boxes[idx], (int(img.shape[-2]), int(img.shape[-1])), lvl_eff)
+        ).to(device)
         for start in range(0, len(idx), batch_size):
             sl = slice(start, start + batch_size)
             c = corners[sl]

@@ -1,40 +1,25 @@
-"""``LandmarkEncoder``: an image and its landmark boxes -> one descriptor per box.
-
-As in the paper's Section 2.1 (AlexNet conv3, 64,896-d, Gaussian random projection to 1,024-d,
-cosine distance downstream), in one of two pooling modes:
-
-* ``pooling="crop"`` (default, the paper's path): every box is cropped and resized to the
-  backbone's square input (:mod:`vpr_core.features.crops`) and run through the backbone in
-  batches of ``batch_size``; the flattened feature map of each crop is its raw feature.
-* ``pooling="roi"`` (fast path): the backbone runs once per image at a fixed working size and
-  every box is pooled from the feature map by bilinear RoIAlign to the same ``(C, n, n)`` layout
-  (:mod:`vpr_core.features.roi`).
-
-Then both modes:
-
-1. **Normalise** with the backbone's mean/std (ImageNet for the CNNs), applied to the whole image
-   once (it commutes with bilinear sampling).
-2. **Project** with a Gaussian random matrix ``P (raw_dim, dim)``, entries ``N(0, 1/dim)``, drawn
-   from ``numpy.random.default_rng(seed)`` (:func:`~vpr_core.features.random_projection`). With
-   ``dim=None`` or ``dim >= raw_dim`` there is no projection and descriptors are raw features.
-   Descriptors are not normalised; they are float32 numpy arrays on the host, whatever the device.
-
-:meth:`LandmarkEncoder.encode_global` is the whole-image descriptor: the descriptor of the box
-``(0, 0, W, H)`` in the encoder's pooling mode, so the ``global`` method and the landmark methods
-share backbone, pooling and projection.
-"""
+"""``LandmarkEncoder``: an image and its landmark boxes -> one descriptor per box (Sec. 2.1):
+per-box crops (``crop``, the paper's) or RoIAlign on one feature map per image (``roi``), then a
+Gaussian random projection (:mod:`~vpr_core.features.projection`); see docs/DEFINITIONS.md."""
 
 from __future__ import annotations
 
 import logging
 import os
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import torch
+from torch import nn
 
-from ..backbones import DEFAULT_INPUT_SIZE, available_backbones, build_backbone, canonical_backbone
-from ..boxes import check_boxes, check_image
+from ..backbones import (
+    DEFAULT_INPUT_SIZE,
+    ModuleBackbone,
+    available_backbones,
+    build_backbone,
+    canonical_backbone,
+)
+from ..checks import check_boxes, check_image
 from ..paper import PROJECTION_DIM
 from .crops import crop_boxes, pyramid_levels
 from .projection import random_projection
@@ -53,9 +38,17 @@ POOLING_MODES = ("crop", "roi")
 class LandmarkEncoder:
     """Describe landmark boxes with a CNN (or handcrafted) backbone + Gaussian random projection.
 
+    ``crop``: each box is cropped and resized to the backbone's square input (kornia, anti-alias
+    pyramid) and run in batches of exactly ``batch_size``. ``roi``: the backbone runs once per
+    image at ``working_size`` and boxes are pooled to the crop mode's ``(C, n, n)`` layout. Both
+    normalise with the backbone's mean/std and project with ``P (raw_dim, dim) ~ N(0, 1/dim)``
+    from ``numpy.random.default_rng(seed)``; descriptors are float32, not normalised.
+
     Args:
         backbone: name in :func:`available_backbones`, optionally with options
-            (``"efficientnet_lite0:stage=4,input_size=96"``, see :mod:`vpr_core.backbones`).
+            (``"efficientnet_lite0:stage=4,input_size=96"``, see :mod:`vpr_core.backbones`), or
+            a ``torch.nn.Module`` mapping ``(B, 3, S, S)`` ImageNet-normalised crops to
+            ``(B, C, h, w)`` or ``(B, C)`` (needs ``input_size=S``).
         dim: output dimension of the random projection (``paper.PROJECTION_DIM``); None or
             ``>= raw_dim``: no projection, raw features.
         seed: seed of the projection matrix (and of ``weights="random"`` initialisations).
@@ -76,7 +69,9 @@ class LandmarkEncoder:
         raw_dim: backbone feature length before projection.
         dim: descriptor length actually produced.
         config: dict describing everything that determines the descriptors (cache key),
-            including ``pooling``.
+            including ``pooling`` and ``weights_sha256`` (the weights' identity by content:
+            file sha256, ``"random"``, ``"none"``, or a module's state-dict sha256).
+        kwargs: the constructor arguments (rebuild the encoder, e.g. on a Dask worker).
 
     Raises:
         ValueError: unknown backbone (lists valid names), unknown pooling, bad arguments,
@@ -87,7 +82,7 @@ class LandmarkEncoder:
 
     def __init__(
         self,
-        backbone: str = "efficientnet_lite0",
+        backbone: str | nn.Module = "efficientnet_lite0",
         dim: int | None = PROJECTION_DIM,
         seed: int = 0,
         device: str | torch.device = "cpu",
@@ -99,7 +94,25 @@ class LandmarkEncoder:
         working_size: int | None = None,
         roi_sampling: int = DEFAULT_ROI_SAMPLING,
     ) -> None:
-        spec = canonical_backbone(backbone)  # validates name and options first
+        self.kwargs: dict[str, Any] = {
+            "backbone": backbone,
+            "dim": dim,
+            "seed": seed,
+            "device": str(device),
+            "pooling": pooling,
+            "weights": None if weights is None else str(weights),
+            "input_size": input_size,
+            "batch_size": batch_size,
+            "antialias": antialias,
+            "working_size": working_size,
+            "roi_sampling": roi_sampling,
+        }
+        is_module = isinstance(backbone, nn.Module)
+        spec = (
+            type(backbone).__name__
+            if isinstance(backbone, nn.Module)
+            else canonical_backbone(backbone)  # validates name and options first
+        )
         if pooling not in POOLING_MODES:
             raise ValueError(f"unknown pooling {pooling!r}; valid: {', '.join(POOLING_MODES)}")
         if dim is not None and int(dim) < 1:
@@ -120,13 +133,19 @@ class LandmarkEncoder:
         self.batch_size = int(batch_size)
         self.antialias = bool(antialias)
         self.roi_sampling = int(roi_sampling)
-        self.model = build_backbone(
-            spec, input_size=input_size, weights=weights, seed=self.seed
-        ).to(self.device)
-        if pooling == "roi" and not hasattr(self.model, "feature_map"):
+        self.model: Any = cast(
+            Any,
+            build_backbone(
+                backbone if is_module else spec,
+                input_size=input_size,
+                weights=weights,
+                seed=self.seed,
+            ).to(self.device),
+        )
+        if pooling == "roi" and getattr(self.model, "stride", None) is None:
             raise ValueError(
-                f"pooling='roi' needs a CNN backbone with a feature map; {spec!r} "
-                "has none: use pooling='crop'"
+                f"pooling='roi' needs a backbone with a spatial feature map of known stride; "
+                f"{spec!r} has none: use pooling='crop' (a module may set a `stride` attribute)"
             )
         self.input_size = int(self.model.input_size)
         self.working_size = (
@@ -162,6 +181,7 @@ class LandmarkEncoder:
             ),
             "seed": self.seed,
             "weights": self.weights_source,
+            "weights_sha256": str(self.model.weights_sha256),
             "normalisation": {"mean": list(self.model.mean), "std": list(self.model.std)},
             "antialias": self.antialias,
             "pooling": self.pooling,
@@ -174,6 +194,9 @@ class LandmarkEncoder:
             config.pop("antialias")  # crop-mode option
         if hasattr(self.model, "stage"):
             config["stage"] = int(self.model.stage)
+        if isinstance(self.model, ModuleBackbone):
+            config["module"] = self.model.qualname
+            config["architecture_sha256"] = self.model.architecture_sha256
         return config
 
     # ------------------------------------------------------------------ description
@@ -289,7 +312,7 @@ class LandmarkEncoder:
             fmap,
             boxes,
             image.shape[:2],
-            tuple(x.shape[-2:]),
+            (int(x.shape[-2]), int(x.shape[-1])),
             self.input_size,
             int(self.model.stride),
             float(self.model.feature_offset),
@@ -307,15 +330,9 @@ class LandmarkEncoder:
         return (raw @ self.projection)[:n]
 
     def _forward_fixed(self, batch: torch.Tensor, keep_padding: bool = False) -> torch.Tensor:
-        """Backbone on a batch padded to ``batch_size`` rows (repeating the last crop).
-
-        CPU kernels (convolutions, and the projection matmul, which becomes a matrix-vector
-        product for one row) are chosen by shape, and some shapes give results that differ in
-        the 4th decimal; a fixed batch shape makes every descriptor independent of how the
-        boxes were grouped (cached resumes, subsets), so the same command gives the same
-        numbers. ``(B, C, S, S)`` -> ``(B, raw_dim)`` float32 (``(batch_size, raw_dim)`` with
-        ``keep_padding``, the padding rows last).
-        """
+        """Backbone on a batch padded to ``batch_size`` rows (repeating the last crop): CPU
+        kernels are chosen by shape, so a fixed shape makes a descriptor independent of how boxes
+        were grouped. ``(B, C, S, S)`` -> ``(B, raw_dim)`` (``keep_padding``: all rows)."""
         n = batch.shape[0]
         if n < self.batch_size:
             pad = batch[-1:].expand(self.batch_size - n, *batch.shape[1:])

@@ -1,34 +1,6 @@
-"""The ``roi`` pooling mode: one backbone pass per image, landmark regions pooled from its map.
-
-1. **Working size.** The normalised image is resized (bilinear, antialiased) so that its long side
-   is ``working_size`` pixels (default :func:`default_working_size`: :data:`WORKING_SIZE_FACTOR`
-   = 4 crop sides, 512 px for Lite0's default 128 px crops, 384 px for 96 px crops; aspect kept,
-   short side rounded). At 512 a 640x360 frame becomes 512x288 and the stride-16 feature map
-   32x18 cells, so a Table-1 Scale-4 landmark (~0.1 of the image area) is about 10x6 cells and
-   the smallest dense box (area 0.16) about 13x7: a few cells wide, like the 8x8 cells that
-   ``crop`` mode gives every box. Tying the working size to the crop side keeps the ratio of the
-   scale at which the backbone sees a box in ``crop`` mode to the scale it sees it here the same
-   for every crop size (measured: at 96 px crops, roi descriptors are nearest to the crop
-   descriptor of the same box for 89% of 100 dense boxes at 384 px, 75% at 512 px; at 128 px
-   crops and 512 px, 99%). Every image, whatever its size, is processed at the same working
-   size, so the backbone sees the same scale for the same normalised box.
-2. **Bilinear RoIAlign** (bilinear sampling as ``grid_sample(align_corners=False,
-   padding_mode="border")``, computed separably by :func:`roi_pool`): each box
-   gives an ``n x n`` grid, ``n`` = the side of ``crop`` mode's feature map for that backbone and
-   crop size (8 for Lite0 stage 5 at its default 128 px). Sample ``(i, j)`` is placed where cell ``(i, j)`` of
-   the crop-mode feature map is centred once the crop is mapped back onto the image (same corner
-   clipping and ``align_corners=True`` geometry as ``crop``, and the backbone's
-   ``feature_offset``: TF "same" padding centres cell ``i`` at ``stride * i + stride - 0.5``).
-   Each output cell averages ``sampling x sampling`` bilinear samples spread over the cell's
-   ``stride x stride`` crop pixels (default 4 x 4), as RoIAlign does.
-3. The ``(K, C, n, n)`` result is flattened in ``crop`` mode's order and projected with the same
-   matrix, so both modes give descriptors of the same dimension in the same space.
-
-Determinism: the feature map depends only on the image, and boxes are pooled by batched matmuls
-of one fixed shape (chunks of ``batch_size`` boxes, padded), so a box's descriptor does not
-depend on which other boxes are encoded with it. :data:`ROI_VERSION` (in the encoder's config,
-so in the cache key) is bumped when the pooling arithmetic changes.
-"""
+"""The ``roi`` pooling mode: one backbone pass per image at a working size (long side 4 crop sides,
+:func:`default_working_size`), each box pooled by bilinear RoIAlign to crop mode's ``(C, n, n)``
+grid (cells placed as crop mode's, via the backbone's ``stride`` and ``feature_offset``)."""
 
 from __future__ import annotations
 
@@ -75,7 +47,7 @@ def working_image(image: torch.Tensor, working_size: int) -> torch.Tensor:
     Returns:
         ``(1, 3, Hw, Ww)`` float32, see :func:`working_shape`.
     """
-    hw, ww = working_shape(tuple(image.shape[-2:]), working_size)
+    hw, ww = working_shape((int(image.shape[-2]), int(image.shape[-1])), working_size)
     if (hw, ww) == tuple(image.shape[-2:]):
         return image
     return F.interpolate(image, size=(hw, ww), mode="bilinear", align_corners=False, antialias=True)
@@ -164,7 +136,8 @@ def roi_pool(
     ``sum_{y, x} Ay[i, y] * F[c, y, x] * Ax[j, x]``, computed as two batched matmuls
     (``Ay @ F @ Ax^T``: one GEMM over all boxes of a chunk for x, one batched matmul for y,
     ~5x faster than a batched matmul per box and channel, measured). It equals
-    ``grid_sample(..., mode="bilinear", padding_mode="border", align_corners=False)`` averaged over the sub-samples (tested), at a fraction of the cost.
+    ``grid_sample(..., mode="bilinear", padding_mode="border", align_corners=False)`` averaged
+    over the sub-samples (tested), at a fraction of the cost.
 
     Args:
         fmap: ``(1, C, hf, wf)`` backbone feature map of the working-size image.
@@ -186,11 +159,11 @@ def roi_pool(
     # image index -> working-image continuous coordinate -> feature index (cell centre = integer)
     qx = ((pts[0] + 0.5) * (work_size[1] / image_size[1]) - offset) / stride
     qy = ((pts[1] + 0.5) * (work_size[0] / image_size[0]) - offset) / stride
-    to = {"dtype": torch.float32, "device": fmap.device}
-    ax = torch.from_numpy(_axis_weights(qx, wf, n, r)).to(**to)  # (K, n, wf)
-    ay = torch.from_numpy(_axis_weights(qy, hf, n, r)).to(**to)  # (K, n, hf)
+    dev = fmap.device
+    ax = torch.from_numpy(_axis_weights(qx, wf, n, r)).to(dtype=torch.float32, device=dev)
+    ay = torch.from_numpy(_axis_weights(qy, hf, n, r)).to(dtype=torch.float32, device=dev)
     feat = fmap[0].float().contiguous().reshape(c * hf, wf)  # (C*hf, wf)
-    out = torch.empty((k, c, n, n), **to)
+    out = torch.empty((k, c, n, n), dtype=torch.float32, device=dev)
     # Two matmuls per chunk of exactly `chunk` boxes (the last padded by repeating its last box):
     # one GEMM contracts x for all boxes of the chunk at once, one batched matmul contracts y.
     # CPU kernels are chosen by shape, so a fixed shape makes a box's result independent of the

@@ -1,21 +1,20 @@
-"""Feature stage: landmark descriptors of every image, cached per image and encoder config.
-
-``features/<encoder slug>/<image key>.npz`` is a per-image store of ``(boxes, descriptors)`` for
-one encoder config (backbone, pooling, input size, dim, seed, weights). Boxes are looked up row by
-row, so a new landmark config computes only the boxes it has not seen (resume), and the same
-config a second time reads everything from disk. The whole-image descriptor of the ``global``
-method and of shortlists is the row of the box ``(0, 0, W, H)`` in the same store.
-"""
+"""Feature stage: landmark descriptors of every image, in per-image stores
+``features/<encoder slug>/<image key>.npz`` of ``(boxes, descriptors)`` keyed on the encoder's
+config (weights by content); new boxes are computed and appended, known ones read (resume)."""
 
 from __future__ import annotations
 
+import os
 import time
 from functools import lru_cache
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import torch
+from torch import nn
 
+from ..backbones import weights_stamp
+from ..features import LandmarkEncoder
 from ..paper import PROJECTION_DIM
 from ..utils import cache_dir, code_version, config_slug, progress
 from .cache import SIDES, atomic_savez, load_npz, n_images
@@ -24,44 +23,54 @@ __all__ = ["encoder_kwargs", "extract_features", "features_for_image", "get_enco
 
 
 def get_encoder(
-    backbone: str = "efficientnet_lite0",
+    backbone: str | nn.Module = "efficientnet_lite0",
     dim: int = PROJECTION_DIM,
     seed: int = 0,
-    weights: str | None = None,
+    weights: str | os.PathLike | None = None,
     pooling: str = "crop",
     device: str = "cpu",
-):
-    """A shared :class:`~vpr_core.features.LandmarkEncoder` (model loading is the slow part).
+    input_size: int | None = None,
+) -> LandmarkEncoder:
+    """A :class:`~vpr_core.features.LandmarkEncoder`, shared between calls with the same arguments
+    and the same weights file (path, size, mtime); a module backbone gets a fresh encoder.
 
-    The same arguments return the same object, however they are passed.
+    Args:
+        backbone: a backbone name or spec, or a ``torch.nn.Module`` (then ``input_size`` is
+            required); the rest as :class:`~vpr_core.features.LandmarkEncoder`.
     """
-    return _cached_encoder(str(backbone), int(dim), int(seed), weights, str(pooling), str(device))
+    if isinstance(backbone, nn.Module):
+        return LandmarkEncoder(
+            backbone, dim, seed, device, pooling, weights=weights, input_size=input_size
+        )
+    w = None if weights is None else str(weights)
+    stamp = weights_stamp(str(backbone), w)
+    size = None if input_size is None else int(input_size)
+    return _cached_encoder(
+        str(backbone), int(dim), int(seed), w, str(pooling), str(device), size, stamp
+    )
 
 
 @lru_cache(maxsize=4)
 def _cached_encoder(
-    backbone: str, dim: int, seed: int, weights: str | None, pooling: str, device: str
-):
-    from ..features import LandmarkEncoder
-
-    kwargs: dict[str, Any] = {
-        "backbone": backbone,
-        "dim": dim,
-        "seed": seed,
-        "pooling": pooling,
-        "device": device,
-    }
-    if weights is not None:
-        kwargs["weights"] = weights
-    enc = LandmarkEncoder(**kwargs)
-    enc._vpr_kwargs = dict(kwargs)  # rebuilt from these on Dask workers
-    return enc
+    backbone: str,
+    dim: int,
+    seed: int,
+    weights: str | None,
+    pooling: str,
+    device: str,
+    input_size: int | None,
+    stamp: tuple[str, ...],
+) -> LandmarkEncoder:
+    return LandmarkEncoder(
+        backbone, dim, seed, device, pooling, weights=weights, input_size=input_size
+    )
 
 
 get_encoder.cache_clear = _cached_encoder.cache_clear  # type: ignore[attr-defined]
 
 
-def _encoder_slug(encoder) -> str:
+def _encoder_slug(encoder: LandmarkEncoder) -> str:
+    """Cache folder of an encoder: its config (weights by ``weights_sha256``, never by path)."""
     cfg = dict(encoder.config)
     cfg.pop("device", None)  # the device does not change the cached descriptors' meaning
     cfg["code"] = code_version("features")
@@ -75,7 +84,9 @@ def _box_keys(boxes: np.ndarray) -> list[bytes]:
     thousands of rows per image and are keyed on every lookup.
     """
     rounded = np.ascontiguousarray(np.round(np.asarray(boxes, dtype=np.float64).reshape(-1, 4), 3))
-    return rounded.view(np.dtype((np.void, rounded.itemsize * 4))).ravel().tolist()
+    return cast(
+        list[bytes], rounded.view(np.dtype((np.void, rounded.itemsize * 4))).ravel().tolist()
+    )
 
 
 def _store_path(encoder, dataset, side: str, i: int):
@@ -159,17 +170,9 @@ def features_for_image(
 
 
 def _extract_side_crop_batched(boxes: list, dataset, side: str, encoder) -> tuple[list, list]:
-    """One side's ``crop``-mode descriptors, with the missing crops of consecutive images
-    batched together.
-
-    Encoding image by image pads every image's last batch to ``batch_size`` crops: in the study,
-    where each new landmark config adds a few dozen boxes per image, a quarter of all forward
-    passes were padding. Here the crops of successive images fill the batches and only the very
-    last batch is padded. A crop's descriptor does not depend on the other crops of its batch
-    (fixed batch shape), so the stores hold the same bits as with
-    :func:`features_for_image` (tested). The recorded cost of a box is its image's crop time
-    plus its share of the batches it ran in.
-    """
+    """One side's ``crop``-mode descriptors, the missing crops of consecutive images sharing
+    batches (only the last batch is padded; same bits as :func:`features_for_image`, tested).
+    A box's recorded cost is its image's crop time plus its share of the batches it ran in."""
     n = n_images(dataset, side)
     bs = int(encoder.batch_size)
     results: list[Any] = [None] * n
@@ -238,15 +241,9 @@ def _extract_side_crop_batched(boxes: list, dataset, side: str, encoder) -> tupl
     return [r[0] for r in results], [r[1] for r in results]
 
 
-def encoder_kwargs(encoder) -> dict[str, Any]:
-    """The JSON-serialisable keyword arguments that rebuild ``encoder`` on a Dask worker."""
-    kwargs = getattr(encoder, "_vpr_kwargs", None)
-    if kwargs is None:
-        raise ValueError(
-            "this encoder was not made by vpr_core.pipeline.get_encoder; build it "
-            "with get_encoder(...) to run it on a Dask cluster"
-        )
-    return dict(kwargs)
+def encoder_kwargs(encoder: LandmarkEncoder) -> dict[str, Any]:
+    """The keyword arguments that rebuild ``encoder`` on a Dask worker (a module travels as is)."""
+    return dict(encoder.kwargs)
 
 
 def _extract_side_distributed(client, boxes: list, dataset, side: str, encoder) -> tuple:

@@ -1,0 +1,104 @@
+"""A user's ``torch.nn.Module`` as a landmark backbone (``LandmarkEncoder(backbone=net, ...)``)."""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import types
+from typing import Any
+
+import torch
+from torch import nn
+
+from .checkpoint import state_dict_sha256, user_weights_label
+
+__all__ = ["ModuleBackbone", "architecture_sha256"]
+
+IMAGENET_MEAN = (0.485, 0.456, 0.406)
+IMAGENET_STD = (0.229, 0.224, 0.225)
+
+
+def _update_code(digest: Any, code: types.CodeType) -> None:
+    digest.update(code.co_code + repr(code.co_names).encode())
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            _update_code(digest, const)
+        else:
+            digest.update(repr(const).encode())
+
+
+def architecture_sha256(module: nn.Module) -> str:
+    """Hex sha256 of ``repr(module)`` and the bytecode of the methods of its (non-torch) classes.
+
+    Editing a ``forward`` in a notebook cell or a layer's stride changes it (so the cache key).
+    """
+    digest = hashlib.sha256(repr(module).encode())
+    classes = {c for m in module.modules() for c in type(m).__mro__}
+    for cls in sorted(classes, key=lambda c: f"{c.__module__}.{c.__qualname__}"):
+        if cls.__module__.split(".")[0] in ("torch", "builtins"):
+            continue
+        for name, fn in sorted(vars(cls).items()):
+            code = getattr(fn, "__code__", None)
+            if isinstance(code, types.CodeType):
+                digest.update(f"{cls.__qualname__}.{name}".encode())
+                _update_code(digest, code)
+    return digest.hexdigest()
+
+
+class ModuleBackbone(nn.Module):
+    """Wraps a user module mapping ImageNet-normalised ``(B, 3, S, S)`` crops to ``(B, C, h, w)``
+    or ``(B, C)`` features (the module is put in eval mode).
+
+    ``roi`` pooling needs spatial output; its ``stride`` is the module's ``stride`` attribute or
+    ``S / h`` when that divides, cell ``i`` centred at ``stride * i + feature_offset`` (the
+    module's ``feature_offset``, default ``stride / 2``).
+
+    Attributes:
+        label: the module's class name; qualname: ``module.Class``.
+        weights_sha256: :func:`~vpr_core.backbones.checkpoint.state_dict_sha256` of the module.
+        architecture_sha256: :func:`architecture_sha256` of the module.
+        feature_shape, raw_dim, stride (None without spatial output), feature_offset.
+    """
+
+    mean = IMAGENET_MEAN
+    std = IMAGENET_STD
+
+    def __init__(self, module: nn.Module, input_size: int) -> None:
+        super().__init__()
+        self.module = module.eval()
+        self.input_size = int(input_size)
+        cls = type(module)
+        self.label = cls.__name__
+        self.qualname = f"{cls.__module__}.{cls.__qualname__}"
+        self.weights_sha256 = state_dict_sha256(module.state_dict())
+        self.weights_source = user_weights_label(self.weights_sha256)
+        self.architecture_sha256 = architecture_sha256(module)
+        param = next(module.parameters(), None)
+        device = param.device if param is not None else torch.device("cpu")
+        with torch.inference_mode():
+            out = module(torch.zeros(1, 3, self.input_size, self.input_size, device=device))
+        if not isinstance(out, torch.Tensor) or out.ndim not in (2, 4):
+            got = tuple(out.shape) if isinstance(out, torch.Tensor) else type(out).__name__
+            raise ValueError(
+                f"backbone module {self.label} returned {got} for a (1, 3, {self.input_size}, "
+                f"{self.input_size}) crop; it must return (B, C, h, w) or (B, C) features"
+            )
+        self.feature_shape = tuple(int(n) for n in out.shape[1:])
+        self.raw_dim = math.prod(self.feature_shape)
+        self.stride: int | None = None
+        self.feature_offset = 0.0
+        if out.ndim == 4:
+            h = self.feature_shape[1]
+            stride = getattr(module, "stride", None)
+            if not isinstance(stride, int) and self.input_size % h == 0:
+                stride = self.input_size // h
+            if isinstance(stride, int) and math.ceil(self.input_size / stride) == h:
+                self.stride = stride
+                self.feature_offset = float(getattr(module, "feature_offset", stride / 2))
+
+    def feature_map(self, batch: torch.Tensor) -> torch.Tensor:
+        """``(B, 3, H, W)`` normalised images -> the module's ``(B, C, h, w)`` map."""
+        return self.module(batch).float()
+
+    def forward(self, batch: torch.Tensor) -> torch.Tensor:
+        return self.module(batch).float().flatten(1)
