@@ -12,6 +12,7 @@ import random
 import sys
 import warnings
 from collections.abc import Iterable, Mapping
+from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -209,3 +210,19 @@ def write_rows(path: str | os.PathLike, rows: list[Mapping[str, Any]]) -> None:
         w.writeheader()
         w.writerows(rows)
     os.replace(tmp, path)
+
+
+@cache
+def _file_sha256(path: str, mtime_ns: int, size: int) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    """Hex sha256 of a file's contents (computed once per path, size and modification time)."""
+    p = Path(path).expanduser().resolve()
+    st = p.stat()
+    return _file_sha256(str(p), st.st_mtime_ns, st.st_size)

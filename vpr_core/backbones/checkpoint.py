@@ -5,10 +5,11 @@ from __future__ import annotations
 import hashlib
 import os
 from collections.abc import Mapping
-from functools import cache
 from pathlib import Path
 
 import torch
+
+from ..utils import file_sha256
 
 __all__ = [
     "WeightsFileError",
@@ -21,22 +22,6 @@ __all__ = [
 
 class WeightsFileError(ValueError):
     """A weights file exists but is not the checkpoint the backbone needs (unreadable or wrong)."""
-
-
-@cache
-def _file_sha256(path: str, mtime_ns: int, size: int) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            digest.update(chunk)
-    return digest.hexdigest()
-
-
-def file_sha256(path: str | os.PathLike) -> str:
-    """Hex sha256 of a file's contents (computed once per path, size and modification time)."""
-    p = Path(path).expanduser().resolve()
-    st = p.stat()
-    return _file_sha256(str(p), st.st_mtime_ns, st.st_size)
 
 
 def state_dict_sha256(state: Mapping[str, torch.Tensor]) -> str:

@@ -6,7 +6,6 @@ or on a gradient edge map. Boxes come back in proposal order (descending objectn
 
 from __future__ import annotations
 
-import hashlib
 import logging
 import os
 from dataclasses import dataclass
@@ -20,6 +19,7 @@ from .. import settings
 from ..checks import check_image
 from ..checks import check_int as check_count
 from ..paper import N_LANDMARKS
+from ..utils import file_sha256
 
 __all__ = ["EDGE_BOXES_DEFAULTS", "EdgeBoxes", "edge_boxes", "edge_model_id"]
 
@@ -100,11 +100,7 @@ def edge_model_id(model: str | os.PathLike | None = None) -> str:
     path = _resolve_model(model)
     if path is None:
         return "gradient"
-    digest = hashlib.sha256()
-    with path.open("rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            digest.update(chunk)
-    return f"sha256:{digest.hexdigest()}"
+    return f"sha256:{file_sha256(path)}"
 
 
 #: ``options`` of a structured-edge model file that must be positive integers.
