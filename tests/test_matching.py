@@ -1,4 +1,4 @@
-"""Tests of vpr_core.matching: Eq. (1)-(2), reciprocal NN, soft-NMS, batched similarity matrix."""
+"""Tests of vpr_core.matching: the torch core against the NumPy oracle (oracle_pairwise.py)."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import inspect
 import math
 
 import numpy as np
+import oracle_pairwise as oracle
 import pytest
 import torch
 
@@ -14,13 +15,10 @@ from vpr_core.matching import (
     cosine_distance,
     image_similarity,
     match_landmarks,
-    match_overlaps,
-    pair_scores,
     reciprocal_matches,
     shape_penalty,
     similarity_matrix,
     similarity_pairs,
-    soft_nms_scores,
 )
 from vpr_core.paper import SOFT_NMS_SIGMA
 
@@ -28,9 +26,10 @@ BOX = [0.0, 0.0, 10.0, 10.0]
 
 
 def _pairwise(qd, qb, rd, rb, **kw):
+    """The oracle's Eq. (1) matrix."""
     return np.array(
         [
-            [image_similarity(qd[i], qb[i], rd[j], rb[j], **kw) for j in range(len(rd))]
+            [oracle.image_similarity(qd[i], qb[i], rd[j], rb[j], **kw) for j in range(len(rd))]
             for i in range(len(qd))
         ]
     )
@@ -105,12 +104,13 @@ def test_shape_penalty_values():
     a = np.array([[0, 0, 10, 20], [5, 5, 10, 20]], dtype=float)
     b = np.array([[3, 3, 10, 20], [0, 0, 20, 20], [0, 0, 20, 40], [0, 0, 0, 0]], dtype=float)
     s = shape_penalty(a, b)
-    assert s.shape == (2, 4)
+    assert s.shape == (2, 4) and s.dtype == np.float64
     assert s[0, 0] == pytest.approx(1.0)  # identical size (position ignored)
     assert s[0, 1] == pytest.approx(math.exp(0.25))  # w doubled: exp(0.5 * 0.5)
     assert s[0, 2] == pytest.approx(math.exp(0.5))  # w and h doubled
     assert s[0, 3] == pytest.approx(math.e)  # against an empty box: both terms 1
     assert shape_penalty(b[3:], b[3:])[0, 0] == pytest.approx(1.0)  # 0/0 counts as 0
+    np.testing.assert_allclose(s, oracle.shape_penalty(a, b), rtol=1e-15)
 
 
 def test_image_similarity_by_hand_2x2():
@@ -122,6 +122,7 @@ def test_image_similarity_by_hand_2x2():
     # (0,0): d=0, s=1 -> 1;  (1,1): d=.2, s=exp(.25) -> 1 - .2 e^.25;  / sqrt(2*2)
     expected = (2.0 - 0.2 * math.exp(0.25)) / 2.0
     assert image_similarity(a, ba, b, bb) == pytest.approx(expected, abs=1e-12)
+    assert oracle.image_similarity(a, ba, b, bb) == pytest.approx(expected, abs=1e-12)
     r = match_landmarks(a, ba, b, bb)
     assert isinstance(r, MatchResult)
     np.testing.assert_array_equal(r.matches, [[0, 0], [1, 1]])
@@ -138,6 +139,8 @@ def test_image_similarity_counts_unmatched_landmarks():
     # one perfect match, na=1, nb=3 -> 1 / sqrt(3)
     assert image_similarity(a, [BOX], b, bb) == pytest.approx(1 / math.sqrt(3))
     assert image_similarity(np.zeros((0, 2)), np.zeros((0, 4)), b, bb) == 0.0
+    r = match_landmarks(np.zeros((0, 2)), np.zeros((0, 4)), b, bb)
+    assert r.matches.shape == (0, 2) and (r.n_a, r.n_b) == (0, 3) and r.similarity == 0.0
 
 
 # ------------------------------------------------------------------------------------------
@@ -145,18 +148,18 @@ def test_image_similarity_counts_unmatched_landmarks():
 # ------------------------------------------------------------------------------------------
 
 
-def test_soft_nms_scores_hand_example():
+def test_oracle_soft_nms_hand_example():
     scores = np.array([0.9, 0.8, 0.7])
     o = np.eye(3)
     o[0, 1] = o[1, 0] = 0.6
     # take 0 (0.9): pair 1 overlaps by .6 > .5 -> .8 * exp(-.36 / .5); pair 2 untouched
     # then 2 (0.7 > 0.389), then 1
-    out = soft_nms_scores(scores, o, 0.5, 0.5)
+    out = oracle.soft_nms_scores(scores, o, 0.5, 0.5)
     np.testing.assert_allclose(out, [0.9, 0.8 * math.exp(-0.72), 0.7])
     # overlap equal to the threshold is not "> t"
-    np.testing.assert_allclose(soft_nms_scores(scores, o, 0.6), scores)
+    np.testing.assert_allclose(oracle.soft_nms_scores(scores, o, 0.6), scores)
     # ties: the lowest index goes first and decays the other
-    out = soft_nms_scores([0.5, 0.5], [[1.0, 0.8], [0.8, 1.0]], 0.5)
+    out = oracle.soft_nms_scores([0.5, 0.5], [[1.0, 0.8], [0.8, 1.0]], 0.5)
     np.testing.assert_allclose(out, [0.5, 0.5 * math.exp(-0.64 / 0.5)])
 
 
@@ -176,14 +179,15 @@ def test_soft_nms_image_similarity_hand_example():
     c, a, ba, b, bb = _three_pair_example()
     # scores 1 - (1 - c) * 1 = c. Pairs 0 and 1: query IoU 80/120 = 2/3, reference IoU 1
     # -> overlap min = 2/3. Pair 2 overlaps nothing.
-    o = match_overlaps(ba, bb, [[0, 0], [1, 1], [2, 2]])
+    o = oracle.match_overlaps(ba, bb, [[0, 0], [1, 1], [2, 2]])
     np.testing.assert_allclose(o[0, 1], 2 / 3)
     assert o[0, 2] == 0
-    m, raw, sc = pair_scores(a, ba, b, bb, soft_nms_iou=0.5)
-    np.testing.assert_array_equal(m, [[0, 0], [1, 1], [2, 2]])
-    np.testing.assert_allclose(raw, c)
-    np.testing.assert_allclose(sc, [0.9, 0.8 * math.exp(-(4 / 9) / 0.5), 0.7])
-    assert image_similarity(a, ba, b, bb, soft_nms_iou=0.5) == pytest.approx(sc.sum() / 3)
+    r = match_landmarks(a, ba, b, bb, soft_nms_iou=0.5)
+    want = [0.9, 0.8 * math.exp(-(4 / 9) / 0.5), 0.7]
+    np.testing.assert_array_equal(r.matches, [[0, 0], [1, 1], [2, 2]])
+    np.testing.assert_allclose(r.raw_scores, c)
+    np.testing.assert_allclose(r.scores, want)
+    assert image_similarity(a, ba, b, bb, soft_nms_iou=0.5) == pytest.approx(sum(want) / 3)
     assert image_similarity(a, ba, b, bb, soft_nms_iou=0.7) == pytest.approx(c.sum() / 3)
     assert image_similarity(a, ba, b, bb) == pytest.approx(c.sum() / 3)
     # the reference side limits the overlap: disjoint reference boxes -> no decay
@@ -192,10 +196,34 @@ def test_soft_nms_image_similarity_hand_example():
     # sigma changes the decay
     s1 = image_similarity(a, ba, b, bb, soft_nms_iou=0.5, sigma=0.1)
     assert s1 == pytest.approx((0.9 + 0.8 * math.exp(-(4 / 9) / 0.1) + 0.7) / 3)
+    # the core's 1 x 1 case and its many-pair case agree with the oracle
+    for t in (None, 0.5, 0.7):
+        want_s = oracle.image_similarity(a, ba, b, bb, soft_nms_iou=t)
+        assert similarity_matrix([a], [ba], [b], [bb], soft_nms_iou=t)[0, 0] == pytest.approx(
+            want_s, abs=1e-6
+        )
+
+
+@pytest.mark.parametrize("t", [None, 0.0, 0.3])
+def test_match_landmarks_equals_oracle_pair_by_pair(t):
+    rng = np.random.default_rng(29)
+    qd, qb = _random_sets(rng, 8, 0, 25, 32)
+    rd, rb = _random_sets(rng, 8, 1, 25, 32)
+    rd[3], rb[3] = qd[2].copy(), qb[2].copy()  # all landmarks match, many overlaps
+    for i in range(8):
+        for j in range(8):
+            got = match_landmarks(qd[i], qb[i], rd[j], rb[j], soft_nms_iou=t)
+            want = oracle.match_landmarks(qd[i], qb[i], rd[j], rb[j], soft_nms_iou=t)
+            np.testing.assert_array_equal(got.matches, want["matches"])
+            np.testing.assert_array_equal(reciprocal_matches(qd[i], rd[j]), want["matches"])
+            for key in ("distances", "shape", "raw_scores", "scores"):
+                np.testing.assert_allclose(getattr(got, key), want[key], atol=1e-12, rtol=0)
+            assert got.similarity == pytest.approx(want["similarity"], abs=1e-12)
+            assert (got.n_a, got.n_b) == (want["n_a"], want["n_b"])
 
 
 # ------------------------------------------------------------------------------------------
-# batched similarity matrix == pairwise path
+# similarity matrix == oracle
 # ------------------------------------------------------------------------------------------
 
 
@@ -245,6 +273,11 @@ def test_similarity_matrix_many_ties_discrete_descriptors():
             atol=1e-5,
             rtol=0,
         )
+        for i in range(5):
+            for j in range(6):
+                np.testing.assert_array_equal(
+                    reciprocal_matches(qd[i], rd[j]), oracle.reciprocal_matches(qd[i], rd[j])
+                )
 
 
 def test_similarity_matrix_float32_near_ties_decided_in_float64():
@@ -257,45 +290,91 @@ def test_similarity_matrix_float32_near_ties_decided_in_float64():
     boxes_a, boxes_b = np.array([BOX] * 2), np.array([BOX] * 3)
     m = reciprocal_matches(a, b)
     assert [0, 1] in m.tolist()
-    want = image_similarity(a, boxes_a, b, boxes_b)
-    got = similarity_matrix([a], [boxes_a], [b], [boxes_b])
+    np.testing.assert_array_equal(m, oracle.reciprocal_matches(a, b))
+    want = oracle.image_similarity(a, boxes_a, b, boxes_b)
+    got = similarity_matrix([a.astype(np.float32)], [boxes_a], [b.astype(np.float32)], [boxes_b])
     assert got[0, 0] == pytest.approx(want, abs=1e-6)
 
 
-def test_similarity_matrix_bad_inputs():
-    d = [np.ones((3, 8))]
-    bx = [np.ones((3, 4))]
-    with pytest.raises(ValueError, match="images"):
-        similarity_matrix(d, bx + bx, d, bx)
-    with pytest.raises(ValueError, match="dimensions differ"):
-        similarity_matrix(d, bx, [np.ones((3, 9))], bx)
-    with pytest.raises(ValueError, match="boxes"):
-        similarity_matrix(d, [np.ones((2, 4))], d, bx)
-    with pytest.raises(ValueError, match=r"\(K, 4\)"):
-        similarity_matrix(d, [np.ones((3, 3))], d, bx)
-    with pytest.raises(ValueError, match="NaN"):
-        similarity_matrix([np.full((3, 8), np.nan)], bx, d, bx)
-    with pytest.raises(ValueError, match="mixes"):
-        similarity_matrix([np.ones((3, 8)), np.ones((3, 7))], bx + bx, d, bx)
-    with pytest.raises(ValueError, match="soft_nms_iou"):
-        similarity_matrix(d, bx, d, bx, soft_nms_iou=1.5)
-    with pytest.raises(ValueError, match="sigma"):
-        similarity_matrix(d, bx, d, bx, soft_nms_iou=0.5, sigma=0)
-    with pytest.raises(ValueError, match="empty"):
-        similarity_matrix([], [], d, bx)
+@pytest.mark.parametrize(
+    ("dtype", "scale"),
+    [
+        (np.float64, 2.0**664),
+        (np.float64, 2.0**-664),
+        (np.float32, 2.0**100),
+        (np.float32, 2.0**-100),
+    ],
+)
+def test_descriptor_magnitude_does_not_change_similarity(dtype, scale):
+    # cosine does not depend on scale: huge (~1e200) or tiny descriptors must neither overflow
+    # the norms into all-zero similarities nor be refused (scales are powers of two: exact)
+    rng = np.random.default_rng(31)
+    qd, qb = _random_sets(rng, 3, 2, 12, 16)
+    rd, rb = _random_sets(rng, 4, 2, 12, 16)
+    want = similarity_matrix(qd, qb, rd, rb, matmul_dtype="float64")
+    assert np.all(want[want != 0] != 0) and np.count_nonzero(want) > 0
+    big_q = [(d.astype(np.float64) * scale).astype(dtype) for d in qd]
+    big_r = [(d.astype(np.float64) * scale).astype(dtype) for d in rd]
+    for t in (None, 0.3):
+        ref = similarity_matrix(qd, qb, rd, rb, soft_nms_iou=t, matmul_dtype="float64")
+        got = similarity_matrix(big_q, qb, big_r, rb, soft_nms_iou=t)
+        np.testing.assert_allclose(got, ref, atol=1e-5, rtol=0)
+        pairs = np.array([[0, 1], [2, 3]])
+        got_p = similarity_pairs(big_q, qb, big_r, rb, pairs, soft_nms_iou=t)
+        np.testing.assert_allclose(got_p, ref[pairs[:, 0], pairs[:, 1]], atol=1e-5, rtol=0)
+        s = image_similarity(big_q[0], qb[0], big_r[1], rb[1], soft_nms_iou=t)
+        assert s == pytest.approx(ref[0, 1], abs=1e-9)
+    np.testing.assert_allclose(
+        cosine_distance(big_q[0], big_r[0]), cosine_distance(qd[0], rd[0]), atol=1e-6
+    )
 
 
-def test_pairwise_bad_inputs():
-    with pytest.raises(ValueError, match="dimensions differ"):
-        image_similarity(np.ones((2, 3)), np.ones((2, 4)), np.ones((2, 4)), np.ones((2, 4)))
-    with pytest.raises(ValueError, match="boxes"):
-        image_similarity(np.ones((2, 3)), np.ones((3, 4)), np.ones((2, 3)), np.ones((2, 4)))
-    with pytest.raises(ValueError, match="negative"):
-        shape_penalty(np.array([[0, 0, -1, 2.0]]), np.ones((1, 4)))
-    with pytest.raises(ValueError, match=r"\(K, D\)"):
-        reciprocal_matches(np.ones(3), np.ones((2, 3)))
-    with pytest.raises(ValueError, match="overlaps"):
-        soft_nms_scores([1.0, 2.0], np.eye(3), 0.5)
+_D, _B = [np.ones((3, 8))], [np.ones((3, 4))]
+
+
+@pytest.mark.parametrize(
+    ("args", "kwargs", "message"),
+    [
+        ((_D, _B + _B, _D, _B), {}, "query_desc has 1 images but query_boxes has 2"),
+        ((_D, _B, [np.ones((3, 9))], _B), {}, "dimensions differ: query_desc D=8"),
+        ((_D, [np.ones((2, 4))], _D, _B), {}, r"query_boxes\[0\] has 2 boxes"),
+        ((_D, [np.ones((3, 3))], _D, _B), {}, r"\(K, 4\)"),
+        (([np.full((3, 8), np.nan)], _B, _D, _B), {}, "query_desc contains NaN"),
+        (([np.ones((3, 8)), np.ones((3, 7))], _B + _B, _D, _B), {}, "mixes"),
+        ((_D, _B, _D, _B), {"soft_nms_iou": 1.5}, "soft_nms_iou"),
+        ((_D, _B, _D, _B), {"soft_nms_iou": 0.5, "sigma": 0}, "sigma"),
+        ((_D, _B, _D, _B), {"matmul_dtype": "float16"}, "matmul_dtype"),
+        (([], [], _D, _B), {}, "query_desc is empty"),
+    ],
+)
+def test_similarity_matrix_bad_inputs(args, kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        similarity_matrix(*args, **kwargs)
+
+
+@pytest.mark.parametrize(
+    ("fn", "args", "message"),
+    [
+        (
+            image_similarity,
+            (np.ones((2, 3)), np.ones((2, 4)), np.ones((2, 4)), np.ones((2, 4))),
+            "dimensions differ: desc_a D=3, desc_b D=4",
+        ),
+        (
+            match_landmarks,
+            (np.ones((2, 3)), np.ones((3, 4)), np.ones((2, 3)), np.ones((2, 4))),
+            "boxes_a has 3 boxes",
+        ),
+        (shape_penalty, (np.array([[0, 0, -1, 2.0]]), np.ones((1, 4))), "boxes_a has negative"),
+        (reciprocal_matches, (np.ones(3), np.ones((2, 3))), r"desc_a must be \(K, D\)"),
+        (reciprocal_matches, (np.ones((2, 3)), np.full((2, 3), np.inf)), "desc_b contains NaN"),
+        (cosine_distance, (np.ones((2, 3)), np.ones((2, 4))), "dimensions differ"),
+        (cosine_distance, (np.ones(3), np.ones((2, 3))), r"desc_a must be a \(K, D\)"),
+    ],
+)
+def test_one_pair_bad_inputs(fn, args, message):
+    with pytest.raises(ValueError, match=message):
+        fn(*args)
 
 
 # ------------------------------------------------------------------------------------------
@@ -322,13 +401,7 @@ def test_similarity_matrix_same_bits_for_any_thread_count():
 
 
 def test_soft_nms_sigma_default_is_the_papers():
-    for fn in (
-        image_similarity,
-        match_landmarks,
-        soft_nms_scores,
-        similarity_matrix,
-        similarity_pairs,
-    ):
+    for fn in (image_similarity, match_landmarks, similarity_matrix, similarity_pairs):
         assert inspect.signature(fn).parameters["sigma"].default == SOFT_NMS_SIGMA
 
 

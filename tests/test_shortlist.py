@@ -1,4 +1,4 @@
-"""Shortlist + re-rank (vpr_core.engine.shortlist): top-k by global cosine, Eq. (1) on those pairs."""
+"""Shortlist + re-rank (vpr_core.engine.shortlist): top-k by global cosine, Eq. (1) on them."""
 
 from __future__ import annotations
 
@@ -72,6 +72,18 @@ def test_shortlist_k_clipped_and_validated():
 def test_global_cosine_zero_descriptor_is_zero():
     sim = global_cosine(np.array([[0.0, 0.0], [1.0, 1.0]]), np.array([[1.0, 0.0], [0.0, 3.0]]))
     np.testing.assert_allclose(sim, [[0.0, 0.0], [np.sqrt(0.5), np.sqrt(0.5)]], rtol=1e-12)
+
+
+@pytest.mark.parametrize("scale", [2.0**664, 2.0**-664])
+def test_global_cosine_any_magnitude(scale):
+    # cosine does not depend on scale: huge (~1e200) or tiny descriptors must not overflow or
+    # underflow the norms into all-zero cosines (scales are powers of two: exact)
+    rng = np.random.default_rng(5)
+    q, r = rng.standard_normal((3, 6)), rng.standard_normal((4, 6))
+    want = global_cosine(q, r)
+    np.testing.assert_allclose(global_cosine(q * scale, r), want, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(global_cosine(q, r * scale), want, rtol=1e-12, atol=1e-15)
+    np.testing.assert_array_equal(shortlist_pairs(q * scale, r, 2)[0], shortlist_pairs(q, r, 2)[0])
 
 
 def test_rerank_with_all_references_equals_exhaustive():

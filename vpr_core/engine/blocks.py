@@ -1,26 +1,6 @@
-"""Matching on a Dask cluster: Eq. (1) over query blocks, equal to the in-process result exactly.
+"""Matching on a Dask cluster: query blocks scored by the in-process core, equal to it exactly.
 
-Each task runs the in-process function (:func:`vpr_core.matching.similarity_matrix` or
-:func:`~vpr_core.matching.similarity_pairs`) on a block of queries and returns its values; the
-client places them by position.
-
-**Why the tasks look the way they do (exactness).** The batched matcher pads every image's
-landmarks to the widest image of each side, and tiles the references in blocks whose width
-depends on those padding widths. Without soft-NMS every value is independent of padding and
-tiling; with soft-NMS (Algorithm 4) a float64 value can change in the last bit when the padding
-width or the reference tiling changes (a different float64 matmul / reduction shape). So every
-task is built to see exactly what the in-process call sees:
-
-* its query block carries one extra image, the widest query of the whole problem (its row is
-  dropped), so the query padding width equals the full problem's;
-* exhaustive tasks get the whole reference side (scattered once to every worker), so the
-  reference padding and tiling are the full problem's;
-* shortlist tasks get only the references their pairs use plus the widest reference (no pair
-  uses it), in the pairs' original order, so each query's chunk of references is the same as in
-  process.
-
-Query blocks are multiples of the matcher's query batch (8), so the inner query batches line up
-too (the values do not depend on them, but this costs nothing).
+Why each task carries the widest image of each side: docs/DISTRIBUTED.md ("Determinism").
 """
 
 from __future__ import annotations
@@ -30,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from ..matching.batched import check_pairs
+from ..matching import check_pairs, similarity_matrix, similarity_pairs
 from ..paper import SOFT_NMS_SIGMA
 from .client import gather_in_order
 
@@ -78,8 +58,6 @@ def _query_part(qd: list, qb: list, q0: int, q1: int, wide: int) -> _Part:
 
 def _matrix_task(qpart: _Part, refs: _Part, soft_nms_iou, sigma) -> np.ndarray:
     """Task: Eq. (1) of a query block x all references; ``(bq, Nr)`` (extra row dropped)."""
-    from ..matching import similarity_matrix
-
     out = similarity_matrix(
         qpart.desc,
         qpart.boxes,
@@ -119,8 +97,6 @@ def similarity_blocks_distributed(
     Returns:
         ``(Nq, Nr)`` float64, equal to the in-process ``similarity_matrix`` exactly.
     """
-    from ..matching import similarity_matrix
-
     bq = _block_size(block_queries, "block_queries")
     if client is None:
         return similarity_matrix(
@@ -141,7 +117,9 @@ def similarity_blocks_distributed(
         part = client.scatter(_query_part(qd, qb, q0, q0 + bq, wide), hash=False)
         futures.append(client.submit(_matrix_task, part, refs, soft_nms_iou, sigma, pure=False))
     out = np.empty((len(qd), len(rd)), dtype=np.float64)
-    for q0, block in zip(starts, gather_in_order(client, futures, "similarity (dask)"), strict=False):
+    for q0, block in zip(
+        starts, gather_in_order(client, futures, "similarity (dask)"), strict=False
+    ):
         out[q0 : q0 + bq] = block
     return out
 
@@ -157,8 +135,6 @@ def _pairs_task(
     sigma,
 ) -> np.ndarray:
     """Task: Eq. (1) of listed pairs; ``local_pairs`` index ``qpart`` and ``ref_ids``."""
-    from ..matching import similarity_pairs
-
     rd, rb = [], []
     for j in ref_ids:
         b = int(np.searchsorted(rstarts, j, side="right")) - 1
@@ -206,8 +182,6 @@ def similarity_pairs_distributed(
     Returns:
         ``(P,)`` float64 in the order of ``pairs``, equal to the in-process result exactly.
     """
-    from ..matching import similarity_pairs
-
     bq = _block_size(block_queries, "block_queries")
     br = _block_size(block_references, "block_references")
     if client is None:
@@ -254,6 +228,8 @@ def similarity_pairs_distributed(
         )
         rows_of.append(rows)
     out = np.empty(pr.shape[0], dtype=np.float64)
-    for rows, vals in zip(rows_of, gather_in_order(client, futures, "shortlist (dask)"), strict=False):
+    for rows, vals in zip(
+        rows_of, gather_in_order(client, futures, "shortlist (dask)"), strict=False
+    ):
         out[rows] = vals
     return out

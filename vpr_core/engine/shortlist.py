@@ -1,35 +1,14 @@
-"""Shortlist + re-rank: a global descriptor picks each query's top-k references, Eq. (1) re-ranks.
+"""Shortlist + re-rank: a whole-image descriptor picks top-k references per query, Eq. (1) re-ranks.
 
-Exhaustive matching scores every query against every reference by Eq. (1) (``Nq * Nr`` landmark
-matmuls). With a shortlist, one whole-image descriptor per image first ranks the references of
-each query by cosine similarity (one ``(Nq, D) x (D, Nr)`` matmul), and Eq. (1) is evaluated only
-on each query's ``k`` best references (:func:`vpr_core.matching.similarity_pairs`).
-:func:`rerank` then builds the final ``(Nq, Nr)`` matrix: the Eq. (1) values on the shortlisted
-pairs and NaN everywhere else.
-
-**NaN means "not ranked".** The evaluation never picks a NaN entry as a query's best or second
-best reference, and drops a query whose row is all NaN. Consequences for the protocols:
-
-* ``ratio`` (the paper's, Sunderhauf et al. 2015): S1 is the best Eq. (1) value *inside the
-  shortlist* and S2 the second best *inside the shortlist* (``k >= 2``); references outside the
-  shortlist take no part. With ``k = 1`` there is no S2: the evaluation then sets
-  ``S2 := S1`` (ratio 1, accepted only at ``tau = 1``), so use ``k >= 2`` with this protocol.
-  S2 inside the shortlist is at least as large as it would be among the shortlisted references
-  of an exhaustive run, and can only be smaller than the exhaustive S2 when the exhaustive
-  second best lies outside the shortlist.
-* ``best_match`` and Recall@K: the ranking inside the shortlist; a query whose correct reference
-  is not shortlisted cannot be a true positive (Recall@K for K > k equals Recall@k).
-* With ``k >= Nr`` every pair is shortlisted and the matrix equals the exhaustive one exactly.
-
-Ties in the global cosine are broken by the lowest reference index (as everywhere in the
-workbench), so the shortlist is deterministic.
+Definitions (NaN = not ranked, S2 inside the shortlist, ties): docs/DEFINITIONS.md ("Shortlist").
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..matching.batched import check_pairs
+from ..matching import check_pairs
+from ..matching.core import rescale_rows
 
 __all__ = [
     "global_cosine",
@@ -73,7 +52,8 @@ def _check_global(x: np.ndarray, name: str) -> np.ndarray:
 
 
 def _unit(x: np.ndarray) -> np.ndarray:
-    """Rows scaled to unit L2 norm; all-zero rows stay zero (cosine 0 with everything)."""
+    """Rows scaled to unit L2 norm, safe for any magnitude; all-zero rows stay zero."""
+    x = rescale_rows(x)
     n = np.linalg.norm(x, axis=1, keepdims=True)
     return x / np.where(n > 0, n, 1.0)
 

@@ -1,0 +1,123 @@
+"""Test oracle: Eq. (1)-(2), reciprocal NN and Algorithm 4 on one image pair in plain NumPy float64.
+
+Written straight from docs/DEFINITIONS.md (Matching); ``tests/test_matching.py`` checks the torch
+core of :mod:`vpr_core.matching` against it. Not used by the package.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from vpr_core.boxes import box_iou
+from vpr_core.matching.core import NMS_TIE_TOL, TIE_TOL
+from vpr_core.paper import SOFT_NMS_SIGMA
+
+
+def cosine_similarity(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``(Ka, Kb)`` cosines clipped to ``[-1, 1]``; 0 where either vector is zero."""
+
+    def unit(d: np.ndarray) -> np.ndarray:
+        n = np.linalg.norm(d, axis=1, keepdims=True)
+        return d / np.where(n > 0, n, 1.0)
+
+    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    return np.clip(unit(a) @ unit(b).T, -1.0, 1.0)
+
+
+def _nn_with_ties(sim: np.ndarray, axis: int) -> np.ndarray:
+    """Index of the best entry along ``axis``; entries within TIE_TOL of the best tie -> lowest."""
+    best = sim.max(axis=axis, keepdims=True)
+    return np.argmax(sim >= best - TIE_TOL, axis=axis)
+
+
+def reciprocal_from_sim(sim: np.ndarray) -> np.ndarray:
+    """``(P, 2)`` int64 mutual nearest neighbours ``(i, j)`` of a cosine matrix, sorted by i."""
+    ka, kb = sim.shape
+    if ka == 0 or kb == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    nn_a = _nn_with_ties(sim, axis=1)
+    nn_b = _nn_with_ties(sim, axis=0)
+    i = np.arange(ka)
+    keep = nn_b[nn_a] == i
+    return np.stack([i[keep], nn_a[keep]], axis=1).astype(np.int64)
+
+
+def reciprocal_matches(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Reciprocal matches of two descriptor sets."""
+    return reciprocal_from_sim(cosine_similarity(a, b))
+
+
+def shape_terms(wa, wb, ha, hb):
+    """Eq. (2) from broadcastable widths and heights (a 0/0 term counts as 0)."""
+
+    def term(u, v):
+        m = np.maximum(u, v)
+        return np.where(m > 0, np.abs(u - v) / np.where(m > 0, m, 1.0), 0.0)
+
+    return np.exp(0.5 * (term(wa, wb) + term(ha, hb)))
+
+
+def shape_penalty(boxes_a: np.ndarray, boxes_b: np.ndarray) -> np.ndarray:
+    """``(Ka, Kb)`` Eq. (2) of every landmark pair."""
+    a, b = np.asarray(boxes_a, np.float64), np.asarray(boxes_b, np.float64)
+    return shape_terms(a[:, None, 2], b[None, :, 2], a[:, None, 3], b[None, :, 3])
+
+
+def match_overlaps(boxes_a: np.ndarray, boxes_b: np.ndarray, matches) -> np.ndarray:
+    """``(P, P)`` overlap of two matches: min of the IoU of their a-boxes and of their b-boxes."""
+    a = np.asarray(boxes_a, np.float64).reshape(-1, 4)
+    b = np.asarray(boxes_b, np.float64).reshape(-1, 4)
+    m = np.asarray(matches, dtype=np.int64).reshape(-1, 2)
+    i, j = m[:, 0], m[:, 1]
+    return np.minimum(box_iou(a, a)[np.ix_(i, i)], box_iou(b, b)[np.ix_(j, j)])
+
+
+def soft_nms_scores(scores, overlaps, t: float, sigma: float = SOFT_NMS_SIGMA) -> np.ndarray:
+    """Algorithm 4: each pair's score when it was removed (ties: lowest pair index first)."""
+    cur = np.array(scores, dtype=np.float64).reshape(-1)
+    o = np.asarray(overlaps, dtype=np.float64)
+    decay = np.where(o > t, np.exp(-(o**2) / sigma), 1.0)
+    out = np.empty_like(cur)
+    alive = np.ones(cur.shape[0], dtype=bool)
+    for _ in range(cur.shape[0]):
+        masked = np.where(alive, cur, -np.inf)
+        m = int(np.argmax(masked >= masked.max() - NMS_TIE_TOL))
+        out[m] = cur[m]
+        alive[m] = False
+        cur *= decay[m]
+    return out
+
+
+def match_landmarks(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou=None, sigma=SOFT_NMS_SIGMA):
+    """``dict`` of matches, distances, shape, raw_scores, scores, similarity, n_a, n_b."""
+    a, b = np.asarray(desc_a, np.float64), np.asarray(desc_b, np.float64)
+    ba = np.asarray(boxes_a, np.float64).reshape(-1, 4)
+    bb = np.asarray(boxes_b, np.float64).reshape(-1, 4)
+    cos = cosine_similarity(a, b) if a.size and b.size else np.zeros((len(a), len(b)))
+    m = reciprocal_from_sim(cos)
+    i, j = m[:, 0], m[:, 1]
+    dist = 1.0 - cos[i, j]
+    shp = shape_terms(ba[i, 2], bb[j, 2], ba[i, 3], bb[j, 3])
+    raw = 1.0 - dist * shp
+    scores = raw
+    if soft_nms_iou is not None and len(m) > 1:
+        scores = soft_nms_scores(raw, match_overlaps(ba, bb, m), soft_nms_iou, sigma)
+    na, nb = len(a), len(b)
+    sim = float(scores.sum() / math.sqrt(na * nb)) if na * nb > 0 else 0.0
+    return {
+        "matches": m,
+        "distances": dist,
+        "shape": shp,
+        "raw_scores": raw,
+        "scores": scores,
+        "similarity": sim,
+        "n_a": na,
+        "n_b": nb,
+    }
+
+
+def image_similarity(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou=None, sigma=SOFT_NMS_SIGMA):
+    """Eq. (1) of two images."""
+    return match_landmarks(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou, sigma)["similarity"]

@@ -1,0 +1,349 @@
+"""Public matching functions, each a case of the one core (:class:`.core.Problem`).
+
+Many pairs: :func:`similarity_matrix`, :func:`similarity_pairs`; one pair: the rest (float64).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import dataclass
+from functools import partial
+
+import numpy as np
+import torch
+
+from ..checks import check_boxes
+from ..paper import SOFT_NMS_SIGMA
+from ..utils import progress
+from .core import BLOCK_BYTES, LandmarkSets, Problem, rescale_rows, shape_terms, unit_rows
+
+__all__ = [
+    "MatchResult",
+    "check_pairs",
+    "cosine_distance",
+    "image_similarity",
+    "match_landmarks",
+    "reciprocal_matches",
+    "shape_penalty",
+    "similarity_matrix",
+    "similarity_pairs",
+]
+
+
+def similarity_matrix(
+    query_desc: LandmarkSets,
+    query_boxes: LandmarkSets,
+    reference_desc: LandmarkSets,
+    reference_boxes: LandmarkSets,
+    soft_nms_iou: float | None = None,
+    sigma: float = SOFT_NMS_SIGMA,
+    device: str | torch.device = "cpu",
+    batch_size: int | None = None,
+    ref_batch_size: int | None = None,
+    matmul_dtype: str = "float32",
+    show_progress: bool = True,
+) -> np.ndarray:
+    """Eq. (1) similarity of every query x reference image pair (optionally with Algorithm 4).
+
+    One matmul per block of ``batch_size`` queries x ``ref_batch_size`` references, in
+    ``matmul_dtype``; near-ties are re-decided in float64 (:func:`~.core.resolve_ties`), so the
+    matches equal the float64 definition exactly and values agree with it to ~1e-6. On the CPU
+    the blocks run on ``torch.get_num_threads()`` worker threads (same bits for any count).
+
+    Args:
+        query_desc: sequence of ``(K_q, D)`` arrays, or one ``(Nq, K, D)`` array.
+        query_boxes: sequence of ``(K_q, 4)`` ``(x, y, w, h)`` arrays, or ``(Nq, K, 4)``.
+        reference_desc: sequence of ``(K_r, D)`` arrays, or ``(Nr, K, D)``.
+        reference_boxes: sequence of ``(K_r, 4)`` arrays, or ``(Nr, K, 4)``.
+        soft_nms_iou: Algorithm 4 threshold ``t`` or None.
+        sigma: soft-NMS Gaussian width.
+        device: torch device (``"cpu"``, ``"cuda"``).
+        batch_size: queries per block (default: 8).
+        ref_batch_size: references per block (default: a block of ~8 MB of float32 cosines).
+        matmul_dtype: ``"float32"`` (fast) or ``"float64"``.
+        show_progress: progress bar over blocks (``TQDM_DISABLE=1`` silences it).
+
+    Returns:
+        ``(Nq, Nr)`` float64 similarities; 0 for a pair where an image has no landmark.
+    """
+    prob = Problem.build(
+        query_desc,
+        query_boxes,
+        reference_desc,
+        reference_boxes,
+        soft_nms_iou,
+        sigma,
+        device,
+        matmul_dtype,
+    )
+    q, r = prob.q, prob.r
+    out = torch.zeros((q.n, r.n), dtype=torch.float64, device=prob.dev)
+    if prob.empty:  # no landmark anywhere on one side
+        return out.cpu().numpy()
+    bq = max(1, int(batch_size or 8))
+    br = int(ref_batch_size or max(1, BLOCK_BYTES // (4 * bq * q.k * r.k)))
+    br = max(1, min(br, r.n))
+
+    def task(q0: int, r0: int) -> None:
+        q1, r1 = min(q0 + bq, q.n), min(r0 + br, r.n)
+        out[q0:q1, r0:r1] = prob.block(slice(q0, q1), slice(r0, r1))[0]
+
+    tasks = [partial(task, q0, r0) for q0 in range(0, q.n, bq) for r0 in range(0, r.n, br)]
+    _run(prob, tasks, show_progress)
+    return out.cpu().numpy()
+
+
+def similarity_pairs(
+    query_desc: LandmarkSets,
+    query_boxes: LandmarkSets,
+    reference_desc: LandmarkSets,
+    reference_boxes: LandmarkSets,
+    pairs: np.ndarray | Sequence,
+    soft_nms_iou: float | None = None,
+    sigma: float = SOFT_NMS_SIGMA,
+    device: str | torch.device = "cpu",
+    ref_batch_size: int | None = None,
+    matmul_dtype: str = "float32",
+    show_progress: bool = True,
+) -> np.ndarray:
+    """Eq. (1) similarity of the listed (query, reference) image pairs only (e.g. a shortlist).
+
+    Pairs are grouped by query; each query is scored against its listed references in chunks of
+    ``ref_batch_size`` by the same core as :func:`similarity_matrix`.
+
+    Args:
+        query_desc, query_boxes, reference_desc, reference_boxes: as :func:`similarity_matrix`.
+        pairs: ``(P, 2)`` int ``(query index, reference index)``; any order, repeats allowed.
+        soft_nms_iou: Algorithm 4 threshold ``t`` or None.
+        sigma: soft-NMS Gaussian width.
+        device: torch device (``"cpu"``, ``"cuda"``).
+        ref_batch_size: references per matmul (default: a block of ~8 MB of float32 cosines).
+        matmul_dtype: ``"float32"`` (fast) or ``"float64"``.
+        show_progress: progress bar over queries (``TQDM_DISABLE=1`` silences it).
+
+    Returns:
+        ``(P,)`` float64 similarities, in the order of ``pairs``.
+    """
+    prob = Problem.build(
+        query_desc,
+        query_boxes,
+        reference_desc,
+        reference_boxes,
+        soft_nms_iou,
+        sigma,
+        device,
+        matmul_dtype,
+    )
+    q, r = prob.q, prob.r
+    pr = check_pairs(pairs, q.n, r.n)
+    out = np.zeros(pr.shape[0], dtype=np.float64)
+    if prob.empty or pr.shape[0] == 0:
+        return out
+    br = int(ref_batch_size or max(1, BLOCK_BYTES // (4 * q.k * r.k)))
+    order = np.argsort(pr[:, 0], kind="stable")
+    starts = np.flatnonzero(np.r_[True, pr[order[1:], 0] != pr[order[:-1], 0]])
+    groups = np.split(order, starts[1:])
+
+    def task(rows: np.ndarray) -> None:
+        qi = int(pr[rows[0], 0])
+        for c0 in range(0, rows.shape[0], br):
+            chunk = rows[c0 : c0 + br]
+            ridx = torch.from_numpy(pr[chunk, 1]).to(prob.dev)
+            out[chunk] = prob.block(slice(qi, qi + 1), ridx)[0][0].cpu().numpy()
+
+    _run(prob, [partial(task, g) for g in groups], show_progress)
+    return out
+
+
+def check_pairs(pairs: np.ndarray | Sequence, nq: int, nr: int) -> np.ndarray:
+    """``pairs`` as an int64 ``(P, 2)`` array of valid (query, reference) indices."""
+    arr = np.asarray(pairs)
+    if arr.size == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise ValueError(
+            f"pairs must be a (P, 2) array of (query index, reference index), got shape {arr.shape}"
+        )
+    if not np.issubdtype(arr.dtype, np.integer):
+        raise ValueError(f"pairs must hold integer indices, got dtype {arr.dtype}")
+    arr = arr.astype(np.int64)
+    for col, n, what in ((0, nq, "query"), (1, nr, "reference")):
+        bad = np.flatnonzero((arr[:, col] < 0) | (arr[:, col] >= n))
+        if bad.size:
+            raise ValueError(
+                f"pairs[{bad[0]}] has {what} index {arr[bad[0], col]}, outside "
+                f"0..{n - 1} ({n} {what} images)"
+            )
+    return arr
+
+
+def _run(prob: Problem, tasks: Sequence[Callable[[], None]], show_progress: bool) -> None:
+    """Run independent tasks; on a multi-core CPU, on one worker thread per torch thread.
+
+    Each worker sets torch's intra-op threads to 1 for itself, so the small reductions after
+    each matmul never wait at an OpenMP barrier; the cores are used by running different blocks
+    at once. Blocks write disjoint outputs, so the result is the same for any number of workers.
+    """
+    bar = progress(range(len(tasks)), desc="similarity", unit="block") if show_progress else None
+    threads = torch.get_num_threads()
+    workers = min(threads, len(tasks)) if prob.dev.type == "cpu" else 1
+    try:
+        if workers <= 1:
+            for t in tasks:
+                t()
+                if bar is not None:
+                    bar.update()
+            return
+        ex = ThreadPoolExecutor(workers, initializer=torch.set_num_threads, initargs=(1,))
+        try:
+            for f in as_completed([ex.submit(t) for t in tasks]):
+                f.result()  # re-raises a worker's exception here
+                if bar is not None:
+                    bar.update()
+        finally:
+            ex.shutdown(wait=True, cancel_futures=True)
+    finally:
+        torch.set_num_threads(threads)  # MKL's thread count is process-wide
+        if bar is not None:
+            bar.close()
+
+
+# ---- one image pair: the 1 x 1 case of the core, in float64 ------------------------------
+@dataclass
+class MatchResult:
+    """Landmark matches of one image pair and their Eq. (1) terms.
+
+    Attributes:
+        matches: ``(P, 2)`` int64 reciprocal ``(i, j)`` pairs, sorted by ``i``.
+        distances: ``(P,)`` cosine distances ``d_ij``.
+        shape: ``(P,)`` shape penalties ``s_ij`` (Eq. 2).
+        scores: ``(P,)`` pair scores entering Eq. (1): ``1 - d * s``, after soft-NMS if enabled.
+        similarity: Eq. (1) image similarity ``scores.sum() / sqrt(na * nb)``.
+        raw_scores: ``(P,)`` ``1 - d * s`` before soft-NMS.
+        n_a: number of landmarks of image a.
+        n_b: number of landmarks of image b.
+    """
+
+    matches: np.ndarray
+    distances: np.ndarray
+    shape: np.ndarray
+    scores: np.ndarray
+    similarity: float
+    raw_scores: np.ndarray
+    n_a: int
+    n_b: int
+
+
+def _match_pair(
+    desc_a: np.ndarray | Sequence,
+    boxes_a: np.ndarray | Sequence | None,
+    desc_b: np.ndarray | Sequence,
+    boxes_b: np.ndarray | Sequence | None,
+    soft_nms_iou: float | None,
+    sigma: float,
+) -> MatchResult:
+    """One image pair through the core (float64 matmul); boxes None: sizes 0."""
+    prob = Problem.build(
+        [np.asarray(desc_a)],
+        None if boxes_a is None else [np.asarray(boxes_a)],
+        [np.asarray(desc_b)],
+        None if boxes_b is None else [np.asarray(boxes_b)],
+        soft_nms_iou,
+        sigma,
+        matmul_dtype="float64",
+        sides=("a", "b"),
+    )
+    na, nb = int(prob.q.count[0]), int(prob.r.count[0])
+    if prob.empty:
+        e = np.zeros(0, dtype=np.float64)
+        return MatchResult(np.zeros((0, 2), dtype=np.int64), e, e, e, 0.0, e, na, nb)
+    sim, p = prob.block(slice(0, 1), slice(0, 1), keep_pairs=True)
+    assert p is not None
+    matches = torch.stack([p.i, p.j], dim=1).cpu().numpy().astype(np.int64)
+    return MatchResult(
+        matches=matches,
+        distances=(1.0 - p.cos).cpu().numpy(),
+        shape=p.shape.cpu().numpy(),
+        scores=p.score.cpu().numpy(),
+        similarity=float(sim[0, 0]),
+        raw_scores=p.raw.cpu().numpy(),
+        n_a=na,
+        n_b=nb,
+    )
+
+
+def match_landmarks(
+    desc_a: np.ndarray | Sequence,
+    boxes_a: np.ndarray | Sequence,
+    desc_b: np.ndarray | Sequence,
+    boxes_b: np.ndarray | Sequence,
+    soft_nms_iou: float | None = None,
+    sigma: float = SOFT_NMS_SIGMA,
+) -> MatchResult:
+    """Match the landmarks of two images and score them (Eq. 1-2, optional Algorithm 4).
+
+    Args:
+        desc_a: ``(Ka, D)`` descriptors of image a (query).
+        boxes_a: ``(Ka, 4)`` ``(x, y, w, h)`` boxes of image a.
+        desc_b: ``(Kb, D)`` descriptors of image b (reference).
+        boxes_b: ``(Kb, 4)`` boxes of image b.
+        soft_nms_iou: soft-NMS threshold ``t`` (Algorithm 4) or None for plain Eq. (1).
+        sigma: soft-NMS Gaussian width.
+    """
+    return _match_pair(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou, sigma)
+
+
+def image_similarity(
+    desc_a: np.ndarray | Sequence,
+    boxes_a: np.ndarray | Sequence,
+    desc_b: np.ndarray | Sequence,
+    boxes_b: np.ndarray | Sequence,
+    soft_nms_iou: float | None = None,
+    sigma: float = SOFT_NMS_SIGMA,
+) -> float:
+    """Eq. (1) similarity of two images (0 if one has no landmark); arguments as match_landmarks."""
+    return _match_pair(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou, sigma).similarity
+
+
+def reciprocal_matches(desc_a: np.ndarray | Sequence, desc_b: np.ndarray | Sequence) -> np.ndarray:
+    """Reciprocal nearest-neighbour matches ``(P, 2)`` int64 ``(i, j)``, sorted by ``i``.
+
+    Args:
+        desc_a: ``(Ka, D)`` descriptors; desc_b: ``(Kb, D)`` descriptors.
+    """
+    return _match_pair(desc_a, None, desc_b, None, None, SOFT_NMS_SIGMA).matches
+
+
+def shape_penalty(boxes_a: np.ndarray | Sequence, boxes_b: np.ndarray | Sequence) -> np.ndarray:
+    """Eq. (2) shape penalty ``(Ka, Kb)`` float64 of every landmark pair, in ``[1, e]``.
+
+    Args:
+        boxes_a: ``(Ka, 4)`` ``(x, y, w, h)`` boxes; boxes_b: ``(Kb, 4)`` boxes.
+    """
+    a = torch.from_numpy(check_boxes(boxes_a, "boxes_a"))
+    b = torch.from_numpy(check_boxes(boxes_b, "boxes_b"))
+    return shape_terms(a[:, None, 2], b[None, :, 2], a[:, None, 3], b[None, :, 3]).numpy()
+
+
+def cosine_distance(desc_a: np.ndarray | Sequence, desc_b: np.ndarray | Sequence) -> np.ndarray:
+    """Cosine distance ``1 - cos`` ``(Ka, Kb)`` float64 in ``[0, 2]`` (a zero vector: ``d = 1``).
+
+    Args:
+        desc_a: ``(Ka, D)`` descriptors; desc_b: ``(Kb, D)`` descriptors.
+    """
+    units = []
+    for x, name in ((desc_a, "desc_a"), (desc_b, "desc_b")):
+        d = np.asarray(x, dtype=np.float64)
+        if d.ndim != 2:
+            raise ValueError(f"{name} must be a (K, D) descriptor array, got shape {d.shape}")
+        u, norm = unit_rows(torch.from_numpy(rescale_rows(d)))
+        if not bool(torch.isfinite(norm).all()):
+            raise ValueError(f"{name} contains NaN or inf")
+        units.append(u)
+    if units[0].shape[1] != units[1].shape[1]:
+        raise ValueError(
+            f"descriptor dimensions differ: desc_a D={units[0].shape[1]}, "
+            f"desc_b D={units[1].shape[1]}"
+        )
+    return 1.0 - (units[0] @ units[1].T).clamp(-1.0, 1.0).numpy()
