@@ -109,15 +109,15 @@ def similarity(
     from vpr_core.methods import get_method
 
     conf = get_method(method)
-    boxes = pipeline.extract_landmarks(conf, dataset)
+    boxes = pipeline.extract_landmarks(conf.landmarks, dataset)
     feats = pipeline.extract_features(boxes, dataset, encoder)
     sim = similarity_matrix(
         feats["query"],
         boxes["query"],
         feats["reference"],
         boxes["reference"],
-        soft_nms_iou=conf["matching"]["soft_nms_iou"],
-        sigma=conf["matching"]["sigma"],
+        soft_nms_iou=conf.matching.soft_nms_iou,
+        sigma=conf.matching.sigma,
     )
     return np.asarray(sim, dtype=np.float64), np.asarray(dataset.ground_truth, dtype=bool)
 

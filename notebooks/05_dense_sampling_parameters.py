@@ -21,6 +21,11 @@
 # The paper ran these on Mapillary Berlin; here they run on the dataset chosen below.
 
 # %%
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
 from vpr_core import paper
 from vpr_core.datasets import load_dataset
 from vpr_core.evaluation import compare
@@ -97,4 +102,37 @@ table = compare(runs)
 fig = plot_pr_curves(runs, title="Fig. 12: normalised scales (Table 4)")
 save(fig, "fig12_normalized_scales", label), save(table, "fig12_normalized_scales", label)
 display(paper.dense_settings(settings))
+table
+
+# %% [markdown]
+# ## Try your own landmark scheme (and your own backbone)
+#
+# A landmark scheme is any frozen dataclass with `boxes(self, image)` returning `(K, 4)` boxes
+# `(x, y, w, h)`: its class and fields name the run and key its cache (an edited cell is a new
+# scheme, computed afresh). A backbone is any `torch.nn.Module` mapping `(B, 3, S, S)` crops to
+# features, passed as `backbone=` with its `input_size=S`. Both are compared with `dense` below.
+
+# %%
+@dataclass(frozen=True)
+class CentreGrid:
+    """g x g boxes of `side` times the image side, packed towards the image centre."""
+
+    g: int = 4
+    side: float = 0.5
+
+    def boxes(self, image):
+        h, w = image.shape[:2]
+        t = (1 - self.side) * (np.linspace(-1, 1, self.g) ** 3 + 1) / 2  # cubed: denser inside
+        return np.array([[x * w, y * h, self.side * w, self.side * h] for y in t for x in t])
+
+
+torch.manual_seed(0)
+random_conv = torch.nn.Sequential(torch.nn.Conv2d(3, 16, 8, stride=8), torch.nn.ReLU())  # untrained
+runs = [run_method("dense", ds, **run_options),
+        run_method(CentreGrid(), ds, **run_options),
+        run_method("dense", ds, **{**run_options, "backbone": random_conv}, input_size=64,
+                   label="dense, random conv")]
+table = compare(runs)  # baseline: dense
+fig = plot_pr_curves(runs, title="Your own landmark scheme and backbone against dense")
+save(fig, "own_scheme_and_backbone", label), save(table, "own_scheme_and_backbone", label)
 table

@@ -1,13 +1,17 @@
-"""Known-answer tests for vpr_core.landmarks (dense sampling, Table 1, Algorithms 1-3, IoU, Edge Boxes)."""
+"""Known-answer tests for vpr_core.landmarks (dense sampling, Table 1, Algorithms 1-3, IoU,
+Edge Boxes)."""
 
 from __future__ import annotations
 
+import gzip
 import logging
 
 import numpy as np
 import pytest
 
 from vpr_core import landmarks as L
+from vpr_core.boxes import paired_iou
+from vpr_core.landmarks.edge_boxes import edge_model_id
 
 H, W = 360, 640
 SIZE = (H, W)
@@ -120,33 +124,62 @@ def test_dense_per_scale_sequence_table3():
     np.testing.assert_allclose(ratios[-16:], 0.49)
 
 
-@pytest.mark.parametrize(
-    "kwargs, match",
-    [
-        ({"per_scale": 24}, "perfect square"),
-        ({"per_scale": (25, 25, 20, 25)}, "perfect square"),
-        ({"per_scale": 0}, "perfect square"),
-        ({"per_scale": (25, 25)}, "one count per scale"),
-        ({"scales": (0.0, 0.5)}, r"\(0, 1\]"),
-        ({"scales": (1.2,)}, r"\(0, 1\]"),
-    ],
-)
-def test_dense_bad_arguments(kwargs, match):
-    with pytest.raises(ValueError, match=match):
-        L.dense_sampling(SIZE, **kwargs)
+BOX = np.array([[0.0, 0.0, 10.0, 10.0]])
+
+#: (call, message) of every bad input of dense sampling, Table-1 scales, IoU and coverage.
+BAD_LANDMARK_CALLS = {
+    "dense: not square": (lambda: L.dense_sampling(SIZE, per_scale=24), "perfect square"),
+    "dense: one not square": (
+        lambda: L.dense_sampling(SIZE, per_scale=(25, 25, 20, 25)),
+        "per_scale=20 is not a perfect square",
+    ),
+    "dense: zero": (lambda: L.dense_sampling(SIZE, per_scale=0), "positive perfect square"),
+    "dense: counts": (lambda: L.dense_sampling(SIZE, per_scale=(25, 25)), "one count per scale"),
+    "dense: scale 0": (lambda: L.dense_sampling(SIZE, scales=(0.0, 0.5)), r"lie in \(0, 1\]"),
+    "dense: scale > 1": (lambda: L.dense_sampling(SIZE, scales=(1.2,)), r"\(0, 1\]"),
+    "dense: no scales": (lambda: L.dense_sampling(SIZE, scales=()), "non-empty 1-D"),
+    "size: one number": (lambda: L.dense_sampling((360,)), r"image_size must be a \(H, W\) pair"),
+    "size: zero": (lambda: L.dense_sampling((0, 640)), "image_size must be positive integers"),
+    "size: negative": (lambda: L.dense_sampling((-1, 5)), "image_size must be positive"),
+    "size: fraction": (lambda: L.dense_sampling((360.5, 640)), "image_size must be positive"),
+    "size: text": (lambda: L.dense_sampling("ab"), "image_size must hold integers"),
+    "size: an image": (
+        lambda: L.dense_sampling(np.zeros((H, W, 3), np.uint8)),
+        r"pass image.shape\[:2\]",
+    ),
+    "scale: no size": (lambda: L.scale_index(np.zeros((2, 4))), "pass image_size=\\(H, W\\)"),
+    "scale: 2-D ratios": (lambda: L.scale_index(np.zeros((2, 3))), "1-D ratios"),
+    "scale: negative": (lambda: L.scale_index(np.array([-0.1])), "finite and >= 0"),
+    "scale: boxes": (
+        lambda: L.normalized_scale(np.zeros((3, 3)), SIZE),
+        r"boxes must have shape \(K, 4\)",
+    ),
+    "iou: shape": (lambda: L.box_iou(np.zeros((2, 5)), BOX), r"a must have shape \(K, 4\)"),
+    "iou: negative": (lambda: L.box_iou(BOX, [[0, 0, -1, 2]]), "b has negative width"),
+    "iou: NaN": (lambda: L.box_iou(BOX * np.nan, BOX), "a contains NaN"),
+    "paired iou: rows": (
+        lambda: paired_iou(BOX, np.zeros((2, 4))),
+        "as many boxes in a as in b, got 1 and 2",
+    ),
+    "coverage: boxes": (
+        lambda: L.landmark_coverage(np.zeros(7), SIZE),
+        r"boxes must have shape \(K, 4\)",
+    ),
+    "coverage: size": (lambda: L.landmark_coverage(BOX, (0, 5)), "image_size must be positive"),
+}
 
 
-@pytest.mark.parametrize("size", [(360,), (0, 640), (-1, 5), (360.5, 640), "ab"])
-def test_dense_bad_image_size(size):
-    with pytest.raises(ValueError, match="image_size"):
-        L.dense_sampling(size)
+@pytest.mark.parametrize("case", BAD_LANDMARK_CALLS)
+def test_bad_landmark_inputs_raise_one_clear_line(case):
+    call, match = BAD_LANDMARK_CALLS[case]
+    with pytest.raises(ValueError, match=match) as info:
+        call()
+    assert "\n" not in str(info.value)
 
 
 def test_dense_accepts_image_shape():
     img = np.zeros((H, W, 3), np.uint8)
     np.testing.assert_array_equal(L.dense_sampling(img.shape), L.dense_sampling(SIZE))
-    with pytest.raises(ValueError, match=r"image.shape\[:2\]"):
-        L.dense_sampling(img)
 
 
 # ------------------------------------------------------------------------------------------
@@ -178,12 +211,6 @@ def test_scale_index_from_boxes():
     boxes = np.array([[0, 0, W / 2, H / 2], [0, 0, W, H], [5, 5, W / 10, H / 10]])
     np.testing.assert_array_equal(L.scale_index(boxes, SIZE), [6, 9, 1])
     np.testing.assert_allclose(L.normalized_scale(boxes, SIZE), [0.25, 1.0, 0.01])
-    with pytest.raises(ValueError, match="image_size"):
-        L.scale_index(boxes)
-    with pytest.raises(ValueError, match=r"\(K, 4\)"):
-        L.normalized_scale(np.zeros((3, 3)), SIZE)
-    with pytest.raises(ValueError):
-        L.scale_index(np.array([-0.1]))
 
 
 def test_scale_histogram():
@@ -233,13 +260,6 @@ def test_box_iou_matches_naive_loop():
     np.testing.assert_allclose(iou, naive_iou(a, b), atol=1e-12)
     np.testing.assert_allclose(L.box_iou(a, a).diagonal(), 1.0)
     np.testing.assert_allclose(L.box_iou(b, a), iou.T, atol=1e-12)
-
-
-def test_box_iou_bad_shapes():
-    with pytest.raises(ValueError, match=r"\(K, 4\)"):
-        L.box_iou(np.zeros((2, 5)), np.zeros((1, 4)))
-    with pytest.raises(ValueError, match="negative"):
-        L.box_iou([[0, 0, -1, 2]], [[0, 0, 1, 1]])
 
 
 # ------------------------------------------------------------------------------------------
@@ -431,6 +451,76 @@ def test_edge_boxes_missing_model(synthetic_image, tmp_path, monkeypatch):
         L.edge_boxes(synthetic_image)
 
 
+def write_sed_model(path, n_trees: int = 1) -> None:
+    """A tiny structured-edge forest in the opencv_extra ``model.yml.gz`` format: each tree splits
+    on the gradient magnitude at the patch centre and paints a line through the inner patch."""
+    bins = [y * 16 + 8 for y in range(16)] * 4  # repeated: a strong line
+    trees = lambda row: "".join(f"   - {row}\n" for _ in range(n_trees))  # noqa: E731
+    text = (
+        "%YAML:1.0\noptions:\n"
+        "   stride: 2\n   shrinkNumber: 2\n   patchSize: 32\n   patchInnerSize: 16\n"
+        "   numberOfGradientOrientations: 4\n   gradientSmoothingRadius: 0\n"
+        "   regFeatureSmoothingRadius: 2\n   ssFeatureSmoothingRadius: 8\n"
+        "   gradientNormalizationRadius: 4\n   selfsimilarityGridSize: 5\n"
+        f"   numberOfTrees: {n_trees}\n   numberOfTreesToEvaluate: {n_trees}\n"
+        "childs:\n"
+        + trees("[ 2, 0, 0 ]")
+        + "featureIds:\n"
+        + trees("[ 904, 0, 0 ]")
+        + "thresholds:\n"
+        + trees("[ 0.05, 0., 0. ]")
+        + "edgeBoundaries:\n"
+        + trees(f"[ 0, 0, 0, {len(bins)} ]")
+        + "edgeBins:\n"
+        + trees(str(bins))
+    )
+    with gzip.open(path, "wt") as fh:
+        fh.write(text)
+
+
+def test_edge_boxes_structured_model_end_to_end(synthetic_image, tmp_path, monkeypatch):
+    model = tmp_path / "model.yml.gz"
+    write_sed_model(model, n_trees=2)
+    res = L.edge_boxes(synthetic_image, max_boxes=50, model=model)
+    assert res.edge_source == "structured" and 0 < len(res) <= 50
+    b = res.boxes
+    assert np.all(b[:, :2] >= 0) and np.all(b[:, 0] + b[:, 2] <= W)
+    assert np.all(np.diff(res.scores) <= 0)
+    monkeypatch.setenv("VPR_SED_MODEL", str(model))
+    again = L.edge_boxes(synthetic_image, max_boxes=50)
+    np.testing.assert_array_equal(again.boxes, res.boxes)
+    assert edge_model_id() == edge_model_id(model) != "gradient"
+    assert edge_model_id("gradient") == "gradient"
+
+
+@pytest.mark.parametrize(
+    "content",
+    [
+        b"garbage \x00\xff{{[",  # not a FileStorage
+        b"%YAML:1.0\nfoo: 1\n",  # no options (OpenCV would divide by zero and kill the process)
+        b"%YAML:1.0\noptions:\n   numberOfTrees: 0\n",
+    ],
+)
+def test_edge_boxes_unreadable_model_names_file_and_variable(synthetic_image, tmp_path, content):
+    model = tmp_path / "model.yml"
+    model.write_bytes(content)
+    with pytest.raises(ValueError, match="VPR_SED_MODEL") as exc:
+        L.edge_boxes(synthetic_image, model=model)
+    assert str(model) in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_edge_boxes_model_with_missing_trees_refused(synthetic_image, tmp_path):
+    model = tmp_path / "model.yml.gz"
+    write_sed_model(model, n_trees=1)
+    with gzip.open(model, "rt") as fh:
+        text = fh.read().replace("numberOfTrees: 1", "numberOfTrees: 3")
+    text = text.replace("numberOfTreesToEvaluate: 1", "numberOfTreesToEvaluate: 3")
+    with gzip.open(model, "wt") as fh:
+        fh.write(text)
+    with pytest.raises(ValueError, match="childs"):
+        L.edge_boxes(synthetic_image, model=model)
+
+
 @pytest.mark.parametrize(
     "bad",
     [
@@ -470,32 +560,6 @@ def test_dense_defaults_are_the_papers():
     assert L.dense_sampling(SIZE, per_scale=16).shape == (16 * len(DENSE_SCALES), 4)
 
 
-def test_select_from_candidates_on_edge_boxes_uses_the_papers_defaults(synthetic_image):
-    from vpr_core.paper import MIN_SCALE_INDEX, N_LANDMARKS, NMS_IOU, SCALE_PRIORITY_ORDER
-
-    cand = L.edge_boxes(synthetic_image, max_boxes=300, model="gradient").boxes
-    assert len(cand) > N_LANDMARKS  # enough candidates for every scheme to choose from
-    np.testing.assert_array_equal(
-        L.select_from_candidates(cand, SIZE, "edge_boxes"), cand[:N_LANDMARKS]
-    )
-    s1 = L.select_from_candidates(cand, SIZE, "selection_scheme1")
-    np.testing.assert_array_equal(
-        s1, L.select_min_scale(cand, SIZE, n=N_LANDMARKS, min_index=MIN_SCALE_INDEX)
-    )
-    assert np.all(L.scale_index(s1, SIZE) >= MIN_SCALE_INDEX)
-    s2 = L.select_from_candidates(cand, SIZE, "selection_scheme2")
-    np.testing.assert_array_equal(
-        s2, L.select_scale_priority(cand, SIZE, n=N_LANDMARKS, order=SCALE_PRIORITY_ORDER)
-    )
-    assert set(L.scale_index(s2, SIZE)) <= set(SCALE_PRIORITY_ORDER)
-    o1 = L.select_from_candidates(cand, SIZE, "overlap_scheme1")
-    np.testing.assert_array_equal(o1, L.reduce_overlap(cand, n=N_LANDMARKS, iou_threshold=NMS_IOU))
-    iou = L.box_iou(o1, o1)
-    assert iou[~np.eye(len(o1), dtype=bool)].max() <= NMS_IOU
-    with pytest.raises(ValueError, match="valid: edge_boxes, selection_scheme1"):
-        L.select_from_candidates(cand, SIZE, "selection_scheme3")
-
-
 def test_box_iou_is_the_one_in_vpr_core_boxes():
     from vpr_core import boxes
 
@@ -528,33 +592,3 @@ def test_landmark_plots(synthetic_image, tmp_path):
     with pytest.raises(ValueError):
         viz.plot_scale_distribution({"q": np.ones(5)})
     plt.close("all")
-
-
-def test_select_from_candidates_dispatches_to_the_algorithms():
-    from vpr_core.landmarks import (
-        reduce_overlap,
-        select_from_candidates,
-        select_min_scale,
-        select_scale_priority,
-    )
-
-    rng = np.random.default_rng(3)
-    xy = rng.uniform(0, 300, (200, 2))
-    wh = rng.uniform(10, 300, (200, 2))
-    cands = np.concatenate([xy, wh], 1)
-    size = (360, 640)
-    np.testing.assert_array_equal(select_from_candidates(cands, size, "edge_boxes", n=7), cands[:7])
-    np.testing.assert_array_equal(
-        select_from_candidates(cands, size, "selection_scheme1", n=20),
-        select_min_scale(cands, size, n=20),
-    )
-    np.testing.assert_array_equal(
-        select_from_candidates(cands, size, "selection_scheme2", n=20, order=(6, 5)),
-        select_scale_priority(cands, size, n=20, order=(6, 5)),
-    )
-    np.testing.assert_array_equal(
-        select_from_candidates(cands, size, "overlap_scheme1", n=20, iou_threshold=0.3),
-        reduce_overlap(cands, n=20, iou_threshold=0.3),
-    )
-    with pytest.raises(ValueError, match="valid: edge_boxes"):
-        select_from_candidates(cands, size, "dense")

@@ -1,8 +1,26 @@
-"""Method presets: names, overrides, errors."""
+"""Methods as values: presets, options, run keys and labels derived from the value."""
 
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
 import pytest
 
-from vpr_core.methods import available_methods, get_method
+from vpr_core import paper
+from vpr_core.landmarks import Dense, EdgeBoxesTop, MinScale, ReduceOverlap, WholeImage
+from vpr_core.methods import (
+    METHODS,
+    Matching,
+    Method,
+    as_method,
+    available_methods,
+    get_method,
+    method_identity,
+    method_label,
+    method_options,
+    run_key,
+)
 
 
 def test_all_paper_methods_present():
@@ -17,75 +35,179 @@ def test_all_paper_methods_present():
     }
 
 
-def test_classical_is_top100_edge_boxes_without_soft_nms():
-    c = get_method("classical")
-    assert c["landmarks"]["scheme"] == "edge_boxes" and c["landmarks"]["n"] == 100
-    assert c["landmarks"]["n_candidates"] == 1000
-    assert c["matching"]["soft_nms_iou"] is None and c["matching"]["sigma"] == 0.5
+def test_presets_are_scheme_and_matching_values():
+    assert get_method("classical") == Method("classical", EdgeBoxesTop(100, 1000), Matching())
+    assert get_method("classical").matching == Matching(None, 0.5)
+    assert get_method("selection_scheme1").landmarks == MinScale(100, 4, 1000)
+    assert get_method("selection_scheme2").landmarks.order == (5, 6, 7, 8, 9, 4)
+    assert get_method("overlap_scheme2").matching.soft_nms_iou == paper.SOFT_NMS_IOU
+    assert get_method("global").landmarks == WholeImage()
 
 
-def test_selection_scheme_parameters_follow_algorithms():
-    assert get_method("selection_scheme1")["landmarks"]["min_index"] == 4
-    assert get_method("selection_scheme2")["landmarks"]["order"] == (5, 6, 7, 8, 9, 4)
+# The run keys and labels of the committed results (findings match on the keys).
+KEYS = [
+    (("classical", {}), "classical", "classical"),
+    (("selection_scheme1", {}), "selection_scheme1", "selection_scheme1"),
+    (("selection_scheme2", {}), "selection_scheme2", "selection_scheme2"),
+    (("global", {}), "global", "global"),
+    (("dense", {}), "dense", "dense"),
+    (("overlap_scheme1", {}), "overlap_scheme1", "overlap_scheme1 (IoU 0.5)"),
+    (
+        ("overlap_scheme1", {"iou_threshold": 0.4}),
+        "overlap_scheme1(iou_threshold=0.4)",
+        "overlap_scheme1 (IoU 0.4)",
+    ),
+    (("overlap_scheme2", {}), "overlap_scheme2", "overlap_scheme2 (IoU 0.5)"),
+    (
+        ("overlap_scheme2", {"soft_nms_iou": 0.3}),
+        "overlap_scheme2(soft_nms_iou=0.3)",
+        "overlap_scheme2 (IoU 0.3)",
+    ),
+    (
+        ("dense", {"scales": [0.25, 0.49], "per_scale": 49}),
+        "dense(per_scale=49, scales=0.25/0.49)",
+        "dense (0.25/0.49 x 49)",
+    ),
+    (("dense", {"scales": (0.25,), "per_scale": 100}), "dense(per_scale=100, scales=0.25)", None),
+    (
+        ("dense", {"per_scale": (25, 25, 25, 25)}),
+        "dense(per_scale=25/25/25/25)",
+        "dense (0.16/0.25/0.36/0.49 x 25/25/25/25)",
+    ),
+    (("dense", {"scales": paper.DENSE_SCALES, "per_scale": 25}), "dense", "dense"),
+    (("classical", {"n": 50}), "classical(n=50)", "classical (n=50)"),
+]
 
 
-def test_overrides_are_routed():
+@pytest.mark.parametrize(("call", "key", "label"), KEYS, ids=[k for _, k, _ in KEYS])
+def test_run_keys_and_labels_derive_from_the_value(call, key, label):
+    method = get_method(call[0], **call[1])
+    assert run_key(method) == key
+    if label is not None:
+        assert method_label(method) == label
+
+
+def test_every_committed_run_key_is_reproduced():
+    """Each ``run`` in results/*/*.csv is the key of a preset call of the study."""
+    import csv
+    from pathlib import Path
+
+    made = set(available_methods())
+    for table in (paper.TABLE2, paper.TABLE3, paper.TABLE4):
+        made |= {run_key(get_method("dense", scales=s, per_scale=n)) for s, n in table.values()}
+    made |= {run_key(get_method("overlap_scheme1", iou_threshold=t)) for t in (0.4, 0.6, 0.7)}
+    made |= {run_key(get_method("overlap_scheme2", soft_nms_iou=t)) for t in (0.3, 0.4, 0.6)}
+    made |= {run_key(get_method("overlap_scheme2", soft_nms_iou=0.7))}
+    results = Path(__file__).resolve().parents[1] / "results"
+    committed = {
+        row["run"]
+        for path in results.glob("*/*.csv")
+        for row in csv.DictReader(path.open())
+        if "run" in row
+    }
+    assert committed and committed <= made, committed - made
+
+
+def test_overrides_are_routed_to_scheme_and_matching():
     o = get_method("overlap_scheme1", iou_threshold=0.4)
-    assert o["landmarks"]["iou_threshold"] == 0.4
-    s = get_method("overlap_scheme2", soft_nms_iou=0.3)
-    assert s["matching"]["soft_nms_iou"] == 0.3
-    assert s["landmarks"]["scheme"] == "edge_boxes"
-    d = get_method("dense", scales=[0.25, 0.49], per_scale=49)
-    assert d["landmarks"]["scales"] == (0.25, 0.49) and d["landmarks"]["per_scale"] == 49
-    assert "n" not in d["landmarks"]
-
-
-def test_presets_are_not_mutated_by_overrides():
-    get_method("dense", scales=(0.5,))
-    assert get_method("dense")["landmarks"]["scales"] == (0.16, 0.25, 0.36, 0.49)
-
-
-def test_unknown_method_lists_valid_names():
-    with pytest.raises(ValueError, match="Valid methods: classical, dense"):
-        get_method("edgebox")
-
-
-def test_unknown_override_is_an_error():
-    with pytest.raises(ValueError, match="Unknown option 'threshold'"):
-        get_method("overlap_scheme1", threshold=0.4)
-
-
-def test_options_that_do_not_apply_are_refused_with_the_valid_list():
-    with pytest.raises(ValueError, match="Options of 'dense': scales, per_scale"):
-        get_method("dense", iou_threshold=0.1)
-    with pytest.raises(ValueError, match="'iou_threshold' for method 'classical'"):
-        get_method("classical", iou_threshold=0.1, min_index=7)
-    with pytest.raises(ValueError, match="Options of 'global': none"):
-        get_method("global", n=5)
-
-
-@pytest.mark.parametrize("bad", [0.25, "0.25", (), (0.2, 1.5), ("a",)])
-def test_bad_scales_are_named_before_any_label_is_made(bad):
-    with pytest.raises(ValueError, match="option scales="):
-        get_method("dense", scales=bad)
-
-
-def test_bad_option_values_are_named():
-    with pytest.raises(ValueError, match="iou_threshold=1.5"):
-        get_method("overlap_scheme1", iou_threshold=1.5)
-    with pytest.raises(ValueError, match="per_scale"):
-        get_method("dense", per_scale="25")
-    with pytest.raises(ValueError, match="order"):
-        get_method("selection_scheme2", order="5,6")
-
-
-def test_method_label_lives_in_methods_and_names_settings():
-    from vpr_core.methods import method_label
-
-    assert (
-        method_label(get_method("overlap_scheme1", iou_threshold=0.4))
-        == "overlap_scheme1 (IoU 0.4)"
+    assert o.landmarks == ReduceOverlap(iou_threshold=0.4)
+    s = get_method("overlap_scheme2", soft_nms_iou=0.3, sigma=0.2)
+    assert s.matching == Matching(0.3, 0.2) and s.landmarks == EdgeBoxesTop()
+    assert get_method("overlap_scheme2", soft_nms_iou=None).matching.soft_nms_iou is None
+    d = get_method(
+        "dense",
+        scales=[0.25, 0.49],
+        per_scale=49,
     )
-    assert method_label(get_method("dense")) == "dense"
-    assert method_label(get_method("dense", scales=(0.25,), per_scale=100)) == "dense (0.25 x 100)"
-    assert get_method("global")["landmarks"] == {"scheme": "whole_image"}
+    assert d.landmarks == Dense((0.25, 0.49), 49)
+    assert get_method("dense", scales=None).landmarks == Dense()  # None: not set
+    assert METHODS["dense"].landmarks == Dense()  # presets are values: never changed
+
+
+def test_options_derive_from_the_fields():
+    assert method_options(get_method("selection_scheme1")) == ("n", "min_index", "n_candidates")
+    assert method_options(get_method("overlap_scheme2")) == (
+        "n",
+        "n_candidates",
+        "soft_nms_iou",
+        "sigma",
+    )
+    assert method_options(get_method("global")) == ()
+
+
+@pytest.mark.parametrize(
+    ("name", "options", "match"),
+    [
+        ("edgebox", {}, "Unknown method 'edgebox'. Valid methods: classical, dense"),
+        ("overlap_scheme1", {"threshold": 0.4}, "Unknown option 'threshold'"),
+        ("dense", {"iou_threshold": 0.1}, "Options of 'dense': scales, per_scale\\."),
+        ("classical", {"min_index": 7}, "Options of 'classical': n, n_candidates\\."),
+        ("classical", {"soft_nms_iou": 0.3}, "'soft_nms_iou' for method 'classical'"),
+        ("global", {"n": 5}, "Options of 'global': none"),
+        ("dense", {"scales": 0.25}, "method 'dense': Dense: option scales=0.25"),
+        ("overlap_scheme1", {"iou_threshold": 1.5}, "option iou_threshold=1.5"),
+        ("dense", {"per_scale": "25"}, "option per_scale='25'"),
+        ("selection_scheme2", {"order": "5,6"}, "option order='5,6'"),
+        ("overlap_scheme2", {"soft_nms_iou": 2}, "Matching: option soft_nms_iou=2"),
+        ("overlap_scheme2", {"sigma": 0}, "Matching: option sigma=0 .* positive"),
+    ],
+)
+def test_get_method_refuses_bad_names_options_and_values(name, options, match):
+    with pytest.raises(ValueError, match=match):
+        get_method(name, **options)
+
+
+@dataclasses.dataclass(frozen=True)
+class Stripes:
+    """A user scheme: ``k`` vertical stripes."""
+
+    k: int
+    margin: float = 0.0
+
+    def boxes(self, image: np.ndarray) -> np.ndarray:
+        h, w = image.shape[:2]
+        return np.array([[i * w / self.k, self.margin, w / self.k, h] for i in range(self.k)])
+
+
+def test_as_method_takes_a_name_a_method_or_a_bare_scheme():
+    assert as_method("dense", per_scale=9) == get_method("dense", per_scale=9)
+    m = Method("mine", Stripes(3), Matching(soft_nms_iou=0.4))
+    assert as_method(m) is m
+    assert as_method(Dense(per_scale=9)) == get_method("dense", per_scale=9)
+    assert as_method(EdgeBoxesTop(n=5)).name == "classical"
+    user = as_method(Stripes(3))
+    assert user.name == "Stripes" and user.matching == Matching()
+    # a field without a default is always part of the key; the others when they differ
+    assert run_key(user) == "Stripes(k=3)" and method_label(user) == "Stripes (k=3)"
+    assert run_key(as_method(Stripes(3, 1.5))) == "Stripes(k=3, margin=1.5)"
+    assert run_key(m) == "mine(k=3, soft_nms_iou=0.4)" and method_label(m) == "mine (k=3; IoU 0.4)"
+
+
+@pytest.mark.parametrize(
+    ("value", "options", "error", "match"),
+    [
+        (Stripes(3), {"k": 4}, ValueError, "apply to a preset name only"),
+        (object(), {}, TypeError, "frozen dataclass"),
+        (3, {}, TypeError, "frozen dataclass"),
+    ],
+)
+def test_as_method_refuses(value, options, error, match):
+    with pytest.raises(error, match=match):
+        as_method(value, **options)
+
+
+def test_method_refuses_a_bad_name_or_matching():
+    with pytest.raises(ValueError, match="name must be a non-empty string"):
+        Method("", Dense())
+    with pytest.raises(TypeError, match="matching must be a vpr_core.methods.Matching"):
+        Method("x", Dense(), {"soft_nms_iou": None})  # type: ignore[arg-type]
+
+
+def test_method_identity_is_the_value():
+    a = method_identity(get_method("dense", per_scale=9))
+    assert a == method_identity(Method("other name", Dense(per_scale=9)))
+    assert a != method_identity(get_method("dense", per_scale=16))
+    assert a["landmarks"]["scheme"] == "vpr_core.landmarks.schemes.Dense"
+    assert a["matching"] == {"soft_nms_iou": None, "sigma": 0.5}
+    user = method_identity(as_method(Stripes(2)))
+    assert user["landmarks"]["params"] == {"k": 2, "margin": 0.0} and user["landmarks"]["code"]

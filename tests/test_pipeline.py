@@ -51,6 +51,17 @@ def test_edge_box_schemes_share_candidates(tiny):
     assert (idx >= 4).all()
 
 
+def test_edge_box_candidates_are_keyed_on_the_edge_models_content(tiny, isolated_cache):
+    from vpr_core.landmarks.edge_boxes import edge_model_id
+
+    a, _ = pipeline.edge_box_candidates(tiny, "query", 0)
+    b, _ = pipeline.edge_box_candidates(tiny, "query", 0, edge_model=edge_model_id())
+    assert len(list((isolated_cache / "landmarks").iterdir())) == 1  # the same entry
+    pipeline.edge_box_candidates(tiny, "query", 0, edge_model="sha256:" + "0" * 64)
+    assert len(list((isolated_cache / "landmarks").iterdir())) == 2  # another model's entry
+    np.testing.assert_array_equal(a, b)
+
+
 def test_feature_cache_reads_second_time_and_recomputes_changed_config(
     tiny, isolated_cache, monkeypatch
 ):

@@ -39,7 +39,7 @@ def _time_method(method: str, dataset, encoder, n: int, repeats: int) -> dict[st
     for _ in range(repeats):
         boxes, descs = [], []
         for i in range(n):
-            b, seconds = landmarks_for_image(conf, dataset, "query", i, fresh=True)
+            b, seconds = landmarks_for_image(conf.landmarks, dataset, "query", i, fresh=True)
             image = dataset.load_image("query", i)
             t0 = time.perf_counter()
             descs.append(encoder.encode(image, np.asarray(b)))
@@ -52,8 +52,8 @@ def _time_method(method: str, dataset, encoder, n: int, repeats: int) -> dict[st
             boxes,
             descs,
             boxes,
-            soft_nms_iou=conf["matching"]["soft_nms_iou"],
-            sigma=conf["matching"]["sigma"],
+            soft_nms_iou=conf.matching.soft_nms_iou,
+            sigma=conf.matching.sigma,
         )
         t_match += time.perf_counter() - t0
     per_img_lm, per_img_ft = t_lm / (repeats * n), t_ft / (repeats * n)

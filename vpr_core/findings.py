@@ -73,9 +73,8 @@ class Claim:
     @property
     def keys(self) -> tuple[str, str]:
         """The run keys of method and baseline (the ``run`` column of the tables)."""
-        return tuple(
-            run_key(get_method(name, **opts)) for name, opts in (self.method, self.baseline)
-        )
+        (m_name, m_opts), (b_name, b_opts) = self.method, self.baseline
+        return run_key(get_method(m_name, **m_opts)), run_key(get_method(b_name, **b_opts))
 
 
 def _dense(table: dict, name: str) -> tuple[str, dict]:
@@ -83,8 +82,8 @@ def _dense(table: dict, name: str) -> tuple[str, dict]:
     return "dense", {"scales": scales, "per_scale": per_scale}
 
 
-_C = ("classical", {})
-_D = ("dense", {})
+_C: tuple[str, dict] = ("classical", {})
+_D: tuple[str, dict] = ("dense", {})
 
 #: The paper's claims, in paper order (observation 1 is handled by :func:`cmr_difference`).
 CLAIMS: tuple[Claim, ...] = (

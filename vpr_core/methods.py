@@ -1,112 +1,116 @@
-"""Named method presets: each paper method is data, merged over defaults (hloc habit).
-
-A method config is a plain dict with two parts:
-
-- ``landmarks``: how landmarks are produced per image. ``scheme`` is one of
-  ``edge_boxes`` (top ``n`` Edge Box proposals), ``selection_scheme1`` (Algorithm 1),
-  ``selection_scheme2`` (Algorithm 2), ``overlap_scheme1`` (Algorithm 3), ``dense`` or
-  ``whole_image`` (one box covering the image). All Edge Box schemes select from the same
-  ``n_candidates`` (1,000) proposals per image.
-- ``matching``: ``soft_nms_iou`` (Algorithm 4 threshold, ``None`` = off) and ``sigma``.
-
-Presets (paper section in brackets):
-
-=====================  ============================================================
-``classical``          top 100 Edge Boxes, Eq. (1) (Sec. 2.1, Sunderhauf et al. 2015)
-``selection_scheme1``  Alg. 1: first 100 of 1,000 candidates with scale index >= 4
-``selection_scheme2``  Alg. 2: scale priority 5, 6, 7, 8, 9, 4
-``overlap_scheme1``    Alg. 3: greedy NMS over 1,000 candidates, ``iou_threshold``
-``overlap_scheme2``    classical + Alg. 4 soft-NMS on the match scores, ``soft_nms_iou``
-``dense``              4 scales x 25 landmarks on a grid (Sec. 4)
-``global``             not in the paper: one whole-image descriptor from the same backbone,
-                       so a reader sees what landmarks add. Eq. (1) with one box per image
-                       is ``1 - d * s``; for equal image sizes ``s = exp(0) = 1`` and the
-                       similarity is the cosine of the two whole-image descriptors. For
-                       different sizes the shape penalty of Eq. (2) applies as for landmarks.
-=====================  ============================================================
-
-Each method accepts only its own options (:data:`METHOD_OPTIONS`); anything else is refused
-with the list of valid ones, so an option never silently does nothing.
-"""
+"""Methods as values: ``Method(name, landmarks scheme, Matching)``, the paper's presets as a table,
+and the run keys, labels and cache keys derived from a method's value (docs/DEFINITIONS.md)."""
 
 from __future__ import annotations
 
-import copy
+import dataclasses
+import math
 import numbers
 from typing import Any
 
-from .paper import (
-    DENSE_PER_SCALE,
-    DENSE_SCALES,
-    MIN_SCALE_INDEX,
-    N_CANDIDATES,
-    N_LANDMARKS,
-    NMS_IOU,
-    SCALE_PRIORITY_ORDER,
-    SOFT_NMS_IOU,
-    SOFT_NMS_SIGMA,
+from .landmarks.schemes import (
+    Dense,
+    EdgeBoxesTop,
+    MinScale,
+    ReduceOverlap,
+    ScalePriority,
+    WholeImage,
+    check_scheme,
+    option_text,
+    scheme_identity,
 )
+from .paper import SOFT_NMS_IOU, SOFT_NMS_SIGMA
 
 __all__ = [
-    "DEFAULT_CONFIG",
-    "EDGE_BOX_SCHEMES",
     "METHODS",
-    "METHOD_OPTIONS",
+    "Matching",
+    "Method",
+    "as_method",
     "available_methods",
     "get_method",
-    "landmark_config",
+    "method_identity",
     "method_label",
+    "method_options",
     "run_key",
 ]
 
-EDGE_BOX_SCHEMES = ("edge_boxes", "selection_scheme1", "selection_scheme2", "overlap_scheme1")
 
-DEFAULT_CONFIG: dict[str, Any] = {
-    "landmarks": {"scheme": "edge_boxes", "n": N_LANDMARKS, "n_candidates": N_CANDIDATES},
-    "matching": {"soft_nms_iou": None, "sigma": SOFT_NMS_SIGMA},
+def _is_number(v: Any) -> bool:
+    return isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _bad(obj: object, key: str, expected: str) -> ValueError:
+    return ValueError(
+        f"{type(obj).__name__}: option {key}={getattr(obj, key)!r} is not valid; "
+        f"expected {expected}"
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class Matching:
+    """How two images' landmarks are scored: Eq. (1), with Algorithm 4 (soft-NMS on the match
+    scores) at IoU ``soft_nms_iou`` and Gaussian ``sigma`` when ``soft_nms_iou`` is set."""
+
+    soft_nms_iou: float | None = None
+    sigma: float = SOFT_NMS_SIGMA
+
+    def __post_init__(self) -> None:
+        iou, sigma = self.soft_nms_iou, self.sigma
+        if iou is not None:
+            if not (_is_number(iou) and 0 <= iou <= 1):
+                raise _bad(self, "soft_nms_iou", "a number in [0, 1] or None (off)")
+            object.__setattr__(self, "soft_nms_iou", float(iou))
+        if not (_is_number(sigma) and sigma > 0):
+            raise _bad(self, "sigma", "a positive number")
+        object.__setattr__(self, "sigma", float(sigma))
+
+    def options(self) -> tuple[str, ...]:
+        """The options that change a result: both with soft-NMS on, none with it off."""
+        return ("soft_nms_iou", "sigma") if self.soft_nms_iou is not None else ()
+
+    def note(self) -> str:
+        """Its legend text: the soft-NMS IoU, empty with soft-NMS off."""
+        return "" if self.soft_nms_iou is None else f"IoU {self.soft_nms_iou:g}"
+
+
+@dataclasses.dataclass(frozen=True)
+class Method:
+    """A method: a name, a landmark scheme (any frozen dataclass with ``boxes(image)``) and the
+    :class:`Matching` settings."""
+
+    name: str
+    landmarks: Any  # a LandmarkScheme that is a frozen dataclass (checked below)
+    matching: Matching = Matching()
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise ValueError(f"Method: name must be a non-empty string, got {self.name!r}")
+        check_scheme(self.landmarks)
+        if not isinstance(self.matching, Matching):
+            raise TypeError(
+                f"Method {self.name!r}: matching must be a vpr_core.methods.Matching, "
+                f"got {self.matching!r}"
+            )
+
+
+#: The paper's methods (Sec. 2.1, Algorithms 1-4, Sec. 4) and ``global`` (not in the paper: one
+#: whole-image descriptor from the same backbone, so a reader sees what landmarks add).
+METHODS: dict[str, Method] = {
+    m.name: m
+    for m in (
+        Method("classical", EdgeBoxesTop()),
+        Method("selection_scheme1", MinScale()),
+        Method("selection_scheme2", ScalePriority()),
+        Method("overlap_scheme1", ReduceOverlap()),
+        Method("overlap_scheme2", EdgeBoxesTop(), Matching(soft_nms_iou=SOFT_NMS_IOU)),
+        Method("dense", Dense()),
+        Method("global", WholeImage()),
+    )
 }
 
-METHODS: dict[str, dict[str, Any]] = {
-    "classical": {"landmarks": {"scheme": "edge_boxes", "n": N_LANDMARKS}},
-    "selection_scheme1": {
-        "landmarks": {"scheme": "selection_scheme1", "n": N_LANDMARKS, "min_index": MIN_SCALE_INDEX}
-    },
-    "selection_scheme2": {
-        "landmarks": {
-            "scheme": "selection_scheme2",
-            "n": N_LANDMARKS,
-            "order": SCALE_PRIORITY_ORDER,
-        }
-    },
-    "overlap_scheme1": {
-        "landmarks": {"scheme": "overlap_scheme1", "n": N_LANDMARKS, "iou_threshold": NMS_IOU}
-    },
-    "overlap_scheme2": {
-        "landmarks": {"scheme": "edge_boxes", "n": N_LANDMARKS},
-        "matching": {"soft_nms_iou": SOFT_NMS_IOU, "sigma": SOFT_NMS_SIGMA},
-    },
-    "dense": {
-        "landmarks": {"scheme": "dense", "scales": DENSE_SCALES, "per_scale": DENSE_PER_SCALE}
-    },
-    "global": {"landmarks": {"scheme": "whole_image"}},
-}
 
-_EDGE = ("n", "n_candidates")
-#: The options each method accepts (flat keyword overrides of :func:`get_method`).
-METHOD_OPTIONS: dict[str, tuple[str, ...]] = {
-    "classical": _EDGE,
-    "selection_scheme1": _EDGE + ("min_index",),
-    "selection_scheme2": _EDGE + ("order",),
-    "overlap_scheme1": _EDGE + ("iou_threshold",),
-    "overlap_scheme2": _EDGE + ("soft_nms_iou", "sigma"),
-    "dense": ("scales", "per_scale"),
-    "global": (),
-}
-
-# Which sub-config an option belongs to.
-_MATCHING_KEYS = {"soft_nms_iou", "sigma"}
-# Landmark keys a scheme does not use (dropped from its config so cache keys stay minimal).
-_NOT_FOR = {"dense": ("n", "n_candidates"), "whole_image": ("n", "n_candidates")}
+def _fields(obj: Any) -> tuple[str, ...]:
+    return tuple(f.name for f in dataclasses.fields(obj))
 
 
 def available_methods() -> list[str]:
@@ -114,89 +118,18 @@ def available_methods() -> list[str]:
     return sorted(METHODS)
 
 
-def _merge(base: dict, extra: dict) -> dict:
-    out = copy.deepcopy(base)
-    for k, v in extra.items():
-        if isinstance(v, dict) and isinstance(out.get(k), dict):
-            out[k] = _merge(out[k], v)
-        else:
-            out[k] = v
-    return out
+def method_options(method: Method) -> tuple[str, ...]:
+    """The options a method takes as keywords: its scheme's fields, then its matching options."""
+    return _fields(method.landmarks) + method.matching.options()
 
 
-def _normalise(value: Any) -> Any:
-    """Lists -> tuples (hashable, stable slugs)."""
-    if isinstance(value, (list, tuple)):
-        return tuple(_normalise(v) for v in value)
-    return value
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, numbers.Real) and not isinstance(v, bool)
-
-
-def _is_int(v: Any) -> bool:
-    return isinstance(v, numbers.Integral) and not isinstance(v, bool)
-
-
-def _validate(name: str, key: str, value: Any) -> Any:
-    """Check one option's type and range before it reaches a label, a slug or an algorithm."""
-
-    def bad(expected: str) -> ValueError:
-        return ValueError(
-            f"method {name!r}: option {key}={value!r} is not valid; expected {expected}"
-        )
-
-    if key == "scales":
-        if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
-            raise bad("a sequence of normalised scales in (0, 1], e.g. scales=(0.16, 0.25)")
-        if not value or not all(_is_number(s) and 0 < s <= 1 for s in value):
-            raise bad("a non-empty sequence of numbers in (0, 1]")
-        return tuple(float(s) for s in value)
-    if key == "per_scale":
-        if _is_int(value) and value > 0:
-            return int(value)
-        if isinstance(value, (list, tuple)) and value and all(_is_int(v) and v > 0 for v in value):
-            return tuple(int(v) for v in value)
-        raise bad("a positive integer (a square, e.g. 25) or one per scale")
-    if key in ("n", "n_candidates", "min_index"):
-        if not (_is_int(value) and value >= 1):
-            raise bad("a positive integer (at least 1)")
-        return int(value)
-    if key == "order":
-        if (
-            isinstance(value, (str, bytes))
-            or not isinstance(value, (list, tuple))
-            or not all(_is_int(v) and 1 <= v <= 9 for v in value)
-            or not value
-        ):
-            raise bad("a non-empty sequence of Table-1 scale indices 1..9, e.g. (5, 6, 7, 8, 9, 4)")
-        return tuple(int(v) for v in value)
-    if key in ("iou_threshold", "soft_nms_iou"):
-        if value is None and key == "soft_nms_iou":
-            return None
-        if not (_is_number(value) and 0 <= value <= 1):
-            raise bad("a number in [0, 1]")
-        return float(value)
-    if key == "sigma":
-        if not (_is_number(value) and value > 0):
-            raise bad("a positive number")
-        return float(value)
-    return _normalise(value)  # pragma: no cover - every option above is typed
-
-
-def get_method(name: str, **overrides: Any) -> dict[str, Any]:
-    """Config dict of a named method, with flat ``overrides`` routed to the right part.
+def get_method(name: str, **overrides: Any) -> Method:
+    """A preset with its own options changed, e.g. ``get_method("dense", per_scale=49)``.
 
     Args:
         name: one of :func:`available_methods`.
-        **overrides: the method's own options (:data:`METHOD_OPTIONS`), e.g.
-            ``iou_threshold=0.4`` (``overlap_scheme1``), ``soft_nms_iou=0.3``
-            (``overlap_scheme2``), ``scales=(0.25, 0.49), per_scale=49`` (``dense``).
-            ``None`` means "not set" and is skipped.
-
-    Returns:
-        ``{"name": ..., "landmarks": {...}, "matching": {...}}``.
+        **overrides: the method's options (:func:`method_options`); ``None`` means "not set"
+            (except ``soft_nms_iou``, where it turns Algorithm 4 off).
 
     Raises:
         ValueError: unknown method, an option the method does not take (the message lists the
@@ -206,72 +139,117 @@ def get_method(name: str, **overrides: Any) -> dict[str, Any]:
         raise ValueError(
             f"Unknown method {name!r}. Valid methods: {', '.join(available_methods())}."
         )
-    conf = _merge(DEFAULT_CONFIG, METHODS[name])
-    valid = METHOD_OPTIONS[name]
-    for key, value in overrides.items():
+    preset = METHODS[name]
+    valid = method_options(preset)
+    for key in overrides:
         if key not in valid:
             raise ValueError(
                 f"Unknown option {key!r} for method {name!r}: it would be ignored. Options of "
                 f"{name!r}: {', '.join(valid) if valid else 'none'}."
             )
-        if value is None and key != "soft_nms_iou":
-            continue
-        part = "matching" if key in _MATCHING_KEYS else "landmarks"
-        conf[part][key] = _validate(name, key, value)
-    conf["landmarks"] = {k: _normalise(v) for k, v in conf["landmarks"].items()}
-    for k in _NOT_FOR.get(conf["landmarks"]["scheme"], ()):
-        conf["landmarks"].pop(k, None)
-    conf["name"] = name
-    return conf
+    given = {k: v for k, v in overrides.items() if v is not None or k == "soft_nms_iou"}
+    scheme = {k: v for k, v in given.items() if k in _fields(preset.landmarks)}
+    matching = {k: v for k, v in given.items() if k not in scheme}
+    try:
+        return dataclasses.replace(
+            preset,
+            landmarks=dataclasses.replace(preset.landmarks, **scheme),
+            matching=dataclasses.replace(preset.matching, **matching),
+        )
+    except ValueError as exc:
+        raise ValueError(f"method {name!r}: {exc}") from None
 
 
-def landmark_config(conf: dict[str, Any]) -> dict[str, Any]:
-    """The part of a method config that decides the landmarks (cache key of the boxes)."""
-    return dict(conf["landmarks"])
+def as_method(method: Any, **overrides: Any) -> Method:
+    """A preset name (with its options), a :class:`Method` or a bare scheme, as a Method.
+
+    A bare scheme is named after the preset with that scheme class and plain matching
+    (``Dense(...)`` -> ``dense``), else after its class (``MyGrid(...)`` -> ``MyGrid``).
+
+    Raises:
+        ValueError: options given with a Method or a scheme (set them on the value instead).
+        TypeError: not a name, a Method or a frozen dataclass with ``boxes(image)``.
+    """
+    if isinstance(method, str):
+        return get_method(method, **overrides)
+    if overrides:
+        raise ValueError(
+            f"options {sorted(overrides)} apply to a preset name only; set them on the value "
+            f"instead, e.g. dataclasses.replace(scheme, {next(iter(overrides))}=...)"
+        )
+    if isinstance(method, Method):
+        return method
+    check_scheme(method)
+    name = next(
+        (
+            m.name
+            for m in METHODS.values()
+            if type(m.landmarks) is type(method) and m.matching == Matching()
+        ),
+        type(method).__name__,
+    )
+    return Method(name, method)
 
 
-def method_label(conf: dict[str, Any]) -> str:
-    """Short human label of a method config (legends and tables), derived from the same options
-    as :func:`run_key`: ``"overlap_scheme1 (IoU 0.4)"``, ``"dense (0.25/0.49 x 49)"``."""
-    name, opts = conf["name"], _options(conf)
-    if name == "overlap_scheme1":
-        return f"{name} (IoU {conf['landmarks']['iou_threshold']:g})"
-    if name == "overlap_scheme2":
-        return f"{name} (IoU {conf['matching']['soft_nms_iou']:g})"
-    if name == "dense" and opts:
-        lconf = conf["landmarks"]
-        return f"dense ({_text(tuple(lconf['scales']))} x {_text(lconf['per_scale'])})"
-    return name
+def _default(field: dataclasses.Field) -> Any:
+    if field.default is not dataclasses.MISSING:
+        return field.default
+    if field.default_factory is not dataclasses.MISSING:
+        return field.default_factory()
+    return dataclasses.MISSING
 
 
-def _options(conf: dict[str, Any]) -> dict[str, Any]:
-    """The options of a config that differ from its preset (flat, as :func:`get_method` takes)."""
-    name = conf["name"]
-    if name not in METHODS:
-        return {}
-    base = get_method(name)
+def _options(method: Method) -> dict[str, Any]:
+    """The options that differ from the preset of the same name (from the class defaults when
+    there is none), flat and sorted: what the run key and the label show."""
+    preset = METHODS.get(method.name)
     out = {}
-    for part in ("landmarks", "matching"):
-        for key, value in conf.get(part, {}).items():
-            if key in METHOD_OPTIONS[name] and base[part].get(key) != value:
-                out[key] = value
+    for part in (method.landmarks, method.matching):
+        base = None if preset is None else getattr(preset, _part_name(part))
+        same_type = base is not None and type(base) is type(part)
+        for f in dataclasses.fields(part):
+            value = getattr(part, f.name)
+            default = getattr(base, f.name) if same_type else _default(f)
+            if value != default:
+                out[f.name] = value
     return dict(sorted(out.items()))
 
 
-def _text(value: Any) -> str:
-    if isinstance(value, tuple):
-        return "/".join(_text(v) for v in value)
-    return f"{value:g}" if isinstance(value, float) else str(value)
+def _part_name(part: Any) -> str:
+    return "matching" if isinstance(part, Matching) else "landmarks"
 
 
-def run_key(conf: dict[str, Any]) -> str:
-    """The identity of a run's configuration: the preset name and every option that differs
-    from the preset, e.g. ``"overlap_scheme1(iou_threshold=0.4)"`` or
-    ``"dense(per_scale=49, scales=0.25/0.49)"``; just ``"classical"`` at the defaults.
+def run_key(method: Method) -> str:
+    """The identity of a run's configuration: the name and every option that differs from the
+    preset, e.g. ``"overlap_scheme1(iou_threshold=0.4)"``, ``"dense(per_scale=49,
+    scales=0.25/0.49)"``; just ``"classical"`` at the defaults. Findings match on it."""
+    inner = ", ".join(f"{k}={option_text(v)}" for k, v in _options(method).items())
+    return f"{method.name}({inner})" if inner else method.name
 
-    Tables carry it in their ``run`` column and the paper's claims are matched on it (never on
-    a legend text); :func:`method_label` derives the legend from the same options.
-    """
-    opts = _options(conf)
-    inner = ", ".join(f"{k}={_text(v)}" for k, v in opts.items())
-    return f"{conf['name']}({inner})" if inner else conf["name"]
+
+def method_label(method: Method) -> str:
+    """The legend of a method: its name, then what its scheme and matching say of themselves
+    (their ``note()``; else the options that differ, as in :func:`run_key`), e.g.
+    ``"overlap_scheme1 (IoU 0.4)"``, ``"dense (0.25/0.49 x 49)"``, ``"MyGrid (g=3)"``."""
+    opts = _options(method)
+    notes = []
+    for part in (method.landmarks, method.matching):
+        note = getattr(part, "note", None)
+        if callable(note):
+            notes.append(note())
+        else:
+            notes.append(
+                ", ".join(f"{k}={option_text(opts[k])}" for k in _fields(part) if k in opts)
+            )
+    text = "; ".join(n for n in notes if n)
+    return f"{method.name} ({text})" if text else method.name
+
+
+def method_identity(method: Method) -> dict[str, Any]:
+    """What a method's numbers depend on, beside the data and the encoder (cache keys hash it):
+    the scheme's identity (:func:`~vpr_core.landmarks.schemes.scheme_identity`) and the
+    matching settings."""
+    return {
+        "landmarks": scheme_identity(method.landmarks),
+        "matching": dataclasses.asdict(method.matching),
+    }

@@ -3,7 +3,6 @@
 - :func:`select_min_scale` -- Landmark Selection Scheme 1 (Algorithm 1): drop small scales.
 - :func:`select_scale_priority` -- Landmark Selection Scheme 2 (Algorithm 2): scale priority.
 - :func:`reduce_overlap` -- Overlap Reduction Scheme 1 (Algorithm 3): greedy IoU filtering.
-- :func:`select_from_candidates` -- the scheme by name, as the pipeline calls it.
 
 All walk the candidates in proposal order and return boxes ``(N, 4)`` float64 ``(x, y, w, h)``.
 """
@@ -12,32 +11,22 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 
-from ..boxes import box_iou, check_boxes
+from ..boxes import box_iou
+from ..checks import check_boxes
+from ..checks import check_int as check_count
 from ..paper import MIN_SCALE_INDEX, N_LANDMARKS, N_SCALES, NMS_IOU, SCALE_PRIORITY_ORDER
-from ._checks import check_count
 from .scales import scale_index
 
 __all__ = [
-    "EDGE_BOX_SCHEMES",
     "reduce_overlap",
-    "select_from_candidates",
     "select_min_scale",
     "select_scale_priority",
 ]
 
 logger = logging.getLogger("vpr_core")
-
-#: The Edge Box landmark schemes :func:`select_from_candidates` knows.
-EDGE_BOX_SCHEMES: tuple[str, ...] = (
-    "edge_boxes",
-    "selection_scheme1",
-    "selection_scheme2",
-    "overlap_scheme1",
-)
 
 
 def _result(boxes: np.ndarray, idx: list[int] | np.ndarray, return_indices: bool):
@@ -173,43 +162,3 @@ def reduce_overlap(
             np.maximum(max_iou[i + 1 :], box_iou(b[i : i + 1], b[i + 1 :])[0], out=max_iou[i + 1 :])
     _warn_undersupply("reduce_overlap", len(kept), n, b.shape[0])
     return _result(b, kept, return_indices)
-
-
-def select_from_candidates(
-    candidates: np.ndarray,
-    image_size: Any,
-    scheme: str,
-    n: int = N_LANDMARKS,
-    min_index: int = MIN_SCALE_INDEX,
-    order: Sequence[int] = SCALE_PRIORITY_ORDER,
-    iou_threshold: float = NMS_IOU,
-) -> np.ndarray:
-    """The landmarks an Edge Box scheme keeps from a list of proposals.
-
-    Args:
-        candidates: ``(M, 4)`` proposals in proposal order (e.g. 1,000 Edge Boxes).
-        image_size: ``(H, W)`` of the image.
-        scheme: ``edge_boxes`` (first ``n``), ``selection_scheme1`` (Algorithm 1,
-            ``min_index``), ``selection_scheme2`` (Algorithm 2, ``order``) or
-            ``overlap_scheme1`` (Algorithm 3, ``iou_threshold``).
-        n: landmarks to keep.
-        min_index: Algorithm 1's smallest accepted scale index.
-        order: Algorithm 2's scale priority.
-        iou_threshold: Algorithm 3's IoU threshold.
-
-    Returns:
-        ``(K, 4)`` float64 boxes, ``K <= n``.
-
-    Raises:
-        ValueError: unknown scheme (the message lists the valid ones).
-    """
-    cand = check_boxes(candidates, "candidates")
-    if scheme == "edge_boxes":
-        return cand[: check_count(n)].copy()
-    if scheme == "selection_scheme1":
-        return select_min_scale(cand, image_size, n=n, min_index=min_index)
-    if scheme == "selection_scheme2":
-        return select_scale_priority(cand, image_size, n=n, order=tuple(order))
-    if scheme == "overlap_scheme1":
-        return reduce_overlap(cand, n=n, iou_threshold=iou_threshold)
-    raise ValueError(f"unknown Edge Box scheme {scheme!r}; valid: {', '.join(EDGE_BOX_SCHEMES)}")

@@ -1,10 +1,5 @@
-"""Pipeline stages: landmarks -> features -> similarity matrix -> metrics, all cached on disk.
-
-One stage, one function (hloc habit). Notebooks and the CLI call :func:`run_method`, which
-chains :func:`extract_landmarks` (:mod:`.landmark_stage`), :func:`extract_features`
-(:mod:`.feature_stage`) and the matching/evaluation steps (:mod:`.run`). Cache entries are
-written atomically and a damaged one is recomputed (:mod:`.cache`).
-"""
+"""Pipeline stages: landmarks -> features -> similarity matrix -> metrics, all cached on disk;
+:func:`run_method` chains them (notebooks and the CLI call it)."""
 
 from __future__ import annotations
 

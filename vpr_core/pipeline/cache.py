@@ -12,6 +12,7 @@ a number.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import tempfile
 import zipfile
@@ -22,7 +23,6 @@ from typing import Any
 import numpy as np
 
 from ..utils import logger, short_hash
-import contextlib
 
 __all__ = ["ForeignEntryError", "atomic_savez", "dataset_fingerprint", "load_npz", "n_images"]
 
@@ -134,7 +134,9 @@ def n_images(dataset, side: str) -> int:
 
 
 def dataset_fingerprint(dataset) -> str:
-    """Short hash of a dataset's image contents and ground truth (cache key of results)."""
+    """Short hash of a dataset's name, the contents of its images in order (sha1 of each file,
+    :meth:`~vpr_core.datasets.PlaceDataset.image_key`) and its ground truth: the dataset's
+    identity on results and in their cache key (renaming or moving files keeps it)."""
     keys = [dataset.image_key(s, i) for s in SIDES for i in range(n_images(dataset, s))]
     gt = np.asarray(dataset.ground_truth, dtype=bool)
     return short_hash([dataset.name, keys, short_hash(gt.tobytes().hex()), list(gt.shape)])

@@ -1,10 +1,6 @@
-"""Landmark stage: the boxes of every image for a method's landmark config, cached.
-
-``landmarks/edge_boxes-<hash>/<image key>.npz`` holds the 1,000 Edge Box candidates of one image
-with their scores, the edge-map source and the seconds it took. Every Edge Box scheme
-(classical, Algorithms 1-3) selects from these, so candidates are computed once per image.
-Dense grids and the whole-image box are computed on the fly (they cost microseconds).
-"""
+"""Landmark stage: the boxes of every image for a landmark scheme, cached per image in
+``landmarks/<scheme slug>/<image key>.npz`` (Edge Box schemes share one entry of 1,000 candidates
+per image and edge model; size-only schemes such as the dense grid are computed on the fly)."""
 
 from __future__ import annotations
 
@@ -14,16 +10,14 @@ from typing import Any
 import numpy as np
 
 from .. import landmarks as lm
-from .. import settings
-from ..methods import EDGE_BOX_SCHEMES
+from ..checks import check_boxes
+from ..landmarks.edge_boxes import edge_model_id
+from ..landmarks.schemes import CandidateScheme, SizeScheme, scheme_identity
 from ..paper import N_CANDIDATES
 from ..utils import cache_dir, code_version, config_slug, logger, progress
 from .cache import SIDES, atomic_savez, load_npz, n_images
 
-__all__ = ["LANDMARK_SCHEMES", "edge_box_candidates", "extract_landmarks", "landmarks_for_image"]
-
-#: Landmark schemes the pipeline knows.
-LANDMARK_SCHEMES = EDGE_BOX_SCHEMES + ("dense", "whole_image")
+__all__ = ["edge_box_candidates", "extract_landmarks", "landmarks_for_image"]
 
 
 def _check_boxes_entry(arrays: dict) -> str | None:
@@ -33,24 +27,15 @@ def _check_boxes_entry(arrays: dict) -> str | None:
     return None
 
 
-def edge_box_candidates(
-    dataset, side: str, i: int, n_candidates: int = N_CANDIDATES, overwrite: bool = False
+def _cached_boxes(
+    stage: str, params: dict[str, Any], dataset, side: str, i: int, compute, overwrite: bool
 ) -> tuple[np.ndarray, float]:
-    """The ``n_candidates`` Edge Box proposals of one image, cached.
-
-    Returns:
-        ``(boxes (K, 4), seconds)``: proposals in proposal order (descending score) and the
-        seconds the extraction took when it was computed.
-    """
-    params = {
-        "n_candidates": int(n_candidates),
-        "sed": settings.sed_model() or "",
-        "code": code_version("landmarks"),
-    }
-    folder = cache_dir("landmarks", config_slug("edge_boxes", params))
+    """``(boxes (K, 4), seconds)`` of one image from ``landmarks/<stage slug>/``, or computed
+    by ``compute(image) -> boxes`` (timed) and stored."""
+    slug = config_slug(stage, {**params, "code": code_version("landmarks")})
     key = dataset.image_key(side, i)
-    path = folder / f"{key}.npz"
-    identity = f"edge_boxes {config_slug('edge_boxes', params)} {key}"
+    path = cache_dir("landmarks", slug) / f"{key}.npz"
+    identity = f"{stage} {slug} {key}"
     cached = (
         None
         if overwrite
@@ -60,17 +45,36 @@ def edge_box_candidates(
         return cached["boxes"].astype(np.float64).reshape(-1, 4), float(cached["seconds"])
     image = dataset.load_image(side, i)
     t0 = time.perf_counter()
-    res = lm.edge_boxes(image, max_boxes=n_candidates)
+    boxes = compute(image)
     seconds = time.perf_counter() - t0
-    atomic_savez(
-        path,
-        identity=identity,
-        boxes=np.asarray(res.boxes, dtype=np.float64).reshape(-1, 4),
-        scores=np.asarray(res.scores, dtype=np.float64),
-        edge_source=np.array(res.edge_source),
-        seconds=np.array(seconds),
-    )
-    return np.asarray(res.boxes, dtype=np.float64).reshape(-1, 4), seconds
+    atomic_savez(path, identity=identity, boxes=boxes, seconds=np.array(seconds))
+    return boxes, seconds
+
+
+def edge_box_candidates(
+    dataset,
+    side: str,
+    i: int,
+    n_candidates: int = N_CANDIDATES,
+    overwrite: bool = False,
+    edge_model: str | None = None,
+) -> tuple[np.ndarray, float]:
+    """The ``n_candidates`` Edge Box proposals of one image, cached.
+
+    Args:
+        edge_model: :func:`~vpr_core.landmarks.edge_boxes.edge_model_id` (None: computed here).
+
+    Returns:
+        ``(boxes (K, 4), seconds)``: proposals in proposal order (descending score) and the
+        seconds the extraction took when it was computed.
+    """
+    params = {"n_candidates": int(n_candidates), "edge_model": edge_model or edge_model_id()}
+
+    def compute(image: np.ndarray) -> np.ndarray:
+        res = lm.edge_boxes(image, max_boxes=n_candidates)
+        return np.asarray(res.boxes, dtype=np.float64).reshape(-1, 4)
+
+    return _cached_boxes("edge_boxes", params, dataset, side, i, compute, overwrite)
 
 
 def _image_name(dataset, side: str, i: int) -> str:
@@ -79,65 +83,75 @@ def _image_name(dataset, side: str, i: int) -> str:
 
 
 def landmarks_for_image(
-    conf: dict[str, Any], dataset, side: str, i: int, fresh: bool = False
+    scheme: Any, dataset, side: str, i: int, fresh: bool = False, edge_model: str | None = None
 ) -> tuple[np.ndarray, float]:
-    """Landmarks of one image for a method's landmark config.
+    """Landmarks of one image for a landmark scheme.
 
-    A scheme that yields fewer landmarks than asked logs a warning naming the image.
-    ``fresh=True`` computes the Edge Box candidates again (and rewrites their cache entry)
-    instead of reading them, so the seconds are measured now (Table 5).
+    Edge Box schemes (:class:`~vpr_core.landmarks.schemes.CandidateScheme`) select from the
+    image's cached candidates; size-only schemes are computed from the image size; any other
+    scheme's ``boxes(image)`` is cached under its class, field values and code. A scheme that
+    yields fewer than its ``n`` landmarks logs a warning naming the image. ``fresh=True``
+    computes the boxes again (and rewrites their cache entry), so the seconds are measured now.
+
+    Args:
+        scheme: a landmark scheme (:mod:`vpr_core.landmarks.schemes` or a user's).
+        edge_model: :func:`~vpr_core.landmarks.edge_boxes.edge_model_id` (None: computed here).
 
     Returns:
-        ``(boxes (K, 4), seconds)`` where seconds is the landmark-extraction cost of this image
-        (Edge Box time for proposal schemes, the grid computation for ``dense``).
+        ``(boxes (K, 4), seconds)``: seconds is the landmark-extraction cost of this image.
     """
-    lconf = conf.get("landmarks", conf)
-    scheme = lconf["scheme"]
-    size = dataset.image_size(side, i)
-    t0 = time.perf_counter()
-    if scheme == "dense":
-        boxes = lm.dense_sampling(size, scales=lconf["scales"], per_scale=lconf["per_scale"])
-        return np.asarray(boxes, dtype=np.float64), time.perf_counter() - t0
-    if scheme == "whole_image":
-        h, w = size
-        return np.array([[0.0, 0.0, float(w), float(h)]]), time.perf_counter() - t0
-    if scheme not in EDGE_BOX_SCHEMES:
-        raise ValueError(
-            f"Unknown landmark scheme {scheme!r}; valid: {', '.join(LANDMARK_SCHEMES)}."
-        )
+    if isinstance(scheme, SizeScheme):
+        t0 = time.perf_counter()
+        boxes = scheme.for_size(dataset.image_size(side, i))
+        return np.asarray(boxes, dtype=np.float64).reshape(-1, 4), time.perf_counter() - t0
+    if not isinstance(scheme, CandidateScheme):
+        ident = scheme_identity(scheme)
+
+        def compute(image: np.ndarray) -> np.ndarray:
+            return _user_boxes(scheme, image, dataset, side, i)
+
+        return _cached_boxes(ident["scheme"], ident, dataset, side, i, compute, fresh)
     cands, seconds = edge_box_candidates(
-        dataset, side, i, lconf.get("n_candidates", N_CANDIDATES), overwrite=fresh
+        dataset, side, i, scheme.n_candidates, overwrite=fresh, edge_model=edge_model
     )
-    options = {k: lconf[k] for k in ("n", "min_index", "order", "iou_threshold") if k in lconf}
     t0 = time.perf_counter()
-    boxes = np.asarray(
-        lm.select_from_candidates(cands, size, scheme, **options), dtype=np.float64
-    ).reshape(-1, 4)
+    boxes = np.asarray(scheme.select(cands, dataset.image_size(side, i)), dtype=np.float64)
     seconds += time.perf_counter() - t0
-    n = lconf.get("n")
+    n = getattr(scheme, "n", None)
     if n is not None and len(boxes) < n:
         logger.warning(
             "%s gave %d of the %d landmarks asked for %s (%d Edge Box candidates)",
-            scheme,
+            type(scheme).__name__,
             len(boxes),
             n,
             _image_name(dataset, side, i),
             len(cands),
         )
-    return boxes, seconds
+    return boxes.reshape(-1, 4), seconds
 
 
-def extract_landmarks(conf: dict[str, Any], dataset) -> dict[str, Any]:
-    """Landmarks of every image of a dataset.
+def _user_boxes(scheme: Any, image: np.ndarray, dataset, side: str, i: int) -> np.ndarray:
+    """A user scheme's boxes of one image, checked once (the message names scheme and image)."""
+    try:
+        return check_boxes(scheme.boxes(image))
+    except ValueError as exc:
+        raise ValueError(
+            f"{type(scheme).__qualname__}.boxes() on {_image_name(dataset, side, i)}: {exc}"
+        ) from None
+
+
+def extract_landmarks(scheme: Any, dataset) -> dict[str, Any]:
+    """Landmarks of every image of a dataset for a landmark scheme.
 
     Returns:
         ``{"query": [ (K_i, 4) ... ], "reference": [...], "seconds": {"query": [...], ...}}``.
     """
+    edge_model = edge_model_id() if isinstance(scheme, CandidateScheme) else None
     out: dict[str, Any] = {"seconds": {}}
     for side in SIDES:
         boxes, secs = [], []
         for i in progress(range(n_images(dataset, side)), desc=f"landmarks {side}"):
-            b, s = landmarks_for_image(conf, dataset, side, i)
+            b, s = landmarks_for_image(scheme, dataset, side, i, edge_model=edge_model)
             boxes.append(b)
             secs.append(s)
         out[side] = boxes

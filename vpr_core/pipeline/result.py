@@ -9,6 +9,8 @@ from typing import Any
 import numpy as np
 
 from ..evaluation.bootstrap import N_BOOTSTRAP
+from ..methods import Method, run_key
+from .cache import dataset_fingerprint
 
 __all__ = ["INTERVAL_COLUMNS", "MethodResult", "peer_result"]
 
@@ -31,8 +33,9 @@ class MethodResult:
     """Everything one method produced on one dataset.
 
     Attributes:
-        method: preset name; ``label``: a display label (e.g. ``"overlap_scheme1 (IoU 0.4)"``).
-        config: the full method config; ``encoder``: the encoder config.
+        method: the method's name; ``label``: a display label (``"overlap_scheme1 (IoU 0.4)"``).
+        config: the :class:`~vpr_core.methods.Method` (a peer: ``{"name", "source"}``);
+            ``encoder``: the encoder config.
         similarity: ``(Nq, Nr)`` Eq. (1) similarities (NaN = not ranked: off the shortlist, or an
             image without landmarks).
         ground_truth: ``(Nq, Nr)`` bool.
@@ -51,12 +54,17 @@ class MethodResult:
         protocol: the PR protocol of ``metrics`` and ``intervals``.
         warnings: the warnings that change what the numbers mean (also raised with
             ``warnings.warn`` when they happened).
+        dataset_fingerprint: hash of the dataset's image contents and ground truth
+            (:func:`~vpr_core.pipeline.cache.dataset_fingerprint`).
+        weights_sha256: sha256 of the backbone weights' contents ("" when it has none).
+        edge_model: the edge map of Edge Box schemes (``"gradient"`` or ``"sha256:..."``,
+            :func:`~vpr_core.landmarks.edge_boxes.edge_model_id`), ``"none"`` for other schemes.
     """
 
     method: str
     label: str
     dataset: str
-    config: dict
+    config: Method | dict
     encoder: dict
     similarity: np.ndarray = field(repr=False)
     ground_truth: np.ndarray = field(repr=False)
@@ -71,14 +79,15 @@ class MethodResult:
     root: str | None = None
     protocol: str = "ratio"
     warnings: list = field(default_factory=list)
+    dataset_fingerprint: str = ""
+    weights_sha256: str = ""
+    edge_model: str = "none"
 
     @property
     def run(self) -> str:
         """The configuration's identity (:func:`~vpr_core.methods.run_key`), e.g.
         ``"overlap_scheme1(iou_threshold=0.4)"``; peers: ``"peer:<name>"``."""
-        from ..methods import METHODS, run_key
-
-        return run_key(self.config) if self.config.get("name") in METHODS else self.method
+        return run_key(self.config) if isinstance(self.config, Method) else self.method
 
     def __repr__(self) -> str:
         """Method, dataset, metrics with intervals and the matrix shape (never the arrays)."""
@@ -99,7 +108,7 @@ class MethodResult:
         t, iv, m = self.timings, self.intervals, self.metrics
         row: dict = {"method": self.label, "run": self.run}
         for key, name in (("auc", "AUC"), ("r@100p", "R@100P"), ("r@1", "R@1"), ("r@5", "R@5")):
-            value = m.get(key, m.get(key.replace("@", "_at_")))
+            value = m[key] if key in m else m[key.replace("@", "_at_")]
             lo, hi = (iv[key][1], iv[key][2]) if key in iv else (np.nan, np.nan)
             row[name], row[f"{name} lo"], row[f"{name} hi"] = float(value), float(lo), float(hi)
         row.update(
@@ -174,4 +183,5 @@ def peer_result(
         tolerance=dataset.tolerance,
         root=None if dataset.root is None else str(dataset.root),
         protocol=protocol,
+        dataset_fingerprint=dataset_fingerprint(dataset),
     )

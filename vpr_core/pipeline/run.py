@@ -1,12 +1,6 @@
-"""One method on one dataset: landmarks -> features -> similarity matrix -> metrics.
-
-``results/<dataset>-<hash>/<method slug>.npz`` caches the similarity matrix of a
-(dataset, landmark config, matching config, encoder) combination.
-
-An image for which a scheme produced no landmark at all is *excluded from ranking*: every pair
-that involves it is NaN in the similarity matrix (the evaluation never ranks a NaN reference and
-drops a query whose row is all NaN), and a warning names the image. It is never scored as zeros.
-"""
+"""One method on one dataset: landmarks -> features -> Eq. (1) matrix -> metrics; the matrix is
+cached in ``results/<dataset>-<fingerprint>/``. An image without landmarks is excluded from
+ranking (its pairs are NaN), never scored as zeros."""
 
 from __future__ import annotations
 
@@ -15,10 +9,13 @@ import warnings
 from typing import Any
 
 import numpy as np
+from torch import nn
 
 from ..evaluation.bootstrap import N_BOOTSTRAP
+from ..landmarks.edge_boxes import edge_model_id
+from ..landmarks.schemes import CandidateScheme, LandmarkScheme
 from ..matching import similarity_matrix
-from ..methods import get_method, landmark_config, method_label
+from ..methods import Method, as_method, method_identity, method_label
 from ..notices import VPRWarning, notice
 from ..paper import PROJECTION_DIM, SOFT_NMS_SIGMA
 from ..utils import STAGE_SOURCES, cache_dir, code_version, config_slug, logger
@@ -147,9 +144,9 @@ def match(
 
 
 def run_method(
-    method: str | dict,
+    method: str | Method | LandmarkScheme,
     dataset,
-    backbone: str = "efficientnet_lite0",
+    backbone: str | nn.Module = "efficientnet_lite0",
     dim: int = PROJECTION_DIM,
     seed: int = 0,
     weights: str | None = None,
@@ -161,15 +158,20 @@ def run_method(
     scheduler: str | None = None,
     n_bootstrap: int = N_BOOTSTRAP,
     protocol: str = "ratio",
+    input_size: int | None = None,
     **overrides: Any,
 ) -> MethodResult:
-    """Run a named method (or a config from :func:`~vpr_core.methods.get_method`) on a dataset.
+    """Run a method on a dataset: landmarks -> features -> Eq. (1) matrix -> metrics, cached.
 
     Args:
-        method: preset name (``classical``, ``dense``, ``global``, ...) or a config dict.
+        method: a preset name (``classical``, ``dense``, ``global``, ...) with its options as
+            ``**overrides``, a :class:`~vpr_core.methods.Method`, or a bare landmark scheme (any
+            frozen dataclass with ``boxes(image)``; see :func:`~vpr_core.methods.as_method`).
         dataset: a :class:`~vpr_core.datasets.PlaceDataset`.
-        backbone, dim, seed, weights, pooling, device: the landmark encoder
-            (``pooling="crop"`` is the paper's per-landmark crops, ``"roi"`` one backbone pass).
+        backbone, dim, seed, weights, pooling, device, input_size: the landmark encoder
+            (:func:`~vpr_core.pipeline.get_encoder`; ``backbone`` may be a ``torch.nn.Module``,
+            then with its ``input_size``; ``pooling="crop"`` is the paper's per-landmark crops,
+            ``"roi"`` one backbone pass).
         keep_descriptors: also return the descriptors (needed by the scale statistics).
         label: display label; default from the config.
         shortlist: None (exhaustive, the paper's) or k: each query's top-k references by the
@@ -207,6 +209,7 @@ def run_method(
             scheduler,
             n_bootstrap,
             protocol,
+            input_size,
             overrides,
         )
     for w in caught:  # hand every warning on to the caller's filters, and record ours
@@ -232,6 +235,7 @@ def _run_method(
     scheduler,
     n_bootstrap,
     protocol,
+    input_size,
     overrides,
 ) -> MethodResult:
     from ..evaluation import (
@@ -245,29 +249,35 @@ def _run_method(
     if protocol not in PROTOCOLS:
         raise ValueError(f"unknown protocol {protocol!r}; valid: {', '.join(PROTOCOLS)}")
 
-    conf = get_method(method, **overrides) if isinstance(method, str) else dict(method)
+    conf = as_method(method, **overrides)
     nq, nr = n_images(dataset, "query"), n_images(dataset, "reference")
     k = _check_shortlist(shortlist, nr)
-    encoder = get_encoder(backbone, dim, seed, weights, pooling=pooling, device=device)
+    encoder = get_encoder(
+        backbone, dim, seed, weights, pooling=pooling, device=device, input_size=input_size
+    )
+    fingerprint = dataset_fingerprint(dataset)
+    weights_sha256 = str(encoder.config.get("weights_sha256", ""))
+    edge_model = edge_model_id() if isinstance(conf.landmarks, CandidateScheme) else "none"
     client = None
     if scheduler is not None:
         from ..engine.client import get_client
 
         client = get_client(scheduler)
     try:
-        boxes = extract_landmarks(conf, dataset)
+        boxes = extract_landmarks(conf.landmarks, dataset)
         feats, glob = _features(boxes, dataset, encoder, k, client)
         key = {
-            "dataset": dataset_fingerprint(dataset),
-            "landmarks": landmark_config(conf),
-            "matching": conf["matching"],
+            "dataset": fingerprint,
+            **method_identity(conf),
             "encoder": dict(encoder.config),
+            "weights_sha256": weights_sha256,
+            "edge_model": edge_model,
             "code": {stage: code_version(stage) for stage in STAGE_SOURCES},
         }
         if k is not None:
             key["shortlist"] = k
-        folder = cache_dir("results", f"{dataset.name}-{key['dataset']}")
-        path = folder / f"{config_slug(conf['name'], key)}.npz"
+        folder = cache_dir("results", f"{dataset.name}-{fingerprint}")
+        path = folder / f"{config_slug(conf.name, key)}.npz"
         identity = f"results {path.parent.name} {path.stem}"
 
         def check(a: dict) -> str | None:
@@ -288,8 +298,8 @@ def _run_method(
             sim, info = match(
                 boxes,
                 feats,
-                soft_nms_iou=conf["matching"]["soft_nms_iou"],
-                sigma=conf["matching"]["sigma"],
+                soft_nms_iou=conf.matching.soft_nms_iou,
+                sigma=conf.matching.sigma,
                 shortlist=k,
                 global_desc=glob,
                 client=client,
@@ -337,7 +347,7 @@ def _run_method(
         metrics["r@1"],
     )
     return MethodResult(
-        method=conf["name"],
+        method=conf.name,
         label=label or method_label(conf),
         dataset=dataset.name,
         config=conf,
@@ -354,4 +364,7 @@ def _run_method(
         tolerance=dataset.tolerance,
         root=None if dataset.root is None else str(dataset.root),
         protocol=protocol,
+        dataset_fingerprint=fingerprint,
+        weights_sha256=weights_sha256,
+        edge_model=edge_model,
     )
