@@ -10,6 +10,7 @@ import logging
 import os
 import random
 import sys
+import types
 import warnings
 from collections.abc import Iterable, Mapping
 from functools import cache
@@ -226,3 +227,30 @@ def file_sha256(path: str | os.PathLike) -> str:
     p = Path(path).expanduser().resolve()
     st = p.stat()
     return _file_sha256(str(p), st.st_mtime_ns, st.st_size)
+
+
+def _code_digest(code: types.CodeType, digest: Any) -> None:
+    digest.update(code.co_code)
+    digest.update(repr(code.co_names).encode())
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            _code_digest(const, digest)
+        elif isinstance(const, frozenset):
+            digest.update(repr(sorted(map(repr, const))).encode())
+        else:
+            digest.update(repr(const).encode())
+
+
+def code_sha256(classes: Iterable[type], prefix: str = "") -> str:
+    """Hex sha256 of the bytecode of the methods of ``classes`` (those of vpr_core, torch and
+    builtins skipped): a class edited in a notebook cell gets a new identity."""
+    digest = hashlib.sha256(prefix.encode())
+    for cls in sorted(set(classes), key=lambda c: f"{c.__module__}.{c.__qualname__}"):
+        if cls.__module__.split(".")[0] in ("vpr_core", "torch", "builtins"):
+            continue
+        for name, attr in sorted(vars(cls).items()):
+            func = getattr(attr, "__func__", attr)
+            if isinstance(func, types.FunctionType):
+                digest.update(f"{cls.__qualname__}.{name}".encode())
+                _code_digest(func.__code__, digest)
+    return digest.hexdigest()

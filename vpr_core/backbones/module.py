@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import hashlib
 import math
-import types
-from typing import Any
 
 import torch
 from torch import nn
 
+from ..utils import code_sha256
 from .checkpoint import state_dict_sha256, user_weights_label
 
 __all__ = ["ModuleBackbone", "architecture_sha256"]
@@ -18,31 +16,12 @@ IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
 
 
-def _update_code(digest: Any, code: types.CodeType) -> None:
-    digest.update(code.co_code + repr(code.co_names).encode())
-    for const in code.co_consts:
-        if isinstance(const, types.CodeType):
-            _update_code(digest, const)
-        else:
-            digest.update(repr(const).encode())
-
-
 def architecture_sha256(module: nn.Module) -> str:
     """Hex sha256 of ``repr(module)`` and the bytecode of the methods of its (non-torch) classes.
 
     Editing a ``forward`` in a notebook cell or a layer's stride changes it (so the cache key).
     """
-    digest = hashlib.sha256(repr(module).encode())
-    classes = {c for m in module.modules() for c in type(m).__mro__}
-    for cls in sorted(classes, key=lambda c: f"{c.__module__}.{c.__qualname__}"):
-        if cls.__module__.split(".")[0] in ("torch", "builtins"):
-            continue
-        for name, fn in sorted(vars(cls).items()):
-            code = getattr(fn, "__code__", None)
-            if isinstance(code, types.CodeType):
-                digest.update(f"{cls.__qualname__}.{name}".encode())
-                _update_code(digest, code)
-    return digest.hexdigest()
+    return code_sha256((c for m in module.modules() for c in type(m).__mro__), repr(module))
 
 
 class ModuleBackbone(nn.Module):

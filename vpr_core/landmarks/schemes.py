@@ -6,10 +6,8 @@ Any frozen dataclass with ``boxes(self, image) -> (K, 4)`` is a scheme (docs/DEF
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import math
 import numbers
-import types
 from typing import Any, Protocol, cast, runtime_checkable
 
 import numpy as np
@@ -24,6 +22,7 @@ from ..paper import (
     NMS_IOU,
     SCALE_PRIORITY_ORDER,
 )
+from ..utils import code_sha256
 from .dense import dense_sampling
 from .edge_boxes import edge_boxes
 from .selection import reduce_overlap, select_min_scale, select_scale_priority
@@ -308,32 +307,6 @@ def check_scheme(scheme: Any) -> Any:
     return scheme
 
 
-def _code_digest(code: types.CodeType, h: Any) -> None:
-    h.update(code.co_code)
-    h.update(repr(code.co_names).encode())
-    for const in code.co_consts:
-        if isinstance(const, types.CodeType):
-            _code_digest(const, h)
-        elif isinstance(const, frozenset):
-            h.update(repr(sorted(map(repr, const))).encode())
-        else:
-            h.update(repr(const).encode())
-
-
-def _class_code(cls: type) -> str:
-    """Short hash of the bytecode of a user class's methods (an edited cell is a new scheme)."""
-    h = hashlib.sha256()
-    for klass in cls.__mro__:
-        if klass.__module__.split(".")[0] in ("vpr_core", "builtins"):
-            continue
-        for name, attr in sorted(vars(klass).items()):
-            func = getattr(attr, "__func__", attr)
-            if isinstance(func, types.FunctionType):
-                h.update(name.encode())
-                _code_digest(func.__code__, h)
-    return h.hexdigest()[:12]
-
-
 def scheme_identity(scheme: Any) -> dict[str, Any]:
     """What a scheme's boxes are computed from: class, field values and (user classes) code.
 
@@ -346,5 +319,5 @@ def scheme_identity(scheme: Any) -> dict[str, Any]:
     return {
         "scheme": f"{cls.__module__}.{cls.__qualname__}",
         "params": dataclasses.asdict(scheme),
-        "code": "" if own else _class_code(cls),
+        "code": "" if own else code_sha256(cls.__mro__)[:12],
     }
