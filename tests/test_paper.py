@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import importlib
+import re
+from pathlib import Path
+
 import pytest
 
 from vpr_core import paper
@@ -34,3 +38,28 @@ def test_dense_set_label():
         == "Set 4: 0.16/0.25/0.36/0.49 x 49/25/16/9"
     )
     assert paper.TABLE4["Set 3"][0] == (0.09, 0.20, 0.32, 0.44)
+
+
+def _paper_map_functions() -> list[tuple[str, str]]:
+    """(paper item, dotted function) of every row of PAPER_MAP's one-function table."""
+    text = (Path(__file__).parents[1] / "docs" / "PAPER_MAP.md").read_text()
+    table = text.split("## One function per paper item", 1)[1].split("\n\n", 2)[1]
+    rows = []
+    for line in table.splitlines()[2:]:
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        names = re.findall(r"`(vpr_core\.[\w.]+)`", cells[1])
+        assert len(names) == 1, f"PAPER_MAP row {cells[0]!r} names {names}, not one function"
+        rows.append((cells[0], names[0]))
+    return rows
+
+
+def test_paper_map_names_one_existing_function_per_row():
+    rows = _paper_map_functions()
+    assert len(rows) >= 15
+    for item, dotted in rows:
+        module, _, name = dotted.rpartition(".")
+        obj = getattr(importlib.import_module(module), name, None)
+        assert callable(obj), f"PAPER_MAP row {item!r}: {dotted} does not exist"
+    # one home per item, and no function named as the home of two items
+    homes = [d for _, d in rows]
+    assert len(set(homes)) == len(homes)
