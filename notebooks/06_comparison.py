@@ -28,11 +28,11 @@
 from vpr_core.baselines import find_vprbench_peers, peer_from_matrix
 from vpr_core.cost import cost_table
 from vpr_core.datasets import load_dataset
-from vpr_core.evaluation import compare
+from vpr_core.evaluation import compare, per_query
 from vpr_core.pipeline import peer_result, run_method
 from vpr_core.runner import check_parameters
 from vpr_core.utils import configure_logging, tune_allocator
-from vpr_core.viz import plot_coverage_comparison, plot_pr_curves, save
+from vpr_core.viz import plot_coverage_comparison, plot_disagreements, plot_pr_curves, save
 
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits
@@ -76,6 +76,21 @@ table = compare(runs, baseline="dense")
 fig = plot_pr_curves(runs, title="Fig. 13: dense vs selection vs classical")
 save(fig, "fig13_comparison", label), save(table, "fig13_comparison", label)
 table
+
+# %% [markdown]
+# ## Where dense wins and where it loses (not in the paper)
+# Per query and run: the rank of the first correct reference, whether the top-1 is correct, the
+# ratio score `S2/S1` and the reciprocal landmark matches of the top-1 pair; queries where dense
+# and classical disagree come first. The figure shows, for such queries, each run's top-1 with its
+# matched landmarks (green: correct match, red: wrong) beside the correct reference. The dashed
+# line of the PR figure and the `chance` row of the table: what a random ranking would score.
+
+# %%
+dense, classical = (run_method(m, ds, keep_descriptors=True, **run_options) for m in ("dense", "classical"))
+fig, shown = plot_disagreements(ds, dense, classical, n=6)
+queries = per_query([dense, classical])
+save(fig, "disagreements_dense_classical", label), save(queries, "disagreements_dense_classical", label)
+shown
 
 # %% [markdown]
 # ## Fig. 14 — coverage of the image by the landmarks (top-100 Edge Boxes vs dense)

@@ -1,8 +1,8 @@
 """Issue 11, item 2 (evaluation side) and item 4 (unranked images): one test per protection.
 
 Each test fails if its protection is removed: ground truth that supports no metric is an error,
-partial coverage is a logged warning with the count, NaN similarities (images without landmarks)
-are never ranked and never scored as zeros.
+partial coverage is a logged warning with the count, NaN similarities are never ranked and never
+scored as zeros, and a query image without landmarks counts as not retrieved (issue 25.3).
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from vpr_core.evaluation import (
+    auc_pr,
     bootstrap_metrics,
     evaluate,
     ground_truth_coverage,
@@ -21,6 +22,7 @@ from vpr_core.evaluation import (
     recall_at_100_precision,
     recall_at_k,
 )
+from vpr_core.evaluation.bootstrap import _per_query, _resample_metrics
 
 
 class _Records(logging.Handler):
@@ -115,20 +117,49 @@ def test_nan_is_never_in_the_top_k():
     assert evaluate(s, gt)["r@5"] == 0.5
 
 
-def test_all_nan_query_is_dropped_and_counted(warnings_log):
-    s = RNG.random((5, 4))
-    s[2] = np.nan  # a query image without landmarks
-    gt = np.eye(5, 4, dtype=bool)
-    gt[4, 0] = True
+def test_query_without_landmarks_counts_as_not_retrieved(warnings_log):
+    # issue 25.3: 4 queries; query 3 has no landmarks (its row is NaN); of the others, one right
+    nan = np.nan
+    s = np.array(
+        [[0.9, 0.1, 0.2, 0.3], [0.8, 0.1, 0.2, 0.3], [0.1, 0.9, 0.2, 0.4], [nan, nan, nan, nan]]
+    )
+    gt = np.eye(4, dtype=bool)
+    m = evaluate(s, gt)
+    assert m["r@1"] == 0.25  # 1/4, not 1/3: the query is a miss
+    assert m["r@5"] == 0.75  # every ranked query has its reference in the top 4, query 3 not
+    assert len(warnings_log) == 1 and "count as not retrieved" in warnings_log[0]
     c = pr_curve(s, gt)
     assert c.n_queries == 4
-    assert len(warnings_log) == 1 and "4 of 5" in warnings_log[0]
-    assert "1 have no ranked reference" in warnings_log[0]
-    # not scored as a row of zeros: its metrics equal those without the row
-    rest = [0, 1, 3, 4]
-    assert evaluate(s, gt) == evaluate(s[rest], gt[rest])
+    np.testing.assert_array_equal(c.fn, [4, 3, 2, 1])  # query 3 is an FN at every threshold
+    assert c.recall[-1] == 0.5  # TP 1 / (TP 1 + FN 1): never 1 while a query is not retrieved
+    assert pr_curve(s, gt, "best_match").recall[-1] == 0.25  # TP / all 4 queries
+    # vpr_bench: no top-1, a rejected negative: the curve is that of the other queries
+    assert evaluate(s, gt, "vpr_bench")["auc"] == evaluate(s[:3], gt[:3], "vpr_bench")["auc"]
     b = bootstrap_metrics(s, gt, n=30)
-    assert b["r@1"][0] == recall_at_k(s[rest], gt[rest], 1)
+    assert b["r@1"][0] == 0.25 and b["auc"][0] == auc_pr(c)
+    # the paired difference is computed on the same 4 queries for both methods
+    right = np.where(gt, 1.0, 0.1)
+    d = paired_bootstrap(right, s, gt, n=30)
+    assert d["r@1"][0] == pytest.approx(1.0 - 0.25)
+
+
+def test_not_retrieved_resamples_equal_metrics_of_repeated_rows():
+    rng = np.random.default_rng(3)
+    s = rng.random((12, 6))
+    gt = np.eye(12, 6, dtype=bool) | np.eye(12, 6, k=-6, dtype=bool)
+    s[[2, 7]] = np.nan  # two query images without landmarks
+    s[5, 2:] = np.nan  # a shortlist-like row: a few ranked references, still a query
+    b = bootstrap_metrics(s, gt, n=20, seed=1)
+    for protocol in ("ratio", "best_match"):
+        pq = _per_query(s, gt, protocol, (1, 5))
+        for seed in range(6):
+            idx = np.random.default_rng(seed).integers(0, 12, 12)
+            if np.isnan(s[idx]).all(axis=1).all():
+                continue
+            w = np.bincount(idx, minlength=12)[None].astype(float)
+            got = {k: float(v[0]) for k, v in _resample_metrics(pq, w).items()}
+            assert got == pytest.approx(evaluate(s[idx], gt[idx], protocol))
+    assert b["r@1"][0] == recall_at_k(s, gt, 1)
 
 
 def test_single_ranked_reference_cannot_look_confident():

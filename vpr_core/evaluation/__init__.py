@@ -1,11 +1,6 @@
-"""Evaluation of a query x reference similarity matrix.
-
-* :mod:`~vpr_core.evaluation.curves`: precision-recall curves (``ratio``, ``best_match``,
-  ``vpr_bench``, ``multi_match`` protocols), AUC, R@100P, R@K, VPR-Bench's RecallRate@N,
-  ground-truth coverage, NaN = unranked, soft ground truth (``ignore=``).
-* :mod:`~vpr_core.evaluation.bootstrap`: bootstrap intervals over queries and paired differences
-  with p-values, standard errors and the queries a verdict needs, and helpers that format them.
-"""
+"""Evaluation of a query x reference similarity matrix: curves and metrics with their chance
+level (``curves``), bootstrap intervals and paired differences (``bootstrap``), the comparison
+table (``compare``), the per-query view (``insight``)."""
 
 from __future__ import annotations
 
@@ -19,11 +14,12 @@ from .bootstrap import (
     needs_text,
     paired_bootstrap,
 )
-from .compare import compare
+from .compare import ComparisonTable, compact, compact_text, compare
 from .curves import (
     PROTOCOLS,
     PRCurve,
     auc_pr,
+    chance,
     evaluate,
     ground_truth_coverage,
     metrics_table,
@@ -33,15 +29,20 @@ from .curves import (
     recall_rate_at_n,
     saturation_notice,
 )
+from .insight import per_query
 
 __all__ = [
     "N_BOOTSTRAP",
     "PROTOCOLS",
+    "ComparisonTable",
     "Difference",
     "PRCurve",
     "auc_pr",
     "bootstrap_columns",
     "bootstrap_metrics",
+    "chance",
+    "compact",
+    "compact_text",
     "compare",
     "difference_verdict",
     "evaluate",
@@ -50,6 +51,7 @@ __all__ = [
     "metrics_table",
     "needs_text",
     "paired_bootstrap",
+    "per_query",
     "pr_curve",
     "recall_at_100_precision",
     "recall_at_k",

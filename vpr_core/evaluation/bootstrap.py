@@ -1,33 +1,6 @@
-"""Bootstrap confidence intervals over queries for the table metrics, and paired differences.
-
-Resampling unit: the query. Only queries with ground truth are resampled (with replacement, as
-many as there are; ``vpr_bench``: every query, since its queries without ground truth are
-negatives); a resampled query counts as often as it was drawn. Each method then evaluates
-the resample exactly as :func:`~vpr_core.evaluation.curves.pr_curve` /
-:func:`~vpr_core.evaluation.curves.recall_at_k` would evaluate the matrix with those rows repeated
-(its own unranked, all-NaN queries left out). Per-query quantities (score, correctness of the best
-match, top-k hit) are computed once; every resample's PR curve is then a weighted cumulative sum
-over the queries sorted once by score, so ``N_BOOTSTRAP`` resamples of thousands of queries
-take seconds.
-
-* Interval: 95% percentile interval (``np.percentile``, linear interpolation) of the resampled
-  metric; the point value is the metric on all queries (not the resample mean).
-* Paired difference ``a - b``: the same resampled queries for both methods. Two-sided p-value:
-  ``p = min(1, 2 * (1 + m) / (1 + n))`` where ``m`` counts the resamples whose difference lies on
-  the other side of 0 from the observed difference, or on 0 (``delta_b <= 0`` when the observed
-  difference is > 0, ``delta_b >= 0`` when < 0); an observed difference of exactly 0 gives
-  ``p = 1``. The ``+1`` keeps p above 0: the smallest reportable p is ``2 / (n + 1)``.
-* Queries a verdict needs: ``se`` = standard deviation (ddof 1) of the resampled differences;
-  ``queries_needed = ceil(n_q * (1.96 * se / |delta|)^2)`` (at least 1; ``inf`` when
-  ``delta = 0``), ``n_q`` the resampled queries: the count at which a normal-approximation 95%
-  interval ``delta +- 1.96 se`` would exclude 0 if the effect and the per-query spread stayed as
-  measured (``se`` scales as ``1 / sqrt(n_q)``).
-* ``n = 0`` resamples: intervals, p, ``se`` and ``queries_needed`` are NaN and every verdict is
-  ``"not computed"``.
-
-Metric keys: ``"auc"`` (area under the PR curve of ``protocol``), ``"r@100p"``, and ``"r@K"`` for each
-K in ``ks``.
-"""
+"""Bootstrap intervals over queries for the table metrics, paired differences with p-values and
+the queries a verdict needs (definitions: docs/DEFINITIONS.md, "Uncertainty"). Each resample is
+a weighted cumulative sum over queries sorted once by score: 1,000 resamples take seconds."""
 
 from __future__ import annotations
 
@@ -42,6 +15,7 @@ from .curves import (
     _check,
     _kept_queries,
     _query_scores,
+    _ranked,
     _true_rank,
     auc_pr,
     pr_curve,
@@ -71,6 +45,9 @@ class Difference(tuple):
     """A paired difference: unpacks as ``(delta, low, high, p)`` like a 4-tuple, and carries
     ``.se`` (standard error of the difference) and ``.queries_needed`` (float; inf when
     ``delta = 0``; NaN without resamples)."""
+
+    se: float
+    queries_needed: float
 
     def __new__(
         cls,
@@ -104,8 +81,8 @@ class _PerQuery:
     """One method's per-query quantities on the queries with ground truth (``n`` of them)."""
 
     protocol: str
-    keep: np.ndarray  # (n,) bool: has a ranked reference (else left out)
-    rk: np.ndarray  # (n,) bool: counted by R@K (kept and with ground truth)
+    counted: np.ndarray  # (n,) bool: counted by the curve (vpr_bench: ranked; else all)
+    rk: np.ndarray  # (n,) bool: counted by R@K (with ground truth)
     order: np.ndarray  # (m,) indices into the n queries, kept ones sorted by acceptance order
     correct: np.ndarray  # (m,) float64 best match correct, in `order`
     run_end: np.ndarray  # (m,) bool: last query of a run of equal scores, in `order`
@@ -129,17 +106,19 @@ def _check_args(n: int, protocol: str, ks: Sequence[int]) -> tuple[int, ...]:
 
 def _per_query(s: np.ndarray, gt: np.ndarray, protocol: str, ks: tuple[int, ...]) -> _PerQuery:
     """Per-query quantities of one method; ``s``, ``gt``: the resampled rows."""
-    keep = ~np.isnan(s).all(axis=1)
-    idx = np.flatnonzero(keep)
-    score, correct = _query_scores(s[keep], gt[keep], protocol)
+    ranked = _ranked(s)  # an unranked query is never accepted (not retrieved)
+    idx = np.flatnonzero(ranked)
+    score, correct = _query_scores(s[ranked], gt[ranked], protocol)
     # the same sort as curves._curve_from_scores: accepted in this order, equal scores together
     o = np.argsort(score if protocol == "ratio" else -score, kind="stable")
     sc = score[o]
     run_end = np.r_[sc[1:] != sc[:-1], True] if sc.size else np.zeros(0, dtype=bool)
     rank = _true_rank(s, gt)
-    hits = {k: ((rank < k) & keep).astype(np.float64) for k in ks}
+    hits = {k: (rank < k).astype(np.float64) for k in ks}  # no hit where nothing is ranked
+    counted = ranked if protocol == "vpr_bench" else np.ones_like(ranked)
+    has_gt = np.asarray(gt.any(axis=1))
     return _PerQuery(
-        protocol, keep, keep & gt.any(axis=1), idx[o], correct[o].astype(np.float64), run_end, hits
+        protocol, counted, has_gt, idx[o], correct[o].astype(np.float64), run_end, hits
     )
 
 
@@ -152,8 +131,7 @@ def _resample_metrics(pq: _PerQuery, w: np.ndarray) -> dict[str, np.ndarray]:
     Returns:
         ``{"auc": (B,), "r@100p": (B,), "r@K": (B,)}``.
     """
-    wk = w * pq.keep  # a method's unranked queries are left out
-    total = wk.sum(axis=1)  # (B,) kept queries in each resample
+    total = (w * pq.counted).sum(axis=1)  # (B,) counted queries in each resample
     ws = w[:, pq.order]  # (B, m) in acceptance order
     tp = np.cumsum(ws * pq.correct, axis=1)[:, pq.run_end]  # (B, T) at each distinct score
     acc = np.cumsum(ws, axis=1)[:, pq.run_end]
@@ -172,12 +150,12 @@ def _resample_metrics(pq: _PerQuery, w: np.ndarray) -> dict[str, np.ndarray]:
         "auc": np.trapezoid(precision, recall, axis=1),
         "r@100p": np.where(precision >= 1.0, recall, 0.0).max(axis=1),
     }
-    total_k = total if pq.protocol != "vpr_bench" else (w * pq.rk).sum(axis=1)
+    total_k = (w * pq.rk).sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         for k, h in pq.hits.items():
             out[f"r@{k}"] = (w * h).sum(axis=1) / total_k
     for v in out.values():
-        v[total == 0] = np.nan  # a resample of only unranked queries: no value (nanpercentile)
+        v[total == 0] = np.nan  # vpr_bench: a resample of only unranked queries has no curve
     return out
 
 
@@ -247,10 +225,10 @@ def bootstrap_metrics(
     Raises:
         ValueError: no query with ground truth, bad ``n`` / ``protocol`` / ``ks`` / shapes.
     """
-    s, gt, ks, rows = _prepare(similarity, ground_truth, protocol, ks, n, ignore)
+    s, gt, kt, rows = _prepare(similarity, ground_truth, protocol, ks, n, ignore)
     s, gt = s[rows], gt[rows]
-    point = _point(s, gt, protocol, ks)
-    pq = _per_query(s, gt, protocol, ks)
+    point = _point(s, gt, protocol, kt)
+    pq = _per_query(s, gt, protocol, kt)
     draws = [_resample_metrics(pq, w) for w in _draws(n, s.shape[0], seed)]
     return {
         key: (float(value), *_interval([d[key] for d in draws])) for key, value in point.items()
@@ -302,13 +280,13 @@ def paired_bootstrap(
         unpacks as a 4-tuple and has ``.se`` and ``.queries_needed`` (module docstring);
         identical inputs give ``(0, 0, 0, 1)``.
     """
-    a, gt, ks, rows = _prepare(sim_a, ground_truth, protocol, ks, n, ignore)
+    a, gt, kt, rows = _prepare(sim_a, ground_truth, protocol, ks, n, ignore)
     b, _, _, _ = _prepare(sim_b, ground_truth, protocol, ks, n, ignore)
     if a.shape != b.shape:
         raise ValueError(f"sim_a and sim_b differ in shape: {a.shape} vs {b.shape}")
     a, b, gt = a[rows], b[rows], gt[rows]
-    pa, pb = _point(a, gt, protocol, ks), _point(b, gt, protocol, ks)
-    qa, qb = _per_query(a, gt, protocol, ks), _per_query(b, gt, protocol, ks)
+    pa, pb = _point(a, gt, protocol, kt), _point(b, gt, protocol, kt)
+    qa, qb = _per_query(a, gt, protocol, kt), _per_query(b, gt, protocol, kt)
     deltas: dict[str, list[np.ndarray]] = {key: [] for key in pa}
     for w in _draws(n, a.shape[0], seed):
         ma, mb = _resample_metrics(qa, w), _resample_metrics(qb, w)

@@ -1,14 +1,6 @@
-"""The one comparison table: metrics with 95% intervals and paired differences with verdicts.
-
-``compare(results, baseline=...)`` is what a notebook cell shows under a PR figure and what the
-CLI prints and writes: one row per result (indexed by its label) with AUC, R@100P, R@1 and R@5
-and their bootstrap intervals over queries, and, for every result but the baseline, the paired
-bootstrap differences ``result - baseline`` (same resampled queries) with a verdict per metric:
-``finding`` only when the 95% interval excludes 0. Context columns (dataset, root, tolerance,
-protocol, backbone, pooling, package version) make a saved CSV self-describing; ``run`` is the
-configuration's identity (:func:`vpr_core.methods.run_key`) that the paper's claims are matched
-on. A result whose similarity matrix equals an earlier one's is marked in ``identical to``.
-"""
+"""The one comparison table (:func:`compare`): metrics with 95% intervals and chance levels,
+paired differences with verdicts; :func:`compact` is how a person reads it (notebooks, terminal).
+Definitions: docs/DEFINITIONS.md ("Uncertainty", "Chance level")."""
 
 from __future__ import annotations
 
@@ -18,12 +10,36 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .bootstrap import N_BOOTSTRAP, bootstrap_columns, difference_verdict, paired_bootstrap
+from .bootstrap import (
+    N_BOOTSTRAP,
+    bootstrap_columns,
+    difference_verdict,
+    format_interval,
+    paired_bootstrap,
+)
+from .curves import chance, saturation_notice
 
-__all__ = ["DIFFERENCES", "compare", "identical_to"]
+__all__ = [
+    "DIFFERENCES",
+    "METRICS",
+    "ComparisonTable",
+    "compact",
+    "compact_text",
+    "compare",
+    "identical_to",
+]
+
+#: The metric columns of :func:`compare` (column name -> metric key).
+METRICS = {"AUC": "auc", "R@100P": "r@100p", "R@1": "r@1", "R@5": "r@5"}
 
 #: The paired differences of :func:`compare` (column prefix -> metric key).
 DIFFERENCES = {"dAUC": "auc", "dR@100P": "r@100p", "dR@1": "r@1"}
+
+#: Terminal width :func:`compact_text` wraps to (blocks of columns, the labels repeated).
+TERMINAL_WIDTH = 100
+
+#: The row label of the chance level in :func:`compact`.
+CHANCE_ROW = "chance (random ranking)"
 
 
 def _same(a: np.ndarray, b: np.ndarray) -> bool:
@@ -75,6 +91,38 @@ def _context(r: Any) -> dict:
     }
 
 
+def _check_same_dataset(results: Sequence[Any], base: Any) -> np.ndarray:
+    """The baseline's ground truth; refuses results of another dataset (their fingerprints where
+    both are recorded, and the ground truth), naming both."""
+    fp = getattr(base, "dataset_fingerprint", None)
+    gt = np.asarray(base.ground_truth, dtype=bool)
+    for r in results:
+        other = getattr(r, "dataset_fingerprint", None)
+        if fp and other and other != fp:  # unset ("" or None): the ground truth decides
+            raise ValueError(
+                f"compare(): {r.label!r} ran on dataset {r.dataset!r} (fingerprint {other}) and "
+                f"{base.label!r} on {base.dataset!r} (fingerprint {fp}): query i of one is not "
+                "query i of the other; compare runs of one dataset only"
+            )
+        if not _same(np.asarray(r.ground_truth, dtype=bool), gt):
+            raise ValueError(
+                f"compare(): {r.label!r} was evaluated on another ground truth than "
+                f"{base.label!r}; compare runs of one dataset only"
+            )
+    return gt
+
+
+def _with_chance(row: dict, level: dict[str, float]) -> dict:
+    """``row`` with ``"<metric> chance"`` right after each metric's ``hi`` column."""
+    out: dict = {}
+    for col, value in row.items():
+        out[col] = value
+        name = col[: -len(" hi")] if col.endswith(" hi") else None
+        if name in METRICS:
+            out[f"{name} chance"] = level[METRICS[name]]
+    return out
+
+
 def compare(
     results: Sequence[Any],
     baseline: str | int | None = None,
@@ -93,15 +141,18 @@ def compare(
         seed: seed of the resampling.
 
     Returns:
-        DataFrame indexed by label: ``run``, ``AUC``/``AUC lo``/``AUC hi`` ... ``R@5 hi``,
-        ``queries``, the cost columns, ``identical to``, ``baseline`` and for each of
-        :data:`DIFFERENCES` the delta, ``lo``, ``hi``, ``p``, ``verdict`` and ``needs``
-        (queries at which an inconclusive interval would exclude 0, where known), then the
-        context columns and ``warnings``.
+        A :class:`ComparisonTable` (a DataFrame; printed and shown by :func:`compact`) indexed by
+        label: ``run``, ``AUC``/``AUC lo``/``AUC hi``/``AUC chance`` ... ``R@5 chance`` (chance:
+        :func:`~vpr_core.evaluation.chance`, the same on every row), ``queries``, the cost
+        columns, ``identical to``, ``baseline`` and for each of :data:`DIFFERENCES` the delta,
+        ``lo``, ``hi``, ``p``, ``verdict`` and ``needs`` (queries at which an inconclusive
+        interval would exclude 0, where known), then the context columns and ``warnings``.
+        A notice is raised when chance lies inside every run's interval
+        (:func:`~vpr_core.evaluation.saturation_notice`).
 
     Raises:
         ValueError: no results, duplicate labels, an unknown baseline, or results on different
-            datasets (ground truths differ).
+            datasets (fingerprints or ground truths differ; both are named).
     """
     results = list(results)
     if not results:
@@ -121,13 +172,7 @@ def compare(
         base = results[labels.index(baseline)]
     else:
         raise ValueError(f"baseline {baseline!r} is not one of the results: {', '.join(labels)}")
-    gt = np.asarray(base.ground_truth, dtype=bool)
-    for r in results:
-        if not _same(np.asarray(r.ground_truth, dtype=bool), gt):
-            raise ValueError(
-                f"compare(): {r.label!r} was evaluated on another ground truth than "
-                f"{base.label!r}; compare runs of one dataset only"
-            )
+    gt = _check_same_dataset(results, base)
     protocols = sorted({getattr(r, "protocol", "ratio") for r in results})
     if len(protocols) > 1:
         raise ValueError(
@@ -135,10 +180,12 @@ def compare(
             " run them all with the same protocol=..."
         )
     protocol = protocols[0]
+    level = chance(gt, protocol, ks=(1, 5))
+    saturation_notice(gt, [r.intervals for r in results if r.intervals], protocol)
     twins = identical_to(results)
     rows = []
     for r, twin in zip(results, twins, strict=False):
-        row = {**r.row(), "identical to": twin, "baseline": None}
+        row = {**_with_chance(r.row(), level), "identical to": twin, "baseline": None}
         if r is not base:
             row["baseline"] = base.label
             diff = paired_bootstrap(
@@ -166,4 +213,87 @@ def compare(
         row.update(_context(r))
         row["warnings"] = " | ".join(getattr(r, "warnings", []) or [])
         rows.append(row)
-    return pd.DataFrame(rows).set_index("method")
+    return ComparisonTable(pd.DataFrame(rows).set_index("method"))
+
+
+def _difference_text(row: pd.Series, name: str) -> str:
+    """``"+0.050 [-0.252, +0.420] inconclusive"`` (empty for the baseline)."""
+    verdict = row.get(f"{name} verdict")
+    if not isinstance(verdict, str):
+        return ""
+    lo, hi = row[f"{name} lo"], row[f"{name} hi"]
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return f"{row[name]:+.3f} {verdict}"
+    return f"{row[name]:+.3f} [{lo:+.3f}, {hi:+.3f}] {verdict}"
+
+
+def compact(table: pd.DataFrame) -> pd.DataFrame:
+    """The comparison table as a person reads it: one text column per metric, one per paired
+    difference with its verdict, and a last row with each metric's chance level.
+
+    Args:
+        table: :func:`compare`'s table (the full numeric one stays the CSV).
+
+    Returns:
+        A DataFrame of strings indexed by label: ``queries``; ``AUC(<protocol>)``, ``R@100P``,
+        ``R@1``, ``R@5`` as ``0.892 [0.838, 0.946]``; ``dAUC``, ``dR@100P``, ``dR@1`` (vs the
+        baseline) as ``+0.050 [-0.252, +0.420] inconclusive``; ``note`` (``= <label>`` for a
+        run identical to another); then the row :data:`CHANCE_ROW`.
+    """
+    protocol = table["protocol"].iloc[0] if "protocol" in table.columns else "ratio"
+    heads = {name: f"AUC({protocol})" if name == "AUC" else name for name in METRICS}
+    diffs = [name for name in DIFFERENCES if f"{name} verdict" in table.columns]
+    base = next((b for b in table.get("baseline", []) if isinstance(b, str)), None)
+    rows: dict[str, dict[str, str]] = {}
+    for label, r in table.iterrows():
+        row = {"queries": str(int(r["queries"]))}
+        row.update({heads[n]: format_interval(r[n], r[f"{n} lo"], r[f"{n} hi"]) for n in METRICS})
+        for name in diffs:
+            row[f"{name} vs {base}"] = _difference_text(r, name)
+        twin = r.get("identical to")
+        row["note"] = f"= {twin}" if isinstance(twin, str) else ""
+        rows[str(label)] = row
+    if f"{next(iter(METRICS))} chance" in table.columns:
+        first = table.iloc[0]
+        rows[CHANCE_ROW] = {heads[n]: f"{first[f'{n} chance']:.3f}" for n in METRICS}
+    out = pd.DataFrame.from_dict(rows, orient="index").fillna("")
+    if not out["note"].str.len().any():
+        out = out.drop(columns="note")
+    out.index.name = "method"
+    return out
+
+
+def compact_text(table: pd.DataFrame, width: int = TERMINAL_WIDTH) -> str:
+    """:func:`compact` as text for a terminal of ``width`` columns: the columns wrap into
+    blocks (each repeating the labels) so that no interval or verdict is cut."""
+    view = compact(table)
+    label_w = max([len(str(view.index.name or ""))] + [len(str(i)) for i in view.index])
+    blocks: list[list[str]] = [[]]
+    used = label_w
+    for col in view.columns:
+        w = max(len(col), *(len(v) for v in view[col])) + 2
+        if blocks[-1] and used + w > width:
+            blocks.append([])
+            used = label_w
+        blocks[-1].append(col)
+        used += w
+    return "\n\n".join(view[cols].to_string() for cols in blocks)
+
+
+class ComparisonTable(pd.DataFrame):
+    """:func:`compare`'s full numeric table (columns, CSV, ``pd.DataFrame`` behaviour), shown
+    compactly: ``print(table)`` / ``repr`` give :func:`compact_text`, a notebook
+    :func:`compact`'s HTML. ``pd.DataFrame(table)`` is the plain view; a derived frame is a
+    plain DataFrame."""
+
+    def __repr__(self) -> str:
+        try:
+            return compact_text(self)
+        except (KeyError, ValueError, TypeError):  # columns dropped: the plain view
+            return pd.DataFrame(self).__repr__()
+
+    def _repr_html_(self) -> str | None:
+        try:
+            return compact(self).to_html()
+        except (KeyError, ValueError, TypeError):
+            return pd.DataFrame(self)._repr_html_()

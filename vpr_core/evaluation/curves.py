@@ -1,63 +1,12 @@
-"""Precision-recall curves and the table metrics (AUC, R@100P, R@K) of a similarity matrix.
+"""Precision-recall curves, the table metrics (AUC, R@100P, R@K) and their chance level.
 
-Protocols (``pr_curve(..., protocol=...)``):
-
-``ratio`` (the paper's, after Sunderhauf et al., IROS 2015)
-    Queries without any ground-truth reference are dropped. For each kept query: best reference
-    ``b1`` (highest similarity ``S1``; ties: lowest index), ``S2`` = best similarity among all
-    other references, score ``r = S2 / S1`` (1.0 when ``S1 <= 0``), clipped to ``[0, 1]``.
-    A query is *accepted* when ``r <= tau``; accepted and ``gt[q, b1]`` -> TP, accepted otherwise
-    -> FP, rejected -> FN. ``tau`` takes every distinct ``r`` (ascending; queries with equal ``r``
-    are accepted together). Recall denominator: ``TP + FN`` = kept queries minus the accepted
-    wrong ones (a wrongly accepted query is an FP, not an FN), so once every query is accepted
-    recall is 1 if any TP exists. Precision ``TP / (TP + FP)``, 1 when nothing is accepted.
-``best_match`` (VPR_Tutorial's ``createPR(..., matching="single")``, Schubert et al. 2023)
-    Same queries and decisions, thresholding ``S1`` instead: accepted when ``S1 >= tau``;
-    ``tau`` takes every distinct ``S1`` (descending). Recall denominator: all kept queries
-    (``recall = TP / n``, so the last point is ``(R@1, R@1)``, not recall 1).
-``vpr_bench`` (VPR-Bench's AUC-PR, Zaffar et al. IJCV 2021, as its code computes it)
-    Every query with a ranked reference is kept, *with or without* ground truth (a query without
-    ground truth is a negative); per query the top-1 ``b1`` and ``S1``; ``y = gt[q, b1]``;
-    scikit-learn's ``precision_recall_curve(y, S1)``: ``tau`` = every distinct ``S1``
-    (descending), accepted when ``S1 >= tau``. Recall denominator: the queries whose top-1 is
-    correct (``recall = TP / sum(y)``: VPR-Bench's known quirk, recall is relative to the
-    correctly retrieved queries and always reaches 1). The curve stops at the first point of full
-    recall (scikit-learn < 1.1, the versions of VPR-Bench's time) and starts at ``(0, 1)``.
-    AUC: trapezoids over recall (= ``sklearn.metrics.auc(recall, precision)``). When no top-1 is
-    correct the curve is ``(0, 1), (0, 0)...`` and the AUC 0 (VPR-Bench's code gives NaN).
-``multi_match``
-    Every (query, reference) pair is a decision: accepted when ``S[q, r] >= tau`` (``tau``: every
-    distinct similarity, descending); accepted and ground truth -> TP, accepted otherwise -> FP;
-    ground-truth pairs not accepted -> FN. Recall denominator: all ground-truth pairs. All queries
-    are kept (pairs of queries without ground truth can only be FPs).
-
-Soft ground truth (``ignore=``, VPR_Tutorial's GTsoft)
-    ``ignore[q, r]`` and not ``gt[q, r]``: reference r is neither right nor wrong for q; it is
-    treated as unranked (NaN) in every protocol and in R@K. (VPR_Tutorial sets these entries to
-    ``min(S)`` instead; the two differ only for a query whose hard references are all unranked.)
-
-Every curve starts at ``(recall 0, precision 1)`` with a sentinel threshold (``-inf`` for
-``ratio``, ``+inf`` for the others) meaning "nothing accepted".
-
-Unranked references (NaN)
-    A NaN similarity means "not ranked" (e.g. an image without landmarks is excluded from
-    matching, never scored as 0). A NaN reference is never a query's best or second best and never
-    in its top k. A query whose row is entirely NaN is dropped like a query without ground truth
-    (``ratio``, ``best_match``, R@K) and counted in the coverage warning. A ``ratio`` query with only
-    one ranked reference has no second best: ``S2 := S1``, so ``r = 1`` (the least confident score,
-    accepted only at the last threshold) -- the choice that cannot inflate the metrics. In
-    ``multi_match`` a NaN pair is never accepted (a ground-truth NaN pair is an FN).
-
-Ground-truth coverage
-    Queries without any ground-truth reference are left out (``ratio``, ``best_match``, R@K). When
-    no query is left, every metric raises a ValueError (a metric over nothing is not 0); when some
-    are left out, the ``vpr_core`` logger warns with the count
-    (:func:`~vpr_core.datasets.ground_truth.ground_truth_coverage`, re-exported here).
-"""
+Protocols, NaN = not ranked, queries that retrieve nothing, chance: docs/DEFINITIONS.md
+("Protocols", "NaN = not ranked", "Chance level")."""
 
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -66,10 +15,13 @@ import numpy as np
 from ..datasets.ground_truth import ground_truth_coverage
 
 __all__ = [
+    "CHANCE_RANKINGS",
     "PROTOCOLS",
     "SATURATION_SHARE",
     "PRCurve",
     "auc_pr",
+    "chance",
+    "chance_precision",
     "evaluate",
     "ground_truth_coverage",
     "metrics_table",
@@ -94,8 +46,9 @@ class PRCurve:
         precision: ``(T + 1,)`` precision, ``precision[0] = 1``.
         thresholds: ``(T + 1,)`` the ``tau`` of each point (``thresholds[0]`` is the sentinel).
         protocol: protocol name.
-        n_queries: queries (``ratio``/``best_match``/``vpr_bench``: kept queries) or pairs
-            (``multi_match``) the curve is computed on.
+        n_queries: queries the curve counts (``ratio``/``best_match``: those with ground truth,
+            not-retrieved ones included; ``vpr_bench``: those with a ranked reference) or pairs
+            (``multi_match``).
         tp, fp, fn: ``(T + 1,)`` int counts at each point.
     """
 
@@ -141,45 +94,51 @@ def _check(similarity, ground_truth, ignore=None) -> tuple[np.ndarray, np.ndarra
     return s, gt
 
 
+def _ranked(s: np.ndarray) -> np.ndarray:
+    """``(Nq,)`` bool: the row has a ranked (non-NaN) reference (else it retrieved nothing)."""
+    if not s.shape[1]:
+        return np.zeros(s.shape[0], dtype=bool)
+    return np.asarray(~np.isnan(s).all(axis=1))
+
+
 def _kept_queries(
     s: np.ndarray, gt: np.ndarray, warn: bool = True, need_gt: bool = True
 ) -> np.ndarray:
-    """``(Nq,)`` bool: queries with ground truth (if ``need_gt``) and a ranked (non-NaN) reference.
+    """``(Nq,)`` bool: the queries the metrics count.
 
-    Raises a ValueError when no query has ground truth or none is left; logs one warning with
-    the counts when some are left out (``warn``).
+    ``need_gt``: the queries with ground truth (an all-NaN row among them counts as not
+    retrieved); else (``vpr_bench``) the queries with a ranked reference. Raises a ValueError
+    when no query has ground truth or none of them has a ranked reference; logs one warning
+    with the counts when queries are left out or not retrieved (``warn``).
     """
-    has_gt = gt.any(axis=1)
-    ranked = ~np.isnan(s).all(axis=1) if s.shape[1] else np.zeros(s.shape[0], dtype=bool)
-    keep = has_gt & ranked
-    n_total, n_gt, n_kept = s.shape[0], int(has_gt.sum()), int(keep.sum())
+    has_gt, ranked = np.asarray(gt.any(axis=1)), _ranked(s)
+    n_total, n_gt = s.shape[0], int(has_gt.sum())
+    n_missed = int((has_gt & ~ranked).sum())
     if n_gt == 0:
         raise ValueError(
             f"no query has a ground-truth reference (0 of {n_total} queries), so no metric can be "
             "computed. Check the ground-truth file (query/reference indices, 0- or 1-based) or "
             "widen the tolerance (e.g. load_dataset(..., tolerance=2))."
         )
-    if n_kept == 0:
+    if n_missed == n_gt:
         raise ValueError(
             f"every query with ground truth ({n_gt} of {n_total}) has no ranked reference (all "
             "similarities NaN: images without landmarks). Check the landmark settings."
         )
-    if not need_gt:  # vpr_bench: a query without ground truth is a negative, not left out
-        keep = ranked
-        if warn and not ranked.all():
-            logger.warning(
-                "metrics use %d of %d queries: %d have no ranked reference (all NaN)",
-                int(ranked.sum()),
-                n_total,
-                int((~ranked).sum()),
+    keep = has_gt if need_gt else ranked
+    if warn and (n_missed or not keep.all()):
+        parts = []
+        if need_gt and n_gt < n_total:
+            parts.append(f"{n_total - n_gt} have no ground-truth reference (left out)")
+        if not need_gt and not ranked.all():
+            parts.append(f"{int((~ranked).sum())} have no ranked reference (left out)")
+        if n_missed:
+            parts.append(
+                f"{n_missed} with ground truth have no ranked reference (all NaN) and count as "
+                "not retrieved"
             )
-    elif warn and n_kept < n_total:
         logger.warning(
-            "metrics use %d of %d queries: %d have no ground-truth reference%s",
-            n_kept,
-            n_total,
-            n_total - n_gt,
-            f", {n_gt - n_kept} have no ranked reference (all NaN)" if n_gt > n_kept else "",
+            "metrics count %d of %d queries: %s", int(keep.sum()), n_total, "; ".join(parts)
         )
     return keep
 
@@ -225,9 +184,18 @@ def _query_scores(s: np.ndarray, gt: np.ndarray, protocol: str) -> tuple[np.ndar
 
 
 def _curve_from_scores(
-    score: np.ndarray, correct: np.ndarray, ascending: bool, protocol: str, n_pos: int | None = None
+    score: np.ndarray,
+    correct: np.ndarray,
+    ascending: bool,
+    protocol: str,
+    n_pos: int | None = None,
+    n_missed: int = 0,
 ) -> PRCurve:
-    """Sweep a threshold over per-decision scores (accept ``score <= tau`` if ascending)."""
+    """Sweep a threshold over per-decision scores (accept ``score <= tau`` if ascending).
+
+    ``n_pos``: the recall denominator (None: ``TP + FN``, FN = rejected decisions plus
+    ``n_missed``, the decisions never offered: queries that retrieved nothing).
+    """
     n = score.shape[0]
     order = np.argsort(score if ascending else -score, kind="stable")
     sc, ok = score[order], correct[order]
@@ -237,19 +205,19 @@ def _curve_from_scores(
     tp = tp_cum[last].astype(np.int64)
     acc = last + 1
     fp = acc - tp
-    fn = (n - acc) if n_pos is None else (n_pos - tp)
+    fn = (n + n_missed - acc) if n_pos is None else (n_pos - tp)
     fn = np.asarray(fn, dtype=np.int64)
     with np.errstate(invalid="ignore", divide="ignore"):
         recall = np.where(tp + fn > 0, tp / np.maximum(tp + fn, 1), 0.0)
         precision = np.where(acc > 0, tp / np.maximum(acc, 1), 1.0)
     sentinel = -np.inf if ascending else np.inf
-    fn0 = n if n_pos is None else n_pos
+    fn0 = n + n_missed if n_pos is None else n_pos
     return PRCurve(
         recall=np.r_[0.0, recall],
         precision=np.r_[1.0, precision],
         thresholds=np.r_[sentinel, sc[last]],
         protocol=protocol,
-        n_queries=int(n),
+        n_queries=int(n + n_missed),
         tp=np.r_[0, tp].astype(np.int64),
         fp=np.r_[0, fp].astype(np.int64),
         fn=np.r_[fn0, fn].astype(np.int64),
@@ -295,10 +263,25 @@ def pr_curve(
     if s.shape[1] < 1:
         raise ValueError("similarity has no reference column")
     keep = _kept_queries(s, gt, warn, need_gt=protocol != "vpr_bench")
-    score, correct = _query_scores(s[keep], gt[keep], protocol)
-    # recall denominators: ratio TP + FN (None), best_match all kept queries, vpr_bench sum(y)
-    n_pos = {"ratio": None, "best_match": score.size, "vpr_bench": int(correct.sum())}[protocol]
-    curve = _curve_from_scores(score, correct, protocol == "ratio", protocol, n_pos)
+    ranked = keep & _ranked(s)
+    score, correct = _query_scores(s[ranked], gt[ranked], protocol)
+    return _query_curve(score, correct, protocol, int(keep.sum() - ranked.sum()))
+
+
+def _query_curve(score: np.ndarray, correct: np.ndarray, protocol: str, n_missed: int) -> PRCurve:
+    """The curve of per-query decisions (``ratio``, ``best_match``, ``vpr_bench``).
+
+    Args:
+        score, correct: ``(n,)`` score and top-1 correctness of the queries with a ranked
+            reference; n_missed: counted queries that retrieved nothing (never accepted).
+    """
+    # recall denominators: ratio TP + FN (None), best_match all counted queries, vpr_bench sum(y)
+    n_pos = {
+        "ratio": None,
+        "best_match": score.size + n_missed,
+        "vpr_bench": int(correct.sum()),
+    }[protocol]
+    curve = _curve_from_scores(score, correct, protocol == "ratio", protocol, n_pos, n_missed)
     if protocol == "vpr_bench" and n_pos:  # stop at the first point of full recall
         end = int(np.searchsorted(curve.tp, n_pos)) + 1
         curve = PRCurve(
@@ -356,7 +339,8 @@ def recall_at_k(
     warn: bool = True,
     ignore: np.ndarray | None = None,
 ) -> float:
-    """Fraction of queries (with ground truth) whose top-k references include a true one.
+    """Fraction of queries (with ground truth) whose top-k references include a true one (a
+    query that retrieved nothing, its row all NaN, is a miss).
 
     Args:
         similarity: ``(Nq, Nr)``; NaN = not ranked (never in the top k).
@@ -443,17 +427,129 @@ def evaluate(
 #: A ground truth where a random ranking's expected R@1 reaches this share saturates the metrics.
 SATURATION_SHARE = 0.5
 
+#: Seeded random rankings behind the chance AUC and R@100P of the per-query protocols.
+CHANCE_RANKINGS = 1000
 
-def saturation_notice(ground_truth: np.ndarray, intervals: Mapping | None = None) -> str | None:
+#: The metrics whose chance level :func:`saturation_notice` compares with every run's interval.
+CHANCE_CHECKED = ("auc", "r@1")
+
+
+def _chance_recall(gt: np.ndarray, k: int) -> float:
+    """Exact R@k of a random ranking: mean of ``1 - C(Nr - c, k) / C(Nr, k)`` over queries with
+    ground truth (``c`` correct references each)."""
+    nr = gt.shape[1]
+    k = min(k, nr)  # a list longer than the references holds them all
+    counts = gt.sum(axis=1)
+    counts = counts[counts > 0]
+    miss = {c: math.comb(nr - c, k) / math.comb(nr, k) for c in np.unique(counts).tolist()}
+    return float(np.mean([1.0 - miss[c] for c in counts.tolist()]))
+
+
+def chance_precision(ground_truth: np.ndarray, protocol: str = "ratio") -> float:
+    """The precision a random ranking keeps at every recall (the flat PR curve of chance).
+
+    The share of decisions that are correct: ``c / Nr`` averaged over the counted queries
+    (``vpr_bench``: every query; ``ratio`` / ``best_match``: those with ground truth), the share
+    of ground-truth pairs for ``multi_match``.
+    """
+    gt = np.asarray(ground_truth, dtype=bool)
+    if protocol == "multi_match":
+        return float(gt.mean())
+    rows = gt if protocol == "vpr_bench" else gt[gt.any(axis=1)]
+    return float(rows.mean(axis=1).mean()) if rows.size else float("nan")
+
+
+def _chance_multi_match(gt: np.ndarray) -> tuple[float, float]:
+    """Exact expected ``(AUC, R@100P)`` of ``multi_match`` when the pairs come in random order.
+
+    ``P`` ground-truth pairs of ``N``: the ``k``-th positive at 1-based position ``X_k`` adds a
+    trapezoid of width ``1/P`` between precisions ``(k - 1) / (X_k - 1)`` (1 for ``X_1 = 1``)
+    and ``k / X_k``; summing the expectations over positions gives
+    ``(P + H_N + (P - 1)(N - H_N) / (N - 1)) / (2N)``. R@100P: ``E = (1/P) sum_k P(first k
+    pairs all positive)``.
+    """
+    n, pos = gt.size, int(gt.sum())
+    harmonic = float(np.sum(1.0 / np.arange(1, n + 1)))
+    rest = (pos - 1) * (n - harmonic) / (n - 1) if n > 1 else 0.0
+    auc = (pos + harmonic + rest) / (2 * n)
+    j = np.arange(pos)
+    r100p = float(np.cumprod((pos - j) / (n - j)).sum() / pos)
+    return float(auc), r100p
+
+
+def chance(
+    ground_truth: np.ndarray,
+    protocol: str = "ratio",
+    ks: Sequence[int] = (1, 5),
+    n: int = CHANCE_RANKINGS,
+    seed: int = 0,
+) -> dict[str, float]:
+    """Each table metric under a random ranking of the same ground truth (its chance level).
+
+    R@K is exact (docs/DEFINITIONS.md, "Chance level"); so are AUC and R@100P of
+    ``multi_match``. AUC and R@100P of the per-query protocols are the mean over ``n`` seeded
+    random rankings: each counted query's top-1 is correct with probability ``c / Nr``,
+    independently of its score, and the scores order the queries at random.
+
+    Args:
+        ground_truth: ``(Nq, Nr)`` bool.
+        protocol: the protocol of AUC and R@100P (:data:`PROTOCOLS`).
+        ks: the K of R@K.
+        n: random rankings of the per-query protocols (>= 1).
+        seed: their seed (same seed, same values).
+
+    Returns:
+        ``{"auc", "r@100p", "r@K"...}`` (the keys of :func:`evaluate`).
+
+    Raises:
+        ValueError: no query with ground truth, bad protocol, ``n`` or ``ks``.
+    """
+    if protocol not in PROTOCOLS:
+        raise ValueError(f"unknown protocol {protocol!r}; valid: {', '.join(PROTOCOLS)}")
+    if int(n) < 1 or any(int(k) < 1 for k in ks):
+        raise ValueError(f"n (random rankings) and every k must be >= 1, got n={n}, ks={ks}")
+    gt = _check(np.zeros(np.shape(ground_truth)), ground_truth)[1]
+    _kept_queries(np.zeros(gt.shape), gt, warn=False)  # raises without ground truth
+    if protocol == "multi_match":
+        auc, r100p = _chance_multi_match(gt)
+    else:
+        rows = np.ones(gt.shape[0], bool) if protocol == "vpr_bench" else gt.any(axis=1)
+        p_correct = gt[rows].mean(axis=1)
+        rng = np.random.default_rng(seed)
+        values = []
+        for _ in range(int(n)):
+            correct = rng.random(p_correct.size) < p_correct
+            curve = _query_curve(rng.random(p_correct.size), correct, protocol, 0)
+            values.append((auc_pr(curve), recall_at_100_precision(curve)))
+        auc, r100p = (float(v) for v in np.mean(values, axis=0))
+    out = {"auc": auc, "r@100p": r100p}
+    for k in ks:
+        out[f"r@{int(k)}"] = _chance_recall(gt, int(k))
+    return out
+
+
+def _inside(value: float, interval: Sequence[float]) -> bool:
+    return len(interval) == 3 and bool(interval[1] <= value <= interval[2])
+
+
+def saturation_notice(
+    ground_truth: np.ndarray,
+    intervals: Mapping | Sequence[Mapping] | None = None,
+    protocol: str = "ratio",
+) -> str | None:
     """Warn (:func:`~vpr_core.notices.notice`) when the ground truth makes the metrics meaningless.
 
-    Two cases: the mean share of references that count as correct for a query (= the expected
-    R@1 of a random ranking) is at least :data:`SATURATION_SHARE`; or every interval given is
-    ``[1, 1]`` (no resample can tell methods apart).
+    Three cases: a random ranking's R@1 (:func:`chance`) is at least :data:`SATURATION_SHARE`;
+    every interval of every run is ``[1, 1]``; or, given the runs of a comparison (a sequence),
+    the chance level of a metric of :data:`CHANCE_CHECKED` lies inside every run's interval
+    (the set cannot tell these runs from a random ranking). One run's intervals (a mapping)
+    are not checked against chance: its table prints the chance level beside it.
 
     Args:
         ground_truth: ``bool (Nq, Nr)``.
-        intervals: ``{"auc": (value, lo, hi), ...}`` as :func:`bootstrap_metrics` returns them.
+        intervals: one run's ``{"auc": (value, lo, hi), ...}`` (:func:`bootstrap_metrics`), or a
+            sequence of them (the runs being compared).
+        protocol: the protocol of the intervals' AUC.
 
     Returns:
         The message, or None when the metrics are not saturated.
@@ -461,10 +557,9 @@ def saturation_notice(ground_truth: np.ndarray, intervals: Mapping | None = None
     from ..notices import notice
 
     gt = np.asarray(ground_truth, dtype=bool)
-    rows = gt[gt.any(axis=1)]
-    if rows.size == 0:
+    if not gt.any():
         return None
-    share = float(rows.mean(axis=1).mean())
+    share = _chance_recall(gt, 1)
     if share >= SATURATION_SHARE:
         return notice(
             f"saturated ground truth: on average {share:.0%} of the {gt.shape[1]} "
@@ -473,11 +568,28 @@ def saturation_notice(ground_truth: np.ndarray, intervals: Mapping | None = None
             "tolerance (e.g. tolerance=0) or a larger set.",
             stacklevel=4,
         )
-    ivs = [v for v in (intervals or {}).values() if len(v) == 3 and np.isfinite(v[1])]
+    runs = [intervals] if isinstance(intervals, Mapping) else list(intervals or [])
+    ivs = [v for run in runs for v in run.values() if len(v) == 3 and np.isfinite(v[1])]
     if ivs and all(lo == 1.0 and hi == 1.0 for _, lo, hi in ivs):
         return notice(
             "saturated result: every metric is 1.0 with interval [1.0, 1.0]; this set "
             "cannot tell methods apart. Use a harder set, more places, or tolerance=0.",
+            stacklevel=4,
+        )
+    if isinstance(intervals, Mapping) or not runs:
+        return None
+    level = chance(gt, protocol, ks=(1,))
+    at_chance = [
+        key
+        for key in CHANCE_CHECKED
+        if all(key in run and _inside(level[key], run[key]) for run in runs)
+    ]
+    if at_chance:
+        named = ", ".join(f"{key.upper()} {level[key]:.3f}" for key in at_chance)
+        return notice(
+            f"at chance level: a random ranking of this ground truth scores {named} "
+            f"(protocol {protocol}), inside the 95% interval of every run; this set cannot tell "
+            "these runs from chance. Use more queries or a harder set.",
             stacklevel=4,
         )
     return None

@@ -10,8 +10,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.colors import to_hex
 
+from ..evaluation import auc_pr, chance, ground_truth_coverage
+from ..evaluation.compare import identical_to
+from ..evaluation.curves import chance_precision
 from ..paper import SCALE_LABELS
-from .base import METHOD_COLORS
+from .base import METHOD_COLORS, curve_note
 
 __all__ = ["dataset_line", "plot_metric_bars", "plot_pr_curves", "plot_scale_distribution"]
 
@@ -61,7 +64,6 @@ def plot_scale_distribution(
 def dataset_line(results) -> str:
     """``"<dataset>: 18 of 20 queries with ground truth, tolerance 0, protocol ratio"``: the line
     every PR / statistics figure carries under its title."""
-    from ..evaluation import ground_truth_coverage
 
     r = results[0]
     n_gt, n_q = ground_truth_coverage(r.ground_truth)
@@ -78,7 +80,10 @@ def plot_pr_curves(
     results, title: str | None = None, colors: dict | None = None
 ) -> matplotlib.figure.Figure:
     """Precision (y) against recall (x) of several results; the legend (beside the axes, never
-    over the curves) gives each AUC with its 95% bootstrap interval.
+    over the curves) gives each AUC with its 95% bootstrap interval. A dashed grey line is the
+    chance level: the precision a random ranking of the same ground truth keeps
+    (:func:`~vpr_core.evaluation.curves.chance_precision`), with its AUC
+    (:func:`~vpr_core.evaluation.chance`) in the legend.
 
     A result whose similarity matrix equals an earlier one's has the same curve: it is drawn
     once and its legend entry reads ``= <earlier label>``.
@@ -92,8 +97,6 @@ def plot_pr_curves(
     Returns:
         The figure.
     """
-    from ..evaluation import auc_pr
-    from ..evaluation.compare import identical_to
 
     results = list(results)
     if not results:
@@ -117,7 +120,19 @@ def plot_pr_curves(
             color = next(c for c in spare if to_hex(c) not in used)
         used.add(to_hex(color))
         curve = r.curve()
-        ax.plot(curve.recall, curve.precision, lw=1.6, color=color, label=f"{r.label} ({auc})")
+        note = curve_note(curve.recall, curve.precision)  # an AUC-0 curve lies on the axis
+        label = f"{r.label} ({auc}{note})"
+        ax.plot(curve.recall, curve.precision, lw=1.6, color=color, label=label)
+    protocol = getattr(results[0], "protocol", "ratio")
+    level = chance_precision(results[0].ground_truth, protocol)
+    chance_auc = chance(results[0].ground_truth, protocol, ks=(1,))["auc"]
+    ax.axhline(
+        level,
+        color="0.45",
+        ls="--",
+        lw=1.0,
+        label=f"chance (random ranking): precision {level:.3f}, AUC {chance_auc:.3f}",
+    )
     ax.set_xlim(0.0, 1.0)
     ax.set_ylim(0.0, 1.02)
     ax.set_xlabel("recall")

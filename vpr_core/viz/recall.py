@@ -4,16 +4,18 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
+
+from ..evaluation import recall_rate_at_n
 
 __all__ = ["plot_recall_at_n"]
 
 
 def plot_recall_at_n(
     results_or_curves: Sequence | Mapping, title: str | None = None, n_max: int = 20
-) -> matplotlib.figure.Figure:
+) -> Figure:
     """RecallRate@N (y) against N (x), one line per method; legend outside the axes, right.
 
     Args:
@@ -25,8 +27,6 @@ def plot_recall_at_n(
     Returns:
         The Figure (not saved).
     """
-    from ..evaluation import recall_rate_at_n
-
     if isinstance(results_or_curves, Mapping):
         curves = {str(k): np.asarray(v, dtype=float) for k, v in results_or_curves.items()}
     else:

@@ -1,0 +1,107 @@
+"""Per-query view of one or more runs: where each run ranks the right place, and which queries
+two runs decide differently (issue 27.1). Columns: :func:`per_query`."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ..matching import match_landmarks
+from .compare import _check_same_dataset
+from .curves import _best_two, _query_scores, _ranked, _true_rank
+
+__all__ = ["PER_QUERY_COLUMNS", "per_query"]
+
+#: The columns of :func:`per_query`, in order.
+PER_QUERY_COLUMNS = (
+    "query",
+    "run",
+    "first correct rank",
+    "top-1",
+    "top-1 correct",
+    "ratio",
+    "top-1 matches",
+    "disagree",
+)
+
+
+def _top1_matches(result: Any, queries: np.ndarray, top1: np.ndarray) -> np.ndarray:
+    """``(n,)`` reciprocal landmark matches of each query's top-1 pair; NaN without descriptors
+    (``keep_descriptors=False``, or a peer's matrix) or where nothing was retrieved."""
+    out = np.full(len(queries), np.nan)
+    desc = getattr(result, "descriptors", None)
+    if desc is None:
+        return out
+    boxes = result.boxes
+    for i, (q, r) in enumerate(zip(queries.tolist(), top1.tolist(), strict=True)):
+        if r >= 0:
+            m = match_landmarks(
+                desc["query"][q], boxes["query"][q], desc["reference"][r], boxes["reference"][r]
+            )
+            out[i] = len(m.matches)
+    return out
+
+
+def _one_run(result: Any, gt: np.ndarray, queries: np.ndarray) -> pd.DataFrame:
+    """The rows of one run on ``queries`` (indices of queries with ground truth)."""
+    s = np.asarray(result.similarity, dtype=np.float64)[queries]
+    g = gt[queries]
+    ranked = _ranked(s)
+    rank = _true_rank(s, g).astype(np.float64)
+    rank[rank == np.iinfo(np.int64).max] = np.nan  # no correct reference ranked
+    top1 = np.full(len(queries), -1)
+    ratio = np.full(len(queries), np.nan)
+    if ranked.any():
+        top1[ranked] = _best_two(s[ranked])[0]
+        ratio[ranked] = _query_scores(s[ranked], g[ranked], "ratio")[0]
+    correct = ranked & g[np.arange(len(queries)), np.maximum(top1, 0)]
+    return pd.DataFrame(
+        {
+            "query": queries,
+            "run": result.label,
+            "first correct rank": pd.array(rank + 1, dtype="Int64"),
+            "top-1": pd.array(np.where(top1 >= 0, top1, np.nan), dtype="Int64"),
+            "top-1 correct": correct,
+            "ratio": ratio,
+            "top-1 matches": _top1_matches(result, queries, top1),
+        }
+    )
+
+
+def per_query(results: Any | Sequence[Any]) -> pd.DataFrame:
+    """For every query with ground truth and every run: how the run ranked it.
+
+    Args:
+        results: one or more :class:`~vpr_core.pipeline.MethodResult` (or peers) of one dataset.
+            The match counts need descriptors: run with ``run_method(...,
+            keep_descriptors=True)``; without them the column is NaN.
+
+    Returns:
+        One row per (query, run), columns :data:`PER_QUERY_COLUMNS`: ``first correct rank``
+        (1 = top-1; NA when no correct reference is ranked), ``top-1`` (reference index, NA when
+        the query retrieved nothing: an image without landmarks), ``top-1 correct``, ``ratio``
+        (the ratio protocol's score ``S2 / S1``: lower = more confident), ``top-1 matches``
+        (reciprocal landmark matches of the top-1 pair), ``disagree`` (the runs' top-1
+        correctness differs for this query). Queries where the runs disagree come first, then
+        by query index, runs in the given order.
+
+    Raises:
+        ValueError: no results, duplicate labels, or runs of different datasets.
+    """
+    runs: list[Any] = [results] if hasattr(results, "similarity") else list(results)
+    if not runs:
+        raise ValueError("per_query() needs at least one result")
+    labels = [r.label for r in runs]
+    if len(set(labels)) < len(labels):
+        raise ValueError(f"per_query(): labels must be unique, got {labels}")
+    gt = _check_same_dataset(runs, runs[0])
+    queries = np.flatnonzero(gt.any(axis=1))
+    table = pd.concat([_one_run(r, gt, queries) for r in runs], ignore_index=True)
+    agree = table.groupby("query")["top-1 correct"].nunique() == 1
+    table["disagree"] = ~table["query"].map(agree).astype(bool)
+    table["_run"] = table["run"].map({label: i for i, label in enumerate(labels)})
+    table = table.sort_values(["disagree", "query", "_run"], ascending=[False, True, True])
+    return table.drop(columns="_run").reset_index(drop=True)[list(PER_QUERY_COLUMNS)]
