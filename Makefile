@@ -31,10 +31,13 @@ study-nordland: $(STAMP)
 test: $(STAMP)
 	MPLBACKEND=Agg $(PY) -m pytest -q
 
-# JupyterLab on the notebooks (installs the [lab] extra: jupyterlab, ipywidgets)
+# JupyterLab on the project (installs the [lab] extra: jupyterlab, ipywidgets), on 127.0.0.1
+# with its token; --allow-root only when run as root (containers, cloud machines). Kernels
+# write under the project root and share its .cache/ whatever their working directory.
 lab: $(STAMP)
 	$(PY) -m pip install -q -e '.[dev,lab]'
-	$(VENV)/bin/jupyter lab notebooks/
+	$(VENV)/bin/jupyter lab --ip=127.0.0.1 --ServerApp.root_dir="$(CURDIR)" \
+		--LabApp.default_url=/lab/tree/notebooks $(if $(filter 0,$(shell id -u)),--allow-root)
 
 bench: $(STAMP)
 	for f in benchmarks/bench_*.py; do $(PY) $$f || exit 1; done

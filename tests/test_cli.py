@@ -35,12 +35,18 @@ def test_eval_prints_table_and_writes_plot(tmp_path, capsys):
         assert col in out
     assert "AUC(ratio) [95% CI]" in out and "queries with ground truth: 6 of 6" in out
     res = tmp_path / "results" / "synthetic"
-    png = tmp_path / "figures" / "synthetic" / "eval_dense_efficientnet_lite0.png"
+    (png,) = (tmp_path / "figures" / "synthetic").glob(
+        "eval_synthetic_dense_efficientnet_lite0_*.png"
+    )
     assert png.stat().st_size > 0 and str(png) in out  # the closing lines list every file
-    csv = (res / "eval_dense_efficientnet_lite0.csv").read_text()
+    csv = (res / f"{png.stem}.csv").read_text()  # the figure and its table share a name
     assert csv.startswith("method,run,") and "AUC lo" in csv
     for col in ("dataset", "root", "tolerance", "protocol", "backbone", "pooling", "version"):
         assert f",{col}," in csv.splitlines()[0] + ","
+    # the committed table holds no timing and no absolute path; timings go beside it
+    assert " s/img" not in csv and str(tmp_path) not in csv
+    timings = (res / f"{png.stem}.timings.csv").read_text()
+    assert "features s/img" in timings.splitlines()[0]
 
 
 def test_eval_label_keeps_two_folder_datasets_apart(tmp_path, gardens_point_mini_root, capsys):
@@ -72,7 +78,8 @@ def test_eval_label_keeps_two_folder_datasets_apart(tmp_path, gardens_point_mini
             == 0
         )
     for name in ("site_a", "site_b"):
-        assert (tmp_path / "out" / "results" / name / "eval_dense_efficientnet_lite0.csv").is_file()
+        found = list((tmp_path / "out" / "results" / name).glob(f"eval_{name}_dense_*[0-9a-f].csv"))
+        assert len(found) == 1, found
 
 
 def test_seed_must_be_non_negative(capsys):
@@ -217,7 +224,78 @@ def test_eval_protocol_is_named_in_table_file_and_csv(tmp_path, capsys):
     assert rc == 0
     out = capsys.readouterr().out
     assert "AUC(vpr_bench)" in out
-    csv = tmp_path / "results" / "synthetic" / "eval_global_hog_vpr_bench.csv"
+    (csv,) = (tmp_path / "results" / "synthetic").glob("eval_synthetic_global_hog_*[0-9a-f].csv")
     assert set(pd.read_csv(csv)["protocol"]) == {"vpr_bench"}
     with pytest.raises(SystemExit):  # argparse names the valid choices
         cli.main(["eval", "--protocol", "nope"])
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--root", ""], "--root is empty"),
+        (["--method", "dense", "dense"], "dense twice"),
+        (["--protocol", "multi_match"], "add --n-bootstrap 0"),
+        (["--device", "meta"], "--device must be cpu, cuda"),
+        (["--label", "../../x"], "one folder name"),
+        (["--label", "/tmp/x"], "one folder name"),
+    ],
+)
+def test_bad_arguments_are_refused_before_any_work(monkeypatch, capsys, argv, message):
+    from vpr_core import datasets
+
+    def boom(*a, **k):
+        raise AssertionError("nothing may be loaded before the arguments are checked")
+
+    monkeypatch.setattr(datasets, "load_dataset", boom)
+    with pytest.raises(SystemExit):
+        cli.main(["eval", "--dataset", "synthetic", *argv])
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+
+
+def test_an_infinite_scheduler_timeout_is_refused_at_parse_time(monkeypatch, capsys):
+    monkeypatch.setenv("VPR_SCHEDULER_TIMEOUT", "inf")
+    with pytest.raises(SystemExit):
+        cli.main(["eval", "--dataset", "synthetic"])
+    assert "VPR_SCHEDULER_TIMEOUT='inf' is not a positive number" in capsys.readouterr().err
+
+
+def test_help_names_every_loader_and_the_readme_peer_dataset(capsys):
+    with pytest.raises(SystemExit):
+        cli.main(["eval", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "utm" in out and "vpr_bench" in out and "(e.g. GardensPoint)" in out
+
+
+def test_two_runs_with_different_settings_leave_two_files(tmp_path, capsys):
+    base = ["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "global"]
+    base += ["--backbone", "hog", "--n-bootstrap", "0", "--out", str(tmp_path)]
+    assert cli.main(base) == 0
+    assert cli.main([*base, "--protocol", "vpr_bench"]) == 0
+    assert cli.main([*base, "--shortlist", "3"]) == 0
+    tables = sorted((tmp_path / "results" / "synthetic").glob("eval_synthetic_*[0-9a-f].csv"))
+    figures = sorted((tmp_path / "figures" / "synthetic").glob("eval_synthetic_*.png"))
+    assert len(tables) == 3 and [p.stem for p in tables] == [p.stem for p in figures]
+    assert cli.main(base) == 0  # the same settings again: the same file
+    assert len(list((tmp_path / "results" / "synthetic").glob("eval_*[0-9a-f].csv"))) == 3
+
+
+def test_file_based_ground_truth_is_described_not_called_tolerance_0(
+    tmp_path, gardens_point_mini_root, capsys
+):
+    import shutil
+
+    import numpy as np
+
+    root = tmp_path / "corridor"
+    for side in ("query", "reference"):
+        (root / side).mkdir(parents=True)
+        for i in range(3):
+            shutil.copy(gardens_point_mini_root / side / f"{i}.jpg", root / side)
+    np.save(root / "ground_truth.npy", np.array([[1, 1, 0], [0, 1, 0], [0, 0, 1]], bool))
+    argv = ["eval", "--dataset", "folder", "--root", str(root), "--method", "global"]
+    assert cli.main([*argv, "--backbone", "hog", "--n-bootstrap", "0", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "ground truth from file: 1-2 correct references per query (median 1)" in out
+    assert "tolerance=0" not in out and "tolerance 0" not in out

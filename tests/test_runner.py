@@ -137,3 +137,51 @@ def test_notebook_logging_is_stdout_and_warnings_are_not_printed_twice(capsys):
     assert "[vpr_core INFO] a plain line" in captured.out
     assert "VPRWarning" not in captured.err and captured.err.count("a thing") == 0
     configure_logging()  # back to stderr for the other tests
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"options": ["tolerance", 0]}, "options must be dict"),
+        ({"label": 5}, "label must be str or None, got int 5"),
+        ({"root": 123}, "root must be str or None, got int 123"),
+    ],
+)
+def test_run_study_refuses_parameters_of_the_wrong_type_before_any_work(
+    monkeypatch, kwargs, message
+):
+    from vpr_core import datasets
+
+    monkeypatch.setattr(datasets, "load_dataset", lambda *a, **k: pytest.fail("loaded"))
+    with pytest.raises(TypeError, match=message):
+        runner.run_study("synthetic", quick=True, **kwargs)
+
+
+def test_run_study_refuses_a_label_outside_the_output_root():
+    with pytest.raises(ValueError, match="one folder name"):
+        runner.run_study("synthetic", quick=True, label="../../x")
+
+
+def test_kernels_get_their_settings_through_env_not_os_environ(tmp_path, monkeypatch):
+    import json
+    import os
+    import subprocess
+
+    monkeypatch.delenv("VPR_CACHE_DIR", raising=False)
+    monkeypatch.setenv("VPR_OUTPUT_DIR", str(tmp_path / "env"))
+    seen = {}
+
+    def fake_run(command, env):
+        seen.update(command=command, env=env)
+        return subprocess.CompletedProcess(command, 0)
+
+    monkeypatch.setattr(runner.subprocess, "run", fake_run)
+    before = dict(os.environ)
+    nb = runner.notebook_paths(["01_pipeline_tour"])[0]
+    with runner.paths.using_output_root(tmp_path / "cli"):  # what --out does
+        runner._execute(nb, tmp_path / "out.ipynb", {"dataset": "synthetic"}, "python3")
+    assert dict(os.environ) == before
+    assert seen["env"]["VPR_OUTPUT_DIR"] == str(tmp_path / "cli")
+    assert seen["env"]["VPR_CACHE_DIR"] == str(tmp_path / "cli" / ".cache")
+    assert seen["env"]["VPR_PROGRESS"] == "text"
+    assert json.loads(seen["command"][-1])["cwd"] == str(nb.parent)

@@ -13,12 +13,13 @@ Examples::
 from __future__ import annotations
 
 import argparse
+import errno
 import signal
 import sys
 from pathlib import Path
 
 from . import paths, settings
-from .utils import configure_logging
+from .utils import configure_logging, short_hash
 
 INTERRUPTED = "interrupted; cached work is kept, rerun to resume"
 
@@ -58,6 +59,36 @@ def _non_negative(text: str) -> int:
     return value
 
 
+def _folder(text: str) -> str:
+    """``--root``: a non-empty folder name (``''`` would read the current folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(
+            "--root is empty; give the dataset folder, e.g. --root ~/data/gardens_point"
+        )
+    return text
+
+
+def _device(text: str) -> str:
+    """``--device``: ``cpu``, ``cuda``, ``cuda:N`` or ``mps``, available on this machine."""
+    import torch
+
+    try:
+        kind = torch.device(text).type
+    except (RuntimeError, ValueError):
+        kind = ""
+    if kind not in ("cpu", "cuda", "mps"):
+        raise argparse.ArgumentTypeError(f"--device must be cpu, cuda, cuda:N or mps, got {text!r}")
+    if kind == "cuda" and not torch.cuda.is_available():
+        raise argparse.ArgumentTypeError(
+            f"--device {text}: no CUDA device is available here; use --device cpu"
+        )
+    if kind == "mps" and not torch.backends.mps.is_available():
+        raise argparse.ArgumentTypeError(
+            f"--device {text}: no MPS device is available here; use --device cpu"
+        )
+    return text
+
+
 def format_table(rows: list[dict], columns: list[str] | None = None, floatfmt: str = ".3f") -> str:
     """Plain-text table (no extra dependency) of a list of dict rows."""
     if not rows:
@@ -74,7 +105,10 @@ def format_table(rows: list[dict], columns: list[str] | None = None, floatfmt: s
     line = "  ".join(c.ljust(w) for c, w in zip(columns, widths, strict=False))
     sep = "  ".join("-" * w for w in widths)
     body = [
-        "  ".join(v.rjust(w) if k else v.ljust(w) for k, (v, w) in enumerate(zip(row, widths, strict=False)))
+        "  ".join(
+            v.rjust(w) if k else v.ljust(w)
+            for k, (v, w) in enumerate(zip(row, widths, strict=False))
+        )
         for row in cells
     ]
     return "\n".join([line, sep, *body])
@@ -90,7 +124,7 @@ def _peer_results(args: argparse.Namespace, dataset) -> list:
     if not args.peer_dataset:
         raise ValueError(
             "--peers needs --peer-dataset NAME (the folder under "
-            "precomputed_matches/, e.g. GardensPointWalking)"
+            "precomputed_matches/, e.g. GardensPoint)"
         )
     return [
         peer_result(p, dataset, n_bootstrap=args.n_bootstrap, protocol=args.protocol)
@@ -163,24 +197,55 @@ def _display(table) -> list[dict]:
     return rows
 
 
+#: ``eval`` arguments that do not change a number (where and how the run is done).
+_NOT_SETTINGS = ("command", "func", "out", "label", "scheduler")
+
+
+def eval_settings(args: argparse.Namespace) -> dict:
+    """Every ``eval`` argument that can change a number (methods, peers, protocol, shortlist,
+    pooling, backbone, loader options, ...), unset ones left out; file arguments (root, peers,
+    weights) as absolute paths. Hashed into the output file names."""
+    found = {}
+    for key, value in sorted(vars(args).items()):
+        if key in _NOT_SETTINGS or value is None or value is False or value == []:
+            continue
+        if key in ("root", "peers", "weights"):
+            value = str(Path(value).expanduser().resolve())
+        elif key == "peer":
+            value = [
+                f"{n}={Path(p).expanduser().resolve()}"
+                for n, _, p in (item.partition("=") for item in value)
+            ]
+        found[key] = value
+    return found
+
+
+def eval_stem(args: argparse.Namespace, label: str) -> str:
+    """``eval_<label>_<methods>_<backbone>_<hash of eval_settings>``: two runs that can differ
+    in a number never share a file name."""
+    backbone = "".join(c if c.isalnum() or c in "-_." else "_" for c in args.backbone)
+    return f"eval_{label}_{'+'.join(args.method)}_{backbone}_{short_hash(eval_settings(args), 8)}"
+
+
 def cmd_eval(args: argparse.Namespace) -> int:
     from .datasets import load_dataset
     from .evaluation import compare, ground_truth_coverage
     from .pipeline import run_method
     from .utils import tune_allocator
-    from .viz import plot_pr_curves, save
+    from .viz import plot_pr_curves
+    from .viz.base import ground_truth_text, save_all
 
     tune_allocator()  # process-wide, here at the boundary: crop features ~1.7x faster
     dataset = load_dataset(args.dataset, root=args.root, **_dataset_options(args))
-    label = args.label or (
-        Path(args.root).expanduser().resolve().name
-        if args.root and args.dataset == "folder"
-        else dataset.name
-    )
+    label = paths.check_label(args.label or dataset.name)
     n_gt, n_q = ground_truth_coverage(dataset.ground_truth)
+    truth = ground_truth_text(
+        dataset.ground_truth, dataset.tolerance, bool(dataset.meta.get("ground_truth_file"))
+    )
+    loader = "" if dataset.name == args.dataset else f" (loader {args.dataset})"
     print(
-        f"dataset: {dataset.name} ({label})  queries={len(dataset.query_paths)} "
-        f"references={len(dataset.reference_paths)} tolerance={dataset.tolerance}"
+        f"dataset: {label}{loader}  queries={len(dataset.query_paths)} "
+        f"references={len(dataset.reference_paths)}  {truth}"
     )
     print(f"queries with ground truth: {n_gt} of {n_q}")
     mode = "exhaustive" if args.shortlist is None else f"shortlist k={args.shortlist}"
@@ -215,15 +280,9 @@ def cmd_eval(args: argparse.Namespace) -> int:
         )
     table = compare(results, n_bootstrap=args.n_bootstrap)
     print(format_table(_display(table)))
-    stem = "eval_" + "+".join(args.method) + f"_{args.backbone.replace(':', '_')}"
-    if args.pooling != "crop":
-        stem += f"_{args.pooling}"
-    if args.shortlist is not None:
-        stem += f"_k{args.shortlist}"
-    if args.protocol != "ratio":
-        stem += f"_{args.protocol}"
-    fig = plot_pr_curves(results, title=f"{label} ({mode})")
-    written = [save(table, stem, label, out=args.out), save(fig, stem, label, out=args.out)]
+    stem = eval_stem(args, label)
+    fig = plot_pr_curves(results, title=f"{label} ({mode}, protocol {args.protocol})")
+    written = save_all([(stem, table), (stem, fig)], label, out=args.out)
     print("wrote:\n" + "\n".join(f"  {p}" for p in written))
     return 0
 
@@ -261,6 +320,7 @@ def cmd_findings(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .datasets import DATASETS
     from .evaluation.curves import PROTOCOLS
     from .methods import available_methods
     from .paper import PROJECTION_DIM
@@ -271,13 +331,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
 
     def common(sp: argparse.ArgumentParser) -> None:
-        sp.add_argument(
-            "--dataset",
-            default="synthetic",
-            help="synthetic | gardens_point | mapillary_berlin | "
-            "freiburg_across_seasons | nordland | vpr_bench | folder",
-        )
-        sp.add_argument("--root", default=None, help="dataset folder (real datasets)")
+        sp.add_argument("--dataset", default="synthetic", help=" | ".join(DATASETS))
+        sp.add_argument("--root", type=_folder, default=None, help="dataset folder (real datasets)")
         sp.add_argument(
             "--backbone",
             default="efficientnet_lite0",
@@ -289,8 +344,8 @@ def build_parser() -> argparse.ArgumentParser:
             "--out",
             default=None,
             help="output root: figures/, results/, runs/ (and .cache/ unless "
-            "VPR_CACHE_DIR is set) go under it; default the current folder "
-            "or $VPR_OUTPUT_DIR",
+            "VPR_CACHE_DIR is set) go under it; default $VPR_OUTPUT_DIR, else the "
+            "project checkout holding the current folder, else the current folder",
         )
 
     e = sub.add_parser("eval", help="evaluate one or more methods on a dataset")
@@ -348,7 +403,9 @@ def build_parser() -> argparse.ArgumentParser:
         "(VPR-Bench's AUC-PR), best_match (VPR_Tutorial's), multi_match; see "
         "docs/DEFINITIONS.md",
     )
-    e.add_argument("--device", default="cpu", help="torch device: cpu (default) or cuda")
+    e.add_argument(
+        "--device", type=_device, default="cpu", help="torch device: cpu (default), cuda[:N], mps"
+    )
     e.add_argument(
         "--n-bootstrap",
         type=int,
@@ -366,7 +423,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--peer-dataset",
         default=None,
         metavar="NAME",
-        help="VPR-Bench dataset folder under precomputed_matches/ (e.g. GardensPointWalking)",
+        help="VPR-Bench dataset folder under precomputed_matches/ (e.g. GardensPoint)",
     )
     e.add_argument(
         "--peer",
@@ -444,7 +501,7 @@ def build_parser() -> argparse.ArgumentParser:
     f = sub.add_parser("findings", help="the paper's claims vs results/<dataset>/ (Markdown)")
     f.add_argument("--labels", nargs="*", help="result folders (default: all but *_quick)")
     f.add_argument("--write", action="store_true", help="also write results/findings.md")
-    f.add_argument("--out", default=None, help="output root (default: the current folder)")
+    f.add_argument("--out", default=None, help="output root (default: as for eval and run)")
     f.set_defaults(func=cmd_findings)
     return p
 
@@ -458,6 +515,23 @@ def _check_names(parser: argparse.ArgumentParser, args: argparse.Namespace) -> N
         bad = [m for m in args.method if m not in available_methods()]
         if bad:
             parser.error(f"unknown method(s) {bad}; valid: {', '.join(available_methods())}")
+        twice = sorted({m for m in args.method if args.method.count(m) > 1})
+        if twice:
+            parser.error(f"--method lists {', '.join(twice)} twice; name each method once")
+        if args.protocol == "multi_match" and args.n_bootstrap > 0:
+            parser.error(
+                "--protocol multi_match ranks all query-reference pairs together, so it has no "
+                "bootstrap over queries: add --n-bootstrap 0"
+            )
+        try:
+            settings.scheduler_timeout()
+        except ValueError as exc:
+            parser.error(str(exc))
+    if getattr(args, "label", None) is not None:
+        try:
+            paths.check_label(args.label)
+        except ValueError as exc:
+            parser.error(f"--{exc}")
     if getattr(args, "backbone", None) is None:
         return
     try:
@@ -482,11 +556,9 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, _terminated)
     _check_names(parser, args)
     configure_logging()
-    # --out applies to this command only; the runner's kernels inherit it (settings is the one
-    # place that reads and sets the environment)
-    out = {} if not args.out else {settings.OUTPUT_ENV: str(Path(args.out).expanduser().resolve())}
     try:
-        with settings.kernel_environment(out):
+        # --out applies to this command only; the runner hands it to its kernels
+        with paths.using_output_root(args.out or None):
             return args.func(args)
     except KeyboardInterrupt:
         print(INTERRUPTED, file=sys.stderr)
@@ -494,14 +566,17 @@ def main(argv: list[str] | None = None) -> int:
     except _Terminated:
         print(INTERRUPTED.replace("interrupted", "terminated"), file=sys.stderr)
         return 143
+    except OSError as exc:
+        if exc.errno == errno.ENOSPC and not exc.filename:
+            where = Path(args.out).expanduser().resolve() if args.out else paths.output_root()
+            exc = OSError(exc.errno, f"{exc.strerror} while writing under {where} or its cache")
+        print(f"vpr-study: error: {exc}", file=sys.stderr)
+        return 2
     except (
         ValueError,
         TypeError,
-        FileNotFoundError,
         IndexError,
         RuntimeError,
-        OSError,
-        ConnectionError,
         ImportError,
     ) as exc:
         print(f"vpr-study: error: {exc}", file=sys.stderr)

@@ -1,34 +1,81 @@
 """Where the workbench writes: the output root (figures, results, runs) and the cache root.
 
-Nothing is ever written inside the installed package.
-
-- Output root: ``$VPR_OUTPUT_DIR`` if set, else the current working directory (so ``make study``
-  in a checkout writes ``figures/`` and ``results/`` there). The CLI's ``--out`` sets it.
-- Figures: ``<output root>/figures/<label>/``; results: ``<output root>/results/<label>/``;
-  executed notebooks: ``<output root>/runs/<label>/``.
-- Cache root: ``$VPR_CACHE_DIR`` if set, else ``<output root>/.cache``.
+Nothing is ever written inside the installed package; the rules are in :func:`output_root`.
 """
 
 from __future__ import annotations
 
+import re
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from . import settings
 
 __all__ = [
+    "PROJECT_NAME",
     "cache_root",
+    "check_label",
     "figures_dir",
     "make_dir",
     "output_root",
+    "project_root",
     "results_dir",
     "runs_dir",
+    "using_output_root",
 ]
+
+#: ``[project] name`` in this project's ``pyproject.toml`` (how a checkout is recognised).
+PROJECT_NAME = "vpr-landmarks"
+
+_override: Path | None = None
+
+
+def project_root(start: Path | None = None) -> Path | None:
+    """The checkout of this project holding ``start`` (default: the cwd), or None.
+
+    Walks up from ``start`` to the first folder holding ``notebooks/`` and a ``pyproject.toml``
+    whose ``[project] name`` is :data:`PROJECT_NAME`, so a kernel started in ``notebooks/``
+    finds the same root as ``make study`` run at the top.
+    """
+    here = (start or Path.cwd()).resolve()
+    for folder in (here, *here.parents):
+        toml = folder / "pyproject.toml"
+        if toml.is_file() and (folder / "notebooks").is_dir():
+            try:
+                text = toml.read_text(errors="replace")
+            except OSError:
+                continue
+            if re.search(rf'^name\s*=\s*"{PROJECT_NAME}"', text, re.MULTILINE):
+                return folder
+    return None
+
+
+@contextmanager
+def using_output_root(root: str | Path | None) -> Iterator[None]:
+    """Within the block, :func:`output_root` is ``root`` (the CLI's ``--out``); ``None``
+    changes nothing. The previous root is restored afterwards."""
+    global _override
+    saved = _override
+    if root is not None:
+        _override = Path(root).expanduser().resolve()
+    try:
+        yield
+    finally:
+        _override = saved
 
 
 def output_root() -> Path:
-    """``$VPR_OUTPUT_DIR`` or the current working directory (absolute, not created)."""
+    """The output root (absolute, not created), the first of: the CLI's ``--out``
+    (:func:`using_output_root`), ``$VPR_OUTPUT_DIR``, the project's checkout holding the cwd
+    (:func:`project_root`), the cwd. Figures go to ``<root>/figures/<label>/``, tables to
+    ``<root>/results/<label>/``, executed notebooks to ``<root>/runs/<label>/``."""
+    if _override is not None:
+        return _override
     env = settings.output_dir()
-    return (Path(env).expanduser() if env else Path.cwd()).resolve()
+    if env:
+        return Path(env).expanduser().resolve()
+    return project_root() or Path.cwd().resolve()
 
 
 def make_dir(path: Path, setting: str) -> Path:
@@ -46,11 +93,38 @@ def make_dir(path: Path, setting: str) -> Path:
     return path
 
 
+_OUT_SETTING = "--out / VPR_OUTPUT_DIR (default: the project checkout, else the current folder)"
+
+
+def check_label(label: object) -> str:
+    """``label`` if it names one output subfolder (one path component, not ``.``/``..``).
+
+    Raises:
+        ValueError: e.g. ``../../x`` or ``/tmp/x`` (would write outside the output root).
+        TypeError: not a string (e.g. ``label=5``).
+    """
+    if not isinstance(label, str):
+        raise TypeError(f"label must be a string such as 'gardens_point', got {label!r}")
+    if (
+        not label.strip()
+        or label in (".", "..")
+        or "/" in label
+        or "\\" in label
+        or "\0" in label
+        or Path(label).is_absolute()
+    ):
+        raise ValueError(
+            f"label {label!r} must be one folder name (no '/', '..' or absolute path), "
+            "e.g. 'gardens_point'; it names figures/<label>/ and results/<label>/"
+        )
+    return label
+
+
 def _sub(kind: str, label: str | None) -> Path:
     d = output_root() / kind
     if label:
-        d = d / label
-    return make_dir(d, "--out / VPR_OUTPUT_DIR (default: the current folder)")
+        d = d / check_label(label)
+    return make_dir(d, _OUT_SETTING)
 
 
 def figures_dir(label: str | None = None) -> Path:
@@ -76,6 +150,5 @@ def cache_root() -> Path:
         root,
         "VPR_CACHE_DIR"
         if env
-        else "--out / VPR_OUTPUT_DIR (the cache defaults to <output root>/.cache; or set "
-        "VPR_CACHE_DIR)",
+        else f"{_OUT_SETTING}; the cache defaults to <output root>/.cache, or set VPR_CACHE_DIR",
     )

@@ -3,9 +3,9 @@
 ``vpr-study run`` and ``make study`` call :func:`run_study`. Each notebook of the source
 checkout's ``notebooks/`` is executed with its ``parameters`` cell overridden (dataset, root,
 backbone, label, options, limit), with the working directory ``notebooks/``, into
-``<output root>/runs/<label>/<notebook>.ipynb``. The kernels inherit the absolute output and
-cache roots (``VPR_OUTPUT_DIR``, ``VPR_CACHE_DIR``), so they write where the caller works, not
-into ``notebooks/``. Afterwards every figure that :data:`FIGURES` lists for the notebook must
+``<output root>/runs/<label>/<notebook>.ipynb``. The kernels get the absolute output and
+cache roots (:func:`kernel_settings`), so they write where the caller works, not into
+``notebooks/``. Afterwards every figure that :data:`FIGURES` lists for the notebook must
 exist in ``figures/<label>/``, else a clear error lists the missing ones.
 
 The orchestration lives here, outside the pipeline packages: the list of figures
@@ -15,10 +15,12 @@ settings of the headless tests (:data:`QUICK_PLACES`, :data:`QUICK_IMAGES`).
 
 from __future__ import annotations
 
+import json
 import logging
+import subprocess
+import sys
 import time
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,6 +38,7 @@ __all__ = [
     "check_parameters",
     "expected_figures",
     "figure_spec",
+    "kernel_settings",
     "notebook_parameters",
     "notebook_paths",
     "notebooks_dir",
@@ -100,6 +103,7 @@ FIGURES: tuple[FigureSpec, ...] = (
     FigureSpec("fig11_landmarks_per_scale", _NB5, "Fig. 11 / Table 3"),
     FigureSpec("fig12_normalized_scales", _NB5, "Fig. 12 / Table 4"),
     FigureSpec("fig13_comparison", _NB6, "Fig. 13"),
+    FigureSpec("disagreements_dense_classical", _NB6, "not in the paper: per-query view"),
     FigureSpec("fig14_coverage_comparison", _NB6, "Fig. 14"),
 )
 
@@ -290,23 +294,22 @@ def summary_table(label: str) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True)
 
 
-@contextmanager
-def _kernel_environment() -> Iterator[Path]:
-    """Absolute ``VPR_OUTPUT_DIR`` (and ``VPR_CACHE_DIR`` when set) for the notebook kernels,
-    which run with cwd ``notebooks/``; the caller's environment is restored afterwards."""
-    root = paths.output_root()
-    # the kernels draw inline (the executed notebooks hold their figures, as in Jupyter), even
-    # when the caller runs headless with MPLBACKEND=Agg
-    values = {
-        settings.OUTPUT_ENV: str(root),
+def kernel_settings() -> dict[str, str]:
+    """The settings the study runner hands its notebook kernels (through the ``env=`` of the
+    papermill process it starts; nothing writes ``os.environ``).
+
+    Returns:
+        ``{variable: value}``: the absolute output and cache roots (:mod:`vpr_core.paths`), so a
+        kernel in ``notebooks/`` writes and reads where the caller does; inline figures in the
+        executed notebooks (even when the caller runs with ``MPLBACKEND=Agg``); text progress
+        bars the saved notebooks can show.
+    """
+    return {
+        settings.OUTPUT_ENV: str(paths.output_root()),
+        settings.CACHE_ENV: str(paths.cache_root()),
         "MPLBACKEND": "module://matplotlib_inline.backend_inline",
         settings.PROGRESS_ENV: "text",
-    }  # bars the saved notebooks can show
-    if settings.cache_dir():
-        values[settings.CACHE_ENV] = str(paths.cache_root())
-    root.mkdir(parents=True, exist_ok=True)
-    with settings.kernel_environment(values):
-        yield root
+    }
 
 
 def _unwritten(folder: Path, stems: Sequence[str], since: float) -> list[str]:
@@ -355,32 +358,34 @@ REAL_DATA_NOTEBOOKS = (
 )
 
 
+#: The child process of :func:`_execute`: papermill with the kernel's output streamed to the
+#: child's (inherited) stdout and stderr.
+_PAPERMILL = (
+    "import json, sys; import papermill as pm; "
+    "pm.execute_notebook(**json.loads(sys.argv[1]), stdout_file=sys.stdout, stderr_file=sys.stderr)"
+)
+
+
 def _execute(nb: Path, out: Path, params: dict, kernel: str) -> None:
-    import sys
-
-    import papermill as pm
-
+    """Run papermill on ``nb`` in a child process whose environment holds
+    :func:`kernel_settings`; the kernel's output streams here live."""
     t0 = time.perf_counter()
     logger.info("executing %s -> %s", nb.name, out)
-    try:
-        # the kernel's own lines (vpr_core's log, on stdout in the notebooks) stream here live,
-        # so a long cell is never a silent counter
-        pm.execute_notebook(
-            str(nb),
-            str(out),
-            parameters=params,
-            cwd=str(nb.parent),
-            kernel_name=kernel,
-            progress_bar=not settings.progress_disabled(),
-            stdout_file=sys.stdout,
-            stderr_file=sys.stderr,
-        )
-    except KeyboardInterrupt:
-        raise
-    except Exception as exc:  # papermill raises PapermillExecutionError with the cell
+    request = {
+        "input_path": str(nb),
+        "output_path": str(out),
+        "parameters": params,
+        "cwd": str(nb.parent),
+        "kernel_name": kernel,
+        "progress_bar": sys.stderr.isatty() and not settings.progress_disabled(),
+    }
+    command = [sys.executable, "-c", _PAPERMILL, json.dumps(request)]
+    done = subprocess.run(command, env=settings.child_environment(kernel_settings()))
+    if done.returncode != 0:
         raise RuntimeError(
-            f"notebook {nb.name} failed; open {out} to see the failing cell:\n{exc}"
-        ) from exc
+            f"notebook {nb.name} failed (the error is printed above); open {out} to see the "
+            "failing cell"
+        )
     logger.info("%s done in %.1f s", nb.name, time.perf_counter() - t0)
 
 
@@ -421,7 +426,7 @@ def _write_findings(labels: Sequence[str]) -> None:
 
 def run_study(
     dataset: str = "synthetic",
-    root: str | None = None,
+    root: str | Path | None = None,
     backbone: str = "efficientnet_lite0",
     quick: bool = False,
     notebooks: Sequence[str] | None = None,
@@ -458,6 +463,19 @@ def run_study(
     """
     from .datasets import load_dataset
 
+    if isinstance(root, Path):
+        root = str(root)
+    check_parameters(
+        dataset=dataset,
+        root=root,
+        options={} if options is None else options,
+        label=label,
+        backbone=backbone,
+        pooling=pooling,
+        shortlist=shortlist,
+    )
+    if label is not None:
+        paths.check_label(label)
     if root is not None:
         root = str(Path(root).expanduser().resolve())
     # fail fast, with the loader's clear message (quick synthetic: only the places it uses)
@@ -483,33 +501,32 @@ def run_study(
     label = params["label"]
     selected = notebook_paths(notebooks)
     extra = study_datasets() if real_data else {}
-    with _kernel_environment() as out_root:
-        logger.info("study outputs under %s", out_root)
-        missing = _run_label(label, selected, params, kernel)
-        real_selected = [nb for nb in selected if nb.stem in REAL_DATA_NOTEBOOKS]
-        for name, spec in extra.items():
-            sub = output_label(name, quick)
-            logger.info("real data: %s (%s, %s)", sub, spec["dataset"], spec["root"])
-            missing += _run_label(
-                sub,
-                real_selected,
-                notebook_parameters(
-                    spec["dataset"],
-                    spec["root"],
-                    backbone,
-                    quick,
-                    label=name,
-                    options=spec.get("options", {}),
-                    pooling=spec.get("pooling", "crop"),
-                ),
-                kernel,
-            )
-        if missing:
-            raise RuntimeError("expected figures were not written: " + ", ".join(missing))
-        table = summary_table(label)
-        others = {output_label(n, quick): summary_table(output_label(n, quick)) for n in extra}
-        if len(selected) == len(notebook_paths()):
-            _write_findings([label, *others])
+    logger.info("study outputs under %s", paths.output_root())
+    missing = _run_label(label, selected, params, kernel)
+    real_selected = [nb for nb in selected if nb.stem in REAL_DATA_NOTEBOOKS]
+    for name, spec in extra.items():
+        sub = output_label(name, quick)
+        logger.info("real data: %s (%s, %s)", sub, spec["dataset"], spec["root"])
+        missing += _run_label(
+            sub,
+            real_selected,
+            notebook_parameters(
+                spec["dataset"],
+                spec["root"],
+                backbone,
+                quick,
+                label=name,
+                options=spec.get("options", {}),
+                pooling=spec.get("pooling", "crop"),
+            ),
+            kernel,
+        )
+    if missing:
+        raise RuntimeError("expected figures were not written: " + ", ".join(missing))
+    table = summary_table(label)
+    others = {output_label(n, quick): summary_table(output_label(n, quick)) for n in extra}
+    if len(selected) == len(notebook_paths()):
+        _write_findings([label, *others])
     if not table.empty:
         _print_summary(table, label, backbone)
     for sub, t in others.items():
@@ -518,7 +535,7 @@ def run_study(
     print(f"\nwrote, in {time.perf_counter() - t_start:.0f} s:")
     for sub in (label, *others):
         figs = sorted(paths.figures_dir(sub).glob("*.png"))
-        tables = sorted(paths.results_dir(sub).glob("*.csv"))
+        tables = [t for t in paths.results_dir(sub).glob("*.csv") if ".timings" not in t.suffixes]
         print(
             f"  {len(figs)} figures in {paths.figures_dir(sub)}, {len(tables)} tables in "
             f"{paths.results_dir(sub)}, executed notebooks in {paths.runs_dir(sub)}"

@@ -1,12 +1,13 @@
 """The environment, read in one place: every ``VPR_*`` variable the workbench honours.
 
 Library functions take parameters; where a parameter is left at ``None`` they may fall back to
-the setting named here. Nothing in ``vpr_core`` reads ``os.environ`` anywhere else, and only
-:func:`kernel_environment` (used by the study runner for the notebook kernels it starts)
-writes it.
+the setting named here. Nothing in ``vpr_core`` reads ``os.environ`` anywhere else, and nothing
+writes it: the study runner hands its notebook kernels their settings through the ``env=`` of
+the process it starts.
 
 =============================  ==============================================================
-``VPR_OUTPUT_DIR``             output root of figures/, results/, runs/ (default: the cwd)
+``VPR_OUTPUT_DIR``             output root of figures/, results/, runs/ (default: the
+                               project checkout holding the cwd, else the cwd)
 ``VPR_CACHE_DIR``              cache root (default: ``<output root>/.cache``)
 ``VPR_DASK_SCHEDULER``         Dask scheduler address; read by the CLI only
 ``VPR_SCHEDULER_TIMEOUT``      seconds to wait for a Dask scheduler (default 15)
@@ -22,9 +23,9 @@ writes it.
 
 from __future__ import annotations
 
+import math
 import os
-from collections.abc import Iterator, Mapping
-from contextlib import contextmanager
+from collections.abc import Mapping
 
 __all__ = [
     "ALEXNET_ENV",
@@ -39,10 +40,10 @@ __all__ = [
     "alexnet_weights",
     "bench_root",
     "cache_dir",
+    "child_environment",
     "dask_scheduler",
     "efficientnet_weights",
     "extra_datasets",
-    "kernel_environment",
     "output_dir",
     "progress_disabled",
     "progress_style",
@@ -87,7 +88,7 @@ def scheduler_timeout(default: float = 15.0) -> float:
     """``$VPR_SCHEDULER_TIMEOUT`` in seconds (default 15).
 
     Raises:
-        ValueError: not a positive number.
+        ValueError: not a positive finite number (``inf`` and ``nan`` included).
     """
     raw = _get(SCHEDULER_TIMEOUT_ENV)
     if raw is None:
@@ -96,7 +97,7 @@ def scheduler_timeout(default: float = 15.0) -> float:
         value = float(raw)
     except ValueError:
         value = -1.0
-    if not value > 0:
+    if not (value > 0 and math.isfinite(value)):
         raise ValueError(
             f"{SCHEDULER_TIMEOUT_ENV}={raw!r} is not a positive number of seconds; "
             f"set e.g. {SCHEDULER_TIMEOUT_ENV}=15 or unset it."
@@ -165,17 +166,7 @@ def progress_disabled() -> bool:
     return bool(os.environ.get("TQDM_DISABLE"))
 
 
-@contextmanager
-def kernel_environment(values: Mapping[str, str]) -> Iterator[None]:
-    """Set ``values`` in the environment for child processes (notebook kernels) and restore
-    the previous values afterwards. Used by the study runner only."""
-    saved = {k: os.environ.get(k) for k in values}
-    try:
-        os.environ.update({k: str(v) for k, v in values.items()})
-        yield
-    finally:
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
+def child_environment(values: Mapping[str, str]) -> dict[str, str]:
+    """This process's environment with ``values`` added, for the ``env=`` of a child process
+    (the study runner's notebook kernels); ``os.environ`` itself is left unchanged."""
+    return {**os.environ, **{k: str(v) for k, v in values.items()}}

@@ -10,12 +10,20 @@ from __future__ import annotations
 import re
 import socket
 import struct
+import time
 
 from .. import settings
 from ..settings import SCHEDULER_ENV
 from ..utils import logger, progress
 
-__all__ = ["SCHEDULER_ENV", "gather_in_order", "get_client", "probe_scheduler", "scheduler_address"]
+__all__ = [
+    "SCHEDULER_ENV",
+    "cluster_lost",
+    "gather_in_order",
+    "get_client",
+    "probe_scheduler",
+    "scheduler_address",
+]
 
 _ADDRESS = re.compile(r"(tcp|tls|inproc|ucx)://(\[[^\]]+\]|[^:/\[\]]+):(\d{1,5})")
 #: A Dask handshake message is a few hundred bytes; anything near this is not Dask speaking.
@@ -141,15 +149,62 @@ def get_client(scheduler: str | None = None, timeout: float | None = None):
     return client
 
 
-def gather_in_order(client, futures: list, desc: str) -> list:
-    """Results of ``futures`` in list order (a progress bar counts completions)."""
-    from distributed import as_completed
+def cluster_lost(client, desc: str, why: object) -> ConnectionError:
+    """The one-line error of a cluster fault during ``desc``: it names the scheduler's address,
+    says that cached work is kept, and how to go on."""
+    addr = getattr(getattr(client, "scheduler", None), "address", None) or "the scheduler"
+    return ConnectionError(
+        f"the Dask cluster at {addr} was lost during {desc} ({why}); cached work is kept: "
+        f"restart the scheduler and its workers and rerun to resume, or unset --scheduler / "
+        f"${SCHEDULER_ENV} to run in-process"
+    )
 
+
+#: Seconds between checks that the cluster still has workers while waiting for results.
+POLL_S = 5.0
+
+
+def gather_in_order(client, futures: list, desc: str) -> list:
+    """Results of ``futures`` in list order (a progress bar counts completions).
+
+    A task's own exception is re-raised as it is. A cluster fault (the scheduler killed, every
+    worker lost for longer than :func:`vpr_core.settings.scheduler_timeout`, tasks cancelled)
+    becomes one :class:`ConnectionError` (:func:`cluster_lost`).
+    """
+    from concurrent.futures import CancelledError
+
+    from distributed import KilledWorker
+    from distributed.comm.core import CommClosedError
+    from tornado.iostream import StreamClosedError
+
+    faults = (CancelledError, CommClosedError, StreamClosedError, KilledWorker)
+    patience = settings.scheduler_timeout()
     bar = progress(None, total=len(futures), desc=desc, unit="task")
+    pending = list(futures)
+    seen = asked = time.monotonic()  # when workers (or progress) were last seen / asked for
     try:
-        for f in as_completed(futures, loop=client.loop):
-            f.result()  # re-raises a worker's exception here, with its traceback
-            bar.update()
+        while pending:
+            still = []
+            for f in pending:
+                if f.done():
+                    f.result()  # re-raises a worker's exception here, with its traceback
+                    bar.update()
+                else:
+                    still.append(f)
+            now = time.monotonic()
+            if len(still) < len(pending):
+                seen = now
+            elif now - asked >= POLL_S:
+                asked = now
+                if client.scheduler_info().get("workers"):
+                    seen = now
+                elif now - seen >= patience:
+                    raise cluster_lost(client, desc, f"no worker left for {now - seen:.0f} s")
+            pending = still
+            if pending:
+                time.sleep(0.05)
+        return client.gather(futures)
+    except faults as exc:
+        raise cluster_lost(client, desc, f"{type(exc).__name__}: {exc}") from exc
     finally:
         bar.close()
-    return client.gather(futures)

@@ -2,15 +2,40 @@
 
 from __future__ import annotations
 
+import fcntl
+import filecmp
+import logging
+import os
+import re
+import tempfile
+from collections.abc import Callable, Sequence
+from functools import partial
 from pathlib import Path
 
 import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
+import pandas as pd
 
-from ..paths import figures_dir, results_dir
+from ..paths import check_label, figures_dir, make_dir, output_root
 
-__all__ = ["METHOD_COLORS", "SAVE_DPI", "draw_boxes", "layout_problems", "save", "save_figure"]
+__all__ = [
+    "METHOD_COLORS",
+    "SAVE_DPI",
+    "TIMING_COLUMN",
+    "curve_note",
+    "draw_boxes",
+    "ground_truth_text",
+    "layout_problems",
+    "save",
+    "save_all",
+    "save_figure",
+    "split_timings",
+]
+
+logger = logging.getLogger("vpr_core")
+
+_OUT_SETTING = "--out / VPR_OUTPUT_DIR (default: the project checkout, else the current folder)"
 
 #: Resolution of every saved study figure (dots per inch).
 SAVE_DPI = 110
@@ -52,22 +77,51 @@ def save_figure(
         path = path.with_suffix(path.suffix + ".png") if path.suffix else path.with_suffix(".png")
     if not path.is_absolute():
         path = figures_dir(dataset) / path
-    from ..paths import make_dir
-
-    make_dir(path.parent, "--out / VPR_OUTPUT_DIR (default: the current folder)")
-    tmp = path.with_name(path.name + ".tmp")
-    try:  # written whole or not at all (a full disk leaves no half PNG)
-        fig.savefig(
-            tmp,
-            dpi=dpi,
-            metadata=png_metadata(path.suffix),
-            bbox_inches=None,
-            format=path.suffix[1:],
-        )
-        tmp.replace(path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    make_dir(path.parent, _OUT_SETTING)
+    _commit([(_staged(path, partial(_draw, fig, suffix=path.suffix, dpi=dpi)), path)], path.parent)
     return path
+
+
+def _draw(fig: matplotlib.figure.Figure, tmp: Path, suffix: str, dpi: int = SAVE_DPI) -> None:
+    fig.savefig(tmp, dpi=dpi, metadata=png_metadata(suffix), bbox_inches=None, format=suffix[1:])
+
+
+def _staged(path: Path, write: Callable[[Path], None]) -> Path:
+    """``write`` into a fresh temporary file beside ``path`` (unique per call, so concurrent
+    writers never share one); a failed write removes it and names ``path``."""
+    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        write(tmp)
+    except BaseException as exc:
+        tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError) and not exc.filename:
+            raise type(exc)(
+                exc.errno,
+                f"cannot write {path} ({exc.strerror or exc}); free space there or choose "
+                "another --out / VPR_OUTPUT_DIR",
+            ) from exc
+        raise
+    return tmp
+
+
+def _commit(staged: list[tuple[Path, Path]], lock_dir: Path) -> None:
+    """Rename every ``(temporary, final)`` pair under one lock of ``lock_dir`` (an exclusive
+    ``flock`` on the folder), so concurrent runs never leave a figure beside another run's
+    table; says when a file with other content is replaced."""
+    fd = os.open(lock_dir, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        for tmp, path in staged:
+            if path.is_file() and not filecmp.cmp(tmp, path, shallow=False):
+                logger.info("replaced %s (its previous content differed)", path)
+            os.chmod(tmp, 0o644)
+            tmp.replace(path)
+    finally:
+        for tmp, _ in staged:
+            tmp.unlink(missing_ok=True)
+        os.close(fd)  # releases the lock
 
 
 def _legend_boxes(fig) -> list:
@@ -97,31 +151,51 @@ def _data_points(ax) -> np.ndarray:
     return np.concatenate(pts) if pts else np.zeros((0, 2))
 
 
+def _texts(fig: matplotlib.figure.Figure) -> list:
+    """Every drawn text a reader must see whole: figure texts and super-titles, each axes'
+    titles, axis labels and unclipped annotations, legend titles and entries."""
+    found: list = list(fig.texts)
+    found += [getattr(fig, a, None) for a in ("_suptitle", "_supxlabel", "_supylabel")]
+    for ax in fig.axes:
+        if not ax.get_visible():
+            continue
+        found += [ax.title, getattr(ax, "_left_title", None), getattr(ax, "_right_title", None)]
+        found += [ax.xaxis.label, ax.yaxis.label]
+        found += [t for t in ax.texts if not t.get_clip_on()]
+    for leg in _legend_boxes(fig):
+        found += [leg.get_title(), *leg.get_texts()]
+    return [t for t in found if t is not None and t.get_visible() and t.get_text().strip()]
+
+
 def layout_problems(fig: matplotlib.figure.Figure) -> list[str]:
-    """What a reader would see as broken in a figure: text cut by the canvas edge, a legend
-    drawn over the plotted data (line vertices, bar tops).
+    """What a reader would see as broken in a figure: text cut by the canvas edge (each text's
+    extent measured at the saving resolution :data:`SAVE_DPI`), a legend drawn over the
+    plotted data (line vertices, bar tops).
 
     Returns:
         One sentence per problem (empty: the figure passes).
     """
-    fig.canvas.draw()
-    renderer = fig.canvas.get_renderer()
-    canvas = fig.bbox
+    dpi = fig.get_dpi()
+    fig.set_dpi(SAVE_DPI)  # text extents do not scale exactly with the resolution
+    try:
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # Agg and inline
+        canvas = fig.bbox.frozen()
+        parts = [
+            (
+                f"axes {ax.get_title()[:50]!r} (its title, tick or axis labels)",
+                ax.get_tightbbox(renderer),
+            )
+            for ax in fig.axes
+            if ax.get_visible()
+        ]
+        parts += [
+            (f"text {t.get_text()[:50]!r}", t.get_window_extent(renderer)) for t in _texts(fig)
+        ]
+        parts += [("a figure legend", leg.get_window_extent(renderer)) for leg in fig.legends]
+    finally:
+        fig.set_dpi(dpi)
     problems = []
-    parts = [
-        (
-            f"axes {ax.get_title()[:50]!r} (its title, tick or axis labels)",
-            ax.get_tightbbox(renderer),
-        )
-        for ax in fig.axes
-        if ax.get_visible()
-    ]
-    parts += [
-        (f"text {t.get_text()[:50]!r}", t.get_window_extent(renderer))
-        for t in fig.texts
-        if t.get_visible() and t.get_text().strip()
-    ]
-    parts += [("a figure legend", leg.get_window_extent(renderer)) for leg in fig.legends]
     for what, bb in parts:
         if bb is None:
             continue
@@ -132,6 +206,8 @@ def layout_problems(fig: matplotlib.figure.Figure) -> list[str]:
             or bb.y1 > canvas.y1 + 1
         ):
             problems.append(f"{what} extends beyond the canvas")
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # Agg and inline
     for leg in _legend_boxes(fig):
         bb = leg.get_window_extent(renderer)
         for ax in fig.axes:
@@ -150,18 +226,101 @@ def layout_problems(fig: matplotlib.figure.Figure) -> list[str]:
     return problems
 
 
-def save(obj, name: str, label: str, out: str | Path | None = None) -> Path:
-    """Write a figure or a table of the study under its dataset label (the one output writer).
+#: Columns of a table that hold a duration measured on this machine (``s/img``, ``s/pair``,
+#: ``(s)``): :func:`save` writes them to ``<stem>.timings.csv`` (git-ignored), not the table.
+TIMING_COLUMN = re.compile(r"\bs/(img|pair)\b|\(s\)")
+
+
+def split_timings(table: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame | None]:
+    """``(table without timing columns, timings or None)``; ``root`` cells become the data
+    folder's name, so the committed table is the same on every machine.
+
+    The timings keep the table's index, or its first column when the index is a plain range.
+    """
+    table = table.copy()
+    if "root" in table.columns:
+        table["root"] = [Path(v).name if isinstance(v, str) and v else v for v in table["root"]]
+    timed = [c for c in table.columns if isinstance(c, str) and TIMING_COLUMN.search(c)]
+    if not timed:
+        return table, None
+    keys = [] if not isinstance(table.index, pd.RangeIndex) else [table.columns[0]]
+    keys = [k for k in keys if k not in timed]
+    return table.drop(columns=timed), table[keys + timed]
+
+
+def _write_csv(table: pd.DataFrame, tmp: Path) -> None:
+    table.to_csv(tmp, float_format="%.6f", index=not isinstance(table.index, pd.RangeIndex))
+
+
+def save_all(
+    items: Sequence[tuple[str, matplotlib.figure.Figure | pd.DataFrame]],
+    label: str,
+    out: str | Path | None = None,
+) -> list[Path]:
+    """Write figures and tables of one label as one unit (the one output writer).
 
     A matplotlib Figure goes to ``figures/<label>/<name>.png`` (byte-identical for identical
-    inputs, :func:`save_figure`); a pandas DataFrame to ``results/<label>/<name>.csv`` (floats
-    with 6 decimals, the index kept). Both folders are under the output root
-    (:func:`vpr_core.paths.output_root`) or under ``out`` when given.
+    inputs, checked by :func:`layout_problems`); a pandas DataFrame to
+    ``results/<label>/<name>.csv`` (floats with 6 decimals, the index kept; timing columns to
+    ``<name>.timings.csv``, :func:`split_timings`). Everything is written to unique temporary
+    files first, then renamed under one lock of the output root: concurrent runs never leave
+    one run's figure beside another's table. Replacing a file with other content is logged.
+
+    Args:
+        items: ``(file stem, Figure or DataFrame)`` pairs; a figure and its table may share a
+            stem.
+        label: the dataset label (one folder name), e.g. ``"gardens_point_mini"``.
+        out: another output root (default :func:`vpr_core.paths.output_root`).
+
+    Returns:
+        The written paths (timings files not included), in the order of ``items``.
+
+    Raises:
+        TypeError: an item is neither a Figure nor a DataFrame, or ``label`` not a string.
+        ValueError: ``label`` is not one folder name (``../x``, ``/tmp/x``).
+    """
+    from ..notices import notice
+
+    check_label(label)
+    root = output_root() if out is None else Path(out).expanduser().resolve()
+    staged: list[tuple[Path, Path]] = []
+    written: list[Path] = []
+    try:
+        for name, obj in items:
+            if isinstance(obj, matplotlib.figure.Figure):
+                for problem in layout_problems(obj):
+                    notice(f"layout of {name}: {problem}")
+                path = make_dir(root / "figures" / label, _OUT_SETTING) / f"{name}.png"
+                staged.append((_staged(path, partial(_draw, obj, suffix=".png")), path))
+            elif isinstance(obj, pd.DataFrame):
+                folder = make_dir(root / "results" / label, _OUT_SETTING)
+                table, timings = split_timings(obj)
+                path = folder / f"{name}.csv"
+                staged.append((_staged(path, partial(_write_csv, table)), path))
+                if timings is not None:
+                    extra = folder / f"{name}.timings.csv"
+                    staged.append((_staged(extra, partial(_write_csv, timings)), extra))
+            else:
+                raise TypeError(
+                    f"save() writes a matplotlib Figure or a pandas DataFrame, got "
+                    f"{type(obj).__name__} for {name!r}"
+                )
+            written.append(path)
+    except BaseException:
+        for tmp, _ in staged:
+            tmp.unlink(missing_ok=True)
+        raise
+    _commit(staged, make_dir(root, _OUT_SETTING))
+    return written
+
+
+def save(obj, name: str, label: str, out: str | Path | None = None) -> Path:
+    """Write one figure or table of the study under its dataset label (:func:`save_all`).
 
     Args:
         obj: ``matplotlib.figure.Figure`` or ``pandas.DataFrame``.
         name: file stem, e.g. ``"fig05_selection"``.
-        label: the dataset label (subfolder), e.g. ``"synthetic"``, ``"gardens_point_mini"``.
+        label: the dataset label (one folder name), e.g. ``"synthetic"``.
         out: another output root.
 
     Returns:
@@ -170,34 +329,50 @@ def save(obj, name: str, label: str, out: str | Path | None = None) -> Path:
     Raises:
         TypeError: ``obj`` is neither a Figure nor a DataFrame.
     """
-    import pandas as pd
+    return save_all([(name, obj)], label, out)[0]
 
-    if not label or not isinstance(label, str):
-        raise ValueError(f"save(): label must name the dataset (a non-empty string), got {label!r}")
-    root = None if out is None else Path(out).expanduser().resolve()
-    from ..paths import make_dir
 
-    setting = "--out / VPR_OUTPUT_DIR (default: the current folder)"
-    if isinstance(obj, matplotlib.figure.Figure):
-        folder = figures_dir(label) if root is None else make_dir(root / "figures" / label, setting)
-        from ..notices import notice
+def curve_note(recall: np.ndarray, precision: np.ndarray) -> str:
+    """Why a PR curve cannot be seen in a plot, for its legend entry, or ``""``.
 
-        for problem in layout_problems(obj):
-            notice(f"layout of {name}: {problem}")
-        return save_figure(obj, folder / f"{name}.png")
-    if isinstance(obj, pd.DataFrame):
-        folder = results_dir(label) if root is None else make_dir(root / "results" / label, setting)
-        path = folder / f"{name}.csv"
-        tmp = path.with_name(path.name + ".tmp")
-        try:
-            obj.to_csv(tmp, float_format="%.6f", index=not isinstance(obj.index, pd.RangeIndex))
-            tmp.replace(path)
-        finally:
-            tmp.unlink(missing_ok=True)
-        return path
-    raise TypeError(
-        f"save() writes a matplotlib Figure or a pandas DataFrame, got {type(obj).__name__}"
-    )
+    Args:
+        recall, precision: ``(T + 1,)`` curve points (``recall[0] = 0``).
+
+    Returns:
+        ``"; no curve: no query correctly matched at any threshold"`` when the curve never
+        leaves recall 0 (AUC 0: it lies on the axis), else ``""``.
+    """
+    r = np.asarray(recall, dtype=float)
+    p = np.asarray(precision, dtype=float)
+    seen = np.isfinite(r) & np.isfinite(p) & (r > 0) & (p > 0)
+    return "" if seen.any() else "; no curve: no query correctly matched at any threshold"
+
+
+def ground_truth_text(ground_truth: np.ndarray, tolerance: object, from_file: bool) -> str:
+    """How a dataset's ground truth was made, for tables and titles.
+
+    Args:
+        ground_truth: ``bool (Nq, Nr)``.
+        tolerance: the dataset's tolerance (frames, or e.g. ``"25 m"``).
+        from_file: the correct pairs were read from a file (``meta["ground_truth_file"]``).
+
+    Returns:
+        ``"ground truth from file: 1-5 correct references per query (median 5)"`` for a file
+        (``", widened by N frames"`` when a tolerance was applied), else ``"tolerance N"``.
+    """
+    if not from_file:
+        return f"tolerance {tolerance}"
+    counts = np.asarray(ground_truth, dtype=bool).sum(axis=1)
+    counts = counts[counts > 0]
+    if not len(counts):
+        return "ground truth from file: no query has a correct reference"
+    lo, hi, med = int(counts.min()), int(counts.max()), float(np.median(counts))
+    span = f"{lo}" if lo == hi else f"{lo}-{hi}"
+    noun = "reference" if hi == 1 else "references"
+    text = f"ground truth from file: {span} correct {noun} per query (median {med:g})"
+    if tolerance not in (0, None, "0"):
+        text += f", widened by {tolerance} frames"
+    return text
 
 
 def draw_boxes(ax, boxes: np.ndarray, color="yellow", lw: float = 1.0, alpha: float = 0.9) -> None:
