@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from vpr_core.boxes import box_iou
-from vpr_core.matching.core import NMS_TIE_TOL, TIE_TOL
+from vpr_core.matching.core import NMS_TIE_TOL, SPATIAL_TAU, TIE_TOL
 from vpr_core.paper import SOFT_NMS_SIGMA
 
 
@@ -90,8 +90,33 @@ def soft_nms_scores(scores, overlaps, t: float, sigma: float = SOFT_NMS_SIGMA) -
     return out
 
 
-def match_landmarks(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou=None, sigma=SOFT_NMS_SIGMA):
-    """``dict`` of matches, distances, shape, raw_scores, scores, similarity, n_a, n_b."""
+def extent_centres(boxes: np.ndarray) -> np.ndarray:
+    """``(K, 2)`` box centres relative to the boxes' union bounding box, in units of its size."""
+    if len(boxes) == 0:
+        return np.zeros((0, 2))
+    x0, y0 = boxes[:, 0].min(), boxes[:, 1].min()
+    w = (boxes[:, 0] + boxes[:, 2]).max() - x0
+    h = (boxes[:, 1] + boxes[:, 3]).max() - y0
+    w, h = (w if w > 0 else 1.0), (h if h > 0 else 1.0)
+    cx = (boxes[:, 0] + boxes[:, 2] / 2 - x0) / w
+    cy = (boxes[:, 1] + boxes[:, 3] / 2 - y0) / h
+    return np.stack([cx, cy], axis=1)
+
+
+def consistency_weights(ba, bb, matches, tau: float = SPATIAL_TAU) -> np.ndarray:
+    """(Not in the paper) ``exp(-|delta - median delta|^2 / (2 tau^2))`` of each match."""
+    i, j = matches[:, 0], matches[:, 1]
+    delta = extent_centres(ba)[i] - extent_centres(bb)[j]
+    if len(delta) == 0:
+        return np.ones(0)
+    med = np.median(delta, axis=0)
+    return np.exp(-((delta - med) ** 2).sum(axis=1) / (2 * tau**2))
+
+
+def match_landmarks(
+    desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou=None, sigma=SOFT_NMS_SIGMA, spatial=None
+):
+    """``dict`` of matches, distances, shape, raw_scores, weights, scores, similarity, n_a, n_b."""
     a, b = np.asarray(desc_a, np.float64), np.asarray(desc_b, np.float64)
     ba = np.asarray(boxes_a, np.float64).reshape(-1, 4)
     bb = np.asarray(boxes_b, np.float64).reshape(-1, 4)
@@ -101,9 +126,11 @@ def match_landmarks(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou=None, sigma=S
     dist = 1.0 - cos[i, j]
     shp = shape_terms(ba[i, 2], bb[j, 2], ba[i, 3], bb[j, 3])
     raw = 1.0 - dist * shp
-    scores = raw
+    assert spatial in (None, "consistency")
+    w = np.ones(len(m)) if spatial is None else consistency_weights(ba, bb, m)
+    scores = raw * w
     if soft_nms_iou is not None and len(m) > 1:
-        scores = soft_nms_scores(raw, match_overlaps(ba, bb, m), soft_nms_iou, sigma)
+        scores = soft_nms_scores(scores, match_overlaps(ba, bb, m), soft_nms_iou, sigma)
     na, nb = len(a), len(b)
     sim = float(scores.sum() / math.sqrt(na * nb)) if na * nb > 0 else 0.0
     return {
@@ -111,6 +138,7 @@ def match_landmarks(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou=None, sigma=S
         "distances": dist,
         "shape": shp,
         "raw_scores": raw,
+        "weights": w,
         "scores": scores,
         "similarity": sim,
         "n_a": na,
@@ -118,6 +146,9 @@ def match_landmarks(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou=None, sigma=S
     }
 
 
-def image_similarity(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou=None, sigma=SOFT_NMS_SIGMA):
+def image_similarity(
+    desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou=None, sigma=SOFT_NMS_SIGMA, spatial=None
+):
     """Eq. (1) of two images."""
-    return match_landmarks(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou, sigma)["similarity"]
+    res = match_landmarks(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou, sigma, spatial)
+    return res["similarity"]

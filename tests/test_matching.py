@@ -414,15 +414,16 @@ def test_cuda_without_gpu_is_a_clear_error():
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
 @pytest.mark.parametrize("t", [None, 0.3])
-def test_cuda_equals_pairwise(t):
+@pytest.mark.parametrize("spatial", [None, "consistency"])
+def test_cuda_equals_pairwise(t, spatial):
     rng = np.random.default_rng(17)
     qd, qb = _random_sets(rng, 6, 1, 20, 48)
     rd, rb = _random_sets(rng, 7, 1, 20, 48)
-    want = _pairwise(qd, qb, rd, rb, soft_nms_iou=t)
-    got = similarity_matrix(qd, qb, rd, rb, soft_nms_iou=t, device="cuda")
+    want = _pairwise(qd, qb, rd, rb, soft_nms_iou=t, spatial=spatial)
+    got = similarity_matrix(qd, qb, rd, rb, soft_nms_iou=t, spatial=spatial, device="cuda")
     np.testing.assert_allclose(got, want, atol=1e-5, rtol=0)
     pairs = np.array([[0, 1], [5, 6], [2, 2]])
-    got_p = similarity_pairs(qd, qb, rd, rb, pairs, soft_nms_iou=t, device="cuda")
+    got_p = similarity_pairs(qd, qb, rd, rb, pairs, soft_nms_iou=t, spatial=spatial, device="cuda")
     np.testing.assert_allclose(got_p, want[pairs[:, 0], pairs[:, 1]], atol=1e-5, rtol=0)
 
 
@@ -477,3 +478,122 @@ def test_similarity_pairs_bad_pairs():
         similarity_pairs(d, bx, d, bx, np.array([[0, 1], [1, 2]]))
     with pytest.raises(ValueError, match="query index -1"):
         similarity_pairs(d, bx, d, bx, np.array([[-1, 0]]))
+
+
+# ------------------------------------------------------------------------------------------
+# (not in the paper) spatial="consistency": geometry-aware re-scoring
+# ------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("t", [None, 0.0, 0.3])
+def test_spatial_match_landmarks_equals_oracle(t):
+    rng = np.random.default_rng(41)
+    qd, qb = _random_sets(rng, 6, 0, 25, 32)
+    rd, rb = _random_sets(rng, 6, 1, 25, 32)
+    rd[3], rb[3] = qd[2].copy(), qb[2].copy() + [7.0, -3.0, 0.0, 0.0]  # all match, one shift
+    rd[4], rb[4] = qd[1].copy(), _random_sets(rng, 1, len(qd[1]), len(qd[1]), 2)[1][0]
+    n_matches = []
+    for i in range(6):
+        for j in range(6):
+            got = match_landmarks(qd[i], qb[i], rd[j], rb[j], soft_nms_iou=t, spatial="consistency")
+            want = oracle.match_landmarks(
+                qd[i], qb[i], rd[j], rb[j], soft_nms_iou=t, spatial="consistency"
+            )
+            np.testing.assert_array_equal(got.matches, want["matches"])
+            np.testing.assert_allclose(got.spatial_weights, want["weights"], atol=1e-12, rtol=0)
+            for key in ("distances", "shape", "raw_scores", "scores"):
+                np.testing.assert_allclose(getattr(got, key), want[key], atol=1e-12, rtol=0)
+            assert got.similarity == pytest.approx(want["similarity"], abs=1e-12)
+            n_matches.append(len(want["matches"]))
+    assert max(n_matches) > 10  # the median is exercised on odd and even counts
+    assert {n % 2 for n in n_matches if n > 1} == {0, 1}
+
+
+@pytest.mark.parametrize("t", [None, 0.3])
+def test_spatial_similarity_matrix_and_pairs_equal_oracle(t):
+    rng = np.random.default_rng(43)
+    qd, qb = _random_sets(rng, 7, 1, 18, 40)
+    rd, rb = _random_sets(rng, 9, 1, 18, 40)
+    rd[4], rb[4] = qd[2].copy(), qb[2][::-1].copy()  # all landmarks match, boxes permuted
+    qd[6], qb[6] = np.zeros((0, 40), np.float32), np.zeros((0, 4))
+    want = _pairwise(qd, qb, rd, rb, soft_nms_iou=t, spatial="consistency")
+    got = similarity_matrix(
+        qd, qb, rd, rb, soft_nms_iou=t, spatial="consistency", batch_size=3, ref_batch_size=4
+    )
+    np.testing.assert_allclose(got, want, atol=1e-5, rtol=0)
+    assert not np.allclose(want, _pairwise(qd, qb, rd, rb, soft_nms_iou=t), atol=1e-3)
+    pairs = np.array([[3, 1], [0, 4], [2, 4], [6, 1], [0, 8], [5, 5], [2, 4]])
+    got_p = similarity_pairs(
+        qd, qb, rd, rb, pairs, soft_nms_iou=t, spatial="consistency", ref_batch_size=2
+    )
+    np.testing.assert_allclose(got_p, want[pairs[:, 0], pairs[:, 1]], atol=1e-5, rtol=0)
+
+
+def _shifted_pair(move: tuple[float, float] | None = None):
+    """Four matches whose reference boxes are the query boxes shifted by (16, 8) pixels.
+
+    Each image also has a 128 x 64 landmark that matches nothing and fixes its extent, so every
+    match's normalised displacement is (-0.125, -0.125), exactly. ``move``: new (x, y) of the
+    reference box of match 2.
+    """
+    c = np.array([0.9, 0.8, 0.95, 0.7])
+    a = np.eye(8)[[0, 1, 2, 3, 4]]
+    b = np.zeros((5, 8))
+    b[np.arange(4), np.arange(4)] = c
+    b[:4, 7] = np.sqrt(1 - c**2)
+    b[4, 5] = 1.0
+    ba = np.array([[0, 0, 16, 16], [32, 8, 16, 24], [64, 16, 16, 16], [96, 0, 8, 32]], float)
+    bb = ba + [16.0, 8.0, 0.0, 0.0]
+    if move is not None:
+        bb[2, :2] = move
+    frame = [[0.0, 0.0, 128.0, 64.0]]
+    return a, np.r_[ba, frame], b, np.r_[bb, frame]
+
+
+@pytest.mark.parametrize("t", [None, 0.3])
+def test_spatial_one_shared_displacement_changes_nothing(t):
+    a, ba, b, bb = _shifted_pair()
+    plain = match_landmarks(a, ba, b, bb, soft_nms_iou=t)
+    geo = match_landmarks(a, ba, b, bb, soft_nms_iou=t, spatial="consistency")
+    np.testing.assert_array_equal(geo.matches, [[0, 0], [1, 1], [2, 2], [3, 3]])
+    np.testing.assert_array_equal(geo.spatial_weights, np.ones(4))
+    np.testing.assert_array_equal(geo.scores, plain.scores)
+    assert geo.similarity == plain.similarity
+    # ... although the shared displacement itself is far from zero (0.18 of the image)
+    np.testing.assert_allclose(
+        oracle.extent_centres(ba)[:4] - oracle.extent_centres(bb)[:4], -0.125
+    )
+    for spatial in (None, "consistency"):
+        s = similarity_matrix([a], [ba], [b], [bb], soft_nms_iou=t, spatial=spatial)
+        assert s[0, 0] == pytest.approx(plain.similarity, abs=1e-6)
+
+
+@pytest.mark.parametrize("t", [None, 0.3])
+def test_spatial_one_displaced_match_lowers_only_its_term(t):
+    a, ba, b, bb = _shifted_pair()
+    before = match_landmarks(a, ba, b, bb, soft_nms_iou=t, spatial="consistency")
+    a, ba, b, bb = _shifted_pair(move=(8.0, 40.0))  # same size: Eq. (2) does not change
+    after = match_landmarks(a, ba, b, bb, soft_nms_iou=t, spatial="consistency")
+    plain = match_landmarks(a, ba, b, bb, soft_nms_iou=t)
+    np.testing.assert_array_equal(after.matches, before.matches)
+    np.testing.assert_array_equal(after.raw_scores, plain.raw_scores)
+    # match 2: query centre (72, 24) / (128, 64), reference centre now (16, 48) / (128, 64):
+    # displacement (0.4375, -0.375), median of the four still (-0.125, -0.125)
+    w = math.exp(-(0.5625**2 + 0.25**2) / (2 * 0.1**2))
+    np.testing.assert_allclose(after.spatial_weights, [1, 1, w, 1], rtol=1e-12)
+    assert after.scores[2] < before.scores[2]
+    np.testing.assert_array_equal(np.delete(after.scores, 2), np.delete(before.scores, 2))
+    assert after.similarity < before.similarity
+    assert plain.similarity == pytest.approx(before.similarity, abs=1e-12)
+    got = similarity_matrix([a], [ba], [b], [bb], soft_nms_iou=t, spatial="consistency")
+    assert got[0, 0] == pytest.approx(after.similarity, abs=1e-6)
+
+
+def test_spatial_default_off_and_unknown_name_lists_valid_ones():
+    for fn in (image_similarity, match_landmarks, similarity_matrix, similarity_pairs):
+        assert inspect.signature(fn).parameters["spatial"].default is None
+    d, bx = [np.ones((3, 8))], [np.ones((3, 4))]
+    with pytest.raises(ValueError, match=r"unknown spatial 'ransac'.*valid: None, 'consistency'"):
+        similarity_matrix(d, bx, d, bx, spatial="ransac")
+    with pytest.raises(ValueError, match="valid: None, 'consistency'"):
+        image_similarity(d[0], bx[0], d[0], bx[0], spatial="Consistency")

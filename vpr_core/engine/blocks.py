@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..matching import check_pairs, similarity_matrix, similarity_pairs
+from ..matching.core import check_spatial
 from ..paper import SOFT_NMS_SIGMA
 from .client import gather_in_order
 
@@ -56,7 +57,7 @@ def _query_part(qd: list, qb: list, q0: int, q1: int, wide: int) -> _Part:
     return _Part(qd[q0:q1] + [qd[wide]], qb[q0:q1] + [qb[wide]])
 
 
-def _matrix_task(qpart: _Part, refs: _Part, soft_nms_iou, sigma) -> np.ndarray:
+def _matrix_task(qpart: _Part, refs: _Part, soft_nms_iou, sigma, spatial) -> np.ndarray:
     """Task: Eq. (1) of a query block x all references; ``(bq, Nr)`` (extra row dropped)."""
     out = similarity_matrix(
         qpart.desc,
@@ -65,6 +66,7 @@ def _matrix_task(qpart: _Part, refs: _Part, soft_nms_iou, sigma) -> np.ndarray:
         refs.boxes,
         soft_nms_iou=soft_nms_iou,
         sigma=sigma,
+        spatial=spatial,
         batch_size=QUERY_BATCH,
         show_progress=False,
     )
@@ -80,6 +82,7 @@ def similarity_blocks_distributed(
     soft_nms_iou: float | None = None,
     sigma: float = SOFT_NMS_SIGMA,
     block_queries: int = 128,
+    spatial: str | None = None,
 ) -> np.ndarray:
     """Exhaustive Eq. (1) matrix as Dask tasks over query blocks.
 
@@ -93,6 +96,7 @@ def similarity_blocks_distributed(
             :func:`~vpr_core.matching.similarity_matrix`.
         soft_nms_iou, sigma: Algorithm 4 settings.
         block_queries: queries per task (rounded up to a multiple of 8).
+        spatial: geometry-aware re-scoring (not in the paper), as in ``similarity_matrix``.
 
     Returns:
         ``(Nq, Nr)`` float64, equal to the in-process ``similarity_matrix`` exactly.
@@ -106,7 +110,9 @@ def similarity_blocks_distributed(
             reference_boxes,
             soft_nms_iou=soft_nms_iou,
             sigma=sigma,
+            spatial=spatial,
         )
+    check_spatial(spatial)
     qd, qb = _check_lists(query_desc, query_boxes, "query")
     rd, rb = _check_lists(reference_desc, reference_boxes, "reference")
     wide = _widest(qd)
@@ -115,7 +121,9 @@ def similarity_blocks_distributed(
     futures = []
     for q0 in starts:
         part = client.scatter(_query_part(qd, qb, q0, q0 + bq, wide), hash=False)
-        futures.append(client.submit(_matrix_task, part, refs, soft_nms_iou, sigma, pure=False))
+        futures.append(
+            client.submit(_matrix_task, part, refs, soft_nms_iou, sigma, spatial, pure=False)
+        )
     out = np.empty((len(qd), len(rd)), dtype=np.float64)
     for q0, block in zip(
         starts, gather_in_order(client, futures, "similarity (dask)"), strict=False
@@ -133,6 +141,7 @@ def _pairs_task(
     local_pairs: np.ndarray,
     soft_nms_iou,
     sigma,
+    spatial,
 ) -> np.ndarray:
     """Task: Eq. (1) of listed pairs; ``local_pairs`` index ``qpart`` and ``ref_ids``."""
     rd, rb = [], []
@@ -148,6 +157,7 @@ def _pairs_task(
         local_pairs,
         soft_nms_iou=soft_nms_iou,
         sigma=sigma,
+        spatial=spatial,
         show_progress=False,
     )
 
@@ -163,6 +173,7 @@ def similarity_pairs_distributed(
     sigma: float = SOFT_NMS_SIGMA,
     block_queries: int = 128,
     block_references: int = 512,
+    spatial: str | None = None,
 ) -> np.ndarray:
     """Eq. (1) of listed pairs (a shortlist) as Dask tasks over query blocks.
 
@@ -178,6 +189,7 @@ def similarity_pairs_distributed(
         soft_nms_iou, sigma: Algorithm 4 settings.
         block_queries: queries per task (rounded up to a multiple of 8).
         block_references: references per scattered block.
+        spatial: geometry-aware re-scoring (not in the paper), as in ``similarity_matrix``.
 
     Returns:
         ``(P,)`` float64 in the order of ``pairs``, equal to the in-process result exactly.
@@ -193,7 +205,9 @@ def similarity_pairs_distributed(
             pairs,
             soft_nms_iou=soft_nms_iou,
             sigma=sigma,
+            spatial=spatial,
         )
+    check_spatial(spatial)
     qd, qb = _check_lists(query_desc, query_boxes, "query")
     rd, rb = _check_lists(reference_desc, reference_boxes, "reference")
     pr = check_pairs(pairs, len(qd), len(rd))
@@ -223,6 +237,7 @@ def similarity_pairs_distributed(
                 local,
                 soft_nms_iou,
                 sigma,
+                spatial,
                 pure=False,
             )
         )

@@ -5,6 +5,7 @@ Public functions in :mod:`.similarity`, the core they share in :mod:`.core`.
 
 from __future__ import annotations
 
+from .core import SPATIAL_OPTIONS
 from .similarity import (
     MatchResult,
     check_pairs,
@@ -18,6 +19,7 @@ from .similarity import (
 )
 
 __all__ = [
+    "SPATIAL_OPTIONS",
     "MatchResult",
     "check_pairs",
     "cosine_distance",

@@ -19,17 +19,21 @@ from ..checks import check_boxes, check_choice, check_range
 
 __all__ = [
     "NMS_TIE_TOL",
+    "SPATIAL_OPTIONS",
+    "SPATIAL_TAU",
     "TIE_TOL",
     "BlockPairs",
     "LandmarkSets",
     "Problem",
     "Selection",
+    "check_spatial",
     "reciprocal",
     "rescale_rows",
     "resolve_ties",
     "score_block",
     "shape_terms",
     "soft_nms",
+    "spatial_weights",
     "unit_rows",
 ]
 
@@ -45,6 +49,12 @@ PAD = -4.0
 #: Bytes of matmul output per block: big enough for an efficient matmul, small enough that the
 #: reductions that follow read it from the L2/L3 cache.
 BLOCK_BYTES = 8 << 20
+#: (Not in the paper.) Names of the geometry-aware re-scorings of ``spatial=``
+#: (docs/DEFINITIONS.md, "(not in the paper) geometry-aware score").
+SPATIAL_OPTIONS = ("consistency",)
+#: (Not in the paper.) Width of the ``spatial="consistency"`` Gaussian, in units of the image's
+#: landmark extent (0.1: a match displaced a tenth of the image from the consensus keeps 61%).
+SPATIAL_TAU = 0.1
 
 LandmarkSets = Union[np.ndarray, Sequence[np.ndarray]]  # noqa: UP007
 #: Images of one side in a block: a contiguous range or an int64 index tensor.
@@ -101,6 +111,7 @@ class Side:
     mask: torch.Tensor  # (N, K) bool valid landmark
     count: torch.Tensor  # (N,) float64 number of landmarks
     wh: torch.Tensor  # (N, K, 2) float64 box sizes
+    xy: torch.Tensor  # (N, K, 2) float64 box centres in units of the image's landmark extent
     boxes: list[np.ndarray]
     n: int
     k: int
@@ -210,12 +221,14 @@ def prepare_side(
     if not bool(torch.isfinite(norm).all()):  # NaN / inf anywhere shows in the norm
         raise ValueError(f"{dname} contains NaN or inf")
     wh = np.zeros((n, k, 2), dtype=np.float64)
+    xy = np.zeros((n, k, 2), dtype=np.float64)
     mask = np.zeros((n, k), dtype=bool)
     bs = []
     for i, (c, b) in enumerate(zip(counts, bl, strict=True)):
         b = check_boxes(b, item(bname, i), c)
         bs.append(b)
         wh[i, :c] = b[:, 2:]
+        xy[i, :c] = normalised_centres(b)
         mask[i, :c] = True
     return Side(
         name=dname,
@@ -224,12 +237,31 @@ def prepare_side(
         mask=torch.from_numpy(mask).to(device),
         count=torch.tensor(counts, dtype=torch.float64, device=device),
         wh=torch.from_numpy(wh).to(device),
+        xy=torch.from_numpy(xy).to(device),
         boxes=bs,
         n=n,
         k=k,
         dim=dim,
         padded=bool(min(counts) != k),
     )
+
+
+def normalised_centres(boxes: np.ndarray) -> np.ndarray:
+    """Box centres in units of the extent of all the image's boxes (not in the paper).
+
+    Args:
+        boxes: ``(K, 4)`` float64 ``(x, y, w, h)`` boxes of one image.
+
+    Returns:
+        ``(K, 2)`` ``((cx - x0) / W, (cy - y0) / H)``: ``x0``, ``W`` the left edge and width of
+        the boxes' union bounding box (``W = 1`` when it is 0), likewise ``y0``, ``H``.
+    """
+    if boxes.shape[0] == 0:
+        return np.zeros((0, 2), dtype=np.float64)
+    lo = boxes[:, :2].min(axis=0)
+    ext = (boxes[:, :2] + boxes[:, 2:]).max(axis=0) - lo
+    ext = np.where(ext > 0, ext, 1.0)
+    return (boxes[:, :2] + 0.5 * boxes[:, 2:] - lo) / ext
 
 
 def iou_stack(side: Side, device: torch.device) -> torch.Tensor:
@@ -534,16 +566,19 @@ def _nms_block(
     iou_r: torch.Tensor,
     t: float,
     sigma: float,
+    weight: torch.Tensor | None = None,
     group: int = 1024,
 ) -> torch.Tensor:
     """:func:`soft_nms` on every image pair of a block with at least two reciprocal pairs.
 
     Args:
-        score: ``(nq, nr, Kq)`` pair scores per query landmark; shp: their Eq. (2) penalties.
+        score: ``(nq, nr, Kq)`` pair scores per query landmark (times ``weight`` when given);
+            shp: their Eq. (2) penalties.
         recip: ``(nq, nr, Kq)`` bool reciprocal; ri_p: ``(nq, nr, Kq)`` matched reference landmark.
         s64: ``(nq, Kq, nr, Kr)`` float64 cosines of the block.
         iou_q: ``(nq, Kq, Kq)``; iou_r: ``(nr, Kr, Kr)`` per-image box IoUs.
         t, sigma: soft-NMS parameters.
+        weight: ``(nq, nr, Kq)`` spatial weights (:func:`spatial_weights`) or None.
 
     Returns:
         ``(nq, nr, Kq)`` rescaled scores (unchanged where not matched).
@@ -567,6 +602,8 @@ def _nms_block(
         cos = s64[gq[:, None], ii, gr[:, None], jj][alive].clamp(-1.0, 1.0)
         sc = torch.zeros(alive.shape, dtype=torch.float64, device=score.device)
         sc[alive] = 1.0 - (1.0 - cos) * shp[gq, gr].gather(1, order)[alive]
+        if weight is not None:
+            sc[alive] *= weight[gq, gr].gather(1, order)[alive]
         oq = iou_q[gq[:, None, None], ii[:, :, None], ii[:, None, :]]
         orf = iou_r[gr[:, None, None], jj[:, :, None], jj[:, None, :]]
         new = soft_nms(sc, alive, oq, orf, t, sigma)
@@ -574,6 +611,45 @@ def _nms_block(
         rows.scatter_(1, order, torch.where(alive, new, sc))
         score[gq, gr] = rows
     return score
+
+
+# ---- (not in the paper) geometry-aware re-scoring -----------------------------------------
+def spatial_weights(
+    q: Side,
+    r: Side,
+    qsel: Selection,
+    rsel: Selection,
+    ri_p: torch.Tensor,
+    recip: torch.Tensor,
+    tau: float = SPATIAL_TAU,
+) -> torch.Tensor:
+    """``spatial="consistency"`` weights of a block's reciprocal pairs (not in the paper).
+
+    Each pair's displacement (query centre minus reference centre, :attr:`Side.xy`) is compared
+    with the median displacement of its image pair's matches (per coordinate; the mean of the two
+    middle values for an even count): ``w = exp(-|delta - median|^2 / (2 tau^2))``.
+
+    Args:
+        q, r, qsel, rsel: the sides and the block's images.
+        ri_p: ``(nq, nr, Kq)`` matched reference landmark; recip: ``(nq, nr, Kq)`` bool.
+        tau: Gaussian width in extent units.
+
+    Returns:
+        ``(nq, nr, Kq)`` float64 weights in ``(0, 1]`` (1 where not reciprocal).
+    """
+    nq = _size(qsel)
+    xq = q.xy[qsel].unsqueeze(1)  # (nq, 1, Kq, 2)
+    xr = r.xy[rsel].unsqueeze(0).expand(nq, -1, -1, -1)  # (nq, nr, Kr, 2)
+    xr = xr.gather(2, ri_p.unsqueeze(3).expand(-1, -1, -1, 2))  # (nq, nr, Kq, 2)
+    delta = xq - xr
+    srt = torch.where(recip.unsqueeze(3), delta, math.inf).sort(dim=2).values
+    p = recip.sum(2, keepdim=True)  # (nq, nr, 1) matches per image pair
+    lo = ((p - 1).clamp(min=0) // 2).unsqueeze(3).expand(-1, -1, 1, 2)
+    hi = (p // 2).clamp(max=q.k - 1).unsqueeze(3).expand(-1, -1, 1, 2)
+    med = 0.5 * (srt.gather(2, lo) + srt.gather(2, hi))  # (nq, nr, 1, 2)
+    dev2 = ((delta - med) ** 2).sum(3)
+    w = torch.exp(-dev2 / (2.0 * tau * tau))
+    return torch.where(recip, w, torch.ones_like(w))
 
 
 # ---- Eq. (1) for one block of image pairs ------------------------------------------------
@@ -587,7 +663,8 @@ class BlockPairs(NamedTuple):
     cos: torch.Tensor  # cosine, clipped to [-1, 1]
     shape: torch.Tensor  # Eq. (2) penalty
     raw: torch.Tensor  # 1 - d * s
-    score: torch.Tensor  # the Eq. (1) summand (after soft-NMS when on)
+    score: torch.Tensor  # the Eq. (1) summand (times `weight`, then soft-NMS when on)
+    weight: torch.Tensor  # spatial weight (not in the paper; 1 with spatial=None)
 
 
 def score_block(
@@ -601,6 +678,7 @@ def score_block(
     s64: torch.Tensor | None = None,
     work: torch.Tensor | None = None,
     keep_pairs: bool = False,
+    spatial: str | None = None,
 ) -> tuple[torch.Tensor, BlockPairs | None]:
     """Eq. (1) for a block of image pairs from its landmark cosines.
 
@@ -612,6 +690,8 @@ def score_block(
         s64: ``(nq, Kq, nr, Kr)`` float64 cosines (soft-NMS only).
         work: flat scratch buffer of ``s``'s dtype (see :func:`reciprocal`), or None.
         keep_pairs: also return the reciprocal pairs and their terms.
+        spatial: None (the paper) or a name in :data:`SPATIAL_OPTIONS`: each term ``1 - d * s``
+            is multiplied by its :func:`spatial_weights` before soft-NMS and the sum.
 
     Returns:
         ``((nq, nr) float64 similarities, BlockPairs or None)``.
@@ -620,8 +700,8 @@ def score_block(
     rv, ri_p, recip = reciprocal(s, q, r, qsel, rsel, margin, work)
     norm = torch.sqrt(q.count[qsel][:, None] * r.count[rsel][None, :])
     norm = torch.where(norm > 0, norm, torch.full_like(norm, math.inf))  # no landmark: 0
-    # A geometry term (spatial re-scoring of the reciprocal pairs by their box centres) would
-    # multiply `score` below, before soft-NMS and the sum.
+    # (not in the paper) geometry-aware re-scoring: weights multiply 1 - d * s before soft-NMS
+    wt = None if spatial is None else spatial_weights(q, r, qsel, rsel, ri_p, recip)
     if nms is None:
         # only the reciprocal pairs (a fraction of all query landmarks)
         g, rr, i = recip.nonzero(as_tuple=True)  # sorted: pair (g, rr), then landmark i
@@ -630,11 +710,13 @@ def score_block(
         wq = q.wh[_image_index(qsel, g), i]  # (P, 2)
         wr = r.wh[_image_index(rsel, rr), j]
         shp = shape_terms(wq[:, 0], wr[:, 0], wq[:, 1], wr[:, 1])
-        score = 1.0 - (1.0 - cos) * shp  # 1 - d * s
+        raw = 1.0 - (1.0 - cos) * shp  # 1 - d * s
+        w = torch.ones_like(raw) if wt is None else wt[g, rr, i]
+        score = raw if wt is None else raw * w
         total = torch.zeros(nq * nr, dtype=torch.float64, device=s.device)
         total.index_add_(0, g * nr + rr, score)
         sim = total.view(nq, nr) / norm  # Eq. (1)
-        pairs = BlockPairs(g, rr, i, j, cos, shp, score, score) if keep_pairs else None
+        pairs = BlockPairs(g, rr, i, j, cos, shp, raw, score, w) if keep_pairs else None
         return sim, pairs
     cos_p = rv.permute(0, 2, 1).clamp(-1.0, 1.0)  # (nq, nr, Kq)
     wh_q = q.wh[qsel].unsqueeze(1)  # (nq, 1, Kq, 2)
@@ -644,17 +726,39 @@ def score_block(
     raw_p = 1.0 - (1.0 - cos_p) * shp_p  # 1 - d * s
     iou_q, iou_r, t, sigma = nms
     assert s64 is not None
-    score_p = _nms_block(raw_p, shp_p, recip, ri_p, s64, iou_q[qsel], iou_r[rsel], t, sigma)
+    score_p = _nms_block(
+        raw_p if wt is None else raw_p * wt,
+        shp_p,
+        recip,
+        ri_p,
+        s64,
+        iou_q[qsel],
+        iou_r[rsel],
+        t,
+        sigma,
+        wt,
+    )
     sim = torch.where(recip, score_p, torch.zeros_like(score_p)).sum(2) / norm  # Eq. (1)
     pairs = None
     if keep_pairs:
         g, rr, i = recip.nonzero(as_tuple=True)
         at = (g, rr, i)
-        pairs = BlockPairs(g, rr, i, ri_p[at], cos_p[at], shp_p[at], raw_p[at], score_p[at])
+        w_at = torch.ones_like(raw_p[at]) if wt is None else wt[at]
+        pairs = BlockPairs(g, rr, i, ri_p[at], cos_p[at], shp_p[at], raw_p[at], score_p[at], w_at)
     return sim, pairs
 
 
 # ---- one call: both sides prepared, blocks scored ----------------------------------------
+def check_spatial(spatial: str | None) -> str | None:
+    """``spatial`` if it is None or a name in :data:`SPATIAL_OPTIONS`; else a clear error."""
+    if spatial is not None and spatial not in SPATIAL_OPTIONS:
+        raise ValueError(
+            f"unknown spatial {spatial!r} (geometry-aware score, not in the paper); "
+            f"valid: None, {', '.join(repr(n) for n in SPATIAL_OPTIONS)}"
+        )
+    return spatial
+
+
 _LOCAL = threading.local()
 
 
@@ -680,6 +784,7 @@ class Problem:
     margin: float
     nms: tuple | None
     empty: bool
+    spatial: str | None = None
 
     @classmethod
     def build(
@@ -693,6 +798,7 @@ class Problem:
         device: str | torch.device = "cpu",
         matmul_dtype: str = "float32",
         sides: tuple[str, str] = ("query", "reference"),
+        spatial: str | None = None,
     ) -> Problem:
         """Check every input once and prepare both sides (arguments: see ``similarity_matrix``).
 
@@ -703,6 +809,7 @@ class Problem:
             check_range(soft_nms_iou, "soft_nms_iou (Algorithm 4 threshold, or None)", 0.0, 1.0)
         check_range(sigma, "sigma (soft-NMS width)", 0.0, low_open=True)
         check_choice(matmul_dtype, "matmul_dtype", ("float32", "float64"))
+        check_spatial(spatial)
         dev = torch.device(device)
         if dev.type == "cuda" and not torch.cuda.is_available():
             raise ValueError(f"device={device!r} but torch sees no CUDA GPU; use device='cpu'")
@@ -726,7 +833,7 @@ class Problem:
         if not empty:
             q.build_caches(unit64=nms is not None)
             r.build_caches(unit64=nms is not None)
-        return cls(q, r, dev, mm_dtype, margin, nms, empty)
+        return cls(q, r, dev, mm_dtype, margin, nms, empty, spatial)
 
     def block(
         self, qsel: Selection, rsel: Selection, keep_pairs: bool = False
@@ -745,4 +852,6 @@ class Problem:
             s64 = (q.unit_images64(qsel) @ r.unit_images64(rsel).T).view(
                 a.shape[0] // q.k, q.k, b.shape[0] // r.k, r.k
             )
-        return score_block(s, q, r, qsel, rsel, self.margin, self.nms, s64, work, keep_pairs)
+        return score_block(
+            s, q, r, qsel, rsel, self.margin, self.nms, s64, work, keep_pairs, self.spatial
+        )

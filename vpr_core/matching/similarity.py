@@ -38,6 +38,7 @@ def similarity_matrix(
     reference_boxes: LandmarkSets,
     soft_nms_iou: float | None = None,
     sigma: float = SOFT_NMS_SIGMA,
+    spatial: str | None = None,
     device: str | torch.device = "cpu",
     batch_size: int | None = None,
     ref_batch_size: int | None = None,
@@ -58,6 +59,9 @@ def similarity_matrix(
         reference_boxes: sequence of ``(K_r, 4)`` arrays, or ``(Nr, K, 4)``.
         soft_nms_iou: Algorithm 4 threshold ``t`` or None.
         sigma: soft-NMS Gaussian width.
+        spatial: None (the paper) or ``"consistency"`` (not in the paper): geometry-aware
+            re-scoring of the reciprocal matches, docs/DEFINITIONS.md; valid names:
+            :data:`~.core.SPATIAL_OPTIONS`.
         device: torch device (``"cpu"``, ``"cuda"``).
         batch_size: queries per block (default: 8).
         ref_batch_size: references per block (default: a block of ~8 MB of float32 cosines).
@@ -76,6 +80,7 @@ def similarity_matrix(
         sigma,
         device,
         matmul_dtype,
+        spatial=spatial,
     )
     q, r = prob.q, prob.r
     out = torch.zeros((q.n, r.n), dtype=torch.float64, device=prob.dev)
@@ -102,6 +107,7 @@ def similarity_pairs(
     pairs: np.ndarray | Sequence,
     soft_nms_iou: float | None = None,
     sigma: float = SOFT_NMS_SIGMA,
+    spatial: str | None = None,
     device: str | torch.device = "cpu",
     ref_batch_size: int | None = None,
     matmul_dtype: str = "float32",
@@ -117,6 +123,9 @@ def similarity_pairs(
         pairs: ``(P, 2)`` int ``(query index, reference index)``; any order, repeats allowed.
         soft_nms_iou: Algorithm 4 threshold ``t`` or None.
         sigma: soft-NMS Gaussian width.
+        spatial: None (the paper) or ``"consistency"`` (not in the paper): geometry-aware
+            re-scoring of the reciprocal matches, docs/DEFINITIONS.md; valid names:
+            :data:`~.core.SPATIAL_OPTIONS`.
         device: torch device (``"cpu"``, ``"cuda"``).
         ref_batch_size: references per matmul (default: a block of ~8 MB of float32 cosines).
         matmul_dtype: ``"float32"`` (fast) or ``"float64"``.
@@ -134,6 +143,7 @@ def similarity_pairs(
         sigma,
         device,
         matmul_dtype,
+        spatial=spatial,
     )
     q, r = prob.q, prob.r
     pr = check_pairs(pairs, q.n, r.n)
@@ -218,11 +228,13 @@ class MatchResult:
         matches: ``(P, 2)`` int64 reciprocal ``(i, j)`` pairs, sorted by ``i``.
         distances: ``(P,)`` cosine distances ``d_ij``.
         shape: ``(P,)`` shape penalties ``s_ij`` (Eq. 2).
-        scores: ``(P,)`` pair scores entering Eq. (1): ``1 - d * s``, after soft-NMS if enabled.
+        scores: ``(P,)`` pair scores entering Eq. (1): ``1 - d * s``, times ``spatial_weights``,
+            after soft-NMS if enabled.
         similarity: Eq. (1) image similarity ``scores.sum() / sqrt(na * nb)``.
-        raw_scores: ``(P,)`` ``1 - d * s`` before soft-NMS.
+        raw_scores: ``(P,)`` ``1 - d * s`` before any weight and soft-NMS.
         n_a: number of landmarks of image a.
         n_b: number of landmarks of image b.
+        spatial_weights: ``(P,)`` geometry weights (not in the paper; all 1 with ``spatial=None``).
     """
 
     matches: np.ndarray
@@ -233,6 +245,7 @@ class MatchResult:
     raw_scores: np.ndarray
     n_a: int
     n_b: int
+    spatial_weights: np.ndarray
 
 
 def _match_pair(
@@ -242,6 +255,7 @@ def _match_pair(
     boxes_b: np.ndarray | Sequence | None,
     soft_nms_iou: float | None,
     sigma: float,
+    spatial: str | None = None,
 ) -> MatchResult:
     """One image pair through the core (float64 matmul); boxes None: sizes 0."""
     prob = Problem.build(
@@ -253,11 +267,12 @@ def _match_pair(
         sigma,
         matmul_dtype="float64",
         sides=("a", "b"),
+        spatial=spatial,
     )
     na, nb = int(prob.q.count[0]), int(prob.r.count[0])
     if prob.empty:
         e = np.zeros(0, dtype=np.float64)
-        return MatchResult(np.zeros((0, 2), dtype=np.int64), e, e, e, 0.0, e, na, nb)
+        return MatchResult(np.zeros((0, 2), dtype=np.int64), e, e, e, 0.0, e, na, nb, e)
     sim, p = prob.block(slice(0, 1), slice(0, 1), keep_pairs=True)
     assert p is not None
     matches = torch.stack([p.i, p.j], dim=1).cpu().numpy().astype(np.int64)
@@ -270,6 +285,7 @@ def _match_pair(
         raw_scores=p.raw.cpu().numpy(),
         n_a=na,
         n_b=nb,
+        spatial_weights=p.weight.cpu().numpy(),
     )
 
 
@@ -280,6 +296,7 @@ def match_landmarks(
     boxes_b: np.ndarray | Sequence,
     soft_nms_iou: float | None = None,
     sigma: float = SOFT_NMS_SIGMA,
+    spatial: str | None = None,
 ) -> MatchResult:
     """Match the landmarks of two images and score them (Eq. 1-2, optional Algorithm 4).
 
@@ -290,8 +307,11 @@ def match_landmarks(
         boxes_b: ``(Kb, 4)`` boxes of image b.
         soft_nms_iou: soft-NMS threshold ``t`` (Algorithm 4) or None for plain Eq. (1).
         sigma: soft-NMS Gaussian width.
+        spatial: None (the paper) or ``"consistency"`` (not in the paper): geometry-aware
+            re-scoring of the reciprocal matches, docs/DEFINITIONS.md; valid names:
+            :data:`~.core.SPATIAL_OPTIONS`.
     """
-    return _match_pair(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou, sigma)
+    return _match_pair(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou, sigma, spatial)
 
 
 def image_similarity(
@@ -301,9 +321,10 @@ def image_similarity(
     boxes_b: np.ndarray | Sequence,
     soft_nms_iou: float | None = None,
     sigma: float = SOFT_NMS_SIGMA,
+    spatial: str | None = None,
 ) -> float:
     """Eq. (1) similarity of two images (0 if one has no landmark); arguments as match_landmarks."""
-    return _match_pair(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou, sigma).similarity
+    return _match_pair(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou, sigma, spatial).similarity
 
 
 def reciprocal_matches(desc_a: np.ndarray | Sequence, desc_b: np.ndarray | Sequence) -> np.ndarray:
