@@ -171,30 +171,13 @@ def _user_peers(args: argparse.Namespace, dataset) -> list:
     return out
 
 
-def _display(table) -> list[dict]:
-    """The comparison table as printable rows: value [interval], paired verdicts."""
-    from .evaluation import format_interval
-
-    rows = []
-    for label, r in table.iterrows():
-        row = {"method": label}
-        for name in ("AUC", "R@100P", "R@1", "R@5"):
-            head = f"AUC({r['protocol']})" if name == "AUC" else name
-            row[f"{head} [95% CI]"] = format_interval(r[name], r[f"{name} lo"], r[f"{name} hi"])
-        for name in ("dAUC", "dR@1"):
-            row[name] = ""
-            if name in table.columns and isinstance(r.get(f"{name} verdict"), str):
-                row[name] = (
-                    f"{r[name]:+.3f} [{r[f'{name} lo']:+.3f}, {r[f'{name} hi']:+.3f}] "
-                    f"{r[f'{name} verdict']}"
-                )
-        row["queries"] = str(int(r["queries"]))
-        row["landmarks/img"] = f"{r['landmarks/img']:.0f}"
-        for col in ("landmarks s/img", "features s/img", "matching s/pair"):
-            row[col] = f"{r[col]:.4f}"
-        row["note"] = f"= {r['identical to']}" if isinstance(r.get("identical to"), str) else ""
-        rows.append(row)
-    return rows
+def _cost_rows(table) -> list[dict]:
+    """Each run's landmark count and measured costs (this machine's; not in the committed CSV)."""
+    cols = ("landmarks/img", "landmarks s/img", "features s/img", "matching s/pair")
+    return [
+        {"method": label, **{c: f"{r[c]:.4f}" for c in cols if c in table.columns}}
+        for label, r in table.iterrows()
+    ]
 
 
 #: ``eval`` arguments that do not change a number (where and how the run is done).
@@ -229,7 +212,7 @@ def eval_stem(args: argparse.Namespace, label: str) -> str:
 
 def cmd_eval(args: argparse.Namespace) -> int:
     from .datasets import load_dataset
-    from .evaluation import compare, ground_truth_coverage
+    from .evaluation import compact_text, compare, ground_truth_coverage
     from .pipeline import run_method
     from .utils import tune_allocator
     from .viz import plot_pr_curves
@@ -279,7 +262,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
             f"{results[0].label}; a finding only where the interval excludes 0"
         )
     table = compare(results, n_bootstrap=args.n_bootstrap)
-    print(format_table(_display(table)))
+    print(compact_text(table))
+    print("\ncost measured here:\n" + format_table(_cost_rows(table)))
     stem = eval_stem(args, label)
     fig = plot_pr_curves(results, title=f"{label} ({mode}, protocol {args.protocol})")
     written = save_all([(stem, table), (stem, fig)], label, out=args.out)
