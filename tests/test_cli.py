@@ -303,3 +303,15 @@ def test_file_based_ground_truth_is_described_not_called_tolerance_0(
     out = capsys.readouterr().out
     assert "ground truth from file: 1-2 correct references per query (median 1)" in out
     assert "tolerance=0" not in out and "tolerance 0" not in out
+
+
+def test_eval_spatial_is_a_matching_option_in_the_run_key(tmp_path, capsys):
+    args = ["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "dense"]
+    assert cli.main([*args, "--spatial", "consistency", "--out", str(tmp_path)]) == 0
+    assert cli.main([*args, "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "dense (geometry: consistency)" in out
+    tables = sorted((tmp_path / "results" / "synthetic").glob("eval_*[!s].csv"))
+    assert len(tables) == 2  # on and off never share a file
+    runs = {t.read_text().splitlines()[1].split(",")[1] for t in tables}
+    assert runs == {"dense", "dense(spatial=consistency)"}

@@ -125,14 +125,20 @@ def test_overrides_are_routed_to_scheme_and_matching():
 
 
 def test_options_derive_from_the_fields():
-    assert method_options(get_method("selection_scheme1")) == ("n", "min_index", "n_candidates")
+    assert method_options(get_method("selection_scheme1")) == (
+        "n",
+        "min_index",
+        "n_candidates",
+        "spatial",
+    )
     assert method_options(get_method("overlap_scheme2")) == (
         "n",
         "n_candidates",
         "soft_nms_iou",
         "sigma",
+        "spatial",
     )
-    assert method_options(get_method("global")) == ()
+    assert method_options(get_method("global")) == ("spatial",)
 
 
 @pytest.mark.parametrize(
@@ -140,10 +146,10 @@ def test_options_derive_from_the_fields():
     [
         ("edgebox", {}, "Unknown method 'edgebox'. Valid methods: classical, dense"),
         ("overlap_scheme1", {"threshold": 0.4}, "Unknown option 'threshold'"),
-        ("dense", {"iou_threshold": 0.1}, "Options of 'dense': scales, per_scale\\."),
-        ("classical", {"min_index": 7}, "Options of 'classical': n, n_candidates\\."),
+        ("dense", {"iou_threshold": 0.1}, "Options of 'dense': scales, per_scale, spatial\\."),
+        ("classical", {"min_index": 7}, "Options of 'classical': n, n_candidates, spatial\\."),
         ("classical", {"soft_nms_iou": 0.3}, "'soft_nms_iou' for method 'classical'"),
-        ("global", {"n": 5}, "Options of 'global': none"),
+        ("global", {"n": 5}, "Options of 'global': spatial\\."),
         ("dense", {"scales": 0.25}, "method 'dense': Dense: option scales=0.25"),
         ("overlap_scheme1", {"iou_threshold": 1.5}, "option iou_threshold=1.5"),
         ("dense", {"per_scale": "25"}, "option per_scale='25'"),
@@ -208,6 +214,21 @@ def test_method_identity_is_the_value():
     assert a == method_identity(Method("other name", Dense(per_scale=9)))
     assert a != method_identity(get_method("dense", per_scale=16))
     assert a["landmarks"]["scheme"] == "vpr_core.landmarks.schemes.Dense"
-    assert a["matching"] == {"soft_nms_iou": None, "sigma": 0.5}
+    assert a["matching"] == {"soft_nms_iou": None, "sigma": 0.5, "spatial": None}
     user = method_identity(as_method(Stripes(2)))
     assert user["landmarks"]["params"] == {"k": 2, "margin": 0.0} and user["landmarks"]["code"]
+
+
+def test_spatial_is_a_matching_option_of_every_method():
+    from vpr_core.landmarks.schemes import Dense
+    from vpr_core.methods import as_method, available_methods, get_method, method_label, run_key
+
+    for name in available_methods():
+        m = get_method(name, spatial="consistency")
+        assert m.matching.spatial == "consistency"
+        assert run_key(m).startswith(f"{name}(") and "spatial=consistency" in run_key(m)
+        assert "geometry: consistency" in method_label(m)
+        assert run_key(get_method(name, spatial=None)) == name  # None: off, the paper's Eq. (1)
+    assert run_key(as_method(Dense(), spatial="consistency")) == "dense(spatial=consistency)"
+    with pytest.raises(ValueError, match="spatial='ransac'.*consistency"):
+        get_method("dense", spatial="ransac")

@@ -18,8 +18,23 @@ import signal
 import sys
 from pathlib import Path
 
+import torch
+
 from . import paths, settings
-from .utils import configure_logging, short_hash
+from .backbones import parse_backbone
+from .baselines import find_vprbench_peers, peer_from_descriptors, peer_from_matrix
+from .datasets import DATASETS, load_dataset
+from .evaluation import compact_text, compare, ground_truth_coverage
+from .evaluation.curves import PROTOCOLS
+from .findings import findings_markdown, result_labels
+from .matching import SPATIAL_OPTIONS
+from .methods import available_methods
+from .paper import PROJECTION_DIM
+from .pipeline import peer_result, run_method
+from .runner import run_study, study_datasets
+from .utils import configure_logging, short_hash, tune_allocator
+from .viz import plot_pr_curves
+from .viz.base import ground_truth_text, save_all
 
 INTERRUPTED = "interrupted; cached work is kept, rerun to resume"
 
@@ -70,7 +85,6 @@ def _folder(text: str) -> str:
 
 def _device(text: str) -> str:
     """``--device``: ``cpu``, ``cuda``, ``cuda:N`` or ``mps``, available on this machine."""
-    import torch
 
     try:
         kind = torch.device(text).type
@@ -118,8 +132,6 @@ def _peer_results(args: argparse.Namespace, dataset) -> list:
     """VPR-Bench peers (``--peers ROOT --peer-dataset NAME``) as results beside ours."""
     if not args.peers and not args.peer_dataset:
         return []
-    from .baselines import find_vprbench_peers
-    from .pipeline import peer_result
 
     if not args.peer_dataset:
         raise ValueError(
@@ -136,10 +148,6 @@ def _user_peers(args: argparse.Namespace, dataset) -> list:
     """``--peer NAME=PATH``: a user's method from a similarity (or, with ``--peer-distance``,
     distance) matrix ``.npy``, or from a folder with ``queries_descriptors.npy`` and
     ``database_descriptors.npy``."""
-    from pathlib import Path
-
-    from .baselines import peer_from_descriptors, peer_from_matrix
-    from .pipeline import peer_result
 
     out = []
     for item in args.peer or []:
@@ -211,12 +219,6 @@ def eval_stem(args: argparse.Namespace, label: str) -> str:
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
-    from .datasets import load_dataset
-    from .evaluation import compact_text, compare, ground_truth_coverage
-    from .pipeline import run_method
-    from .utils import tune_allocator
-    from .viz import plot_pr_curves
-    from .viz.base import ground_truth_text, save_all
 
     tune_allocator()  # process-wide, here at the boundary: crop features ~1.7x faster
     dataset = load_dataset(args.dataset, root=args.root, **_dataset_options(args))
@@ -247,6 +249,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
             scheduler=scheduler,
             n_bootstrap=args.n_bootstrap,
             protocol=args.protocol,
+            spatial=args.spatial,
         )
         for m in args.method
     ]
@@ -272,7 +275,6 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from .runner import run_study
 
     run_study(
         dataset=args.dataset,
@@ -290,8 +292,6 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_findings(args: argparse.Namespace) -> int:
-    from .findings import findings_markdown, result_labels
-    from .runner import study_datasets
 
     labels = args.labels or result_labels(["synthetic", *study_datasets()])
     text = findings_markdown(labels)
@@ -304,10 +304,6 @@ def cmd_findings(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .datasets import DATASETS
-    from .evaluation.curves import PROTOCOLS
-    from .methods import available_methods
-    from .paper import PROJECTION_DIM
 
     p = argparse.ArgumentParser(
         prog="vpr-study", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -371,6 +367,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="K",
         help="re-rank only each query's top-K references by a whole-image "
         "descriptor (default: exhaustive, the paper's)",
+    )
+    e.add_argument(
+        "--spatial",
+        default=None,
+        choices=SPATIAL_OPTIONS,
+        help="(not in the paper) re-score every method's reciprocal matches by the agreement "
+        "of their box displacements (docs/DEFINITIONS.md); default off: Eq. (1) as the paper",
     )
     e.add_argument(
         "--scheduler",
@@ -492,8 +495,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _check_names(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
     """Unknown methods and backbones are reported before any dataset is generated or read."""
-    from .backbones import parse_backbone
-    from .methods import available_methods
 
     if args.command == "eval":
         bad = [m for m in args.method if m not in available_methods()]

@@ -61,7 +61,8 @@ def _time_method(method: str, dataset, encoder, n: int, repeats: int) -> dict[st
     return dict(
         zip(
             COST_COLUMNS,
-            (per_img_lm, per_img_ft, per_pair, 2 * (per_img_lm + per_img_ft) + per_pair), strict=False,
+            (per_img_lm, per_img_ft, per_pair, 2 * (per_img_lm + per_img_ft) + per_pair),
+            strict=False,
         )
     )
 

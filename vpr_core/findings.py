@@ -193,6 +193,20 @@ CLAIMS: tuple[Claim, ...] = (
         _D,
         "?",
     ),
+    Claim(
+        "(not in the paper) geometry-aware score: dense with vs without",
+        "geometry_dense",
+        ("dense", {"spatial": "consistency"}),
+        _D,
+        "?",
+    ),
+    Claim(
+        "(not in the paper) geometry-aware score: classical with vs without",
+        "geometry_classical",
+        ("classical", {"spatial": "consistency"}),
+        _C,
+        "?",
+    ),
 )
 
 #: Observation 1 (Fig. 4): large landmarks (Scales 5-7) match correctly more often than small

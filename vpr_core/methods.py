@@ -19,6 +19,7 @@ from .landmarks.schemes import (
     option_text,
     scheme_identity,
 )
+from .matching import SPATIAL_OPTIONS
 from .paper import SOFT_NMS_IOU, SOFT_NMS_SIGMA
 
 __all__ = [
@@ -49,10 +50,13 @@ def _bad(obj: object, key: str, expected: str) -> ValueError:
 @dataclasses.dataclass(frozen=True)
 class Matching:
     """How two images' landmarks are scored: Eq. (1), with Algorithm 4 (soft-NMS on the match
-    scores) at IoU ``soft_nms_iou`` and Gaussian ``sigma`` when ``soft_nms_iou`` is set."""
+    scores) at IoU ``soft_nms_iou`` and Gaussian ``sigma`` when ``soft_nms_iou`` is set, and
+    (not in the paper) a geometry-aware re-scoring of the matches when ``spatial`` is set
+    (:data:`~vpr_core.matching.SPATIAL_OPTIONS`; docs/DEFINITIONS.md)."""
 
     soft_nms_iou: float | None = None
     sigma: float = SOFT_NMS_SIGMA
+    spatial: str | None = None
 
     def __post_init__(self) -> None:
         iou, sigma = self.soft_nms_iou, self.sigma
@@ -63,14 +67,26 @@ class Matching:
         if not (_is_number(sigma) and sigma > 0):
             raise _bad(self, "sigma", "a positive number")
         object.__setattr__(self, "sigma", float(sigma))
+        if self.spatial is not None and self.spatial not in SPATIAL_OPTIONS:
+            raise _bad(
+                self,
+                "spatial",
+                f"None or one of {', '.join(map(repr, SPATIAL_OPTIONS))} (geometry-aware "
+                "score, not in the paper)",
+            )
 
     def options(self) -> tuple[str, ...]:
-        """The options that change a result: both with soft-NMS on, none with it off."""
-        return ("soft_nms_iou", "sigma") if self.soft_nms_iou is not None else ()
+        """The options that change a result: ``spatial`` always, the soft-NMS pair with it on."""
+        return (
+            ("soft_nms_iou", "sigma", "spatial") if self.soft_nms_iou is not None else ("spatial",)
+        )
 
     def note(self) -> str:
-        """Its legend text: the soft-NMS IoU, empty with soft-NMS off."""
-        return "" if self.soft_nms_iou is None else f"IoU {self.soft_nms_iou:g}"
+        """Its legend text: the soft-NMS IoU and the geometry option; empty at the paper's Eq. (1)."""
+        parts = [] if self.soft_nms_iou is None else [f"IoU {self.soft_nms_iou:g}"]
+        if self.spatial is not None:
+            parts.append(f"geometry: {self.spatial}")
+        return ", ".join(parts)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -172,6 +188,11 @@ def as_method(method: Any, **overrides: Any) -> Method:
     """
     if isinstance(method, str):
         return get_method(method, **overrides)
+    if set(overrides) == {"spatial"}:  # a matching option of every method, schemes included
+        base = as_method(method)
+        return dataclasses.replace(
+            base, matching=dataclasses.replace(base.matching, spatial=overrides["spatial"])
+        )
     if overrides:
         raise ValueError(
             f"options {sorted(overrides)} apply to a preset name only; set them on the value "

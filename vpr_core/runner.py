@@ -104,6 +104,8 @@ FIGURES: tuple[FigureSpec, ...] = (
     FigureSpec("fig12_normalized_scales", _NB5, "Fig. 12 / Table 4"),
     FigureSpec("fig13_comparison", _NB6, "Fig. 13"),
     FigureSpec("disagreements_dense_classical", _NB6, "not in the paper: per-query view"),
+    FigureSpec("geometry_dense", _NB6, "not in the paper: geometry-aware score"),
+    FigureSpec("geometry_classical", _NB6, "not in the paper: geometry-aware score"),
     FigureSpec("fig14_coverage_comparison", _NB6, "Fig. 14"),
 )
 

@@ -80,6 +80,7 @@ def match(
     feats: dict[str, Any],
     soft_nms_iou: float | None = None,
     sigma: float = SOFT_NMS_SIGMA,
+    spatial: str | None = None,
     shortlist: int | None = None,
     global_desc: dict[str, np.ndarray] | None = None,
     client=None,
@@ -92,6 +93,8 @@ def match(
         boxes: ``{"query": [(K_i, 4)], "reference": [...]}`` landmarks.
         feats: ``{"query": [(K_i, D)], "reference": [...]}`` descriptors.
         soft_nms_iou, sigma: Algorithm 4 settings.
+        spatial: None (Eq. (1) as the paper) or a geometry-aware re-scoring
+            (:data:`~vpr_core.matching.SPATIAL_OPTIONS`; not in the paper).
         shortlist: None (exhaustive) or k: Eq. (1) only on each query's top-k references by
             the cosine of ``global_desc``.
         global_desc: ``{"query": (Nq, D'), "reference": (Nr, D')}`` whole-image descriptors
@@ -108,12 +111,12 @@ def match(
     t0 = time.perf_counter()
     if shortlist is None:
         if client is None:
-            sim = similarity_matrix(*args, soft_nms_iou=soft_nms_iou, sigma=sigma)
+            sim = similarity_matrix(*args, soft_nms_iou=soft_nms_iou, sigma=sigma, spatial=spatial)
         else:
             from ..engine.blocks import similarity_blocks_distributed
 
             sim = similarity_blocks_distributed(
-                client, *args, soft_nms_iou=soft_nms_iou, sigma=sigma
+                client, *args, soft_nms_iou=soft_nms_iou, sigma=sigma, spatial=spatial
             )
         return sim, {
             "pairs": float(nq * nr),
@@ -128,7 +131,7 @@ def match(
     pairs, _ = shortlist_pairs(global_desc["query"], global_desc["reference"], shortlist)
     t1 = time.perf_counter()
     vals = similarity_pairs_distributed(
-        client, *args, pairs, soft_nms_iou=soft_nms_iou, sigma=sigma
+        client, *args, pairs, soft_nms_iou=soft_nms_iou, sigma=sigma, spatial=spatial
     )  # client None: one similarity_pairs call
     sim = rerank(vals, pairs, nq, nr)
     t2 = time.perf_counter()
@@ -300,6 +303,7 @@ def _run_method(
                 feats,
                 soft_nms_iou=conf.matching.soft_nms_iou,
                 sigma=conf.matching.sigma,
+                spatial=conf.matching.spatial,
                 shortlist=k,
                 global_desc=glob,
                 client=client,
