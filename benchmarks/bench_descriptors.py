@@ -17,9 +17,9 @@ For each option (a backbone spec, see :mod:`vpr_core.backbones`, and a pooling m
 ``crop`` and ``roi`` options run through ``vpr_core.pipeline.run_method(method, dataset,
 backbone=spec, pooling=...)``; ``roi@N`` (another working size, not a ``run_method`` argument)
 through the same landmark and feature stages with a ``LandmarkEncoder(pooling="roi",
-working_size=N)``. The
-table is printed and written to ``results/benchmarks/descriptor_choice.csv`` (``vpr_core.paths``) after
-each option, so an interrupted run keeps what it measured.
+working_size=N)``. The table is printed and written to
+``results/benchmarks/descriptor_choice.csv`` (``vpr_core.paths``) after each option,
+so an interrupted run keeps what it measured.
 """
 
 from __future__ import annotations

@@ -3,7 +3,8 @@
 One run of :func:`vpr_core.pipeline.run_method` exhaustive (every query x reference by Eq. (1))
 and one per shortlist size k (a whole-image descriptor picks each query's top-k references,
 Eq. (1) re-ranks them, NaN elsewhere), on the same features (cached once). Prints one table and
-writes ``results/benchmarks/nordland_shortlist.csv`` (under the output root, see :mod:`vpr_core.paths`).
+writes ``results/benchmarks/nordland_shortlist.csv`` (under the output root,
+see :mod:`vpr_core.paths`).
 
 Columns: ratio-protocol AUC and R@1 with 95% bootstrap intervals over queries, the paired
 difference to exhaustive (interval; a finding only when it excludes 0), the share of queries

@@ -79,7 +79,7 @@ def test_synthetic_homography_matches_default_dataset(tiny_synthetic):
 
 @pytest.mark.parametrize("difficulty", ["easy", "default", "hard"])
 def test_synthetic_homography_is_the_view_geometry(difficulty):
-    """H equals a NumPy (LAPACK) solution for the generator's view corners (query -> canvas -> ref)."""
+    """H equals a NumPy (LAPACK) solution for the view corners (query -> canvas -> ref)."""
     from vpr_core.datasets.synthetic.camera import _place_views
 
     def dlt(src, dst):
@@ -147,7 +147,7 @@ def test_synthetic_cache_reuse_and_regeneration(tmp_path, monkeypatch):
         calls.append(i)
         return real(seed, i, size, difficulty)
 
-    monkeypatch.setattr(D.synthetic, "render_synthetic_place", spy)
+    monkeypatch.setattr(D.synthetic.render, "render_synthetic_place", spy)
     ds2 = load_dataset("synthetic", n_places=2, image_size=SMALL)
     assert calls == [1]  # only the missing place is regenerated
     assert ds2.query_paths[1].read_bytes() == before  # byte-identical

@@ -82,7 +82,7 @@ class Matching:
         )
 
     def note(self) -> str:
-        """Its legend text: the soft-NMS IoU and the geometry option; empty at the paper's Eq. (1)."""
+        """Its legend text: soft-NMS IoU and geometry option; empty at the paper's Eq. (1)."""
         parts = [] if self.soft_nms_iou is None else [f"IoU {self.soft_nms_iou:g}"]
         if self.spatial is not None:
             parts.append(f"geometry: {self.spatial}")

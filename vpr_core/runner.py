@@ -27,6 +27,8 @@ from pathlib import Path
 import pandas as pd
 
 from . import paths, settings
+from .datasets import load_dataset
+from .findings import findings_markdown, result_labels
 
 __all__ = [
     "FIGURES",
@@ -415,8 +417,6 @@ def _run_label(label: str, selected: Sequence[Path], params: dict, kernel: str) 
 
 def _write_findings(labels: Sequence[str]) -> None:
     """``results/findings.md``: the paper's claims against these labels' paired differences."""
-    from .findings import findings_markdown, result_labels
-
     labels = result_labels(
         labels
     )  # this run's, then every other result folder (make study-nordland)
@@ -463,8 +463,6 @@ def run_study(
         RuntimeError: a notebook failed (the message names it and the executed copy to open)
             or expected figures are missing.
     """
-    from .datasets import load_dataset
-
     if isinstance(root, Path):
         root = str(root)
     check_parameters(

@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 import torch
+from tqdm.auto import tqdm as tqdm_auto
+from tqdm.std import tqdm as tqdm_std
 
 from . import paths, settings
 from .checks import check_choice
@@ -131,22 +133,18 @@ def progress(iterable: Iterable | None, **kwargs: Any):
     Jupyter when stderr is not a terminal (a redirected log gets no bars and no blank lines
     from cleared ones)."""
     if settings.progress_style() == "text":
-        from tqdm.std import tqdm
-
         kwargs.setdefault("disable", settings.progress_disabled())
         kwargs.setdefault("file", sys.stdout)
         kwargs.setdefault("leave", True)
         kwargs.setdefault("mininterval", 2.0)
         kwargs.setdefault("ascii", True)
-        return tqdm(iterable, **kwargs)
-    from tqdm.auto import tqdm
-
+        return tqdm_std(iterable, **kwargs)
     stream = kwargs.get("file") or sys.stderr
     in_jupyter = "ipykernel" in sys.modules
     on_terminal = bool(getattr(stream, "isatty", lambda: False)())
     kwargs.setdefault("disable", settings.progress_disabled() or not (in_jupyter or on_terminal))
     kwargs.setdefault("leave", False)
-    return tqdm(iterable, **kwargs)
+    return tqdm_auto(iterable, **kwargs)
 
 
 #: The source files each cached stage's results depend on (folders of ``vpr_core``, or files).

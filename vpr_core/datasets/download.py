@@ -13,6 +13,8 @@ import urllib.request
 import zipfile
 from pathlib import Path
 
+from tqdm.auto import tqdm
+
 from .. import settings
 
 __all__ = ["DOWNLOADS", "download_dataset"]
@@ -151,8 +153,6 @@ def _stream(name: str, url: str, part: Path, root: Path, deadline_s: float) -> s
     The body must match its ``Content-Length`` (when sent) and arrive within ``deadline_s``
     seconds; otherwise ``part`` is removed and OSError raised.
     """
-    from tqdm.auto import tqdm
-
     digest = hashlib.sha256()
     start = time.monotonic()
     received = 0

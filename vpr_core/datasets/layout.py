@@ -7,6 +7,7 @@ import os
 from pathlib import Path
 
 from .base import PlaceDataset, list_images
+from .download import DOWNLOADS
 from .ground_truth import check_ground_truth, read_ground_truth, widen
 
 __all__ = [
@@ -31,8 +32,6 @@ def check_root(root: str | os.PathLike | None, name: str, layout: str) -> Path:
         ValueError: ``root`` is None, empty (it would mean the current folder) or not a path.
         FileNotFoundError: it does not exist or is not a folder.
     """
-    from .download import DOWNLOADS
-
     if root is None or (isinstance(root, (str, os.PathLike)) and not str(root).strip()):
         raise ValueError(
             f"dataset {name!r} needs root=<folder>"

@@ -11,6 +11,7 @@ import re
 import socket
 import struct
 import time
+from concurrent.futures import CancelledError
 
 from .. import settings
 from ..settings import SCHEDULER_ENV
@@ -171,8 +172,6 @@ def gather_in_order(client, futures: list, desc: str) -> list:
     worker lost for longer than :func:`vpr_core.settings.scheduler_timeout`, tasks cancelled)
     becomes one :class:`ConnectionError` (:func:`cluster_lost`).
     """
-    from concurrent.futures import CancelledError
-
     from distributed import KilledWorker
     from distributed.comm.core import CommClosedError
     from tornado.iostream import StreamClosedError

@@ -5,6 +5,7 @@ Definitions: docs/DEFINITIONS.md ("Uncertainty", "Chance level")."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from importlib.metadata import PackageNotFoundError, version
 from typing import Any
 
 import numpy as np
@@ -70,8 +71,6 @@ def identical_to(results: Sequence[Any]) -> list[str | None]:
 
 
 def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
     try:
         return version("vpr-landmarks")
     except PackageNotFoundError:  # pragma: no cover - running from a bare source tree

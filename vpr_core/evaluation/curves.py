@@ -11,8 +11,10 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import pandas as pd
 
 from ..datasets.ground_truth import ground_truth_coverage
+from ..notices import notice
 
 __all__ = [
     "CHANCE_RANKINGS",
@@ -554,8 +556,6 @@ def saturation_notice(
     Returns:
         The message, or None when the metrics are not saturated.
     """
-    from ..notices import notice
-
     gt = np.asarray(ground_truth, dtype=bool)
     if not gt.any():
         return None
@@ -597,8 +597,6 @@ def saturation_notice(
 
 def metrics_table(results: Mapping[str, Mapping[str, float]]):
     """``pandas.DataFrame`` with one row per method name and one column per metric."""
-    import pandas as pd
-
     df = pd.DataFrame.from_dict({k: dict(v) for k, v in results.items()}, orient="index")
     df.index.name = "method"
     return df

@@ -14,6 +14,7 @@ import torch
 from torch import nn
 
 from ..backbones import weights_stamp
+from ..engine import extract_features_distributed
 from ..features import LandmarkEncoder
 from ..paper import PROJECTION_DIM
 from ..utils import cache_dir, code_version, config_slug, progress
@@ -249,7 +250,6 @@ def encoder_kwargs(encoder: LandmarkEncoder) -> dict[str, Any]:
 def _extract_side_distributed(client, boxes: list, dataset, side: str, encoder) -> tuple:
     """One side's descriptors: the client reads/writes the stores, workers compute what is
     missing (:func:`vpr_core.engine.extract_features_distributed`)."""
-    from ..engine import extract_features_distributed
 
     n = n_images(dataset, side)
     all_boxes = [np.asarray(boxes[i], dtype=np.float64).reshape(-1, 4) for i in range(n)]

@@ -8,6 +8,14 @@ from typing import Any
 
 import numpy as np
 
+from ..baselines import peer_similarity_for
+from ..evaluation import (
+    bootstrap_metrics,
+    evaluate,
+    format_interval,
+    ground_truth_coverage,
+    pr_curve,
+)
 from ..evaluation.bootstrap import N_BOOTSTRAP
 from ..methods import Method, run_key
 from .cache import dataset_fingerprint
@@ -91,8 +99,6 @@ class MethodResult:
 
     def __repr__(self) -> str:
         """Method, dataset, metrics with intervals and the matrix shape (never the arrays)."""
-        from ..evaluation import format_interval
-
         iv = ", ".join(f"{k} {format_interval(*v)}" for k, v in self.intervals.items())
         nq, nr = np.shape(self.similarity)
         return (
@@ -125,8 +131,6 @@ class MethodResult:
 
     def curve(self, protocol: str | None = None):
         """PR curve of this result under ``protocol`` (default: the result's own)."""
-        from ..evaluation import pr_curve
-
         return pr_curve(
             self.similarity, self.ground_truth, protocol=protocol or self.protocol, warn=False
         )
@@ -149,8 +153,6 @@ def peer_result(
         label: its name in tables and legends (default ``"<name> (VPR-Bench)"``).
         protocol: the PR protocol of its AUC and R@100P (as :func:`~vpr_core.pipeline.run_method`).
     """
-    from ..baselines import peer_similarity_for
-    from ..evaluation import bootstrap_metrics, evaluate, ground_truth_coverage
 
     sim = peer_similarity_for(dataset, peer)
     gt = np.asarray(dataset.ground_truth, dtype=bool)

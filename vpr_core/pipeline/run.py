@@ -11,6 +11,16 @@ from typing import Any
 import numpy as np
 from torch import nn
 
+from ..engine.blocks import similarity_blocks_distributed, similarity_pairs_distributed
+from ..engine.client import get_client
+from ..engine.shortlist import rerank, shortlist_pairs, split_whole_image, with_whole_image_boxes
+from ..evaluation import (
+    PROTOCOLS,
+    bootstrap_metrics,
+    evaluate,
+    ground_truth_coverage,
+    saturation_notice,
+)
 from ..evaluation.bootstrap import N_BOOTSTRAP
 from ..landmarks.edge_boxes import edge_model_id
 from ..landmarks.schemes import CandidateScheme, LandmarkScheme
@@ -67,7 +77,6 @@ def _features(boxes: dict, dataset, encoder, shortlist: int | None, client):
     """Landmark descriptors (and whole-image descriptors when a shortlist needs them)."""
     if shortlist is None:
         return extract_features(boxes, dataset, encoder, client=client), None
-    from ..engine.shortlist import split_whole_image, with_whole_image_boxes
 
     feats = extract_features(
         with_whole_image_boxes(boxes, dataset), dataset, encoder, client=client
@@ -113,8 +122,6 @@ def match(
         if client is None:
             sim = similarity_matrix(*args, soft_nms_iou=soft_nms_iou, sigma=sigma, spatial=spatial)
         else:
-            from ..engine.blocks import similarity_blocks_distributed
-
             sim = similarity_blocks_distributed(
                 client, *args, soft_nms_iou=soft_nms_iou, sigma=sigma, spatial=spatial
             )
@@ -125,8 +132,6 @@ def match(
         }
     if global_desc is None:
         raise ValueError("shortlist=k needs the whole-image descriptors (global_desc)")
-    from ..engine.blocks import similarity_pairs_distributed
-    from ..engine.shortlist import rerank, shortlist_pairs
 
     pairs, _ = shortlist_pairs(global_desc["query"], global_desc["reference"], shortlist)
     t1 = time.perf_counter()
@@ -241,13 +246,6 @@ def _run_method(
     input_size,
     overrides,
 ) -> MethodResult:
-    from ..evaluation import (
-        PROTOCOLS,
-        bootstrap_metrics,
-        evaluate,
-        ground_truth_coverage,
-        saturation_notice,
-    )
 
     if protocol not in PROTOCOLS:
         raise ValueError(f"unknown protocol {protocol!r}; valid: {', '.join(PROTOCOLS)}")
@@ -263,8 +261,6 @@ def _run_method(
     edge_model = edge_model_id() if isinstance(conf.landmarks, CandidateScheme) else "none"
     client = None
     if scheduler is not None:
-        from ..engine.client import get_client
-
         client = get_client(scheduler)
     try:
         boxes = extract_landmarks(conf.landmarks, dataset)

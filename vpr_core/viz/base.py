@@ -16,7 +16,9 @@ import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from matplotlib.patches import Rectangle
 
+from ..notices import notice
 from ..paths import check_label, figures_dir, make_dir, output_root
 
 __all__ = [
@@ -135,8 +137,6 @@ def _legend_boxes(fig) -> list:
 
 def _data_points(ax) -> np.ndarray:
     """Display coordinates of an axes' plotted data: line vertices and bar tops/corners."""
-    from matplotlib.patches import Rectangle
-
     pts = []
     for line in ax.get_lines():
         xy = np.asarray(line.get_xydata(), dtype=float).reshape(-1, 2)
@@ -279,8 +279,6 @@ def save_all(
         TypeError: an item is neither a Figure nor a DataFrame, or ``label`` not a string.
         ValueError: ``label`` is not one folder name (``../x``, ``/tmp/x``).
     """
-    from ..notices import notice
-
     check_label(label)
     root = output_root() if out is None else Path(out).expanduser().resolve()
     staged: list[tuple[Path, Path]] = []
@@ -377,8 +375,6 @@ def ground_truth_text(ground_truth: np.ndarray, tolerance: object, from_file: bo
 
 def draw_boxes(ax, boxes: np.ndarray, color="yellow", lw: float = 1.0, alpha: float = 0.9) -> None:
     """Draw ``(K, 4)`` ``(x, y, w, h)`` boxes on an axes."""
-    from matplotlib.patches import Rectangle
-
     for x, y, w, h in np.asarray(boxes, dtype=float).reshape(-1, 4):
         ax.add_patch(Rectangle((x, y), w, h, fill=False, edgecolor=color, lw=lw, alpha=alpha))
 

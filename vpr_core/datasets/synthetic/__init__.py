@@ -14,8 +14,8 @@ Where things live:
 * :mod:`.render`: :func:`render_synthetic_place`;
 * :mod:`.loader`: :func:`load_synthetic` and :data:`SYNTHETIC_VERSION`.
 
-:func:`load_synthetic` renders through this package's attribute ``render_synthetic_place``, so
-replacing that attribute (e.g. ``monkeypatch.setattr``) changes what the loader calls.
+:func:`load_synthetic` renders through ``render.render_synthetic_place``, so replacing that
+module attribute (e.g. ``monkeypatch.setattr``) changes what the loader calls.
 """
 
 from __future__ import annotations

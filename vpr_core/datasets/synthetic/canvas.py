@@ -7,6 +7,7 @@ fills are elementwise float64 arithmetic (see :mod:`.exact`).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import cast
 
 import cv2
 import numpy as np
@@ -58,7 +59,7 @@ def _paste_poster(
     hc, wc = world.img.shape[:2]
     if w < 6 or h < 6 or x0 < 0 or y0 < 0 or x0 + w > wc or y0 + h > hc:
         return
-    posters = _texture_sources()["posters"]
+    posters = cast(list[np.ndarray], _texture_sources()["posters"])
     src = posters[int(rng.integers(len(posters)))]
     sh, sw = src.shape[:2]
     aspect = w / h

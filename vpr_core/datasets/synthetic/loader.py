@@ -13,6 +13,7 @@ from ...utils import cache_dir, logger, progress, short_hash
 from ..base import PlaceDataset
 from ..ground_truth import check_tolerance as _check_tolerance
 from ..ground_truth import frame_aligned as _frame_aligned
+from . import render
 from .camera import synthetic_homography
 from .difficulty import SyntheticDifficulty, resolve_difficulty
 
@@ -150,7 +151,5 @@ def load_synthetic(
 
 
 def _render(seed: int, i: int, size: tuple[int, int], diff: SyntheticDifficulty):
-    """Call the package attribute ``render_synthetic_place`` (replaceable in tests)."""
-    from . import render_synthetic_place
-
-    return render_synthetic_place(seed, i, size, diff)
+    """Call ``render.render_synthetic_place`` through its module (replaceable in tests)."""
+    return render.render_synthetic_place(seed, i, size, diff)

@@ -8,8 +8,10 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
+from typing import cast
 
 import numpy as np
+import skimage.data as skd
 
 from .exact import gaussian_blur, resize_area, resize_bilinear
 
@@ -26,8 +28,6 @@ def _int_stats(v: np.ndarray) -> tuple[float, float]:
 @lru_cache(maxsize=1)
 def _texture_sources() -> dict[str, object]:
     """Bundled scikit-image images: ``uint8`` grey textures with ``(mean, std)``, RGB posters."""
-    import skimage.data as skd
-
     grey = {"brick": skd.brick(), "gravel": skd.gravel(), "grass": skd.grass()}
     grey["plaster"] = np.floor(gaussian_blur(skd.gravel(), 3.0)).astype(np.uint8)
     out: dict[str, object] = {k: (v, _int_stats(v)) for k, v in grey.items()}
@@ -52,7 +52,8 @@ def _texture_sources() -> dict[str, object]:
 @lru_cache(maxsize=64)
 def _texture(name: str, scale: float) -> np.ndarray:
     """Texture ``name`` resampled by ``scale``: ``float64 (h, w)``, zero mean, unit std."""
-    src, (mean, std) = _texture_sources()[name]  # type: ignore[misc]
+    entry = cast(tuple[np.ndarray, tuple[float, float]], _texture_sources()[name])
+    src, (mean, std) = entry
     if abs(scale - 1.0) > 1e-3:
         size = (max(8, round(src.shape[0] * scale)), max(8, round(src.shape[1] * scale)))
         res = resize_area(src, size) if scale < 1 else resize_bilinear(src, size)
