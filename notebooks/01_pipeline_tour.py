@@ -38,7 +38,7 @@ from vpr_core.matching import cosine_distance, image_similarity, reciprocal_matc
 from vpr_core.pipeline import run_method
 from vpr_core.runner import check_parameters
 from vpr_core.utils import configure_logging, tune_allocator
-from vpr_core.viz import (plot_coverage_comparison, plot_dense_scales, plot_descriptor_matrices,
+from vpr_core.viz import (plot_dense_scales, plot_descriptor_matrices,
                           plot_examples, plot_labelled_matches, plot_landmark_panels, plot_pair,
                           plot_pair_terms, save)
 
@@ -162,13 +162,3 @@ save(plot_pair(ds, dense, query=q), "fig08_dense_pipeline", label);
 
 # %%
 save(plot_dense_scales(ds.load_image("reference", 0)), "fig09_dense_scales", label);
-
-# %% [markdown]
-# ## Fig. 14 — landmark coverage: top-100 Edge Boxes vs dense sampling
-# Darker = covered by more landmarks; the table gives the share of the image covered by at
-# least one landmark.
-
-# %%
-fig, coverage = plot_coverage_comparison(ds, [classical, dense], index=0, side="reference")
-save(fig, "fig14_coverage", label), save(coverage, "fig14_coverage", label)
-coverage

@@ -89,7 +89,6 @@ FIGURES: tuple[FigureSpec, ...] = (
     FigureSpec("fig03_classical_pipeline", _NB1, "Fig. 3"),
     FigureSpec("fig08_dense_pipeline", _NB1, "Fig. 8"),
     FigureSpec("fig09_dense_scales", _NB1, "Fig. 9"),
-    FigureSpec("fig14_coverage", _NB1, "Fig. 14"),
     FigureSpec("fig01_labelled_matches", _NB2, "Fig. 1"),
     FigureSpec("fig02_irrelevant_matches", _NB2, "Fig. 2"),
     FigureSpec("fig04a_cmr", _NB2, "Fig. 4a"),
