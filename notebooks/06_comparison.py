@@ -25,6 +25,8 @@
 # (`figures/<dataset>/`). Then the cost of each stage measured on this machine (Table 5).
 
 # %%
+from matplotlib_inline.backend_inline import set_matplotlib_formats
+
 from vpr_core.baselines import find_vprbench_peers, peer_from_matrix
 from vpr_core.cost import cost_table
 from vpr_core.datasets import load_dataset
@@ -37,6 +39,7 @@ from vpr_core.viz import plot_coverage_comparison, plot_disagreements, plot_pr_c
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits
 configure_logging(stream="stdout", silence_warnings=True)  # log lines (and warnings) as output
+set_matplotlib_formats("jpeg")  # inline pictures of photos as JPEG (the saved files stay PNG)
 
 # %% tags=["parameters"]
 dataset = "synthetic"  # synthetic | gardens_point | mapillary_berlin | freiburg_across_seasons | nordland | vpr_bench | utm | folder
