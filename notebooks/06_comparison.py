@@ -104,11 +104,11 @@ shown
 # on the shared real data no difference is a finding.
 
 # %%
-for m in ("dense", "classical"):
+for m, stem in (("dense", "geometry_dense"), ("classical", "geometry_classical")):
     pair = [run_method(m, ds, spatial=s, **run_options) for s in (None, "consistency")]
     table = compare(pair, baseline=m)
     fig = plot_pr_curves(pair, title=f"(not in the paper) {m} with and without geometry")
-    save(fig, f"geometry_{m}", label), save(table, f"geometry_{m}", label)
+    save(fig, stem, label), save(table, stem, label)
 table
 
 # %% [markdown]
