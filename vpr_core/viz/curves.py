@@ -31,7 +31,7 @@ def plot_scale_distribution(
         normalize: plot shares (each label sums to 1) instead of counts.
     """
     if ax is None:
-        fig, ax = plt.subplots(figsize=(7.0, 3.6))
+        fig, ax = plt.subplots(figsize=(8.0, 3.6))
     else:
         fig = ax.figure
     labels = list(hists)
@@ -50,8 +50,8 @@ def plot_scale_distribution(
     ax.set_xticklabels([s.replace("Scale ", "S") for s in SCALE_LABELS])
     ax.set_xlabel("landmark scale (Table 1)")
     ax.set_ylabel("share of landmarks" if normalize else "number of landmarks")
-    if title:
-        ax.set_title(title)
+    if title:  # left-aligned like the PR figures: a long dataset line stays on the canvas
+        ax.set_title(title, loc="left", fontsize=10)
     if labels:  # headroom above the tallest bar: the legend never covers a bar
         top = max(float(np.nanmax(p.get_height())) for p in ax.patches) if ax.patches else 1.0
         ax.set_ylim(0, (top if top > 0 else 1.0) * 1.25)
