@@ -33,9 +33,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
-#: (label, backbone spec, pooling). Lite0 stages 4/5/6 at 96-224 px, Lite1, Lite2, HOG, roi.
-#: ``roi`` runs at the default working size (4 crop sides: 384 px at 96, 512 px at 128).
-OPTIONS: tuple[tuple[str, str, str], ...] = (
+#: (label, backbone spec, pooling[, spatial]). Lite0 stages 4/5/6 at 96-224 px, Lite1, Lite2 at
+#: its natural 260 px with and without the geometry-aware score (``spatial="consistency"``, not
+#: in the paper), HOG, roi. ``roi`` runs at the default working size (4 crop sides: 384 px at
+#: 96, 512 px at 128, 1040 px at 260).
+OPTIONS: tuple[tuple[str, ...], ...] = (
     ("lite0 s5 128 (default)", "efficientnet_lite0", "crop"),
     ("lite0 s5 128 roi", "efficientnet_lite0", "roi"),
     ("lite0 s5 96", "efficientnet_lite0:input_size=96", "crop"),
@@ -45,7 +47,10 @@ OPTIONS: tuple[tuple[str, str, str], ...] = (
     ("lite0 s4 160", "efficientnet_lite0:stage=4,input_size=160", "crop"),
     ("lite0 s6 224", "efficientnet_lite0:stage=6,input_size=224", "crop"),
     ("lite1 s5 128", "efficientnet_lite1", "crop"),
-    ("lite2 s5 128", "efficientnet_lite2", "crop"),
+    ("lite2 s5 260", "efficientnet_lite2:input_size=260", "crop"),
+    ("lite2 s5 260 +geometry", "efficientnet_lite2:input_size=260", "crop", "consistency"),
+    ("lite2 s5 260 roi", "efficientnet_lite2:input_size=260", "roi"),
+    ("lite2 s5 260 roi +geometry", "efficientnet_lite2:input_size=260", "roi", "consistency"),
     ("hog 64", "hog", "crop"),
 )
 METHODS = ("classical", "dense")
@@ -97,13 +102,15 @@ def seconds_per_image(encoder, repeats: int = 3) -> tuple[float, float]:
 
 
 def similarity(
-    method: str, dataset, spec: str, pooling: str, encoder
+    method: str, dataset, spec: str, pooling: str, encoder, spatial: str | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(similarity (Nq, Nr), ground_truth (Nq, Nr))`` of one method with one option."""
     from vpr_core import pipeline
 
     if pooling in ("crop", "roi"):
-        r = pipeline.run_method(method, dataset, backbone=spec, pooling=pooling, n_bootstrap=0)
+        r = pipeline.run_method(
+            method, dataset, backbone=spec, pooling=pooling, spatial=spatial, n_bootstrap=0
+        )
         return r.similarity, r.ground_truth
     from vpr_core.matching import similarity_matrix
     from vpr_core.methods import get_method
@@ -118,6 +125,7 @@ def similarity(
         boxes["reference"],
         soft_nms_iou=conf.matching.soft_nms_iou,
         sigma=conf.matching.sigma,
+        spatial=spatial,
     )
     return np.asarray(sim, dtype=np.float64), np.asarray(dataset.ground_truth, dtype=bool)
 
@@ -135,12 +143,18 @@ def _kept_rows(path: Path, rerun: set[str]) -> list[dict]:
     old = read_rows(path)
     known = {o[0]: o for o in OPTIONS}
     return [
-        r
+        {"option": r["option"], "backbone": r["backbone"], "pooling": r["pooling"], "geometry": ""}
+        | r
         for r in old
         if r["option"] in known
         and r["option"] not in rerun
-        and (r["backbone"], r["pooling"]) == known[r["option"]][1:]
+        and (r["backbone"], r["pooling"], r.get("geometry", "")) == _settings(known[r["option"]])
     ]
+
+
+def _settings(option: tuple[str, ...]) -> tuple[str, str, str]:
+    """``(backbone, pooling, geometry)`` of an option ("" when Eq. (1) is used as the paper)."""
+    return option[1], option[2], option[3] if len(option) > 3 else ""
 
 
 def _in_option_order(rows: list[dict]) -> list[dict]:
@@ -184,7 +198,8 @@ def main() -> None:
     )
     rows = []
     kept = _kept_rows(out, {o[0] for o in options}) if args.options else []
-    for label, spec, pooling in options:
+    for option in options:
+        label, spec, pooling, geometry = (*option[:1], *_settings(option))
         t_opt = time.perf_counter()
         enc = encoder_for(spec, pooling)
         wall, cpu = seconds_per_image(enc, args.repeats)
@@ -192,13 +207,14 @@ def main() -> None:
             "option": label,
             "backbone": spec,
             "pooling": pooling,
+            "geometry": geometry,
             "raw_dim": enc.raw_dim,
             "s/img": round(wall, 4),
             "cpu s/img": round(cpu, 4),
         }
         for dname, ds in data.items():
             for method in METHODS:
-                sim, gt = similarity(method, ds, spec, pooling, enc)
+                sim, gt = similarity(method, ds, spec, pooling, enc, geometry or None)
                 bm = bootstrap_metrics(sim, gt, n=args.bootstrap, seed=0)
                 for key, name in (("r@1", "R@1"), ("auc", "AUC")):
                     v = bm[key]

@@ -21,6 +21,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
 from vpr_core import paths  # noqa: E402
+from vpr_core.datasets.ground_truth import ground_truth_text  # noqa: E402
 from vpr_core.viz import base  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
@@ -182,10 +183,10 @@ def test_ground_truth_wording():
     gt = np.zeros((4, 10), bool)
     for q, n in enumerate([1, 5, 5, 0]):
         gt[q, :n] = True
-    text = base.ground_truth_text(gt, 0, from_file=True)
+    text = ground_truth_text(gt, 0, from_file=True)
     assert text == "ground truth from file: 1-5 correct references per query (median 5)"
-    assert base.ground_truth_text(gt, 2, from_file=False) == "tolerance 2"
-    assert "widened by 1 frames" in base.ground_truth_text(gt, 1, from_file=True)
+    assert ground_truth_text(gt, 2, from_file=False) == "tolerance 2"
+    assert "widened by 1 frames" in ground_truth_text(gt, 1, from_file=True)
 
 
 def test_no_progress_bars_when_stderr_is_not_a_terminal(monkeypatch, capsys):
@@ -206,3 +207,32 @@ def test_no_progress_bars_when_stderr_is_not_a_terminal(monkeypatch, capsys):
     screen = Terminal()
     assert list(progress(range(3), total=3, desc="features", file=screen)) == [0, 1, 2]
     assert "features" in screen.getvalue()
+
+
+def test_figures_say_when_ground_truth_comes_from_a_file(tmp_path, tiny_synthetic):
+    """Issue 26 item 5: a correspondence file is not "tolerance 0" in a figure's subtitle."""
+    import shutil
+
+    from vpr_core.datasets import load_dataset
+    from vpr_core.pipeline import run_method
+    from vpr_core.viz import plot_pr_curves
+
+    root = tmp_path / "corridor"
+    for side, paths in (
+        ("query", tiny_synthetic.query_paths),
+        ("reference", tiny_synthetic.reference_paths),
+    ):
+        (root / side).mkdir(parents=True)
+        for p in paths:
+            shutil.copy(p, root / side / Path(p).name)
+    n = len(tiny_synthetic.query_paths)
+    rows = [f"{q},{q}" for q in range(n)] + [f"{q},{q + 1}" for q in range(0, n - 1, 2)]
+    (root / "ground_truth.csv").write_text("\n".join(rows) + "\n")
+    result = run_method("dense", load_dataset("folder", root), n_bootstrap=20)
+    expected = "ground truth from file: 1-2 correct references per query (median 1.5)"
+    assert result.ground_truth_from_file and expected in repr(result)
+    title = plot_pr_curves([result]).axes[0].get_title(loc="left")
+    assert expected in title and "tolerance" not in title
+    aligned = run_method("dense", tiny_synthetic, n_bootstrap=20)
+    assert "tolerance 0" in plot_pr_curves([aligned]).axes[0].get_title(loc="left")
+    plt.close("all")

@@ -24,6 +24,7 @@ from . import paths, settings
 from .backbones import parse_backbone
 from .baselines import find_vprbench_peers, peer_from_descriptors, peer_from_matrix
 from .datasets import DATASETS, load_dataset
+from .datasets.ground_truth import ground_truth_text
 from .evaluation import compact_text, compare, ground_truth_coverage
 from .evaluation.curves import PROTOCOLS
 from .findings import findings_markdown, result_labels
@@ -34,7 +35,7 @@ from .pipeline import peer_result, run_method
 from .runner import run_study, study_datasets
 from .utils import configure_logging, short_hash, tune_allocator
 from .viz import plot_pr_curves
-from .viz.base import ground_truth_text, save_all
+from .viz.base import save_all
 
 INTERRUPTED = "interrupted; cached work is kept, rerun to resume"
 

@@ -15,7 +15,11 @@ import numpy as np
 import pandas as pd
 
 from .checks import check_boxes, check_image_size
-from .datasets.ground_truth import ground_truth_references, sample_irrelevant_references
+from .datasets.ground_truth import (
+    ground_truth_references,
+    ground_truth_text,
+    sample_irrelevant_references,
+)
 from .evaluation.bootstrap import N_BOOTSTRAP
 from .labels import (
     LabelUnavailableError,
@@ -421,6 +425,11 @@ def scale_statistics(
         "soft_nms_iou": soft_nms_iou,
         "iou_threshold": iou_threshold,
         "tolerance": getattr(dataset, "tolerance", None),
+        "ground_truth": ground_truth_text(
+            gt,
+            getattr(dataset, "tolerance", None),
+            bool(getattr(dataset, "meta", {}).get("ground_truth_file")),
+        ),
         "queries_with_gt": [int(gt.any(axis=1).sum()), int(gt.shape[0])],
     }
     return scale_statistics_from_matches(records, meta=meta)

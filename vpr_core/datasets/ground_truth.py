@@ -44,6 +44,7 @@ __all__ = [
     "frame_aligned",
     "ground_truth_coverage",
     "ground_truth_references",
+    "ground_truth_text",
     "read_ground_truth",
     "sample_irrelevant_references",
     "widen",
@@ -155,6 +156,33 @@ def ground_truth_coverage(gt: np.ndarray) -> tuple[int, int]:
     if gt.ndim != 2:
         raise ValueError(f"ground truth must be a (Nq, Nr) matrix, got shape {gt.shape}.")
     return int(gt.astype(bool).any(axis=1).sum()), int(gt.shape[0])
+
+
+def ground_truth_text(ground_truth: np.ndarray, tolerance: object, from_file: bool) -> str:
+    """How a dataset's ground truth was made, for tables and titles.
+
+    Args:
+        ground_truth: ``bool (Nq, Nr)``.
+        tolerance: the dataset's tolerance (frames, or e.g. ``"25 m"``).
+        from_file: the correct pairs were read from a file (``meta["ground_truth_file"]``).
+
+    Returns:
+        ``"ground truth from file: 1-5 correct references per query (median 5)"`` for a file
+        (``", widened by N frames"`` when a tolerance was applied), else ``"tolerance N"``.
+    """
+    if not from_file:
+        return f"tolerance {tolerance}"
+    counts = np.asarray(ground_truth, dtype=bool).sum(axis=1)
+    counts = counts[counts > 0]
+    if not len(counts):
+        return "ground truth from file: no query has a correct reference"
+    lo, hi, med = int(counts.min()), int(counts.max()), float(np.median(counts))
+    span = f"{lo}" if lo == hi else f"{lo}-{hi}"
+    noun = "reference" if hi == 1 else "references"
+    text = f"ground truth from file: {span} correct {noun} per query (median {med:g})"
+    if tolerance not in (0, None, "0"):
+        text += f", widened by {tolerance} frames"
+    return text
 
 
 def check_ground_truth(gt: np.ndarray, source: str) -> tuple[int, int]:

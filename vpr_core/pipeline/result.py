@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from ..baselines import peer_similarity_for
+from ..datasets.ground_truth import ground_truth_text
 from ..evaluation import (
     bootstrap_metrics,
     evaluate,
@@ -59,6 +60,8 @@ class MethodResult:
         queries_with_gt: ``(queries with ground truth, all queries)``.
         tolerance, root: the dataset's ground-truth tolerance and folder (tables and titles
             print them beside every number).
+        ground_truth_from_file: the correct pairs were read from a file (titles then say
+            "ground truth from file: ..." instead of "tolerance N").
         protocol: the PR protocol of ``metrics`` and ``intervals``.
         warnings: the warnings that change what the numbers mean (also raised with
             ``warnings.warn`` when they happened).
@@ -85,6 +88,7 @@ class MethodResult:
     queries_with_gt: tuple[int, int] = (0, 0)
     tolerance: Any = None
     root: str | None = None
+    ground_truth_from_file: bool = False
     protocol: str = "ratio"
     warnings: list = field(default_factory=list)
     dataset_fingerprint: str = ""
@@ -102,7 +106,8 @@ class MethodResult:
         iv = ", ".join(f"{k} {format_interval(*v)}" for k, v in self.intervals.items())
         nq, nr = np.shape(self.similarity)
         return (
-            f"MethodResult({self.label!r} on {self.dataset!r}, tolerance {self.tolerance}, "
+            f"MethodResult({self.label!r} on {self.dataset!r}, "
+            f"{ground_truth_text(self.ground_truth, self.tolerance, self.ground_truth_from_file)}, "
             f"{self.protocol}: {iv or 'no intervals'}; {self.queries_with_gt[0]} of "
             f"{self.queries_with_gt[1]} queries with ground truth, similarity {nq}x{nr}"
             + (f"; {len(self.warnings)} warning(s)" if self.warnings else "")
@@ -184,6 +189,7 @@ def peer_result(
         queries_with_gt=ground_truth_coverage(gt),
         tolerance=dataset.tolerance,
         root=None if dataset.root is None else str(dataset.root),
+        ground_truth_from_file=bool(dataset.meta.get("ground_truth_file")),
         protocol=protocol,
         dataset_fingerprint=dataset_fingerprint(dataset),
     )

@@ -363,6 +363,7 @@ def _run_method(
         queries_with_gt=ground_truth_coverage(gt),
         tolerance=dataset.tolerance,
         root=None if dataset.root is None else str(dataset.root),
+        ground_truth_from_file=bool(dataset.meta.get("ground_truth_file")),
         protocol=protocol,
         dataset_fingerprint=fingerprint,
         weights_sha256=weights_sha256,

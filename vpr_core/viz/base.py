@@ -27,7 +27,6 @@ __all__ = [
     "TIMING_COLUMN",
     "curve_note",
     "draw_boxes",
-    "ground_truth_text",
     "layout_problems",
     "save",
     "save_all",
@@ -344,33 +343,6 @@ def curve_note(recall: np.ndarray, precision: np.ndarray) -> str:
     p = np.asarray(precision, dtype=float)
     seen = np.isfinite(r) & np.isfinite(p) & (r > 0) & (p > 0)
     return "" if seen.any() else "; no curve: no query correctly matched at any threshold"
-
-
-def ground_truth_text(ground_truth: np.ndarray, tolerance: object, from_file: bool) -> str:
-    """How a dataset's ground truth was made, for tables and titles.
-
-    Args:
-        ground_truth: ``bool (Nq, Nr)``.
-        tolerance: the dataset's tolerance (frames, or e.g. ``"25 m"``).
-        from_file: the correct pairs were read from a file (``meta["ground_truth_file"]``).
-
-    Returns:
-        ``"ground truth from file: 1-5 correct references per query (median 5)"`` for a file
-        (``", widened by N frames"`` when a tolerance was applied), else ``"tolerance N"``.
-    """
-    if not from_file:
-        return f"tolerance {tolerance}"
-    counts = np.asarray(ground_truth, dtype=bool).sum(axis=1)
-    counts = counts[counts > 0]
-    if not len(counts):
-        return "ground truth from file: no query has a correct reference"
-    lo, hi, med = int(counts.min()), int(counts.max()), float(np.median(counts))
-    span = f"{lo}" if lo == hi else f"{lo}-{hi}"
-    noun = "reference" if hi == 1 else "references"
-    text = f"ground truth from file: {span} correct {noun} per query (median {med:g})"
-    if tolerance not in (0, None, "0"):
-        text += f", widened by {tolerance} frames"
-    return text
 
 
 def draw_boxes(ax, boxes: np.ndarray, color="yellow", lw: float = 1.0, alpha: float = 0.9) -> None:

@@ -10,6 +10,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.colors import to_hex
 
+from ..datasets.ground_truth import ground_truth_text
 from ..evaluation import auc_pr, chance, ground_truth_coverage
 from ..evaluation.compare import identical_to
 from ..evaluation.curves import chance_precision
@@ -63,15 +64,20 @@ def plot_scale_distribution(
 
 def dataset_line(results) -> str:
     """``"<dataset>: 18 of 20 queries with ground truth, tolerance 0, protocol ratio"``: the line
-    every PR / statistics figure carries under its title."""
+    every PR / statistics figure carries under its title (for ground truth read from a file,
+    ``"ground truth from file: 1-5 correct references per query (median 5)"`` instead of the
+    tolerance: :func:`~vpr_core.datasets.ground_truth.ground_truth_text`)."""
 
     r = results[0]
     n_gt, n_q = ground_truth_coverage(r.ground_truth)
     name = r.dataset
     if name == "folder" and getattr(r, "root", None):  # name the data, not the loader
         name = f"{Path(r.root).name} (folder)"
+    truth = ground_truth_text(
+        r.ground_truth, r.tolerance, getattr(r, "ground_truth_from_file", False)
+    )
     return (
-        f"{name}: {n_gt} of {n_q} queries with ground truth, tolerance {r.tolerance}, "
+        f"{name}: {n_gt} of {n_q} queries with ground truth, {truth}, "
         f"protocol {getattr(r, 'protocol', 'ratio')}"
     )
 

@@ -12,6 +12,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
 from ..checks import check_boxes
+from ..datasets.ground_truth import ground_truth_text
 from ..landmarks import dense_sampling, landmark_coverage
 from ..paper import DENSE_PER_SCALE, DENSE_SCALES
 from .base import draw_boxes, landmark_canvas, show_canvas
@@ -71,9 +72,11 @@ def plot_examples(
             ax.set_title(f"{side} {i}", fontsize=9)
             ax.set_xticks([])
             ax.set_yticks([])
-    tol = getattr(dataset, "tolerance", None)
+    truth = ground_truth_text(
+        dataset.ground_truth, dataset.tolerance, bool(dataset.meta.get("ground_truth_file"))
+    )
     fig.suptitle(
-        title if title is not None else f"{dataset.name}: reference | query (tolerance {tol})",
+        title if title is not None else f"{dataset.name}: reference | query ({truth})",
         fontsize=10,
     )
     fig.tight_layout()

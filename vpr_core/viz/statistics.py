@@ -26,8 +26,9 @@ def stats_line(stats: Any, wrap: bool = False) -> str:
     m = stats.meta or {}
     n_gt, n_q = m.get("queries_with_gt", ("?", "?"))
     return (
-        f"{m.get('dataset', '?')}: {n_gt} of {n_q} queries with ground truth, tolerance "
-        f"{m.get('tolerance')};{chr(10) if wrap else ' '}labels {m.get('label_method', '?')}; "
+        f"{m.get('dataset', '?')}: {n_gt} of {n_q} queries with ground truth, "
+        f"{m.get('ground_truth') or 'tolerance ' + str(m.get('tolerance'))};"
+        f"{chr(10) if wrap else ' '}labels {m.get('label_method', '?')}; "
         f"{stats.n_gt_pairs} "
         f"ground-truth / {stats.n_irrelevant_pairs} irrelevant pairs"
     )
