@@ -108,7 +108,9 @@ def test_quick_study_runs_headless_and_writes_every_figure(tmp_path, monkeypatch
     ):
         saved = pd.read_csv(results / f"{stem}.csv")
         assert {"run", "AUC", "AUC lo", "baseline", "dAUC verdict", "dataset"} <= set(saved)
-    assert (results / "table5_cost.csv").exists() and (results / "fig04_matches.csv").exists()
+    assert (results / "table5_cost.timings.csv").exists() and (
+        results / "fig04_matches.csv"
+    ).exists()
     assert {"AUC", "R@100P", "R@1"} <= set(table.columns)
     assert len(table) == 3 + 5 + 6 + 6 + 5 + 4 + 4  # runs of Fig. 5, 7a, 7b, 10, 11, 12, 13
     # the pinned quick numbers (same as tests/test_pipeline.py's end-to-end test)

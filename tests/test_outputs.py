@@ -104,6 +104,9 @@ def test_committed_tables_hold_no_timing_and_no_absolute_root(tmp_path):
         ["git", "check-ignore", "-q", "results/synthetic/table5_cost.timings.csv"], cwd=REPO
     )
     assert ignored.returncode == 0, "timings files must be git-ignored"
+    cost = pd.DataFrame({"method": ["dense"], "extract landmarks (s/img)": [0.1]})
+    only = base.save(cost, "table5_cost", "lab", out=tmp_path)
+    assert only.name == "table5_cost.timings.csv" and not only.with_name("table5_cost.csv").exists()
 
 
 def test_replacing_a_file_with_other_content_is_said(tmp_path, caplog):
@@ -218,12 +221,12 @@ def test_figures_say_when_ground_truth_comes_from_a_file(tmp_path, tiny_syntheti
     from vpr_core.viz import plot_pr_curves
 
     root = tmp_path / "corridor"
-    for side, paths in (
+    for side, files in (
         ("query", tiny_synthetic.query_paths),
         ("reference", tiny_synthetic.reference_paths),
     ):
         (root / side).mkdir(parents=True)
-        for p in paths:
+        for p in files:
             shutil.copy(p, root / side / Path(p).name)
     n = len(tiny_synthetic.query_paths)
     rows = [f"{q},{q}" for q in range(n)] + [f"{q},{q + 1}" for q in range(0, n - 1, 2)]

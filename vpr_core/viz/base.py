@@ -261,7 +261,8 @@ def save_all(
     A matplotlib Figure goes to ``figures/<label>/<name>.png`` (byte-identical for identical
     inputs, checked by :func:`layout_problems`); a pandas DataFrame to
     ``results/<label>/<name>.csv`` (floats with 6 decimals, the index kept; timing columns to
-    ``<name>.timings.csv``, :func:`split_timings`). Everything is written to unique temporary
+    ``<name>.timings.csv``, :func:`split_timings`; a table of nothing but timings, such as
+    Table 5, goes only there). Everything is written to unique temporary
     files first, then renamed under one lock of the output root: concurrent runs never leave
     one run's figure beside another's table. Replacing a file with other content is logged.
 
@@ -272,7 +273,8 @@ def save_all(
         out: another output root (default :func:`vpr_core.paths.output_root`).
 
     Returns:
-        The written paths (timings files not included), in the order of ``items``.
+        The written paths (a table's timings file not included, an all-timings table's
+        included), in the order of ``items``.
 
     Raises:
         TypeError: an item is neither a Figure nor a DataFrame, or ``label`` not a string.
@@ -293,6 +295,12 @@ def save_all(
                 folder = make_dir(root / "results" / label, _OUT_SETTING)
                 table, timings = split_timings(obj)
                 path = folder / f"{name}.csv"
+                if timings is not None and set(table.columns) <= set(timings.columns):
+                    # nothing but timings: a measurement of this machine, no committed table
+                    path = folder / f"{name}.timings.csv"
+                    staged.append((_staged(path, partial(_write_csv, timings)), path))
+                    written.append(path)
+                    continue
                 staged.append((_staged(path, partial(_write_csv, table)), path))
                 if timings is not None:
                     extra = folder / f"{name}.timings.csv"
