@@ -119,19 +119,25 @@ def test_similarity_and_shortlist_of_real_features_equal_in_process(client, smal
     assert np.isnan(sim).sum() == n * (n - 2)
 
 
-@pytest.mark.parametrize("soft_nms_iou", [None, 0.4])
-def test_similarity_blocks_unequal_landmark_counts_equal_in_process(client, soft_nms_iou):
+@pytest.mark.parametrize(
+    ("soft_nms_iou", "spatial"), [(None, None), (0.4, None), (None, "consistency")]
+)
+def test_similarity_blocks_unequal_landmark_counts_equal_in_process(client, soft_nms_iou, spatial):
     rng = np.random.default_rng(7)
     qd, qb = _random_sets(rng, 11)
     rd, rb = _random_sets(rng, 13)
-    want = similarity_matrix(qd, qb, rd, rb, soft_nms_iou=soft_nms_iou, show_progress=False)
+    want = similarity_matrix(
+        qd, qb, rd, rb, soft_nms_iou=soft_nms_iou, spatial=spatial, show_progress=False
+    )
     got = similarity_blocks_distributed(
-        client, qd, qb, rd, rb, soft_nms_iou=soft_nms_iou, block_queries=4
+        client, qd, qb, rd, rb, soft_nms_iou=soft_nms_iou, spatial=spatial, block_queries=4
     )
     assert np.array_equal(got, want)
     # a shuffled shortlist with repeats, spread over several query and reference blocks
     pairs = np.stack([rng.integers(0, 11, 60), rng.integers(0, 13, 60)], axis=1)
-    want_p = similarity_pairs(qd, qb, rd, rb, pairs, soft_nms_iou=soft_nms_iou, show_progress=False)
+    want_p = similarity_pairs(
+        qd, qb, rd, rb, pairs, soft_nms_iou=soft_nms_iou, spatial=spatial, show_progress=False
+    )
     got_p = similarity_pairs_distributed(
         client,
         qd,
@@ -140,6 +146,7 @@ def test_similarity_blocks_unequal_landmark_counts_equal_in_process(client, soft
         rb,
         pairs,
         soft_nms_iou=soft_nms_iou,
+        spatial=spatial,
         block_queries=3,
         block_references=4,
     )
@@ -147,8 +154,14 @@ def test_similarity_blocks_unequal_landmark_counts_equal_in_process(client, soft
     # the pairs path agrees with the matrix path (bit for bit without soft-NMS; with it the
     # matcher's float64 soft-NMS scores can differ in the last bit between the two paths)
     np.testing.assert_allclose(
-        got_p, want[pairs[:, 0], pairs[:, 1]], rtol=0, atol=0 if soft_nms_iou is None else 1e-15
+        got_p,
+        want[pairs[:, 0], pairs[:, 1]],
+        rtol=0,
+        atol=0 if soft_nms_iou is None and spatial is None else 1e-15,
     )
+    if spatial is not None:  # the option reaches the workers: the scores differ from Eq. (1)
+        plain = similarity_blocks_distributed(client, qd, qb, rd, rb, block_queries=4)
+        assert not np.array_equal(got, plain)
 
 
 def test_in_process_fallback_equals_direct_call():
