@@ -92,3 +92,27 @@ def test_descriptor_at_scale_numbers_are_the_paired_benchmark():
     d_auc = f"dAUC {r['dAUC']:.3f} {r['dAUC 95%'].replace('+', '')}"
     d_r1 = f"dR@1 {r['dR@1']:.3f} {r['dR@1 95%'].replace('+', '')}"
     assert d_auc in text and d_r1 in text
+
+
+def descriptor_rows() -> list[str]:
+    """The README's "Which descriptor?" table rows, from ``descriptor_choice.csv``."""
+    table = pd.read_csv(RESULTS / "benchmarks" / "descriptor_choice.csv")
+    cols = [
+        "gardens_point_mini classical AUC",
+        "gardens_point_mini dense AUC",
+        "nordland_step50 classical AUC",
+        "nordland_step50 dense AUC",
+        "nordland_step50 dense R@1",
+    ]
+    return [
+        f"| {r['option']} | {r['raw_dim']} | {r['s/img']:.3f} | "
+        + " | ".join(f"{r[c]:.3f} {r[c + ' 95%']}" for c in cols)
+        + " |"
+        for _, r in table.iterrows()
+    ]
+
+
+def test_descriptor_table_is_the_benchmark_table():
+    rows = descriptor_rows()
+    shown = [line for line in README.splitlines() if line.startswith(("| lite", "| hog"))]
+    assert shown == rows, "paste these rows:\n" + "\n".join(rows)

@@ -4,9 +4,11 @@ ranking (its pairs are NaN), never scored as zeros."""
 
 from __future__ import annotations
 
+import functools
 import time
 import warnings
-from typing import Any
+from collections.abc import Callable
+from typing import Any, ParamSpec
 
 import numpy as np
 from torch import nn
@@ -33,6 +35,8 @@ from .cache import SIDES, atomic_savez, dataset_fingerprint, load_npz, n_images
 from .feature_stage import extract_features, get_encoder
 from .landmark_stage import extract_landmarks
 from .result import MethodResult
+
+P = ParamSpec("P")
 
 __all__ = ["run_method"]
 
@@ -151,6 +155,26 @@ def match(
     return sim, {"pairs": float(len(pairs)), "shortlist_s": t1 - t0, "matching_s": t2 - t1}
 
 
+def _records_warnings(run: Callable[P, MethodResult]) -> Callable[P, MethodResult]:
+    """Hand every warning of ``run`` on to the caller's filters and record the
+    :class:`~vpr_core.notices.VPRWarning` ones on the result (``.warnings``)."""
+
+    @functools.wraps(run)
+    def wrapper(*args: P.args, **kwargs: P.kwargs) -> MethodResult:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", VPRWarning)
+            result = run(*args, **kwargs)
+        for w in caught:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        result.warnings = list(
+            dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, VPRWarning))
+        )
+        return result
+
+    return wrapper
+
+
+@_records_warnings
 def run_method(
     method: str | Method | LandmarkScheme,
     dataset,
@@ -200,53 +224,6 @@ def run_method(
         A :class:`MethodResult`; ``.warnings`` lists every warning of the run that changes what
         its numbers mean (each also raised as a :class:`~vpr_core.notices.VPRWarning`).
     """
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", VPRWarning)
-        result = _run_method(
-            method,
-            dataset,
-            backbone,
-            dim,
-            seed,
-            weights,
-            keep_descriptors,
-            label,
-            pooling,
-            device,
-            shortlist,
-            scheduler,
-            n_bootstrap,
-            protocol,
-            input_size,
-            overrides,
-        )
-    for w in caught:  # hand every warning on to the caller's filters, and record ours
-        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    result.warnings = list(
-        dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, VPRWarning))
-    )
-    return result
-
-
-def _run_method(
-    method,
-    dataset,
-    backbone,
-    dim,
-    seed,
-    weights,
-    keep_descriptors,
-    label,
-    pooling,
-    device,
-    shortlist,
-    scheduler,
-    n_bootstrap,
-    protocol,
-    input_size,
-    overrides,
-) -> MethodResult:
-
     if protocol not in PROTOCOLS:
         raise ValueError(f"unknown protocol {protocol!r}; valid: {', '.join(PROTOCOLS)}")
 
