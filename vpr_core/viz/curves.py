@@ -65,21 +65,20 @@ def plot_scale_distribution(
 def dataset_line(results) -> str:
     """``"<dataset>: 18 of 20 queries with ground truth, tolerance 0, protocol ratio"``: the line
     every PR / statistics figure carries under its title (for ground truth read from a file,
-    ``"ground truth from file: 1-5 correct references per query (median 5)"`` instead of the
-    tolerance: :func:`~vpr_core.datasets.ground_truth.ground_truth_text`)."""
+    ``"ground truth from file: 1-5 correct references per query (median 5)"`` on a line of its
+    own instead of the tolerance: :func:`~vpr_core.datasets.ground_truth.ground_truth_text`)."""
 
     r = results[0]
     n_gt, n_q = ground_truth_coverage(r.ground_truth)
     name = r.dataset
     if name == "folder" and getattr(r, "root", None):  # name the data, not the loader
         name = f"{Path(r.root).name} (folder)"
-    truth = ground_truth_text(
-        r.ground_truth, r.tolerance, getattr(r, "ground_truth_from_file", False)
-    )
-    return (
-        f"{name}: {n_gt} of {n_q} queries with ground truth, {truth}, "
-        f"protocol {getattr(r, 'protocol', 'ratio')}"
-    )
+    from_file = getattr(r, "ground_truth_from_file", False)
+    truth = ground_truth_text(r.ground_truth, r.tolerance, from_file)
+    protocol = f"protocol {getattr(r, 'protocol', 'ratio')}"
+    if from_file:  # the longer wording gets a line of its own
+        return f"{name}: {n_gt} of {n_q} queries with ground truth, {protocol};\n{truth}"
+    return f"{name}: {n_gt} of {n_q} queries with ground truth, {truth}, {protocol}"
 
 
 def plot_pr_curves(
