@@ -124,7 +124,8 @@ coverage
 # Seconds per image for landmark extraction (the pipeline's landmark stage: 1,000 Edge Box
 # candidates then the method's selection, or the dense grid) and CNN features, seconds per
 # image pair for the remaining steps (reciprocal matching + Eq. (1)), and the total for
-# matching two new images.
+# matching two new images. Saved as `results/<label>/table5_cost.timings.csv`: a measurement of
+# this machine, so it is not committed.
 
 # %%
 cost = cost_table(ds, methods=("classical", "dense"), n_images=2 if limit or len(ds) < 10 else 6,
