@@ -50,7 +50,9 @@ def test_the_findings_table_is_the_one_the_committed_tables_give():
     assert expected in (RESULTS / "findings.md").read_text(encoding="utf-8")
 
 
-@pytest.mark.parametrize("label", ["synthetic", "gardens_point_mini", "nordland_step50"])
+@pytest.mark.parametrize(
+    "label", ["synthetic", "gardens_point_mini", "nordland_step50", "nordland_step5"]
+)
 @pytest.mark.parametrize("method", ["dense", "classical"])
 def test_geometry_numbers_are_the_study_tables(label, method):
     row = pd.read_csv(RESULTS / label / f"geometry_{method}.csv").iloc[1]
