@@ -118,3 +118,13 @@ def test_descriptor_table_is_the_benchmark_table():
     rows = descriptor_rows()
     shown = [line for line in README.splitlines() if line.startswith(("| lite", "| hog"))]
     assert shown == rows, "paste these rows:\n" + "\n".join(rows)
+
+
+def test_paired_descriptor_rows_are_the_benchmark_table():
+    paired = pd.read_csv(RESULTS / "benchmarks" / "descriptor_paired.csv")
+    rows = [line for line in README.splitlines() if re.match(r"^\| .* - default \(", line)]
+    assert len(rows) == len(paired)
+    for _, r in paired.iterrows():
+        cells = [f"{r[d]:+.3f} {r[d + ' 95%']} {r[d + ' verdict']}" for d in ("dAUC", "dR@1")]
+        want = f"| {r['method']} | {cells[0]} | {cells[1]} |"
+        assert any(line.endswith(want) for line in rows), want
