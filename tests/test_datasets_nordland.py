@@ -44,6 +44,11 @@ def test_nordland_tree_step_tolerance_and_names(tmp_path):
     assert np.array_equal(sub.ground_truth, np.eye(3, dtype=bool))
     assert sub.meta["step"] == 5 and sub.meta["seasons_found"] == ["spring", "summer", "winter"]
     assert sub.load_image("query", 2).shape == (32, 64, 3)
+    # titles name the subset (the name stays the data folder's)
+    assert ds.title == ds.name and sub.title == f"{tmp_path.name}, every 5th place"
+    for step, text in [(2, "2nd"), (11, "11th"), (12, "12th"), (21, "21st"), (50, "50th")]:
+        titled = load_dataset("nordland", tmp_path, step=step, tolerance=0)
+        assert titled.title.endswith(f"every {text} place")
 
 
 @pytest.mark.parametrize("step", [0, -1, 1.5, "2", True])

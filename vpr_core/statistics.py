@@ -417,7 +417,7 @@ def scale_statistics(
             label_options,
         )
     meta = {
-        "dataset": getattr(dataset, "name", None),
+        "dataset": getattr(dataset, "title", getattr(dataset, "name", None)),
         "label_method": method,
         "n_irrelevant": n_irrelevant,
         "seed": seed,

@@ -420,6 +420,18 @@ class PlaceDataset:
                 )
             self.homographies = h
 
+    @property
+    def title(self) -> str:
+        """The name as figures print it: ``"nordland_64x32, every 50th place"`` for a loader's
+        ``step`` subset, else :attr:`name`."""
+        step = self.meta.get("step", 1)
+        if not isinstance(step, int) or step <= 1:
+            return self.name
+        suffix = (
+            "th" if step % 100 in (11, 12, 13) else {1: "st", 2: "nd", 3: "rd"}.get(step % 10, "th")
+        )
+        return f"{self.name}, every {step}{suffix} place"
+
     # -- access ---------------------------------------------------------------------------------
 
     def paths(self, side: str) -> list[Path]:

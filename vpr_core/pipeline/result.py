@@ -60,6 +60,9 @@ class MethodResult:
         queries_with_gt: ``(queries with ground truth, all queries)``.
         tolerance, root: the dataset's ground-truth tolerance and folder (tables and titles
             print them beside every number).
+        dataset_title: the dataset as titles print it (:attr:`PlaceDataset.title
+            <vpr_core.datasets.PlaceDataset.title>`: the name and a subset such as "every 50th
+            place").
         ground_truth_from_file: the correct pairs were read from a file (titles then say
             "ground truth from file: ..." instead of "tolerance N").
         protocol: the PR protocol of ``metrics`` and ``intervals``.
@@ -89,6 +92,7 @@ class MethodResult:
     tolerance: Any = None
     root: str | None = None
     ground_truth_from_file: bool = False
+    dataset_title: str = ""
     protocol: str = "ratio"
     warnings: list = field(default_factory=list)
     dataset_fingerprint: str = ""
@@ -190,6 +194,7 @@ def peer_result(
         tolerance=dataset.tolerance,
         root=None if dataset.root is None else str(dataset.root),
         ground_truth_from_file=bool(dataset.meta.get("ground_truth_file")),
+        dataset_title=dataset.title,
         protocol=protocol,
         dataset_fingerprint=dataset_fingerprint(dataset),
     )

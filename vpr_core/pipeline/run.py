@@ -341,6 +341,7 @@ def run_method(
         tolerance=dataset.tolerance,
         root=None if dataset.root is None else str(dataset.root),
         ground_truth_from_file=bool(dataset.meta.get("ground_truth_file")),
+        dataset_title=dataset.title,
         protocol=protocol,
         dataset_fingerprint=fingerprint,
         weights_sha256=weights_sha256,

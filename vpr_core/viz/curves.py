@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
@@ -70,9 +68,7 @@ def dataset_line(results) -> str:
 
     r = results[0]
     n_gt, n_q = ground_truth_coverage(r.ground_truth)
-    name = r.dataset
-    if name == "folder" and getattr(r, "root", None):  # name the data, not the loader
-        name = f"{Path(r.root).name} (folder)"
+    name = getattr(r, "dataset_title", "") or r.dataset
     from_file = getattr(r, "ground_truth_from_file", False)
     truth = ground_truth_text(r.ground_truth, r.tolerance, from_file)
     protocol = f"protocol {getattr(r, 'protocol', 'ratio')}"

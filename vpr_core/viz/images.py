@@ -76,7 +76,7 @@ def plot_examples(
         dataset.ground_truth, dataset.tolerance, bool(dataset.meta.get("ground_truth_file"))
     )
     fig.suptitle(
-        title if title is not None else f"{dataset.name}: reference | query ({truth})",
+        title if title is not None else f"{dataset.title}: reference | query ({truth})",
         fontsize=10,
     )
     fig.tight_layout()
