@@ -239,3 +239,21 @@ def test_figures_say_when_ground_truth_comes_from_a_file(tmp_path, tiny_syntheti
     aligned = run_method("dense", tiny_synthetic, n_bootstrap=20)
     assert "tolerance 0" in plot_pr_curves([aligned]).axes[0].get_title(loc="left")
     plt.close("all")
+
+
+def test_statistics_panels_fit_a_file_based_ground_truth():
+    from vpr_core.statistics import MatchRecord, scale_statistics_from_matches
+    from vpr_core.viz import plot_asl, plot_cls, plot_cmr
+
+    rng = np.random.default_rng(0)
+    records = [
+        MatchRecord(rng.integers(1, 10, 30), rng.random(30), rng.random(30) > 0.5, bool(i % 2))
+        for i in range(20)
+    ]
+    truth = "ground truth from file: 1-2 correct references per query (median 2)"
+    meta = {"dataset": "corridor", "label_method": "geometric", "queries_with_gt": [10, 10]}
+    stats = scale_statistics_from_matches(records, meta={**meta, "ground_truth": truth})
+    for plot in (plot_cmr, plot_cls, plot_asl):
+        fig = plot(stats)
+        assert truth in fig._suptitle.get_text() and base.layout_problems(fig) == []
+    plt.close("all")

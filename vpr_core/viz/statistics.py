@@ -22,15 +22,17 @@ _PANEL_SIZE = (5.0, 3.4)
 
 def stats_line(stats: Any, wrap: bool = False) -> str:
     """``"<dataset>: 18 of 20 queries with ground truth, tolerance 0; labels exact; 90 ground-truth
-    / 450 irrelevant pairs"``: the line every statistics figure carries."""
+    / 450 irrelevant pairs"``: the line every statistics figure carries (``wrap``: the labels on
+    a second line; a file-based ground truth's longer wording always gets a line of its own)."""
     m = stats.meta or {}
     n_gt, n_q = m.get("queries_with_gt", ("?", "?"))
+    truth = m.get("ground_truth") or f"tolerance {m.get('tolerance')}"
+    own_line = not truth.startswith("tolerance")
     return (
-        f"{m.get('dataset', '?')}: {n_gt} of {n_q} queries with ground truth, "
-        f"{m.get('ground_truth') or 'tolerance ' + str(m.get('tolerance'))};"
+        f"{m.get('dataset', '?')}: {n_gt} of {n_q} queries with ground truth"
+        f"{';' + chr(10) if own_line else ', '}{truth};"
         f"{chr(10) if wrap else ' '}labels {m.get('label_method', '?')}; "
-        f"{stats.n_gt_pairs} "
-        f"ground-truth / {stats.n_irrelevant_pairs} irrelevant pairs"
+        f"{stats.n_gt_pairs} ground-truth / {stats.n_irrelevant_pairs} irrelevant pairs"
     )
 
 
