@@ -21,8 +21,8 @@ from vpr_core.evaluation import (
     per_query,
     saturation_notice,
 )
+from vpr_core.evaluation.chance import chance_precision
 from vpr_core.evaluation.compare import CHANCE_ROW
-from vpr_core.evaluation.curves import chance_precision
 from vpr_core.matching import match_landmarks
 from vpr_core.notices import VPRWarning
 from vpr_core.pipeline import MethodResult, run_method

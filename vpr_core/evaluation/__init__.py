@@ -1,6 +1,6 @@
-"""Evaluation of a query x reference similarity matrix: curves and metrics with their chance
-level (``curves``), bootstrap intervals and paired differences (``bootstrap``), the comparison
-table (``compare``), the per-query view (``insight``)."""
+"""Evaluation of a query x reference similarity matrix: curves and metrics (``curves``),
+their chance level (``chance``), bootstrap intervals and paired differences (``bootstrap``),
+the comparison table (``compare``), the per-query view (``insight``)."""
 
 from __future__ import annotations
 
@@ -14,12 +14,12 @@ from .bootstrap import (
     needs_text,
     paired_bootstrap,
 )
+from .chance import chance, saturation_notice
 from .compare import ComparisonTable, compact, compact_text, compare
 from .curves import (
     PROTOCOLS,
     PRCurve,
     auc_pr,
-    chance,
     evaluate,
     ground_truth_coverage,
     metrics_table,
@@ -27,7 +27,6 @@ from .curves import (
     recall_at_100_precision,
     recall_at_k,
     recall_rate_at_n,
-    saturation_notice,
 )
 from .insight import per_query
 

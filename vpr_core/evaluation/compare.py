@@ -18,7 +18,7 @@ from .bootstrap import (
     format_interval,
     paired_bootstrap,
 )
-from .curves import chance, saturation_notice
+from .chance import chance, saturation_notice
 
 __all__ = [
     "DIFFERENCES",

@@ -1,12 +1,11 @@
-"""Precision-recall curves, the table metrics (AUC, R@100P, R@K) and their chance level.
+"""Precision-recall curves and the table metrics (AUC, R@100P, R@K).
 
-Protocols, NaN = not ranked, queries that retrieve nothing, chance: docs/DEFINITIONS.md
-("Protocols", "NaN = not ranked", "Chance level")."""
+Protocols, NaN = not ranked, queries that retrieve nothing: docs/DEFINITIONS.md ("Protocols",
+"NaN = not ranked"); their chance level is :mod:`vpr_core.evaluation.chance`."""
 
 from __future__ import annotations
 
 import logging
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -14,16 +13,11 @@ import numpy as np
 import pandas as pd
 
 from ..datasets.ground_truth import ground_truth_coverage
-from ..notices import notice
 
 __all__ = [
-    "CHANCE_RANKINGS",
     "PROTOCOLS",
-    "SATURATION_SHARE",
     "PRCurve",
     "auc_pr",
-    "chance",
-    "chance_precision",
     "evaluate",
     "ground_truth_coverage",
     "metrics_table",
@@ -31,7 +25,6 @@ __all__ = [
     "recall_at_100_precision",
     "recall_at_k",
     "recall_rate_at_n",
-    "saturation_notice",
 ]
 
 logger = logging.getLogger("vpr_core")
@@ -424,175 +417,6 @@ def evaluate(
             s, gt, k, warn=i == 0 and protocol in ("multi_match", "vpr_bench")
         )
     return out
-
-
-#: A ground truth where a random ranking's expected R@1 reaches this share saturates the metrics.
-SATURATION_SHARE = 0.5
-
-#: Seeded random rankings behind the chance AUC and R@100P of the per-query protocols.
-CHANCE_RANKINGS = 1000
-
-#: The metrics whose chance level :func:`saturation_notice` compares with every run's interval.
-CHANCE_CHECKED = ("auc", "r@1")
-
-
-def _chance_recall(gt: np.ndarray, k: int) -> float:
-    """Exact R@k of a random ranking: mean of ``1 - C(Nr - c, k) / C(Nr, k)`` over queries with
-    ground truth (``c`` correct references each)."""
-    nr = gt.shape[1]
-    k = min(k, nr)  # a list longer than the references holds them all
-    counts = gt.sum(axis=1)
-    counts = counts[counts > 0]
-    miss = {c: math.comb(nr - c, k) / math.comb(nr, k) for c in np.unique(counts).tolist()}
-    return float(np.mean([1.0 - miss[c] for c in counts.tolist()]))
-
-
-def chance_precision(ground_truth: np.ndarray, protocol: str = "ratio") -> float:
-    """The precision a random ranking keeps at every recall (the flat PR curve of chance).
-
-    The share of decisions that are correct: ``c / Nr`` averaged over the counted queries
-    (``vpr_bench``: every query; ``ratio`` / ``best_match``: those with ground truth), the share
-    of ground-truth pairs for ``multi_match``.
-    """
-    gt = np.asarray(ground_truth, dtype=bool)
-    if protocol == "multi_match":
-        return float(gt.mean())
-    rows = gt if protocol == "vpr_bench" else gt[gt.any(axis=1)]
-    return float(rows.mean(axis=1).mean()) if rows.size else float("nan")
-
-
-def _chance_multi_match(gt: np.ndarray) -> tuple[float, float]:
-    """Exact expected ``(AUC, R@100P)`` of ``multi_match`` when the pairs come in random order.
-
-    ``P`` ground-truth pairs of ``N``: the ``k``-th positive at 1-based position ``X_k`` adds a
-    trapezoid of width ``1/P`` between precisions ``(k - 1) / (X_k - 1)`` (1 for ``X_1 = 1``)
-    and ``k / X_k``; summing the expectations over positions gives
-    ``(P + H_N + (P - 1)(N - H_N) / (N - 1)) / (2N)``. R@100P: ``E = (1/P) sum_k P(first k
-    pairs all positive)``.
-    """
-    n, pos = gt.size, int(gt.sum())
-    harmonic = float(np.sum(1.0 / np.arange(1, n + 1)))
-    rest = (pos - 1) * (n - harmonic) / (n - 1) if n > 1 else 0.0
-    auc = (pos + harmonic + rest) / (2 * n)
-    j = np.arange(pos)
-    r100p = float(np.cumprod((pos - j) / (n - j)).sum() / pos)
-    return float(auc), r100p
-
-
-def chance(
-    ground_truth: np.ndarray,
-    protocol: str = "ratio",
-    ks: Sequence[int] = (1, 5),
-    n: int = CHANCE_RANKINGS,
-    seed: int = 0,
-) -> dict[str, float]:
-    """Each table metric under a random ranking of the same ground truth (its chance level).
-
-    R@K is exact (docs/DEFINITIONS.md, "Chance level"); so are AUC and R@100P of
-    ``multi_match``. AUC and R@100P of the per-query protocols are the mean over ``n`` seeded
-    random rankings: each counted query's top-1 is correct with probability ``c / Nr``,
-    independently of its score, and the scores order the queries at random.
-
-    Args:
-        ground_truth: ``(Nq, Nr)`` bool.
-        protocol: the protocol of AUC and R@100P (:data:`PROTOCOLS`).
-        ks: the K of R@K.
-        n: random rankings of the per-query protocols (>= 1).
-        seed: their seed (same seed, same values).
-
-    Returns:
-        ``{"auc", "r@100p", "r@K"...}`` (the keys of :func:`evaluate`).
-
-    Raises:
-        ValueError: no query with ground truth, bad protocol, ``n`` or ``ks``.
-    """
-    if protocol not in PROTOCOLS:
-        raise ValueError(f"unknown protocol {protocol!r}; valid: {', '.join(PROTOCOLS)}")
-    if int(n) < 1 or any(int(k) < 1 for k in ks):
-        raise ValueError(f"n (random rankings) and every k must be >= 1, got n={n}, ks={ks}")
-    gt = _check(np.zeros(np.shape(ground_truth)), ground_truth)[1]
-    _kept_queries(np.zeros(gt.shape), gt, warn=False)  # raises without ground truth
-    if protocol == "multi_match":
-        auc, r100p = _chance_multi_match(gt)
-    else:
-        rows = np.ones(gt.shape[0], bool) if protocol == "vpr_bench" else gt.any(axis=1)
-        p_correct = gt[rows].mean(axis=1)
-        rng = np.random.default_rng(seed)
-        values = []
-        for _ in range(int(n)):
-            correct = rng.random(p_correct.size) < p_correct
-            curve = _query_curve(rng.random(p_correct.size), correct, protocol, 0)
-            values.append((auc_pr(curve), recall_at_100_precision(curve)))
-        auc, r100p = (float(v) for v in np.mean(values, axis=0))
-    out = {"auc": auc, "r@100p": r100p}
-    for k in ks:
-        out[f"r@{int(k)}"] = _chance_recall(gt, int(k))
-    return out
-
-
-def _inside(value: float, interval: Sequence[float]) -> bool:
-    return len(interval) == 3 and bool(interval[1] <= value <= interval[2])
-
-
-def saturation_notice(
-    ground_truth: np.ndarray,
-    intervals: Mapping | Sequence[Mapping] | None = None,
-    protocol: str = "ratio",
-) -> str | None:
-    """Warn (:func:`~vpr_core.notices.notice`) when the ground truth makes the metrics meaningless.
-
-    Three cases: a random ranking's R@1 (:func:`chance`) is at least :data:`SATURATION_SHARE`;
-    every interval of every run is ``[1, 1]``; or, given the runs of a comparison (a sequence),
-    the chance level of a metric of :data:`CHANCE_CHECKED` lies inside every run's interval
-    (the set cannot tell these runs from a random ranking). One run's intervals (a mapping)
-    are not checked against chance: its table prints the chance level beside it.
-
-    Args:
-        ground_truth: ``bool (Nq, Nr)``.
-        intervals: one run's ``{"auc": (value, lo, hi), ...}`` (:func:`bootstrap_metrics`), or a
-            sequence of them (the runs being compared).
-        protocol: the protocol of the intervals' AUC.
-
-    Returns:
-        The message, or None when the metrics are not saturated.
-    """
-    gt = np.asarray(ground_truth, dtype=bool)
-    if not gt.any():
-        return None
-    share = _chance_recall(gt, 1)
-    if share >= SATURATION_SHARE:
-        return notice(
-            f"saturated ground truth: on average {share:.0%} of the {gt.shape[1]} "
-            f"references count as correct for a query, so a random ranking gets R@1 "
-            f"~{share:.2f} and AUC near 1; the metrics cannot rank methods. Use a smaller "
-            "tolerance (e.g. tolerance=0) or a larger set.",
-            stacklevel=4,
-        )
-    runs = [intervals] if isinstance(intervals, Mapping) else list(intervals or [])
-    ivs = [v for run in runs for v in run.values() if len(v) == 3 and np.isfinite(v[1])]
-    if ivs and all(lo == 1.0 and hi == 1.0 for _, lo, hi in ivs):
-        return notice(
-            "saturated result: every metric is 1.0 with interval [1.0, 1.0]; this set "
-            "cannot tell methods apart. Use a harder set, more places, or tolerance=0.",
-            stacklevel=4,
-        )
-    if isinstance(intervals, Mapping) or not runs:
-        return None
-    level = chance(gt, protocol, ks=(1,))
-    at_chance = [
-        key
-        for key in CHANCE_CHECKED
-        if all(key in run and _inside(level[key], run[key]) for run in runs)
-    ]
-    if at_chance:
-        named = ", ".join(f"{key.upper()} {level[key]:.3f}" for key in at_chance)
-        return notice(
-            f"at chance level: a random ranking of this ground truth scores {named} "
-            f"(protocol {protocol}), inside the 95% interval of every run; this set cannot tell "
-            "these runs from chance. Use more queries or a harder set.",
-            stacklevel=4,
-        )
-    return None
 
 
 def metrics_table(results: Mapping[str, Mapping[str, float]]):

@@ -10,8 +10,8 @@ from matplotlib.colors import to_hex
 
 from ..datasets.ground_truth import ground_truth_text
 from ..evaluation import auc_pr, chance, ground_truth_coverage
+from ..evaluation.chance import chance_precision
 from ..evaluation.compare import identical_to
-from ..evaluation.curves import chance_precision
 from ..paper import SCALE_LABELS
 from .base import METHOD_COLORS, curve_note
 
@@ -83,7 +83,7 @@ def plot_pr_curves(
     """Precision (y) against recall (x) of several results; the legend (beside the axes, never
     over the curves) gives each AUC with its 95% bootstrap interval. A dashed grey line is the
     chance level: the precision a random ranking of the same ground truth keeps
-    (:func:`~vpr_core.evaluation.curves.chance_precision`), with its AUC
+    (:func:`~vpr_core.evaluation.chance.chance_precision`), with its AUC
     (:func:`~vpr_core.evaluation.chance`) in the legend.
 
     A result whose similarity matrix equals an earlier one's has the same curve: it is drawn
