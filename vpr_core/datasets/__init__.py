@@ -20,12 +20,13 @@ import os
 from collections.abc import Callable
 from typing import Any
 
-from .base import IMAGE_EXTENSIONS, MIN_IMAGE_SIDE, PlaceDataset, list_images, read_image
+from .base import PlaceDataset
 from .download import DOWNLOADS, download_dataset
 from .folder import load_folder
 from .freiburg import load_freiburg_across_seasons
 from .gardens_point import load_gardens_point
 from .ground_truth import check_ground_truth, ground_truth_coverage, read_ground_truth
+from .images import IMAGE_EXTENSIONS, MIN_IMAGE_SIDE, list_images, read_image
 from .mapillary_berlin import load_mapillary_berlin
 from .nordland import load_nordland
 from .synthetic import load_synthetic, render_synthetic_place, synthetic_homography

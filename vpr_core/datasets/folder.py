@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 from typing import Any
 
-from .base import PlaceDataset, list_images, scan_images
+from .base import PlaceDataset
 from .ground_truth import (
     check_frame_pairs,
     check_ground_truth,
@@ -14,6 +14,7 @@ from .ground_truth import (
     read_ground_truth,
     widen,
 )
+from .images import list_images, scan_images
 from .layout import check_root, data_name, resolve_file, traverse_dir
 
 __all__ = ["FOLDER_LAYOUT", "load_folder"]

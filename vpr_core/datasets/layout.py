@@ -6,9 +6,10 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from .base import PlaceDataset, list_images
+from .base import PlaceDataset
 from .download import DOWNLOADS
 from .ground_truth import check_ground_truth, read_ground_truth, widen
+from .images import list_images
 
 __all__ = [
     "check_root",

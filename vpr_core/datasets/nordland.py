@@ -11,8 +11,9 @@ import logging
 import os
 from typing import Any
 
-from .base import PlaceDataset, list_images
+from .base import PlaceDataset
 from .ground_truth import check_tolerance, frame_aligned
+from .images import list_images
 from .layout import check_root, data_name
 
 __all__ = ["NORDLAND_LAYOUT", "load_nordland"]

@@ -8,8 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .base import IMAGE_EXTENSIONS, PlaceDataset
+from .base import PlaceDataset
 from .ground_truth import check_ground_truth
+from .images import IMAGE_EXTENSIONS
 from .layout import check_root, data_name, listed_paths, traverse_dir
 
 __all__ = ["UTM_LAYOUT", "load_utm", "utm_coordinates", "utm_zones"]

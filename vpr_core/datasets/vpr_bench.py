@@ -11,8 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from .base import PlaceDataset, list_images
+from .base import PlaceDataset
 from .ground_truth import check_ground_truth, check_tolerance, widen
+from .images import list_images
 from .layout import check_root, data_name, resolve_file, traverse_dir
 from .safe_pickle import read_npy
 
