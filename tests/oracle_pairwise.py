@@ -11,7 +11,8 @@ import math
 import numpy as np
 
 from vpr_core.boxes import box_iou
-from vpr_core.matching.core import NMS_TIE_TOL, SPATIAL_TAU, TIE_TOL
+from vpr_core.matching.core import NMS_TIE_TOL, SPATIAL_TAU
+from vpr_core.matching.reciprocal import TIE_TOL
 from vpr_core.paper import SOFT_NMS_SIGMA
 
 

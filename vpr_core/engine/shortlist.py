@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..matching import check_pairs
-from ..matching.core import rescale_rows
+from ..matching.sides import rescale_rows
 
 __all__ = [
     "global_cosine",

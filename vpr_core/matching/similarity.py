@@ -16,7 +16,8 @@ import torch
 from ..checks import check_boxes
 from ..paper import SOFT_NMS_SIGMA
 from ..utils import progress
-from .core import BLOCK_BYTES, LandmarkSets, Problem, rescale_rows, shape_terms, unit_rows
+from .core import BLOCK_BYTES, Problem, shape_terms
+from .sides import LandmarkSets, rescale_rows, unit_rows
 
 __all__ = [
     "MatchResult",
@@ -48,7 +49,8 @@ def similarity_matrix(
     """Eq. (1) similarity of every query x reference image pair (optionally with Algorithm 4).
 
     One matmul per block of ``batch_size`` queries x ``ref_batch_size`` references, in
-    ``matmul_dtype``; near-ties are re-decided in float64 (:func:`~.core.resolve_ties`), so the
+    ``matmul_dtype``; near-ties are re-decided in float64
+    (:func:`~.reciprocal.resolve_ties`), so the
     matches equal the float64 definition exactly and values agree with it to ~1e-6. On the CPU
     the blocks run on ``torch.get_num_threads()`` worker threads (same bits for any count).
 
