@@ -279,3 +279,23 @@ def test_bad_viz_inputs_raise_one_clear_line(case):
     with pytest.raises(exc, match=match) as info:
         call()
     assert "\n" not in str(info.value)
+
+
+def test_dataset_line_names_the_subset_and_the_ground_truth():
+    from types import SimpleNamespace
+
+    from vpr_core.viz import dataset_line
+
+    r = SimpleNamespace(
+        ground_truth=np.eye(3, dtype=bool),
+        dataset="nordland_64x32",
+        dataset_title="nordland_64x32, every 50th place",
+        tolerance=0,
+        protocol="ratio",
+        ground_truth_from_file=False,
+    )
+    line = dataset_line([r])
+    assert line == (
+        "nordland_64x32, every 50th place: 3 of 3 queries with ground truth, tolerance 0, "
+        "protocol ratio"
+    )
