@@ -315,3 +315,22 @@ def test_eval_spatial_is_a_matching_option_in_the_run_key(tmp_path, capsys):
     assert len(tables) == 2  # on and off never share a file
     runs = {t.read_text().splitlines()[1].split(",")[1] for t in tables}
     assert runs == {"dense", "dense(spatial=consistency)"}
+
+
+def test_eval_spatial_both_pairs_each_method_with_itself(tmp_path, capsys):
+    args = ["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "dense", "global"]
+    assert cli.main([*args, "--spatial", "both", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "geometry-aware score, each method with minus without" in out
+    assert "dAUC vs each row's baseline" in out  # not "vs dense" for the global row
+    folder = tmp_path / "results" / "synthetic"
+    (table,) = folder.glob("eval_*_geometry.csv")
+    rows = table.read_text().splitlines()
+    header = rows[0].split(",")
+    got = {
+        r.split(",")[header.index("run")]: r.split(",")[header.index("baseline")] for r in rows[1:]
+    }
+    assert got == {
+        "dense(spatial=consistency)": "dense",
+        "global(spatial=consistency)": "global",
+    }

@@ -18,6 +18,7 @@ import signal
 import sys
 from pathlib import Path
 
+import pandas as pd
 import torch
 
 from . import paths, settings
@@ -25,7 +26,7 @@ from .backbones import parse_backbone
 from .baselines import find_vprbench_peers, peer_from_descriptors, peer_from_matrix
 from .datasets import DATASETS, load_dataset
 from .datasets.ground_truth import ground_truth_text
-from .evaluation import compact_text, compare, ground_truth_coverage
+from .evaluation import ComparisonTable, compact_text, compare, ground_truth_coverage
 from .evaluation.curves import PROTOCOLS
 from .findings import findings_markdown, result_labels
 from .matching import SPATIAL_OPTIONS
@@ -236,6 +237,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     print(f"queries with ground truth: {n_gt} of {n_q}")
     mode = "exhaustive" if args.shortlist is None else f"shortlist k={args.shortlist}"
     scheduler = args.scheduler or settings.dask_scheduler()
+    spatial = [None, *SPATIAL_OPTIONS] if args.spatial == "both" else [args.spatial]
     results = [
         run_method(
             m,
@@ -250,9 +252,10 @@ def cmd_eval(args: argparse.Namespace) -> int:
             scheduler=scheduler,
             n_bootstrap=args.n_bootstrap,
             protocol=args.protocol,
-            spatial=args.spatial,
+            spatial=s,
         )
         for m in args.method
+        for s in spatial
     ]
     results += _peer_results(args, dataset) + _user_peers(args, dataset)
     print(
@@ -270,9 +273,25 @@ def cmd_eval(args: argparse.Namespace) -> int:
     print("\ncost measured here:\n" + format_table(_cost_rows(table)))
     stem = eval_stem(args, label)
     fig = plot_pr_curves(results, title=f"{label} ({mode}, protocol {args.protocol})")
-    written = save_all([(stem, table), (stem, fig)], label, out=args.out)
+    items: list = [(stem, table), (stem, fig)]
+    if args.spatial == "both":
+        geometry = _geometry_differences(results[: len(args.method) * 2], args.n_bootstrap)
+        print("\n(not in the paper) geometry-aware score, each method with minus without:")
+        print(compact_text(geometry))
+        items.append((f"{stem}_geometry", geometry))
+    written = save_all(items, label, out=args.out)
     print("wrote:\n" + "\n".join(f"  {p}" for p in written))
     return 0
+
+
+def _geometry_differences(results: list, n_bootstrap: int) -> pd.DataFrame:
+    """Each method's run with the geometry score against the same method without it (paired):
+    ``results`` alternate ``[m1, m1 + geometry, m2, m2 + geometry, ...]``."""
+    tables = [
+        compare(results[i : i + 2], n_bootstrap=n_bootstrap).iloc[1:]
+        for i in range(0, len(results), 2)
+    ]
+    return ComparisonTable(pd.concat(tables))
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -372,9 +391,10 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument(
         "--spatial",
         default=None,
-        choices=SPATIAL_OPTIONS,
+        choices=(*SPATIAL_OPTIONS, "both"),
         help="(not in the paper) re-score every method's reciprocal matches by the agreement "
-        "of their box displacements (docs/DEFINITIONS.md); default off: Eq. (1) as the paper",
+        "of their box displacements (docs/DEFINITIONS.md); 'both': every method without and "
+        "with it, and each method's paired difference; default off: Eq. (1) as the paper",
     )
     e.add_argument(
         "--scheduler",

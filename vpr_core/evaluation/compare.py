@@ -242,7 +242,8 @@ def compact(table: pd.DataFrame) -> pd.DataFrame:
     protocol = table["protocol"].iloc[0] if "protocol" in table.columns else "ratio"
     heads = {name: f"AUC({protocol})" if name == "AUC" else name for name in METRICS}
     diffs = [name for name in DIFFERENCES if f"{name} verdict" in table.columns]
-    base = next((b for b in table.get("baseline", []) if isinstance(b, str)), None)
+    bases = list(dict.fromkeys(b for b in table.get("baseline", []) if isinstance(b, str)))
+    base = bases[0] if len(bases) == 1 else "each row's baseline"  # rows of several compares
     rows: dict[str, dict[str, str]] = {}
     for label, r in table.iterrows():
         row = {"queries": str(int(r["queries"]))}
