@@ -18,7 +18,6 @@ import signal
 import sys
 from pathlib import Path
 
-import pandas as pd
 import torch
 
 from . import paths, settings
@@ -26,7 +25,7 @@ from .backbones import parse_backbone
 from .baselines import find_vprbench_peers, peer_from_descriptors, peer_from_matrix
 from .datasets import DATASETS, load_dataset
 from .datasets.ground_truth import ground_truth_text
-from .evaluation import ComparisonTable, compact_text, compare, ground_truth_coverage
+from .evaluation import compact_text, compare, compare_pairs, ground_truth_coverage
 from .evaluation.curves import PROTOCOLS
 from .findings import findings_markdown, result_labels
 from .matching import SPATIAL_OPTIONS
@@ -275,23 +274,14 @@ def cmd_eval(args: argparse.Namespace) -> int:
     fig = plot_pr_curves(results, title=f"{label} ({mode}, protocol {args.protocol})")
     items: list = [(stem, table), (stem, fig)]
     if args.spatial == "both":
-        geometry = _geometry_differences(results[: len(args.method) * 2], args.n_bootstrap)
+        pairs = [results[i : i + 2] for i in range(0, 2 * len(args.method), 2)]
+        geometry = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
         print("\n(not in the paper) geometry-aware score, each method with minus without:")
         print(compact_text(geometry))
         items.append((f"{stem}_geometry", geometry))
     written = save_all(items, label, out=args.out)
     print("wrote:\n" + "\n".join(f"  {p}" for p in written))
     return 0
-
-
-def _geometry_differences(results: list, n_bootstrap: int) -> pd.DataFrame:
-    """Each method's run with the geometry score against the same method without it (paired):
-    ``results`` alternate ``[m1, m1 + geometry, m2, m2 + geometry, ...]``."""
-    tables = [
-        compare(results[i : i + 2], n_bootstrap=n_bootstrap).iloc[1:]
-        for i in range(0, len(results), 2)
-    ]
-    return ComparisonTable(pd.concat(tables))
 
 
 def cmd_run(args: argparse.Namespace) -> int:

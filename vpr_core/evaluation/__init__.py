@@ -15,7 +15,7 @@ from .bootstrap import (
     paired_bootstrap,
 )
 from .chance import chance, saturation_notice
-from .compare import ComparisonTable, compact, compact_text, compare
+from .compare import ComparisonTable, compact, compact_text, compare, compare_pairs
 from .curves import (
     PROTOCOLS,
     PRCurve,
@@ -43,6 +43,7 @@ __all__ = [
     "compact",
     "compact_text",
     "compare",
+    "compare_pairs",
     "difference_verdict",
     "evaluate",
     "format_interval",

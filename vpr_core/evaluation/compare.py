@@ -27,6 +27,7 @@ __all__ = [
     "compact",
     "compact_text",
     "compare",
+    "compare_pairs",
     "identical_to",
 ]
 
@@ -278,6 +279,24 @@ def compact_text(table: pd.DataFrame, width: int = TERMINAL_WIDTH) -> str:
         blocks[-1].append(col)
         used += w
     return "\n\n".join(view[cols].to_string() for cols in blocks)
+
+
+def compare_pairs(
+    pairs: Sequence[Sequence[Any]], n_bootstrap: int = N_BOOTSTRAP, seed: int = 0
+) -> ComparisonTable:
+    """Each pair's second result against its first (paired), one row per pair: e.g. every
+    method with the geometry score against the same method without it.
+
+    Args:
+        pairs: ``[(baseline, result), ...]`` on one dataset.
+        n_bootstrap, seed: as :func:`compare`.
+
+    Returns:
+        The rows of :func:`compare` for each pair's second result (its ``baseline`` column
+        names its own first).
+    """
+    rows = [compare(p, n_bootstrap=n_bootstrap, seed=seed).iloc[1:] for p in pairs]
+    return ComparisonTable(pd.concat(rows))
 
 
 class ComparisonTable(pd.DataFrame):
