@@ -128,3 +128,16 @@ def test_paired_descriptor_rows_are_the_benchmark_table():
         cells = [f"{r[d]:+.3f} {r[d + ' 95%']} {r[d + ' verdict']}" for d in ("dAUC", "dR@1")]
         want = f"| {r['method']} | {cells[0]} | {cells[1]} |"
         assert any(line.endswith(want) for line in rows), want
+
+
+def test_backbone_choice_prose_is_the_lite2_benchmark():
+    paired = pd.read_csv(RESULTS / "benchmarks" / "descriptor_paired.csv")
+    lite2 = paired[paired["a"] == "efficientnet_lite2:input_size=260"].set_index("method")
+    text = _unwrapped(README)
+    for method in ("dense", "classical"):
+        r = lite2.loc[method]
+        a, b = r["AUC a"].split()[0], r["AUC b"].split()[0]
+        assert f"{method} AUC {a} against {b}" in text or f"{method} {a} against {b}" in text
+        assert f"{r['dAUC']:+.3f} {r['dAUC 95%']}" in text, method
+    choice = pd.read_csv(RESULTS / "benchmarks" / "descriptor_choice.csv").set_index("option")
+    assert f"costs {choice.loc['lite2 s5 260', 's/img']:.2f} s per" in text
