@@ -43,8 +43,8 @@ bench: $(STAMP)
 	for f in benchmarks/bench_*.py; do $(PY) $$f || exit 1; done
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check vpr_core tests benchmarks
-	$(VENV)/bin/ruff format --check vpr_core tests benchmarks
+	$(VENV)/bin/ruff check vpr_core vpr_study tests benchmarks
+	$(VENV)/bin/ruff format --check vpr_core vpr_study tests benchmarks
 	$(VENV)/bin/mypy
 
 clean:

@@ -36,7 +36,7 @@ from vpr_core.features import LandmarkEncoder
 from vpr_core.landmarks import dense_sampling, edge_boxes, normalized_scale
 from vpr_core.matching import cosine_distance, image_similarity, reciprocal_matches, shape_penalty
 from vpr_core.pipeline import run_method
-from vpr_core.runner import check_parameters
+from vpr_study.runner import check_parameters
 from vpr_core.utils import configure_logging, tune_allocator
 from vpr_core.viz import (plot_dense_scales, plot_descriptor_matrices,
                           plot_examples, plot_labelled_matches, plot_landmark_panels, plot_pair,

@@ -35,7 +35,7 @@ from matplotlib_inline.backend_inline import set_matplotlib_formats
 from vpr_core import paper
 from vpr_core.datasets import load_dataset
 from vpr_core.pipeline import run_method
-from vpr_core.runner import check_parameters
+from vpr_study.runner import check_parameters
 from vpr_core.statistics import scale_statistics
 from vpr_core.utils import configure_logging, tune_allocator
 from vpr_core.viz import plot_asl, plot_cls, plot_cmr, plot_pair, plot_scale_statistics, save

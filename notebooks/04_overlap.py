@@ -29,7 +29,7 @@ from vpr_core import paper
 from vpr_core.datasets import load_dataset
 from vpr_core.evaluation import compare
 from vpr_core.pipeline import run_method
-from vpr_core.runner import check_parameters
+from vpr_study.runner import check_parameters
 from vpr_core.utils import configure_logging, tune_allocator
 from vpr_core.viz import plot_pr_curves, save
 

@@ -32,7 +32,7 @@ from vpr_core.cost import cost_table
 from vpr_core.datasets import load_dataset
 from vpr_core.evaluation import compare, per_query
 from vpr_core.pipeline import peer_result, run_method
-from vpr_core.runner import check_parameters
+from vpr_study.runner import check_parameters
 from vpr_core.utils import configure_logging, tune_allocator
 from vpr_core.viz import plot_coverage_comparison, plot_disagreements, plot_pr_curves, save
 

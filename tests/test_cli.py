@@ -5,7 +5,7 @@ import re
 
 import pytest
 
-from vpr_core import cli
+from vpr_study import cli
 
 
 def test_eval_prints_table_and_writes_plot(tmp_path, capsys):

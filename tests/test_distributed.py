@@ -252,7 +252,7 @@ def test_a_server_speaking_another_protocol_is_refused_before_dask_reads_it():
 def test_a_malformed_address_is_refused_at_once(capsys):
     import time
 
-    from vpr_core import cli
+    from vpr_study import cli
 
     t0 = time.perf_counter()
     with pytest.raises(ValueError, match=r"'notanaddress' is not a Dask scheduler address"):

@@ -1,4 +1,4 @@
-"""The paper's claims against the saved comparison tables (vpr_core.findings), keyed by
+"""The paper's claims against the saved comparison tables (vpr_study.findings), keyed by
 configuration (run key), never by legend text."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from vpr_core import findings
 from vpr_core.methods import get_method, run_key
+from vpr_study import findings
 
 
 def _table(folder, figure, rows, baseline_run, baseline_label="base"):

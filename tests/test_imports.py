@@ -179,3 +179,20 @@ def test_no_library_writes_os_environ():
         if (found := _environ_writes(p.read_text()))
     }
     assert not bad, f"pass settings via subprocess env= or papermill parameters: {bad}"
+
+
+def test_pipeline_never_imports_the_study_tooling():
+    """``vpr_core`` is the pipeline; ``vpr_study`` (CLI, runner, findings) sits on top of it."""
+    bad = []
+    for path in sorted(PKG.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and not node.level:
+                names = [node.module or ""]
+            else:
+                continue
+            where = f"{path.relative_to(PKG)}:{node.lineno}"
+            bad += [where for n in names if n.startswith("vpr_study")]
+    assert not bad, f"vpr_core must not import vpr_study: {bad}"
+    assert (PKG.parent / "vpr_study" / "cli.py").is_file()

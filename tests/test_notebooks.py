@@ -10,8 +10,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from vpr_core import runner
-from vpr_core.runner import FIGURES, expected_figures
+from vpr_study import runner
+from vpr_study.runner import FIGURES, expected_figures
 
 REPO = Path(__file__).resolve().parents[1]
 NB_DIR = REPO / "notebooks"

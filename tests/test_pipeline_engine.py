@@ -7,8 +7,9 @@ import logging
 import numpy as np
 import pytest
 
-from vpr_core import cli, pipeline
+from vpr_core import pipeline
 from vpr_core.datasets import load_dataset
+from vpr_study import cli
 
 #: A small encoder so the tests stay fast (16 dense landmarks per image).
 SMALL = {"dim": 64, "scales": (0.25,), "per_scale": 16}

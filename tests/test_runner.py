@@ -1,4 +1,4 @@
-"""The orchestration (vpr_core.runner): the figure registry, the study's datasets, the
+"""The orchestration (vpr_study.runner): the figure registry, the study's datasets, the
 parameters the notebooks get, and the summary of the saved comparison tables."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
-from vpr_core import runner
+from vpr_study import runner
 
 
 def test_registry_is_one_list():

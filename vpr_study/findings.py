@@ -34,10 +34,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import paths
-from .evaluation.bootstrap import N_BOOTSTRAP, needs_text
-from .methods import get_method, run_key
-from .paper import TABLE2, TABLE3, TABLE4
+from vpr_core import paths
+from vpr_core.evaluation.bootstrap import N_BOOTSTRAP, needs_text
+from vpr_core.methods import get_method, run_key
+from vpr_core.paper import TABLE2, TABLE3, TABLE4
 
 __all__ = [
     "CLAIMS",

@@ -26,9 +26,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from . import paths, settings
-from .datasets import load_dataset
-from .findings import findings_markdown, result_labels
+from vpr_core import paths, settings
+from vpr_core.datasets import load_dataset
+from vpr_study.findings import findings_markdown, result_labels
 
 __all__ = [
     "FIGURES",

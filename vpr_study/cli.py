@@ -20,22 +20,22 @@ from pathlib import Path
 
 import torch
 
-from . import paths, settings
-from .backbones import parse_backbone
-from .baselines import find_vprbench_peers, peer_from_descriptors, peer_from_matrix
-from .datasets import DATASETS, load_dataset
-from .datasets.ground_truth import ground_truth_text
-from .evaluation import compact_text, compare, compare_pairs, ground_truth_coverage
-from .evaluation.curves import PROTOCOLS
-from .findings import findings_markdown, result_labels
-from .matching import SPATIAL_OPTIONS
-from .methods import available_methods
-from .paper import PROJECTION_DIM
-from .pipeline import peer_result, run_method
-from .runner import run_study, study_datasets
-from .utils import configure_logging, short_hash, tune_allocator
-from .viz import plot_pr_curves
-from .viz.base import save_all
+from vpr_core import paths, settings
+from vpr_core.backbones import parse_backbone
+from vpr_core.baselines import find_vprbench_peers, peer_from_descriptors, peer_from_matrix
+from vpr_core.datasets import DATASETS, load_dataset
+from vpr_core.datasets.ground_truth import ground_truth_text
+from vpr_core.evaluation import compact_text, compare, compare_pairs, ground_truth_coverage
+from vpr_core.evaluation.curves import PROTOCOLS
+from vpr_core.matching import SPATIAL_OPTIONS
+from vpr_core.methods import available_methods
+from vpr_core.paper import PROJECTION_DIM
+from vpr_core.pipeline import peer_result, run_method
+from vpr_core.utils import configure_logging, short_hash, tune_allocator
+from vpr_core.viz import plot_pr_curves
+from vpr_core.viz.base import save_all
+from vpr_study.findings import findings_markdown, result_labels
+from vpr_study.runner import run_study, study_datasets
 
 INTERRUPTED = "interrupted; cached work is kept, rerun to resume"
 
