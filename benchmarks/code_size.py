@@ -5,10 +5,14 @@ prints the same total and splits it, so a reader sees what the lines are: statem
 docstrings the project keeps on every public function (Google style, with shapes), comments and
 blank lines. Docstring lines are the lines of a module, class or function docstring.
 
+Issue 31 adds the guard share: guard lines (``raise`` statements, and the test of an ``if``
+whose only body is a ``raise``) over code lines; the anchors (hloc, LightGlue, kornia) are 1-7%.
+
 Usage::
 
     .venv/bin/python benchmarks/code_size.py            # per package, then the total
     .venv/bin/python benchmarks/code_size.py --files    # per file
+    .venv/bin/python benchmarks/code_size.py --root vpr_study   # the study's tooling
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ from collections import Counter
 from pathlib import Path
 
 KINDS = ("code", "docstring", "comment", "blank")
+GUARD = "guard"
 DOC_OWNERS = (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)
 
 
@@ -35,7 +40,8 @@ def line_kinds(source: str) -> Counter:
             and isinstance(body[0].value.value, str)
         ):
             doc_lines.update(range(body[0].lineno, body[0].end_lineno + 1))
-    counts: Counter = Counter({k: 0 for k in KINDS})
+    guards = guard_lines(source)
+    counts: Counter = Counter({k: 0 for k in (*KINDS, GUARD)})
     for number, line in enumerate(source.splitlines(), 1):
         text = line.strip()
         kind = (
@@ -48,7 +54,21 @@ def line_kinds(source: str) -> Counter:
             else "code"
         )
         counts[kind] += 1
+        counts[GUARD] += kind == "code" and number in guards
     return counts
+
+
+def guard_lines(source: str) -> set[int]:
+    """Line numbers of ``raise`` statements and of ``if`` tests whose only body is a raise."""
+    lines: set[int] = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Raise):
+            lines.update(range(node.lineno, node.end_lineno + 1))
+        elif (
+            isinstance(node, ast.If) and len(node.body) == 1 and isinstance(node.body[0], ast.Raise)
+        ):
+            lines.update(range(node.lineno, node.test.end_lineno + 1))
+    return lines
 
 
 def main() -> None:
@@ -64,11 +84,13 @@ def main() -> None:
         groups.setdefault(key, Counter()).update(line_kinds(path.read_text(encoding="utf-8")))
     total: Counter = sum(groups.values(), Counter())
     width = max(len(k) for k in [*groups, "total"])
-    print(f"{'':{width}}  {'lines':>6}  " + "  ".join(f"{k:>9}" for k in KINDS))
-    for key, c in sorted(groups.items(), key=lambda kv: -sum(kv[1].values())) + [("total", total)]:
-        print(f"{key:{width}}  {sum(c.values()):6d}  " + "  ".join(f"{c[k]:9d}" for k in KINDS))
-    n = sum(total.values())
+    print(f"{'':{width}}  {'lines':>6}  " + "  ".join(f"{k:>9}" for k in (*KINDS, GUARD)))
+    for key, c in sorted(groups.items(), key=lambda kv: -kv[1].total()) + [("total", total)]:
+        lines = sum(c[k] for k in KINDS)
+        print(f"{key:{width}}  {lines:6d}  " + "  ".join(f"{c[k]:9d}" for k in (*KINDS, GUARD)))
+    n = sum(total[k] for k in KINDS)
     print("share: " + ", ".join(f"{k} {total[k] / n:.0%}" for k in KINDS))
+    print(f"guard lines / code lines: {total[GUARD] / max(total['code'], 1):.1%}")
 
 
 if __name__ == "__main__":
