@@ -196,18 +196,35 @@ def read_rows(path: str | os.PathLike) -> list[dict[str, str]]:
     with open(path, newline="") as f:
         return list(csv.DictReader(f))
 
+#: First characters that make a spreadsheet evaluate a cell as a formula.
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
+
+
+def csv_safe(value: Any) -> Any:
+    """``value`` as a CSV cell no spreadsheet evaluates: text starting with ``= + - @``, tab or
+    CR gets a leading single quote; numbers, and text that reads as a number (``"-0.5"``),
+    stay as they are. The one escaping rule of every CSV the package writes."""
+    if not isinstance(value, str) or not value.startswith(FORMULA_STARTS):
+        return value
+    try:
+        float(value)
+    except ValueError:
+        return "'" + value
+    return value
+
+
 
 def write_rows(path: str | os.PathLike, rows: list[Mapping[str, Any]]) -> None:
     """Write dict rows as a CSV table; columns are the union of the rows' keys in first-seen
-    order (a missing value is empty). Written to a temporary file and renamed, so an interrupted
-    write leaves the previous table."""
+    order (a missing value is empty), text escaped by :func:`csv_safe`. Written to a temporary
+    file and renamed, so an interrupted write leaves the previous table."""
     path = Path(path)
     fields = list(dict.fromkeys(k for r in rows for k in r))
     tmp = path.with_name(path.name + ".tmp")
     with open(tmp, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=fields)
+        w = csv.DictWriter(f, fieldnames=[csv_safe(k) for k in fields])
         w.writeheader()
-        w.writerows(rows)
+        w.writerows({csv_safe(k): csv_safe(v) for k, v in r.items()} for r in rows)
     os.replace(tmp, path)
 
 

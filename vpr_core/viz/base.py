@@ -20,6 +20,7 @@ from matplotlib.patches import Rectangle
 
 from ..notices import notice
 from ..paths import check_label, figures_dir, make_dir, output_root
+from ..utils import csv_safe
 
 __all__ = [
     "METHOD_COLORS",
@@ -248,6 +249,10 @@ def split_timings(table: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame | Non
 
 
 def _write_csv(table: pd.DataFrame, tmp: Path) -> None:
+    table = table.rename(columns=csv_safe, index=csv_safe)
+    for i, dtype in enumerate(table.dtypes):
+        if not pd.api.types.is_numeric_dtype(dtype):  # text cells; numbers stay numbers
+            table.isetitem(i, table.iloc[:, i].map(csv_safe))
     table.to_csv(tmp, float_format="%.6f", index=not isinstance(table.index, pd.RangeIndex))
 
 

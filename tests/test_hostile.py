@@ -1,0 +1,112 @@
+"""Hostile files and names (issue 32): formulas never reach a spreadsheet, model files and pickles
+never kill the process, downloads and soft ground truth hold, and every error names its cause."""
+
+from __future__ import annotations
+
+import csv
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from vpr_core.baselines import PRECOMPUTED_FILE, find_vprbench_peers, peer_from_matrix
+from vpr_core.datasets import load_dataset
+from vpr_core.evaluation import compare
+from vpr_core.pipeline import peer_result
+from vpr_core.utils import csv_safe, read_rows, write_rows
+from vpr_core.viz.base import save_all
+
+#: Names a hostile user gives a method or a folder (issue 32.1).
+FORMULAS = ('=HYPERLINK("http://x","y")', "+cmd|/C calc!A0", "@SUM(1)", "-2+3")
+
+
+def _cells(path: Path) -> list[str]:
+    with open(path, newline="") as f:
+        return [c for row in csv.reader(f) for c in row]
+
+
+def _assert_no_formula(path: Path) -> None:
+    """No cell a spreadsheet would evaluate: text starting with = + - @ tab CR (numbers allowed)."""
+    for cell in _cells(path):
+        if cell[:1] in ("=", "+", "-", "@", "\t", "\r"):
+            float(cell)  # a negative number is a number; anything else fails here
+
+
+def test_csv_safe_escapes_text_and_keeps_numbers():
+    for text in (*FORMULAS, "\tx", "\rx"):
+        assert csv_safe(text) == "'" + text
+    for kept in (-0.25, 3, "-0.25", "1e-3", "plain", "", "'=already", None, np.float64(-1.5)):
+        assert csv_safe(kept) is kept or csv_safe(kept) == kept
+    assert csv_safe(csv_safe("=x")) == "'=x"  # idempotent: a table read and written again
+
+
+def test_write_rows_escapes_text_cells(tmp_path):
+    path = tmp_path / "t.csv"
+    write_rows(path, [{"name": "=1+1", "value": -0.5, "neg": "-3"}])
+    assert read_rows(path) == [{"name": "'=1+1", "value": "-0.5", "neg": "-3"}]
+    _assert_no_formula(path)
+
+
+def test_peer_names_never_reach_a_csv_as_formulas(tmp_path, tiny_synthetic):
+    ds = tiny_synthetic
+    n = len(ds.query_paths)
+    sim = np.eye(n, len(ds.reference_paths)) + 0.01
+    results = [peer_result(peer_from_matrix(sim, name), ds, n_bootstrap=20) for name in FORMULAS]
+    table = compare(results, n_bootstrap=20)
+    (path,) = save_all([("peers", table)], "hostile", out=tmp_path)
+    _assert_no_formula(path)
+    cells = _cells(path)
+    assert '\'=HYPERLINK("http://x","y") (VPR-Bench)' in cells or any(
+        c.startswith("'=HYPERLINK") for c in cells
+    )
+    df = __import__("pandas").read_csv(path)
+    assert df["AUC"].dtype == float  # numbers stay numbers
+
+
+def _folder_dataset(root: Path, source: Path, n: int = 3) -> None:
+    for side in ("query", "reference"):
+        (root / side).mkdir(parents=True)
+        for i in range(n):
+            shutil.copy(source / side / f"{i}.jpg", root / side)
+
+
+def test_dataset_root_named_as_a_formula_is_escaped(tmp_path, gardens_point_mini_root):
+    root = tmp_path / "=HYPERLINK(1)"
+    _folder_dataset(root, gardens_point_mini_root)
+    ds = load_dataset("folder", root=root)
+    result = peer_result(peer_from_matrix(np.eye(3) + 0.1, "mine"), ds, n_bootstrap=20)
+    table = compare([result], n_bootstrap=20)
+    (path,) = save_all([("t", table)], "safe_label", out=tmp_path / "out")
+    _assert_no_formula(path)
+    row = read_rows(path)[0]
+    assert row["dataset"] == "'=HYPERLINK(1)" and row["root"] == "'=HYPERLINK(1)"
+
+
+def test_vpr_bench_technique_folder_named_as_a_formula_is_escaped(tmp_path, tiny_synthetic):
+    ds = tiny_synthetic
+    n = len(ds.query_paths)
+    sim = np.eye(n, len(ds.reference_paths)) + 0.01
+    path = tmp_path / "precomputed_matches" / "SPED" / "@SUM(1)" / PRECOMPUTED_FILE
+    path.parent.mkdir(parents=True)
+    items = [np.arange(n), np.argmax(sim, 1), sim.max(1), sim, 0.01, 0.002]
+    arr = np.empty(6, dtype=object)
+    for k, item in enumerate(items):
+        arr[k] = item
+    np.save(path, arr, allow_pickle=True)
+    (peer,) = find_vprbench_peers(tmp_path, "SPED")
+    table = compare([peer_result(peer, ds, n_bootstrap=20)], n_bootstrap=20)
+    (out,) = save_all([("t", table)], "safe_label", out=tmp_path / "out")
+    _assert_no_formula(out)
+    assert any(c.startswith("'@SUM(1)") for c in _cells(out))
+
+
+def test_cli_peer_name_is_escaped(tmp_path, capsys):
+    from vpr_study import cli
+
+    np.save(tmp_path / "mine.npy", np.eye(6) + 0.01 * np.arange(36).reshape(6, 6))
+    argv = ["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "dense"]
+    argv += [f"--peer=-2+3={tmp_path / 'mine.npy'}", "--n-bootstrap", "20"]
+    assert cli.main([*argv, "--out", str(tmp_path)]) == 0
+    (path,) = (tmp_path / "results" / "synthetic").glob("eval_*[0-9a-f].csv")
+    _assert_no_formula(path)
+    assert any(c.startswith("'-2+3") for c in _cells(path))
