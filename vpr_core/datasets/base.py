@@ -9,10 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..checks import check_int
 from ..utils import file_fingerprint
 from .images import read_image
-
-__all__ = ["SIDES", "PlaceDataset"]
 
 SIDES = ("query", "reference")
 
@@ -59,15 +58,11 @@ class PlaceDataset:
             self.root = Path(self.root)
         nq, nr = len(self.query_paths), len(self.reference_paths)
         gt = self.ground_truth
-        if not isinstance(gt, np.ndarray):
+        if not isinstance(gt, np.ndarray) or gt.dtype != np.bool_:
             raise TypeError(
-                f"PlaceDataset {self.name!r}: ground_truth must be a numpy bool array of shape "
-                f"({nq}, {nr}), got {type(gt).__name__}; pass np.asarray(gt, dtype=bool)."
-            )
-        if gt.dtype != np.bool_:
-            raise TypeError(
-                f"PlaceDataset {self.name!r}: ground_truth must have dtype bool, got {gt.dtype}; "
-                "convert it with `gt.astype(bool)` (after checking it only holds 0/1)."
+                f"PlaceDataset {self.name!r}: ground_truth must be a numpy array of dtype bool, "
+                f"got {getattr(gt, 'dtype', type(gt).__name__)}; pass np.asarray(gt, dtype=bool) "
+                "after checking it only holds 0/1."
             )
         if gt.shape != (nq, nr):
             raise ValueError(
@@ -119,30 +114,18 @@ class PlaceDataset:
 
     def _path(self, side: str, i: int) -> Path:
         paths = self.paths(side)
-        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
-            raise TypeError(f"image index must be an int, got {type(i).__name__} ({i!r}).")
-        if not 0 <= int(i) < len(paths):
+        if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 0 <= i < len(paths):
             raise IndexError(
-                f"{side} index {int(i)} out of range: dataset {self.name!r} has {len(paths)} "
+                f"{side} index {i!r} out of range: dataset {self.name!r} has {len(paths)} "
                 f"{side} images (valid indices 0..{len(paths) - 1})."
             )
         return paths[int(i)]
 
     def load_image(self, side: str, i: int) -> np.ndarray:
-        """Read one image.
+        """Read image ``i`` of ``side`` (``"query"`` or ``"reference"``): ``uint8 (H, W, 3)`` RGB.
 
-        Args:
-            side: ``"query"`` or ``"reference"``.
-            i: Index into that side's list, ``0 <= i < N``.
-
-        Returns:
-            ``uint8 (H, W, 3)`` RGB image.
-
-        Raises:
-            ValueError: bad side, or the file is not a readable image, is truncated, or is
-                smaller than :data:`~vpr_core.datasets.images.MIN_IMAGE_SIDE`.
-            IndexError: ``i`` out of range.
-            FileNotFoundError: the file is gone.
+        Raises ValueError (bad side, unreadable, truncated or tiny file), IndexError,
+        FileNotFoundError.
         """
         path = self._path(side, i)
         img = read_image(path)
@@ -151,10 +134,9 @@ class PlaceDataset:
 
     def image_size(self, side: str, i: int) -> tuple[int, int]:
         """``(H, W)`` of one image (read once, then memoised)."""
-        key = (side, int(i)) if isinstance(i, (int, np.integer)) else None
-        if key is not None and key in self._sizes and side in SIDES:
-            return tuple(self._sizes[key])  # type: ignore[return-value]
-        h, w = self.load_image(side, i).shape[:2]
+        if (side, i) not in self._sizes:
+            self.load_image(side, i)
+        h, w = self._sizes[(side, i)]
         return int(h), int(w)
 
     def image_key(self, side: str, i: int) -> str:
@@ -179,14 +161,9 @@ class PlaceDataset:
         return out
 
     def subset(self, n: int) -> PlaceDataset:
-        """The first ``n`` queries and references (quick runs); the ground truth is cut to match.
-
-        Raises:
-            ValueError: ``n`` is not a positive integer.
-        """
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-            raise ValueError(f"subset(n): n must be a positive integer, got {n!r}")
-        nq, nr = min(int(n), self.n_query), min(int(n), self.n_reference)
+        """The first ``n`` queries and references (quick runs); the ground truth is cut to match."""
+        n = check_int(n, "subset(n): n", minimum=1)
+        nq, nr = min(n, self.n_query), min(n, self.n_reference)
         soft = None if self.ground_truth_soft is None else self.ground_truth_soft[:nq, :nr].copy()
         homs = None if self.homographies is None else self.homographies[:nq].copy()
         return PlaceDataset(

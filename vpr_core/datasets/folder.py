@@ -17,9 +17,6 @@ from .ground_truth import (
 from .images import list_images, scan_images
 from .layout import check_root, data_name, resolve_file, traverse_dir
 
-__all__ = ["FOLDER_LAYOUT", "load_folder"]
-
-
 FOLDER_LAYOUT = (
     "<root>/query/*, <root>/reference/*, optional <root>/ground_truth.npy ((Nq, Nr) bool) or "
     "<root>/ground_truth.csv (query,reference rows); without one, query i <-> reference i"
@@ -27,22 +24,8 @@ FOLDER_LAYOUT = (
 
 #: Skipped files that cannot be a frame (notes, lists, arrays): they do not block the
 #: frame-aligned rule; any other skipped file (an unreadable image format, a broken link) does.
-_NOT_FRAMES = {
-    ".txt",
-    ".csv",
-    ".json",
-    ".md",
-    ".xml",
-    ".yaml",
-    ".yml",
-    ".log",
-    ".npy",
-    ".npz",
-    ".mat",
-    ".ini",
-    ".db",
-    ".pdf",
-}
+_NOT_FRAMES = {".txt", ".csv", ".json", ".md", ".xml", ".yaml", ".yml", ".log", ".npy", ".npz"}
+_NOT_FRAMES |= {".mat", ".ini", ".db", ".pdf"}
 
 
 def load_folder(
@@ -61,18 +44,10 @@ def load_folder(
         <root>/ground_truth.npy          # optional (Nq, Nr) bool / 0-1 matrix, or
         <root>/ground_truth.csv          # optional rows "query,reference"
 
-    Ground truth: ``ground_truth=`` (a path) if given, else ``ground_truth.npy`` or
-    ``ground_truth.csv`` in root (not both), else frame-aligned ``|q - r| <= tolerance``, which
-    needs as many query as reference images and no skipped file that could be a frame (an
-    unreadable image format, a broken symlink). A file with no positive pair is refused; one that
-    covers only some queries gives a warning with the count (see :func:`check_ground_truth`).
-
-    Args:
-        root: Dataset folder.
-        ground_truth: Explicit ground-truth file (relative to root or absolute).
-        tolerance: Frames of slack (frame-aligned rule, or widening of a file's matches).
-        query: Query folder name.
-        reference: Reference folder name.
+    Ground truth: ``ground_truth=`` (relative to root or absolute) if given, else
+    ``ground_truth.npy`` or ``ground_truth.csv`` in root (not both), else frame-aligned
+    ``|q - r| <= tolerance``, which needs as many query as reference images and no skipped file
+    that could be a frame. ``tolerance`` also widens a file's matches (frames).
     """
     tolerance = check_tolerance(tolerance)
     root = check_root(root, "folder", FOLDER_LAYOUT)

@@ -10,8 +10,6 @@ from .ground_truth import check_frame_pairs, check_tolerance, frame_aligned
 from .images import list_images
 from .layout import check_root, data_name, traverse_dir
 
-__all__ = ["GARDENS_POINT_LAYOUT", "GARDENS_POINT_TRAVERSES", "load_gardens_point"]
-
 log = logging.getLogger("vpr_core")
 
 

@@ -1,24 +1,5 @@
-"""Ground truth: files, the frame-aligned rule, tolerance widening, coverage checks, and the
-pairs picked from it (a query's ground-truth references, sampled query-irrelevant ones).
-
-Ground-truth files accepted by the file-based loaders:
-
-* ``*.npy``: a ``(Nq, Nr)`` matrix of bools or 0/1 numbers.
-* ``*.csv`` (UTF-8, a byte-order mark allowed): rows ``query,reference`` (an optional header
-  row ``query,reference``; ``#`` comments allowed). Each cell is a 0-based index into the
-  naturally sorted image list (when it is all ASCII digits) or an image file name
-  (``12.jpg``), a stem (``12`` is read as an index, so use the file name for numeric stems)
-  or a path relative to the traverse folder.
-  Several rows per query (one-to-many) and several queries per reference (many-to-one) are
-  allowed; queries without a row have no ground truth (the evaluation drops them, and
-  :func:`check_ground_truth` warns with the count). When one side's numeric cells look 1-based
-  (at least two distinct values, no ``0`` among them, and the largest equals the number of
-  distinct values, i.e. ``1..k``) a warning says that they were read as 0-based indices.
-
-Tolerance: on frame-aligned traverses ``ground_truth[q, r] = |q - r| <= tolerance``
-(:func:`frame_aligned`); on a correspondence file the listed matches are widened along the
-reference sequence by ``tolerance`` frames (:func:`widen`; ``0``: exactly the listed pairs).
-"""
+"""Ground truth: files (:func:`read_ground_truth`), the frame-aligned rule, tolerance widening,
+coverage checks, and the pairs picked from it (ground-truth and query-irrelevant references)."""
 
 from __future__ import annotations
 
@@ -33,29 +14,14 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import check_int
 from ..notices import notice
 from .safe_pickle import read_npy
-
-__all__ = [
-    "check_frame_pairs",
-    "check_ground_truth",
-    "check_tolerance",
-    "frame_number",
-    "frame_aligned",
-    "ground_truth_coverage",
-    "ground_truth_references",
-    "ground_truth_text",
-    "read_ground_truth",
-    "sample_irrelevant_references",
-    "widen",
-]
 
 
 def check_tolerance(tolerance: Any) -> int:
     """Return ``tolerance`` as an int >= 0 (frames); ValueError otherwise."""
-    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, np.integer)) or tolerance < 0:
-        raise ValueError(f"tolerance must be an int >= 0 (frames), got {tolerance!r}.")
-    return int(tolerance)
+    return check_int(tolerance, "tolerance (frames)")
 
 
 def frame_aligned(nq: int, nr: int, tolerance: int) -> np.ndarray:
@@ -77,20 +43,9 @@ def check_frame_pairs(
     """Check that query ``i`` and reference ``i`` carry the same frame number in their names.
 
     The frame-aligned rule pairs by position; a frame missing on one side (and another on the
-    other, so the counts still agree) would silently pair different places.
-
-    Args:
-        query: Query image files in dataset order.
-        reference: Reference image files in dataset order.
-        loader: The loader's name, for errors.
-        strict: True (datasets named by frame number, e.g. Gardens Point): every name must carry
-            a number. False (``folder``): checked only when every name on both sides carries a
-            distinct number and the two sides share at least one (timestamps per traverse, or
-            names without numbers, keep pairing by position).
-
-    Raises:
-        ValueError: the counts differ or a frame is missing on one side (the message names the
-            missing frames and their files).
+    other) would silently pair different places. ``strict``: every name must carry a number
+    (Gardens Point); else (``folder``) checked only when every name on both sides carries a
+    distinct number and the sides share one. ValueError names the missing frames and files.
     """
     qn = [frame_number(p) for p in query]
     rn = [frame_number(p) for p in reference]
@@ -144,14 +99,7 @@ def widen(gt: np.ndarray, tolerance: int) -> np.ndarray:
 
 
 def ground_truth_coverage(gt: np.ndarray) -> tuple[int, int]:
-    """How many queries have ground truth.
-
-    Args:
-        gt: ``bool (Nq, Nr)`` ground truth.
-
-    Returns:
-        ``(n_queries_with_gt, n_queries)``: rows with at least one True, and ``Nq``.
-    """
+    """``(queries with at least one true reference, Nq)`` of a ``bool (Nq, Nr)`` ground truth."""
     gt = np.asarray(gt)
     if gt.ndim != 2:
         raise ValueError(f"ground truth must be a (Nq, Nr) matrix, got shape {gt.shape}.")
@@ -159,17 +107,9 @@ def ground_truth_coverage(gt: np.ndarray) -> tuple[int, int]:
 
 
 def ground_truth_text(ground_truth: np.ndarray, tolerance: object, from_file: bool) -> str:
-    """How a dataset's ground truth was made, for tables and titles.
-
-    Args:
-        ground_truth: ``bool (Nq, Nr)``.
-        tolerance: the dataset's tolerance (frames, or e.g. ``"25 m"``).
-        from_file: the correct pairs were read from a file (``meta["ground_truth_file"]``).
-
-    Returns:
-        ``"ground truth from file: 1-5 correct references per query (median 5)"`` for a file
-        (``", widened by N frames"`` when a tolerance was applied), else ``"tolerance N"``.
-    """
+    """How a dataset's ground truth was made, for tables and titles: ``"tolerance N"``, or for
+    a file ``"ground truth from file: 1-5 correct references per query (median 5)"`` (plus
+    ``", widened by N frames"`` when a tolerance was applied)."""
     if not from_file:
         return f"tolerance {tolerance}"
     counts = np.asarray(ground_truth, dtype=bool).sum(axis=1)
@@ -186,17 +126,9 @@ def ground_truth_text(ground_truth: np.ndarray, tolerance: object, from_file: bo
 
 
 def check_ground_truth(gt: np.ndarray, source: str) -> tuple[int, int]:
-    """Refuse ground truth that cannot support a metric; warn when it covers only some queries.
+    """Refuse ground truth without a positive pair; warn when it covers only some queries.
 
-    Args:
-        gt: ``bool (Nq, Nr)`` ground truth (tolerance applied).
-        source: Where it came from (a file path or a rule), named in the messages.
-
-    Returns:
-        ``(n_queries_with_gt, n_queries)`` as :func:`ground_truth_coverage`.
-
-    Raises:
-        ValueError: no positive pair at all (every metric would be 0 or undefined).
+    Returns :func:`ground_truth_coverage`; ``source`` (a file or a rule) is named in messages.
     """
     covered, nq = ground_truth_coverage(gt)
     if covered == 0:
@@ -349,21 +281,14 @@ def read_ground_truth(
     query_paths: Sequence[Path],
     reference_paths: Sequence[Path],
 ) -> np.ndarray:
-    """Read a ground-truth file (``.npy`` matrix or ``.csv`` correspondence list).
+    """Read a ground-truth file into a ``bool (Nq, Nr)`` match matrix (no tolerance applied).
 
-    Args:
-        path: ``*.npy`` with a ``(Nq, Nr)`` bool or 0/1 matrix, or ``*.csv`` with
-            ``query,reference`` rows (indices or file names, see the module docstring).
-        query_paths: The ``Nq`` query files (names resolve CSV cells).
-        reference_paths: The ``Nr`` reference files.
-
-    Returns:
-        ``bool (Nq, Nr)`` match matrix (no tolerance applied, coverage not checked: the loaders
-        call :func:`check_ground_truth` after widening).
-
-    Raises:
-        FileNotFoundError: no such file.
-        ValueError: unknown format, a shape that does not fit the images, bad values or rows.
+    ``*.npy``: a ``(Nq, Nr)`` matrix of bools or 0/1 numbers. ``*.csv`` (UTF-8, a BOM allowed):
+    rows ``query,reference`` (optional header, ``#`` comments); a cell is a 0-based index into
+    the naturally sorted image list (all ASCII digits), a file name, a unique stem or a path
+    relative to the traverse folder. One-to-many and many-to-one rows are allowed; queries
+    without a row have no ground truth. Numeric cells that look 1-based (``1..k``, no ``0``)
+    are read as 0-based, with a warning. See docs/DEFINITIONS.md for the tolerance rules.
     """
     path = Path(path)
     nq, nr = len(query_paths), len(reference_paths)
@@ -384,17 +309,10 @@ def read_ground_truth(
 
 
 def ground_truth_references(ground_truth: np.ndarray, q: int, mode: str = "center") -> list[int]:
-    """Ground-truth references of query ``q`` used for the statistics.
+    """Ground-truth references of query ``q`` used for the statistics (empty when none).
 
-    Args:
-        ground_truth: ``(Nq, Nr)`` bool.
-        q: query index.
-        mode: ``"center"``: one reference per query — ``q`` itself when ``ground_truth[q, q]``
-            (frame-aligned datasets), else the middle of the true references (the centre of the
-            tolerance window / correspondence list). ``"all"``: every true reference.
-
-    Returns:
-        list of reference indices (empty when the query has no ground truth).
+    ``mode="center"``: one reference, ``q`` itself when ``ground_truth[q, q]`` (frame-aligned
+    datasets), else the middle of the true references; ``"all"``: every true reference.
     """
     row = np.flatnonzero(np.asarray(ground_truth, dtype=bool)[q])
     if len(row) == 0:
@@ -414,19 +332,9 @@ def sample_irrelevant_references(
     seed: int = 0,
     queries: Sequence[int] | None = None,
 ) -> dict[int, list[int]]:
-    """Query-irrelevant references: per query, ``n_irrelevant`` references with
+    """``{q: sorted [r, ...]}``: per query (default all), ``n_irrelevant`` references with
     ``ground_truth[q, r] == False`` drawn without replacement (fewer when fewer exist), with one
-    ``np.random.default_rng(seed)`` consumed query by query in increasing order; returned sorted.
-
-    Args:
-        ground_truth: ``(Nq, Nr)`` bool.
-        n_irrelevant: references per query.
-        seed: RNG seed.
-        queries: the queries to sample for (default all).
-
-    Returns:
-        ``{q: [r, ...]}``.
-    """
+    ``np.random.default_rng(seed)`` consumed query by query in increasing order."""
     gt = np.asarray(ground_truth, dtype=bool)
     rng = np.random.default_rng(seed)
     qs = range(gt.shape[0]) if queries is None else sorted(int(x) for x in queries)

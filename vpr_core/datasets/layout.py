@@ -11,28 +11,10 @@ from .download import DOWNLOADS
 from .ground_truth import check_ground_truth, read_ground_truth, widen
 from .images import list_images
 
-__all__ = [
-    "check_root",
-    "correspondence_dataset",
-    "data_name",
-    "listed_paths",
-    "resolve_file",
-    "traverse_dir",
-]
-
 
 def check_root(root: str | os.PathLike | None, name: str, layout: str) -> Path:
-    """Return ``root`` as a Path to an existing folder; a clear error naming the fix otherwise.
-
-    Args:
-        root: The folder the user passed (None: not passed).
-        name: Dataset name, for the messages.
-        layout: The expected layout, quoted in the messages.
-
-    Raises:
-        ValueError: ``root`` is None, empty (it would mean the current folder) or not a path.
-        FileNotFoundError: it does not exist or is not a folder.
-    """
+    """Return ``root`` as a Path to an existing folder; a clear error naming the fix otherwise
+    (``name`` and the expected ``layout`` are quoted in the messages)."""
     if root is None or (isinstance(root, (str, os.PathLike)) and not str(root).strip()):
         raise ValueError(
             f"dataset {name!r} needs root=<folder>"
@@ -113,21 +95,8 @@ def correspondence_dataset(
     tolerance: int,
     meta: dict,
 ) -> PlaceDataset:
-    """A dataset whose ground truth is a correspondence file, widened by ``tolerance``.
-
-    Args:
-        name: The loader's name (messages, ``meta["loader"]``; the dataset is named by
-            :func:`data_name` of ``base``).
-        base: The dataset's root folder.
-        query_dir: Query image folder.
-        reference_dir: Reference image folder.
-        gt_file: ``.csv`` or ``.npy`` ground-truth file (see :mod:`.ground_truth`).
-        tolerance: Frames by which the listed matches are widened along the reference axis.
-        meta: Details stored in :attr:`PlaceDataset.meta`.
-
-    Raises:
-        ValueError: bad file contents, or no positive pair (see :func:`check_ground_truth`).
-    """
+    """A dataset whose ground truth is a correspondence file, widened by ``tolerance`` frames;
+    ``name`` is the loader's (the dataset is named by :func:`data_name` of ``base``)."""
     qp = list_images(query_dir, f"{name} query folder")
     rp = list_images(reference_dir, f"{name} reference folder")
     gt = widen(read_ground_truth(gt_file, qp, rp), tolerance)

@@ -1,22 +1,17 @@
 """Nordland (NRK 2012-13, CC BY 3.0): one railway route filmed in four seasons, frame-synchronised.
-
-Any copy whose season folders hold the same file names loads, e.g. the 64x32 SeqSLAM-style
-subset (``summer/``, ``winter/``, ``images-NNNNN.png``, every 10th original frame) or the full-size
-partitioned release (``spring/``, ``summer/``, ``fall/``, ``winter/``).
-"""
+Any copy whose season folders hold the same file names loads (the 64x32 SeqSLAM-style subset,
+the full-size partitioned release)."""
 
 from __future__ import annotations
 
 import logging
 import os
-from typing import Any
 
+from ..checks import check_int
 from .base import PlaceDataset
 from .ground_truth import check_tolerance, frame_aligned
 from .images import list_images
 from .layout import check_root, data_name
-
-__all__ = ["NORDLAND_LAYOUT", "load_nordland"]
 
 log = logging.getLogger("vpr_core")
 
@@ -25,14 +20,6 @@ NORDLAND_LAYOUT = (
     "every season folder: a file name is a place"
 )
 _MISSING = ("error", "intersect")
-
-
-def _check_step(step: Any) -> int:
-    if isinstance(step, bool) or not isinstance(step, int) or step < 1:
-        raise ValueError(
-            f"nordland: step must be a positive int (keep every step-th place), got {step!r}."
-        )
-    return int(step)
 
 
 def _season_files(root: os.PathLike, season: str, seasons: list[str]) -> dict:
@@ -89,27 +76,11 @@ def load_nordland(
     kept: the first). Query ``i`` and reference ``i`` are the same file name, and the ground truth
     is ``|i - j| <= tolerance`` over the kept places (so the tolerance is in kept places: on the
     64x32 subset, which holds every 10th original frame, ``step=10, tolerance=1`` is +-100
-    original frames). Always report the tolerance beside a number.
-
-    Args:
-        root: Folder holding the season folders.
-        query: Query season folder (default ``winter``).
-        reference: Reference season folder (default ``summer``).
-        tolerance: Places of slack in the frame-aligned ground truth.
-        step: Keep every ``step``-th place (a positive int; 1 keeps all).
-        missing: What to do when a file name is present in one season only: ``"error"`` (the
-            default: such a copy is incomplete) or ``"intersect"`` (keep the common names, with a
-            warning giving the counts).
-
-    Returns:
-        PlaceDataset with ``Nq = Nr = ceil(n_places / step)``.
-
-    Raises:
-        ValueError: bad ``tolerance``/``step``/``missing``, or file names that differ.
-        FileNotFoundError: missing root or season folder (the message lists the seasons found).
+    original frames). ``missing``: a file name present in one season only is an ``"error"`` (an
+    incomplete copy) or, with ``"intersect"``, dropped with a warning giving the counts.
     """
     tolerance = check_tolerance(tolerance)
-    step = _check_step(step)
+    step = check_int(step, "nordland: step", minimum=1)
     if missing not in _MISSING:
         raise ValueError(f"nordland: missing must be one of {_MISSING}, got {missing!r}.")
     root = check_root(root, "nordland", NORDLAND_LAYOUT)

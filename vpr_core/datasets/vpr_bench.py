@@ -17,8 +17,6 @@ from .images import list_images
 from .layout import check_root, data_name, resolve_file, traverse_dir
 from .safe_pickle import read_npy
 
-__all__ = ["VPR_BENCH_LAYOUT", "load_vpr_bench", "read_vprbench_ground_truth"]
-
 log = logging.getLogger("vpr_core")
 
 VPR_BENCH_LAYOUT = (
@@ -74,21 +72,10 @@ def _rows(path: Path) -> list:
 
 
 def read_vprbench_ground_truth(path: str | os.PathLike, nq: int, nr: int) -> np.ndarray:
-    """Read VPR-Bench's ``ground_truth_new.npy`` into a ``bool (nq, nr)`` matrix.
+    """Read VPR-Bench's ``ground_truth_new.npy`` into a ``bool (nq, nr)`` matrix (no tolerance).
 
-    Args:
-        path: The file: a pickled object array (or list) of rows ``[q, refs]``; ``q`` an integer,
-            ``refs`` an integer or a list/array of integers (possibly empty).
-        nq: Number of query images.
-        nr: Number of reference images.
-
-    Returns:
-        ``bool (nq, nr)`` with ``gt[q, r]`` True for every listed pair (no tolerance applied).
-
-    Raises:
-        FileNotFoundError: no such file.
-        ValueError: unreadable file, a row that is not ``[q, refs]``, non-integer or out-of-range
-            indices (the message names the file and the row).
+    The file is a pickled object array (or list) of rows ``[q, refs]``: ``q`` an integer, ``refs``
+    an integer, a list/array of integers (possibly empty) or a boolean mask of length ``nr``.
     """
     path = Path(path)
     if not path.is_file():
@@ -104,14 +91,10 @@ def read_vprbench_ground_truth(path: str | os.PathLike, nq: int, nr: int) -> np.
             )
         q = _as_index(row[0], path, k, "query index")
         refs = _mask_or_index(row[1], path, k, nr)
-        if q.size != 1:
-            raise ValueError(
-                f"{path}, row {k}: the query index must be one number, got {row[0]!r}."
-            )
-        qi = int(q[0])
+        qi = int(q[0]) if q.size == 1 else -1
         if not 0 <= qi < nq:
             raise ValueError(
-                f"{path}, row {k}: query index {qi} out of range (the query folder "
+                f"{path}, row {k}: query index {row[0]!r} out of range (the query folder "
                 f"has {nq} images, indices 0..{nq - 1}); is this the file of another "
                 "dataset, or are images missing?"
             )
@@ -148,10 +131,7 @@ def load_vpr_bench(
     ground_truth: str | os.PathLike = "ground_truth_new.npy",
     order: str = "natural",
 ) -> PlaceDataset:
-    """A dataset in VPR-Bench's layout.
-
-    Each VPR-Bench dataset (Gardens Point, Nordland, SPEDTest, ESSEX3IN1, 17places, Living room,
-    Corridor, ...) is a folder::
+    """A dataset in VPR-Bench's layout (Gardens Point, SPEDTest, ESSEX3IN1, 17places, ...)::
 
         <root>/query/*.jpg
         <root>/ref/*.jpg
@@ -161,29 +141,9 @@ def load_vpr_bench(
     The indices in ``ground_truth_new.npy`` index the sorted image lists. Which sort VPR-Bench
     uses could not be checked here, so they are read against the **naturally** sorted lists
     (``2.jpg`` before ``10.jpg``) by default; ``order="lexicographic"`` reads them against plain
-    string order instead. When the two orders differ for a folder, loading says so. Zero-padded
-    names (``Image000.jpg``) sort the same either way. The ``.npy`` is read with the restricted,
-    size-bounded unpickler of :mod:`.safe_pickle`. A row's references may also be a boolean mask
-    over the references (``[q, array([True, False, ...])]``), read as a mask when its length is
-    the number of references and refused otherwise.
-
-    Args:
-        root: The dataset folder (holding ``query/``, ``ref/``, ``ground_truth_new.npy``).
-        tolerance: Frames by which listed matches are widened along the reference sequence
-            (``0``: exactly VPR-Bench's ground truth).
-        query: Query folder name.
-        reference: Reference folder name.
-        ground_truth: The ground-truth file, relative to root or absolute.
-        order: ``"natural"`` (default) or ``"lexicographic"``: the image order the file's
-            indices refer to.
-
-    Returns:
-        PlaceDataset named after its folder (e.g. ``corridor``; ``meta["loader"]`` is
-        ``"vpr_bench"``, ``meta["dataset"]`` the folder name too).
-
-    Raises:
-        ValueError: bad options, a malformed file, out-of-range indices, no positive pair.
-        FileNotFoundError: missing root, folders or ground-truth file.
+    string order instead; when the two orders differ for a folder, loading says so. The file is
+    read with the restricted, size-bounded unpickler (:func:`read_vprbench_ground_truth`).
+    ``tolerance`` widens the listed matches along the reference sequence (frames).
     """
     tolerance = check_tolerance(tolerance)
     if order not in _ORDERS:
