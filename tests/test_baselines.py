@@ -62,7 +62,7 @@ def test_load_precomputed_roundtrip(tmp_path, as_list):
     )
     peer = load_vprbench_precomputed(path)
     assert peer.name == "NetVLAD" and peer.dataset == "GardensPointWalking"
-    assert peer.source == path and peer.shape == (4, 5)
+    assert peer.source == path and peer.similarity.shape == (4, 5)
     np.testing.assert_array_equal(peer.similarity, sim)
     assert peer.similarity.dtype == np.float64
     assert peer.encode_seconds == pytest.approx(0.0123) and peer.match_seconds == pytest.approx(

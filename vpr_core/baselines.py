@@ -1,29 +1,6 @@
-"""Peer results from VPR-Bench (Zaffar et al. IJCV 2021): precomputed similarity matrices.
-
-VPR-Bench ships, per dataset and technique (NetVLAD, HybridNet, AMOSNet, AlexNet_VPR, RegionVLAD,
-CoHOG, HOG, CALC, denseVLAD, AP-GeM, ...), a file::
-
-    <VPR-Bench>/precomputed_matches/<dataset>/<technique>/precomputed_data_corrected.npy
-
-a pickled numpy object array (written under Python 2, hence ``encoding="latin1"``) holding, in
-order: the query indices ``(Nq,)``, the top-1 reference indices ``(Nq,)``, the top-1 scores
-``(Nq,)``, the full similarity matrix ``(Nq, Nr)`` (higher = more similar), the encoding time
-and the matching time in seconds, as VPR-Bench stored them (not rescaled here).
-
-:func:`load_vprbench_precomputed` reads one file into a :class:`PeerResult`,
-:func:`find_vprbench_peers` every technique of one dataset, and :func:`peer_similarity_for`
-checks a peer against a :class:`~vpr_core.datasets.PlaceDataset` and returns its ``(Nq, Nr)``
-matrix in the dataset's query order, ready for the same metrics as ours.
-
-The files are pickles; they are read with the restricted unpickler of
-:mod:`vpr_core.datasets.safe_pickle` (arrays, lists, numbers and strings only: a file that asks to
-run anything else is refused before it runs).
-
-A user's own method enters the same comparisons through :func:`peer_from_matrix` (an ``(Nq, Nr)``
-similarity or distance matrix) or :func:`peer_from_descriptors` (``(N, D)`` query and database
-descriptors, as VPR-methods-evaluation's ``--save_descriptors`` writes them); both read ``.npy``
-files with ``allow_pickle=False``.
-"""
+"""Peers: VPR-Bench's precomputed similarity matrices (Zaffar et al. IJCV 2021, read with the
+restricted unpickler) and a user's own method as a matrix or global descriptors (``.npy`` files
+read with ``allow_pickle=False``), checked against a dataset by :func:`peer_similarity_for`."""
 
 from __future__ import annotations
 
@@ -38,21 +15,11 @@ import numpy as np
 from .datasets.safe_pickle import read_npy
 from .settings import BENCH_ROOT_ENV, bench_root
 
-__all__ = [
-    "PRECOMPUTED_FILE",
-    "VPR_BENCH_ROOT_ENV",
-    "PeerResult",
-    "find_vprbench_peers",
-    "load_vprbench_precomputed",
-    "peer_from_descriptors",
-    "peer_from_matrix",
-    "peer_similarity_for",
-]
-
 log = logging.getLogger("vpr_core")
 
 PRECOMPUTED_FILE = "precomputed_data_corrected.npy"
-VPR_BENCH_ROOT_ENV = BENCH_ROOT_ENV
+#: The items of a VPR-Bench precomputed file, in order (similarity: higher = more similar; the
+#: times as VPR-Bench stored them; written under Python 2, hence ``encoding="latin1"``).
 _ITEMS = (
     "query indices",
     "top-1 reference indices",
@@ -65,21 +32,10 @@ _ITEMS = (
 
 @dataclass(frozen=True)
 class PeerResult:
-    """One peer's result on one dataset: a VPR-Bench technique's precomputed file or a user's
-    method (:func:`peer_from_matrix`, :func:`peer_from_descriptors`; their ``dataset`` is ``""``,
-    times NaN, ``source`` the file or None for an array).
-
-    Attributes:
-        name: Technique (its folder name, e.g. ``"NetVLAD"``).
-        dataset: VPR-Bench dataset (its folder name, e.g. ``"GardensPointWalking"``).
-        similarity: ``float64 (Nq, Nr)``; row ``k`` belongs to query ``query_indices[k]``.
-        encode_seconds: Encoding time as stored by VPR-Bench.
-        match_seconds: Matching time as stored by VPR-Bench.
-        source: The file it was read from (None: given as an array).
-        query_indices: ``int64 (Nq,)`` query index of each row.
-        top1_reference: ``int64 (Nq,)`` VPR-Bench's best reference per row.
-        top1_score: ``float64 (Nq,)`` its score.
-    """
+    """One peer's result on one dataset: a VPR-Bench technique (``name`` and ``dataset`` its
+    folder names, times as VPR-Bench stored them) or a user's method (``dataset`` ``""``, times
+    NaN). ``similarity`` is ``float64 (Nq, Nr)``, row ``k`` of query ``query_indices[k]``;
+    ``top1_reference`` the stored best reference per row; ``source`` None for an array."""
 
     name: str
     dataset: str
@@ -89,12 +45,6 @@ class PeerResult:
     source: Path | None
     query_indices: np.ndarray = field(repr=False)
     top1_reference: np.ndarray = field(repr=False)
-    top1_score: np.ndarray = field(repr=False)
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        """``(Nq, Nr)`` of the similarity matrix."""
-        return tuple(self.similarity.shape)  # type: ignore[return-value]
 
 
 def _bad(path: Path, what: str) -> ValueError:
@@ -168,20 +118,8 @@ def _matrix(path: Path, value: Any) -> np.ndarray:
 
 
 def load_vprbench_precomputed(path: str | os.PathLike) -> PeerResult:
-    """Read one VPR-Bench ``precomputed_data_corrected.npy``.
-
-    Args:
-        path: ``.../precomputed_matches/<dataset>/<technique>/precomputed_data_corrected.npy``;
-            the technique and dataset names are taken from the two parent folders.
-
-    Returns:
-        A :class:`PeerResult` with ``similarity`` ``float64 (Nq, Nr)``.
-
-    Raises:
-        FileNotFoundError: no such file.
-        ValueError: not 6 items, or an item of the wrong shape or type (the message names the
-            file and what was found).
-    """
+    """Read ``.../precomputed_matches/<dataset>/<technique>/precomputed_data_corrected.npy``
+    (technique and dataset named by the two parent folders)."""
     path = Path(path).expanduser()
     if not path.is_file():
         raise FileNotFoundError(
@@ -193,7 +131,7 @@ def load_vprbench_precomputed(path: str | os.PathLike) -> PeerResult:
     nq, nr = sim.shape
     queries = _vector(path, items[0], 0, nq, integral=True)
     top1 = _vector(path, items[1], 1, nq, integral=True)
-    scores = _vector(path, items[2], 2, nq, integral=False)
+    _vector(path, items[2], 2, nq, integral=False)
     if np.any((top1 < 0) | (top1 >= nr)):
         raise _bad(path, f"item 1 (top-1 reference indices) outside 0..{nr - 1}")
     agree = float(np.mean(np.argmax(sim, axis=1) == top1))
@@ -214,7 +152,6 @@ def load_vprbench_precomputed(path: str | os.PathLike) -> PeerResult:
         source=path,
         query_indices=queries,
         top1_reference=top1,
-        top1_score=scores,
     )
 
 
@@ -259,21 +196,8 @@ _MIN_SCALED_DISTANCE = 1e-300
 
 
 def _distance_similarity(dist: np.ndarray, name: str, where: object) -> np.ndarray:
-    """Similarity ``1 / d`` of a distance matrix, so that the ratio test's ``S2 / S1`` is the
-    ``d1 / d2`` of Sunderhauf et al. (see docs/DEFINITIONS.md); rankings are unchanged.
-
-    Args:
-        dist: ``(Nq, Nr)`` finite distances, ``>= 0``.
-        name: The peer's name (for errors).
-        where: The file or "the array" (for errors).
-
-    Returns:
-        ``float64 (Nq, Nr)`` positive: ``1 / max(d / max(d), 1e-300)`` (the rescaling keeps it
-        finite; a distance of 0 counts as ``1e-300`` of the largest distance).
-
-    Raises:
-        ValueError: a negative distance.
-    """
+    """Similarity ``1 / max(d / max(d), 1e-300)`` of finite distances, so that the ratio test's
+    ``S2 / S1`` is the ``d1 / d2`` of Sunderhauf et al. (docs/DEFINITIONS.md); rankings kept."""
     if (dist < 0).any():
         raise ValueError(
             f"peer {name!r}: the distance matrix in {where} holds {int((dist < 0).sum())} "
@@ -286,9 +210,13 @@ def _distance_similarity(dist: np.ndarray, name: str, where: object) -> np.ndarr
     return 1.0 / np.maximum(dist / top, _MIN_SCALED_DISTANCE)
 
 
-def _user_peer(name: str, sim: np.ndarray, source: Path | None) -> PeerResult:
+def _check_name(name: Any) -> str:
     if not isinstance(name, str) or not name.strip():
         raise ValueError(f"a peer needs a non-empty name, got {name!r}.")
+    return name
+
+
+def _user_peer(name: str, sim: np.ndarray, source: Path | None) -> PeerResult:
     top1 = np.argmax(sim, axis=1)
     return PeerResult(
         name=name,
@@ -299,31 +227,17 @@ def _user_peer(name: str, sim: np.ndarray, source: Path | None) -> PeerResult:
         source=source,
         query_indices=np.arange(sim.shape[0]),
         top1_reference=top1,
-        top1_score=sim[np.arange(sim.shape[0]), top1],
     )
 
 
 def peer_from_matrix(
     matrix_or_path: np.ndarray | str | os.PathLike, name: str, distance: bool = False
 ) -> PeerResult:
-    """A user's method as a peer, from its query x reference matrix.
-
-    Args:
-        matrix_or_path: ``(Nq, Nr)`` array or ``.npy`` file (read with ``allow_pickle=False``);
-            row ``q`` = query ``q`` in the dataset's order, higher = more similar.
-        name: The method's name in tables and figures.
-        distance: True when the matrix holds distances (``>= 0``, lower = more similar); the
-            similarity is ``1 / d`` (rescaled), so the ratio protocol scores ``d1 / d2``.
-
-    Returns:
-        A :class:`PeerResult` (``similarity`` ``float64 (Nq, Nr)``, times NaN); check it against a
-        dataset with :func:`peer_similarity_for`.
-
-    Raises:
-        FileNotFoundError: no such file.
-        ValueError: not a 2-d real matrix (complex, dates refused), NaN / inf entries, a
-            negative distance, empty name.
+    """A user's method as a peer, from its ``(Nq, Nr)`` matrix (array or ``.npy`` file; row
+    ``q`` = query ``q`` in the dataset's order, higher = more similar). ``distance=True``: the
+    matrix holds distances ``>= 0``, scored as ``1 / d`` (the ratio protocol then sees ``d1 / d2``).
     """
+    _check_name(name)
     sim, source = _user_array(
         matrix_or_path, name, "distance matrix" if distance else "similarity matrix", 2
     )
@@ -338,24 +252,11 @@ def peer_from_descriptors(
     name: str,
     metric: str = "cosine",
 ) -> PeerResult:
-    """A user's method as a peer, from its global descriptors.
-
-    Args:
-        query_path_or_array: ``(Nq, D)`` array or ``.npy`` file (e.g. VPR-methods-evaluation's
-            ``queries_descriptors.npy``), rows in the dataset's query order.
-        database_path_or_array: ``(Nr, D)`` array or file (``database_descriptors.npy``).
-        name: The method's name in tables and figures.
-        metric: ``"cosine"`` (similarity = cosine) or ``"l2"`` (Euclidean distance ``d``,
-            similarity ``1 / d`` as in :func:`peer_from_matrix` with ``distance=True``).
-
-    Returns:
-        A :class:`PeerResult` with ``similarity`` ``float64 (Nq, Nr)``.
-
-    Raises:
-        FileNotFoundError: no such file.
-        ValueError: unknown metric, not 2-d numeric arrays, NaN / inf, different ``D``, an
-            all-zero descriptor under ``cosine``.
+    """A user's method as a peer, from ``(Nq, D)`` query and ``(Nr, D)`` database descriptors
+    (arrays or ``.npy`` files, e.g. VPR-methods-evaluation's ``queries_descriptors.npy``).
+    ``metric``: ``"cosine"`` or ``"l2"`` (similarity ``1 / d`` as :func:`peer_from_matrix`).
     """
+    _check_name(name)
     metric = str(metric).lower()
     if metric not in ("cosine", "l2"):
         raise ValueError(f"peer {name!r}: metric must be 'cosine' or 'l2', got {metric!r}.")
@@ -391,7 +292,7 @@ def _precomputed_dir(root: str | os.PathLike | None) -> Path:
         if not root:
             raise ValueError(
                 f"no VPR-Bench folder given: pass root=<VPR-Bench checkout> or set "
-                f"{VPR_BENCH_ROOT_ENV}."
+                f"{BENCH_ROOT_ENV}."
             )
     root = Path(root).expanduser()
     for cand in (root / "precomputed_matches", root):
@@ -406,19 +307,8 @@ def _precomputed_dir(root: str | os.PathLike | None) -> Path:
 def find_vprbench_peers(root: str | os.PathLike | None, dataset: str) -> list[PeerResult]:
     """Every technique's precomputed result for one VPR-Bench dataset, sorted by name.
 
-    Args:
-        root: A VPR-Bench checkout or its ``precomputed_matches`` folder; None: the environment
-            variable ``VPR_BENCH_ROOT``.
-        dataset: The dataset's folder name under ``precomputed_matches`` (exact, or unique up to
-            case, e.g. ``"GardensPointWalking"``).
-
-    Returns:
-        One :class:`PeerResult` per technique folder holding ``precomputed_data_corrected.npy``.
-
-    Raises:
-        ValueError: no root given and ``VPR_BENCH_ROOT`` unset.
-        FileNotFoundError: no such folder or dataset (the message lists those found), or no
-            technique file in it.
+    ``root``: a VPR-Bench checkout or its ``precomputed_matches`` folder (None: ``VPR_BENCH_ROOT``);
+    ``dataset``: a folder name under it, exact or unique up to case (``"GardensPointWalking"``).
     """
     base = _precomputed_dir(root)
     found = sorted(p.name for p in base.iterdir() if p.is_dir())
@@ -439,18 +329,8 @@ def find_vprbench_peers(root: str | os.PathLike | None, dataset: str) -> list[Pe
 
 
 def peer_similarity_for(dataset: Any, peer: PeerResult) -> np.ndarray:
-    """A peer's similarity matrix checked against a dataset, rows in the dataset's query order.
-
-    Args:
-        dataset: A :class:`~vpr_core.datasets.PlaceDataset` (``Nq`` queries, ``Nr`` references).
-        peer: A :class:`PeerResult` on the same images.
-
-    Returns:
-        ``float64 (Nq, Nr)``: row ``q`` is the peer's similarity of query ``q``.
-
-    Raises:
-        ValueError: the shapes differ, or the peer's query indices are not ``0..Nq-1`` each once.
-    """
+    """A peer's ``float64 (Nq, Nr)`` similarity checked against a dataset, rows in the dataset's
+    query order."""
     nq, nr = dataset.ground_truth.shape
     if peer.similarity.shape != (nq, nr):
         pq, pr = peer.similarity.shape
