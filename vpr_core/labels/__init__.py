@@ -73,25 +73,12 @@ def label_matches(
     labels: Any = None,
     **options: Any,
 ) -> np.ndarray:
-    """Label the landmark matches of pair (q, r) correct / incorrect (docs/DEFINITIONS.md).
+    """``(P,)`` bool: each landmark match ``(P, 2)`` of pair (q, r) correct or not
+    (docs/DEFINITIONS.md), by one of :data:`LABEL_METHODS`; ``labels``: the ``file`` CSV.
 
-    Args:
-        dataset: a ``PlaceDataset``.
-        q: query index. r: reference index.
-        boxes_q: ``(Kq, 4)`` query boxes. boxes_r: ``(Kr, 4)`` reference boxes.
-        matches: ``(P, 2)`` (query box index, reference box index).
-        method: one of :data:`LABEL_METHODS`.
-        iou_threshold: box-IoU threshold of the mapped-box rule.
-        labels: CSV path or DataFrame for ``file``.
-        **options: ``geometric``: ``images``, ``geometry``, ``geometry_cache``, ``model``,
-            ``min_points``, ``point_iou`` and :func:`estimate_pair_geometry` keywords;
-            ``file``: ``on_unmatched``; ``exact``: ``image_size_r``.
-
-    Returns:
-        ``(P,)`` bool, True = correct.
-
-    Raises:
-        LabelUnavailableError: the labeller has no information for this pair.
+    ``**options``: ``geometric``: ``images``, ``geometry``, ``geometry_cache``, ``model``,
+    ``min_points``, ``point_iou`` and :func:`estimate_pair_geometry` keywords; ``file``:
+    ``on_unmatched``; ``exact``: ``image_size_r``. LabelUnavailableError: no information.
     """
     bq, br = check_boxes(boxes_q, "boxes_q"), check_boxes(boxes_r, "boxes_r")
     m = check_matches(matches, len(bq), len(br))
@@ -125,13 +112,8 @@ def _label_parsed(
 
 @dataclass(frozen=True)
 class PairMatches:
-    """The landmark matches of one image pair of a run, labelled where the pair allows.
-
-    Attributes:
-        matches: ``(P, 2)`` reciprocal matches (query box, reference box).
-        labels: ``(P,)`` bool, or None when the pair cannot be verified (``note`` says why).
-        similarity: Eq. (1) of the pair.
-    """
+    """The ``(P, 2)`` reciprocal landmark matches of one image pair of a run, their ``(P,)``
+    labels (None when the pair cannot be verified: ``note`` says why) and Eq. (1) of the pair."""
 
     query: int
     reference: int
@@ -158,14 +140,8 @@ class PairMatches:
 def pair_matches(
     dataset: Any, result: Any, query: int = 0, reference: int | None = None
 ) -> PairMatches:
-    """Match and label the landmarks of one pair of a run (the data of Fig. 1-3 and 8).
-
-    Args:
-        dataset: the run's dataset.
-        result: a ``MethodResult`` run with ``keep_descriptors=True``.
-        query: query index.
-        reference: reference index; None: the query's ground-truth reference (Fig. 1).
-    """
+    """Match and label the landmarks of one pair of a run with ``keep_descriptors=True`` (the
+    data of Fig. 1-3 and 8); ``reference`` None: the query's ground-truth reference."""
     if result.descriptors is None:
         raise ValueError(
             f"pair_matches needs the descriptors of {result.label!r}: run it with "

@@ -1,7 +1,5 @@
 """Exact match labels from a known homography (``synthetic``), and what every labeller shares.
-
-The rule is in docs/DEFINITIONS.md; ``geometric`` and ``file`` import the shared pieces from here.
-"""
+The rule is in docs/DEFINITIONS.md."""
 
 from __future__ import annotations
 
@@ -10,15 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..boxes import _paired_iou
-from ..checks import check_boxes, check_shape
-
-__all__ = [
-    "LabelUnavailableError",
-    "check_matches",
-    "dataset_image_size",
-    "is_ground_truth",
-    "map_boxes",
-]
+from ..checks import check_shape
 
 
 class LabelUnavailableError(ValueError):
@@ -26,12 +16,7 @@ class LabelUnavailableError(ValueError):
 
 
 def check_matches(matches: Any, n_q: int, n_r: int) -> np.ndarray:
-    """Return ``matches`` as int64 ``(P, 2)`` (query, reference box index); empty gives ``(0, 2)``.
-
-    Args:
-        matches: array-like index pairs.
-        n_q: number of query boxes. n_r: number of reference boxes.
-    """
+    """``matches`` as int64 ``(P, 2)`` (query, reference box index); empty gives ``(0, 2)``."""
     if np.size(matches) == 0:
         return np.zeros((0, 2), dtype=np.int64)
     m = check_shape(matches, "P 2", "matches").astype(np.int64)
@@ -61,26 +46,11 @@ def is_ground_truth(dataset: Any, q: int, r: int) -> bool:
 
 
 def map_boxes(
-    boxes: np.ndarray, homography: np.ndarray, image_size: tuple[int, int] | None = None
-) -> np.ndarray:
-    """Map boxes through a homography: the bounding box of the 4 mapped corners.
-
-    Args:
-        boxes: ``(K, 4)`` boxes in the source image.
-        homography: ``(3, 3)`` source pixel ``(x, y, 1)`` -> target pixel.
-        image_size: ``(H, W)`` of the target image to clip to, or None.
-
-    Returns:
-        ``(K, 4)`` boxes; a corner mapped to or behind the line at infinity gives a zero box.
-    """
-    H = check_shape(homography, "3 3", "homography", np.float64)
-    return _map_boxes(check_boxes(boxes), H, image_size)
-
-
-def _map_boxes(
     b: np.ndarray, H: np.ndarray, image_size: tuple[int, int] | None = None
 ) -> np.ndarray:
-    """:func:`map_boxes` of parsed boxes and a ``(3, 3)`` float64 homography (no checks)."""
+    """Boxes ``(K, 4)`` through a ``(3, 3)`` homography (source pixel ``(x, y, 1)`` -> target):
+    the bounding box of the 4 mapped corners, clipped to ``image_size`` ``(H, W)`` if given; a
+    corner mapped to or behind the line at infinity gives a zero box."""
     if len(b) == 0:
         return b.copy()
     x, y, w, h = b.T
@@ -138,5 +108,5 @@ def _label_exact(
     size_r = (
         image_size_r if image_size_r is not None else dataset_image_size(dataset, "reference", r)
     )
-    mapped = _map_boxes(bq[m[:, 0]], np.asarray(Hs, dtype=np.float64)[q], size_r)
+    mapped = map_boxes(bq[m[:, 0]], np.asarray(Hs, dtype=np.float64)[q], size_r)
     return _paired_iou(mapped, br[m[:, 1]]) >= iou_threshold

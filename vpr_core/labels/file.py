@@ -14,40 +14,27 @@ import pandas as pd
 
 from ..checks import check_choice
 
-__all__ = ["LABEL_COLUMNS", "append_labels", "read_label_file"]
-
 #: Columns of a manual-label CSV, in order.
 LABEL_COLUMNS = ("query", "reference", "query_box_index", "reference_box_index", "correct")
 
 
+_TRUTH = dict.fromkeys(("1", "1.0", "true", "t", "yes", "y", "correct"), True)
+_TRUTH |= dict.fromkeys(("0", "0.0", "false", "f", "no", "n", "incorrect", "wrong"), False)
+
+
 def _parse_bool(values: Iterable[Any]) -> np.ndarray:
-    truthy = {"1", "true", "t", "yes", "y", "correct"}
-    falsy = {"0", "false", "f", "no", "n", "incorrect", "wrong"}
-    out = []
-    for v in values:
-        s = str(v).strip().lower()
-        if s in ("1.0",):
-            s = "1"
-        if s in ("0.0",):
-            s = "0"
-        if s in truthy:
-            out.append(True)
-        elif s in falsy:
-            out.append(False)
-        else:
-            raise ValueError(
-                f"label file: 'correct' value {v!r} is not a boolean (use 1/0, true/false, yes/no)"
-            )
+    out = [_TRUTH.get(str(v).strip().lower()) for v in values]
+    if None in out:
+        v = list(values)[out.index(None)]
+        raise ValueError(
+            f"label file: 'correct' value {v!r} is not a boolean (use 1/0, true/false, yes/no)"
+        )
     return np.asarray(out, dtype=bool)
 
 
 def read_label_file(path: str | PathLike) -> Any:
-    """Read and validate a manual-label CSV (extra columns are ignored).
-
-    Returns:
-        DataFrame with int ``query, reference, query_box_index, reference_box_index`` and bool
-        ``correct``.
-    """
+    """Read and validate a manual-label CSV (extra columns ignored): a DataFrame with int
+    ``query, reference, query_box_index, reference_box_index`` and bool ``correct``."""
     df = pd.read_csv(path, skipinitialspace=True)
     df.columns = [str(c).strip() for c in df.columns]
     return _validate_label_frame(df, source=str(path))
@@ -108,13 +95,8 @@ def _label_file(
     m: np.ndarray,
     on_unmatched: str = "warn",
 ) -> np.ndarray:
-    """``method="file"`` of :func:`vpr_core.labels.label_matches` on parsed boxes and matches.
-
-    Args:
-        labels: CSV path or a DataFrame with :data:`LABEL_COLUMNS`.
-        on_unmatched: ``"warn"``, ``"ignore"`` or ``"error"`` for a labelled pair that is not
-            among the matches.
-    """
+    """``method="file"`` of :func:`vpr_core.labels.label_matches` on parsed boxes and matches;
+    ``labels``: a CSV path or DataFrame; ``on_unmatched``: a labelled pair not among the matches."""
     check_choice(on_unmatched, "on_unmatched", ("warn", "ignore", "error"))
     if labels is None:
         raise ValueError(
@@ -149,17 +131,7 @@ def _label_file(
 def append_labels(
     path: str | PathLike, q: int, r: int, matches: np.ndarray, correct: np.ndarray
 ) -> Path:
-    """Append (or create) a labels CSV with one row per match of pair ``(q, r)``.
-
-    Args:
-        path: CSV file.
-        q: query index. r: reference index.
-        matches: ``(P, 2)`` landmark index pairs.
-        correct: ``(P,)`` bool labels.
-
-    Returns:
-        The CSV path.
-    """
+    """Append to (or create) a labels CSV one row per match ``(P, 2)`` of pair ``(q, r)``."""
     matches = np.asarray(matches, dtype=np.int64).reshape(-1, 2)
     correct = np.asarray(correct, dtype=bool).reshape(-1)
     if len(matches) != len(correct):

@@ -1,7 +1,5 @@
 """Geometric-verification match labels for real images (SIFT + ratio test + RANSAC).
-
-The rules and thresholds are in docs/DEFINITIONS.md ("Match labels").
-"""
+The rules and thresholds are in docs/DEFINITIONS.md ("Match labels")."""
 
 from __future__ import annotations
 
@@ -13,9 +11,7 @@ import numpy as np
 
 from ..boxes import _paired_iou
 from ..checks import check_boxes, check_choice
-from .exact import LabelUnavailableError, _map_boxes, check_matches, is_ground_truth
-
-__all__ = ["PairGeometry", "estimate_pair_geometry", "label_matches_geometric"]
+from .exact import LabelUnavailableError, check_matches, is_ground_truth, map_boxes
 
 
 @dataclass
@@ -270,7 +266,7 @@ def _geometric_labels(
     if use_h:
         if geometry.homography is None:
             raise LabelUnavailableError("homography rule requested but the pair has no homography")
-        mapped = _map_boxes(bq[m[:, 0]], geometry.homography, geometry.image_size_r)
+        mapped = map_boxes(bq[m[:, 0]], geometry.homography, geometry.image_size_r)
         return _paired_iou(mapped, br[m[:, 1]]) >= iou_threshold
     in_q = _inside(geometry.points_q, bq[m[:, 0]])  # (P, N)
     in_r = _inside(geometry.points_r, br[m[:, 1]])
