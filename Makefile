@@ -3,8 +3,9 @@ PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
+LAB_STAMP := $(VENV)/.lab-installed
 
-.PHONY: study study-nordland test install lab bench lint clean
+.PHONY: study study-nordland test install lab git-filter bench lint clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -14,6 +15,20 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 install: $(STAMP)
+
+$(LAB_STAMP): $(STAMP) pyproject.toml
+	$(PY) -m pip install -q -e '.[dev,lab]'
+	touch $(LAB_STAMP)
+
+# nbstripout as this clone's git filter (.git/config; .gitattributes names the notebooks): the
+# outputs, execution counts and kernel language_info that JupyterLab saves into a notebook never
+# reach git; cell ids are kept. Outside a git clone it does nothing.
+STRIP := "$(abspath $(PY))" -m nbstripout --keep-id --extra-keys metadata.language_info
+git-filter: $(STAMP)
+	@if git rev-parse --git-dir >/dev/null 2>&1; then \
+		$(PY) -m nbstripout --install --attributes .gitattributes && \
+		git config --local filter.nbstripout.clean '$(STRIP)' && \
+		git config --local diff.ipynb.textconv '$(STRIP) -t'; fi
 
 study: $(STAMP)
 	MPLBACKEND=Agg $(VENV)/bin/vpr-study run --dataset synthetic
@@ -31,11 +46,11 @@ study-nordland: $(STAMP)
 test: $(STAMP)
 	MPLBACKEND=Agg $(PY) -m pytest -q
 
-# JupyterLab on the project (installs the [lab] extra: jupyterlab, ipywidgets), on 127.0.0.1
-# with its token; --allow-root only when run as root (containers, cloud machines). Kernels
-# write under the project root and share its .cache/ whatever their working directory.
-lab: $(STAMP)
-	$(PY) -m pip install -q -e '.[dev,lab]'
+# JupyterLab on the project, on 127.0.0.1 with its token; --allow-root only when run as root
+# (containers, cloud machines). Kernels share the project's .cache/ whatever their working
+# directory; a user's own cells save under the git-ignored user/. The [lab] extra (jupyterlab,
+# ipywidgets) is installed once ($(LAB_STAMP)), again only when pyproject.toml changes.
+lab: $(LAB_STAMP) git-filter
 	$(VENV)/bin/jupyter lab --ip=127.0.0.1 --ServerApp.root_dir="$(CURDIR)" \
 		--LabApp.default_url=/lab/tree/notebooks $(if $(filter 0,$(shell id -u)),--allow-root)
 

@@ -58,7 +58,7 @@ def main() -> None:
 
     from vpr_core.datasets import load_dataset
     from vpr_core.evaluation import difference_verdict, paired_bootstrap
-    from vpr_core.paths import results_dir
+    from vpr_core.paths import results_dir, study_outputs
     from vpr_core.pipeline import run_method
 
     if not args.root.is_dir():
@@ -67,7 +67,8 @@ def main() -> None:
         )
     ds = load_dataset("nordland", args.root, step=args.step, tolerance=args.tolerance)
     name = f"nordland_step{args.step}_tol{args.tolerance}"
-    out = results_dir("benchmarks") / "descriptor_paired.csv"
+    with study_outputs():  # the committed results/benchmarks/, not the user area
+        out = results_dir("benchmarks") / "descriptor_paired.csv"
     print(
         f"{name}: {len(ds.query_paths)} queries x {len(ds.reference_paths)} references, "
         f"pooling {args.pooling}, shortlist {args.shortlist}"

@@ -183,12 +183,13 @@ def main() -> None:
     args = p.parse_args()
     os.environ.setdefault("TQDM_DISABLE", "1")
     from vpr_core.evaluation import bootstrap_metrics
-    from vpr_core.paths import results_dir
+    from vpr_core.paths import results_dir, study_outputs
     from vpr_core.utils import write_rows
 
     data = datasets(args.nordland_step, args.nordland_tolerance)
     options = [o for o in OPTIONS if args.options is None or o[0] in args.options]
-    out = results_dir("benchmarks") / "descriptor_choice.csv"
+    with study_outputs():  # the committed results/benchmarks/, not the user area
+        out = results_dir("benchmarks") / "descriptor_choice.csv"
     print(
         f"torch threads {torch.get_num_threads()}, load average {os.getloadavg()}; datasets: "
         + ", ".join(

@@ -29,7 +29,7 @@ import numpy as np
 
 from vpr_core.datasets import load_dataset
 from vpr_core.evaluation import bootstrap_metrics, paired_bootstrap
-from vpr_core.paths import results_dir
+from vpr_core.paths import results_dir, study_outputs
 from vpr_core.pipeline import run_method
 
 DEFAULT_ROOT = Path(__file__).resolve().parents[2] / "shared" / "data" / "nordland_64x32"
@@ -122,7 +122,8 @@ def main(argv: list[str] | None = None) -> int:
         )
     import pandas as pd
 
-    out = results_dir("benchmarks") / "nordland_shortlist.csv"
+    with study_outputs():  # the committed results/benchmarks/, not the user area
+        out = results_dir("benchmarks") / "nordland_shortlist.csv"
     pd.DataFrame(rows).to_csv(out, index=False, float_format="%.6f")
     print(f"wrote {out}")
     return 0

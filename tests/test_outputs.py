@@ -42,7 +42,8 @@ def test_a_kernel_in_notebooks_reads_and_writes_under_the_project_root(tmp_path)
         text=True,
         check=True,
     ).stdout.split()
-    assert out == [str(REPO), str(REPO / ".cache"), str(REPO / "figures")]
+    # a user's own figures go to the git-ignored user/ (the study's kernels get VPR_OUTPUT_DIR)
+    assert out == [str(REPO), str(REPO / ".cache"), str(REPO / "user" / "figures")]
     assert not (REPO / "notebooks" / ".cache").exists()
 
 

@@ -1,10 +1,10 @@
-"""Where the workbench writes: the output root (figures, results, runs) and the cache root.
-
-Nothing is ever written inside the installed package; the rules are in :func:`output_root`.
-"""
+"""Where the workbench reads and writes: input paths, the output root (figures, results, runs),
+a user's git-ignored area beside the study's, and the cache root. Nothing is written inside the
+installed package; the rules are in :func:`output_root` and :func:`figures_root`."""
 
 from __future__ import annotations
 
+import os
 import re
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -14,21 +14,29 @@ from . import settings
 
 __all__ = [
     "PROJECT_NAME",
+    "USER_AREA",
     "cache_root",
     "check_label",
     "figures_dir",
+    "figures_root",
+    "find_input",
     "make_dir",
     "output_root",
     "project_root",
     "results_dir",
     "runs_dir",
+    "study_outputs",
     "using_output_root",
 ]
 
 #: ``[project] name`` in this project's ``pyproject.toml`` (how a checkout is recognised).
 PROJECT_NAME = "vpr-landmarks"
 
+#: The git-ignored folder of the checkout where a user's own cells save (:func:`figures_root`).
+USER_AREA = "user"
+
 _override: Path | None = None
+_study = False
 
 
 def project_root(start: Path | None = None) -> Path | None:
@@ -65,17 +73,81 @@ def using_output_root(root: str | Path | None) -> Iterator[None]:
         _override = saved
 
 
-def output_root() -> Path:
-    """The output root (absolute, not created), the first of: the CLI's ``--out``
-    (:func:`using_output_root`), ``$VPR_OUTPUT_DIR``, the project's checkout holding the cwd
-    (:func:`project_root`), the cwd. Figures go to ``<root>/figures/<label>/``, tables to
-    ``<root>/results/<label>/``, executed notebooks to ``<root>/runs/<label>/``."""
+def find_input(path: str | os.PathLike) -> Path:
+    """An input folder or file as the user means it, from the project root or from ``notebooks/``.
+
+    A relative path that does not exist from the cwd is tried against the project checkout
+    holding the cwd (:func:`project_root`), so ``"../shared/data/x"`` reads the same folder from
+    the checkout and from a kernel in ``notebooks/``.
+
+    Raises:
+        FileNotFoundError: found nowhere; the message names every resolved path tried and the
+            working directory.
+    """
+    given = Path(path).expanduser()
+    tried = [given.resolve()]
+    if given.exists():
+        return given
+    checkout = project_root()
+    if not given.is_absolute() and checkout is not None and checkout != Path.cwd().resolve():
+        candidate = (checkout / given).resolve()
+        if candidate.exists():
+            return candidate
+        tried.append(candidate)
+    anchor = f", project root {checkout}" if len(tried) > 1 else ""
+    raise FileNotFoundError(
+        f"{str(path)!r} does not exist: looked for {' and '.join(map(str, tried))} (working "
+        f"directory {Path.cwd()}{anchor}); pass an absolute path or one relative to the "
+        "project root"
+    )
+
+
+@contextmanager
+def study_outputs() -> Iterator[None]:
+    """Within the block figures and tables go to the study's ``figures/`` and ``results/`` of
+    the output root (the CLI's commands and the benchmarks), never to :data:`USER_AREA`."""
+    global _study
+    saved = _study
+    _study = True
+    try:
+        yield
+    finally:
+        _study = saved
+
+
+def _chosen_root() -> Path | None:
+    """The output root the caller chose: ``--out`` (:func:`using_output_root`), else
+    ``$VPR_OUTPUT_DIR``, else None."""
     if _override is not None:
         return _override
     env = settings.output_dir()
-    if env:
-        return Path(env).expanduser().resolve()
-    return project_root() or Path.cwd().resolve()
+    return Path(env).expanduser().resolve() if env else None
+
+
+def output_root() -> Path:
+    """The output root (absolute, not created), the first of: the CLI's ``--out``
+    (:func:`using_output_root`), ``$VPR_OUTPUT_DIR``, the project's checkout holding the cwd
+    (:func:`project_root`), the cwd. Executed notebooks go to ``<root>/runs/<label>/``, the
+    cache to ``<root>/.cache``; figures and tables under :func:`figures_root`."""
+    return _chosen_root() or project_root() or Path.cwd().resolve()
+
+
+def figures_root() -> Path:
+    """The folder holding ``figures/<label>/`` and ``results/<label>/`` (absolute, not created).
+
+    The study writes its (committed) figures and tables in the output root: the CLI's commands
+    (:func:`study_outputs`), and the notebook kernels of the study runner, which it starts with
+    ``$VPR_OUTPUT_DIR`` set. So does any caller who chose the output root (``--out``,
+    ``$VPR_OUTPUT_DIR``). A user's own cells in the project checkout, with no root chosen, save
+    into its git-ignored ``user/`` (:data:`USER_AREA`): they never modify a tracked file.
+    """
+    chosen = _chosen_root()
+    if chosen is not None:
+        return chosen
+    checkout = project_root()
+    if checkout is None:
+        return Path.cwd().resolve()
+    return checkout if _study else checkout / USER_AREA
 
 
 def make_dir(path: Path, setting: str) -> Path:
@@ -121,19 +193,19 @@ def check_label(label: object) -> str:
 
 
 def _sub(kind: str, label: str | None) -> Path:
-    d = output_root() / kind
+    d = (output_root() if kind == "runs" else figures_root()) / kind
     if label:
         d = d / check_label(label)
     return make_dir(d, _OUT_SETTING)
 
 
 def figures_dir(label: str | None = None) -> Path:
-    """``<output root>/figures[/<label>]``, created."""
+    """``<figures root>/figures[/<label>]`` (:func:`figures_root`), created."""
     return _sub("figures", label)
 
 
 def results_dir(label: str | None = None) -> Path:
-    """``<output root>/results[/<label>]``, created."""
+    """``<figures root>/results[/<label>]`` (:func:`figures_root`), created."""
     return _sub("results", label)
 
 

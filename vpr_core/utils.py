@@ -126,23 +126,48 @@ def config_slug(name: str, conf: Mapping[str, Any]) -> str:
     return f"{safe}-{short_hash(dict(conf))}"
 
 
+class _Lines:
+    """A file for tqdm outside a terminal: each refresh becomes one plain line."""
+
+    def __init__(self, stream: Any) -> None:
+        self.stream = stream
+
+    def write(self, text: str) -> None:
+        line = text.replace("\r", "").strip()
+        if line:
+            self.stream.write(line + "\n")
+
+    def flush(self) -> None:
+        self.stream.flush()
+
+
+#: Outside a terminal (a redirected log, a pipe): a progress line with the rate and the
+#: estimate at most every this many seconds, none for loops shorter than that.
+LINE_INTERVAL_S = 30.0
+
+
 def progress(iterable: Iterable | None, **kwargs: Any):
-    """A progress bar: ``tqdm.auto`` (a widget in Jupyter, a bar on a terminal), or with
-    ``VPR_PROGRESS=text`` a plain text bar on stdout that stays at its final count (saved / HTML
-    notebooks show it, never a frozen widget). Disabled by ``TQDM_DISABLE=1``, and outside
-    Jupyter when stderr is not a terminal (a redirected log gets no bars and no blank lines
-    from cleared ones)."""
-    if settings.progress_style() == "text":
-        kwargs.setdefault("disable", settings.progress_disabled())
+    """A progress bar: on a terminal ``tqdm``'s bar; in Jupyter, or with ``VPR_PROGRESS=text``,
+    a plain text bar on stdout that stays at its final count (a saved notebook and a second
+    browser tab show it, never "Loading widget..."); elsewhere (stdout piped or redirected) one
+    line with the estimate every :data:`LINE_INTERVAL_S` seconds. Disabled by
+    ``TQDM_DISABLE=1``."""
+    kwargs.setdefault("disable", settings.progress_disabled())
+    if settings.progress_style() == "text" or "ipykernel" in sys.modules:
         kwargs.setdefault("file", sys.stdout)
         kwargs.setdefault("leave", True)
         kwargs.setdefault("mininterval", 2.0)
         kwargs.setdefault("ascii", True)
         return tqdm_std(iterable, **kwargs)
     stream = kwargs.get("file") or sys.stderr
-    in_jupyter = "ipykernel" in sys.modules
-    on_terminal = bool(getattr(stream, "isatty", lambda: False)())
-    kwargs.setdefault("disable", settings.progress_disabled() or not (in_jupyter or on_terminal))
+    if not getattr(stream, "isatty", lambda: False)():
+        kwargs["file"] = _Lines(stream)
+        kwargs.setdefault("delay", LINE_INTERVAL_S)
+        kwargs.setdefault("mininterval", LINE_INTERVAL_S)
+        kwargs.setdefault("maxinterval", LINE_INTERVAL_S)
+        kwargs.setdefault("ascii", True)
+        kwargs.setdefault("ncols", 100)
+        return tqdm_std(iterable, **kwargs)
     kwargs.setdefault("leave", False)
     return tqdm_auto(iterable, **kwargs)
 

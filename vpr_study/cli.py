@@ -553,8 +553,9 @@ def main(argv: list[str] | None = None) -> int:
     _check_names(parser, args)
     configure_logging()
     try:
-        # --out applies to this command only; the runner hands it to its kernels
-        with paths.using_output_root(args.out or None):
+        # --out applies to this command only; the runner hands it to its kernels. The CLI
+        # writes the study's figures/ and results/, never the user's area (paths.figures_root)
+        with paths.using_output_root(args.out or None), paths.study_outputs():
             return args.func(args)
     except KeyboardInterrupt:
         print(INTERRUPTED, file=sys.stderr)

@@ -20,6 +20,7 @@ import os
 from collections.abc import Callable
 from typing import Any
 
+from ..paths import find_input
 from .base import PlaceDataset
 from .download import DOWNLOADS, download_dataset
 from .folder import load_folder
@@ -77,7 +78,9 @@ def load_dataset(name: str, root: str | os.PathLike | None = None, **options: An
     Args:
         name: One of :data:`DATASETS` (``synthetic``, ``gardens_point``, ``mapillary_berlin``,
             ``freiburg_across_seasons``, ``folder``, ``nordland``, ``vpr_bench``, ``utm``).
-        root: Dataset folder (not needed for ``synthetic``).
+        root: Dataset folder (not needed for ``synthetic``); a relative one is read from the
+            cwd, else from the project root (so one spelling works from ``notebooks/`` too,
+            :func:`vpr_core.paths.find_input`).
         **options: Loader options, e.g. ``tolerance``; ``synthetic`` takes ``n_places``,
             ``seed``, ``image_size``; ``nordland`` takes ``query``, ``reference``, ``step``;
             ``utm`` takes ``positive_dist_threshold``, ``soft_dist_threshold`` (metres).
@@ -88,7 +91,8 @@ def load_dataset(name: str, root: str | os.PathLike | None = None, **options: An
     Raises:
         ValueError: unknown name (the message lists the valid ones) or a bad option value.
         TypeError: an option the loader does not take (the message lists those it takes).
-        FileNotFoundError: missing root or traverse folders.
+        FileNotFoundError: missing root (the message names the resolved paths tried and the
+            working directory) or traverse folders.
     """
     key = str(name).strip().lower().replace("-", "_")
     if key not in DATASETS:
@@ -104,4 +108,10 @@ def load_dataset(name: str, root: str | os.PathLike | None = None, **options: An
             f"dataset {key!r} does not take option(s) {', '.join(bad)}; valid options: "
             f"{', '.join(valid)}."
         )
+    if isinstance(root, (str, os.PathLike)) and str(root).strip():
+        try:
+            root = find_input(root)
+        except FileNotFoundError as exc:
+            hint = f"; or fetch it with download_dataset({key!r}, root)" if key in DOWNLOADS else ""
+            raise FileNotFoundError(f"dataset root {exc}{hint}") from None
     return loader(root=root, **options)

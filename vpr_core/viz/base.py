@@ -19,7 +19,7 @@ import pandas as pd
 from matplotlib.patches import Rectangle
 
 from ..notices import notice
-from ..paths import check_label, figures_dir, make_dir, output_root
+from ..paths import check_label, figures_dir, figures_root, make_dir
 from ..utils import csv_safe
 
 __all__ = [
@@ -61,8 +61,8 @@ def png_metadata(suffix: str) -> dict:
 def save_figure(
     fig: matplotlib.figure.Figure, name: str | Path, dataset: str | None = None, dpi: int = SAVE_DPI
 ) -> Path:
-    """Save ``fig`` as ``<output root>/figures/<dataset>/<name>.png``, byte-identical for
-    identical inputs.
+    """Save ``fig`` as ``figures/<dataset>/<name>.png`` of :func:`vpr_core.paths.figures_root`,
+    byte-identical for identical inputs.
 
     Args:
         fig: the figure.
@@ -275,7 +275,9 @@ def save_all(
         items: ``(file stem, Figure or DataFrame)`` pairs; a figure and its table may share a
             stem.
         label: the dataset label (one folder name), e.g. ``"gardens_point_mini"``.
-        out: another output root (default :func:`vpr_core.paths.output_root`).
+        out: another output root (default :func:`vpr_core.paths.figures_root`: the study's
+            folders for the study and the CLI, the git-ignored ``user/`` for a user's own
+            cells in the checkout).
 
     Returns:
         The written paths (a table's timings file not included, an all-timings table's
@@ -286,7 +288,7 @@ def save_all(
         ValueError: ``label`` is not one folder name (``../x``, ``/tmp/x``).
     """
     check_label(label)
-    root = output_root() if out is None else Path(out).expanduser().resolve()
+    root = figures_root() if out is None else Path(out).expanduser().resolve()
     staged: list[tuple[Path, Path]] = []
     written: list[Path] = []
     try:

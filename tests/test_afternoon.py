@@ -1,0 +1,254 @@
+"""A researcher's afternoon in JupyterLab (issue 33): paths from notebooks/, a user's results
+apart from the study's, a clean tree after a Lab session, tables that fit the terminal, figures
+that read, honest names, progress outside a terminal and honest cost tables."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import pandas as pd  # noqa: E402
+import pytest  # noqa: E402
+
+from vpr_core import paths  # noqa: E402
+from vpr_core.datasets import load_dataset  # noqa: E402
+from vpr_core.viz import base  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+README_ROOT = "../shared/data/gardens_point_mini"  # the README's Python example
+
+
+def _checkout(tmp_path: Path) -> Path:
+    """A minimal checkout of this project (what :func:`paths.project_root` recognises)."""
+    root = tmp_path / "clone"
+    (root / "notebooks").mkdir(parents=True)
+    (root / "pyproject.toml").write_text(f'[project]\nname = "{paths.PROJECT_NAME}"\n')
+    return root
+
+
+# 1. Paths ------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("cwd", [".", "notebooks"])
+def test_the_readme_dataset_root_loads_from_the_project_root_and_from_notebooks(
+    cwd, gardens_point_mini_root, monkeypatch
+):
+    if (REPO / README_ROOT).resolve() != gardens_point_mini_root.resolve():
+        pytest.skip("the sample data is not beside this checkout")
+    monkeypatch.chdir(REPO / cwd)
+    ds = load_dataset("folder", root=README_ROOT)
+    assert Path(ds.root).resolve() == gardens_point_mini_root.resolve()
+    assert len(ds.query_paths) == 10
+
+
+def test_a_missing_root_names_every_resolved_path_and_the_working_directory(tmp_path, monkeypatch):
+    clone = _checkout(tmp_path)
+    monkeypatch.chdir(clone / "notebooks")
+    with pytest.raises(FileNotFoundError) as err:
+        load_dataset("gardens_point", root="../data/nowhere")
+    msg = str(err.value)
+    assert "does not exist" in msg
+    assert str(tmp_path / "clone" / "data" / "nowhere") in msg  # from notebooks/
+    assert str(tmp_path / "data" / "nowhere") in msg  # from the project root
+    assert f"working directory {clone / 'notebooks'}" in msg
+    assert "download_dataset('gardens_point'" in msg
+    (clone / "data" / "here").mkdir(parents=True)  # relative to the project root: found
+    assert paths.find_input("data/here") == (clone / "data" / "here").resolve()
+
+
+# 2. A user's results apart from the study's ---------------------------------------------------
+
+
+def test_a_users_cells_save_into_the_ignored_user_area_and_the_study_keeps_its_folders(
+    tmp_path, monkeypatch
+):
+    monkeypatch.delenv("VPR_OUTPUT_DIR", raising=False)
+    clone = _checkout(tmp_path)
+    monkeypatch.chdir(clone / "notebooks")  # a kernel of JupyterLab, no setting chosen
+    fig = plt.figure(figsize=(2, 2))
+    table = pd.DataFrame({"run": ["a"], "AUC": [0.5]})
+    written = base.save_all([("mine", fig), ("mine", table)], "gardens_point_mini")
+    assert written == [
+        clone / "user" / "figures" / "gardens_point_mini" / "mine.png",
+        clone / "user" / "results" / "gardens_point_mini" / "mine.csv",
+    ]
+    assert paths.results_dir("x") == clone / "user" / "results" / "x"
+    assert not (clone / "figures").exists() and not (clone / "results").exists()
+    # the CLI's commands (and the benchmarks) write the study's folders
+    with paths.study_outputs():
+        assert base.save(fig, "study", "gardens_point_mini") == (
+            clone / "figures" / "gardens_point_mini" / "study.png"
+        )
+    # the study runner's kernels get the output root in VPR_OUTPUT_DIR: the study's folders
+    monkeypatch.setenv("VPR_OUTPUT_DIR", str(clone))
+    assert base.save(fig, "kernel", "g") == clone / "figures" / "g" / "kernel.png"
+    plt.close(fig)
+
+
+def test_the_user_area_is_git_ignored_and_the_runner_hands_its_kernels_the_output_root():
+    from vpr_study import runner
+
+    ignored = subprocess.run(
+        ["git", "check-ignore", "-q", "user/figures/gardens_point_mini/mine.png"], cwd=REPO
+    )
+    assert ignored.returncode == 0
+    tracked = subprocess.run(
+        ["git", "check-ignore", "-q", "figures/gardens_point_mini/mine.png"], cwd=REPO
+    )
+    assert tracked.returncode == 1
+    assert runner.kernel_settings()["VPR_OUTPUT_DIR"] == str(paths.output_root())
+
+
+def test_a_user_kernel_in_notebooks_does_not_modify_a_tracked_file(tmp_path):
+    """Subprocess in the real notebooks/ with no VPR_* setting: the figure lands in user/."""
+    code = "from vpr_core import paths; print(paths.figures_root()); print(paths.output_root())"
+    env = {"PATH": "/usr/bin:/bin", "HOME": str(tmp_path)}
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=REPO / "notebooks",
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split()
+    assert out == [str(REPO / "user"), str(REPO)]
+
+
+# 3. A clean tree after a Lab session ---------------------------------------------------------
+
+
+def _lab_save(nb_path: Path) -> None:
+    """What JupyterLab's autosave writes after running every cell: outputs, execution counts,
+    the kernel's language_info, widget state, cell timing metadata; jupytext rewrites the twin."""
+    import jupytext
+
+    nb = json.loads(nb_path.read_text())
+    nb["metadata"]["language_info"] = {"name": "python", "version": "3.11.9"}
+    nb["metadata"]["widgets"] = {"application/vnd.jupyter.widget-state+json": {"state": {}}}
+    for i, cell in enumerate(nb["cells"]):
+        if cell["cell_type"] == "code":
+            cell["execution_count"] = i + 1
+            cell["outputs"] = [{"output_type": "stream", "name": "stdout", "text": ["ran\n"]}]
+            cell["metadata"]["execution"] = {"iopub.status.idle": "2026-01-01T00:00:00Z"}
+    nb_path.write_text(json.dumps(nb, indent=1))
+    jupytext.write(jupytext.read(nb_path), nb_path.with_suffix(".py"), fmt="py:percent")
+
+
+def _git(cwd: Path, *args: str) -> str:
+    return subprocess.run(
+        ["git", "-c", "user.name=t", "-c", "user.email=t@t", *args],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+
+
+def _lab_clone(tmp_path: Path, name: str) -> tuple[Path, Path]:
+    """A git clone holding the Makefile, .gitattributes and notebook 01 with its twin, and a
+    stand-in venv whose install stamps are fresh (run with PY= this interpreter)."""
+    clone = tmp_path / name
+    (clone / "notebooks").mkdir(parents=True)
+    for f in ("Makefile", "pyproject.toml", ".gitattributes"):
+        shutil.copy2(REPO / f, clone / f)
+    for f in ("01_pipeline_tour.ipynb", "01_pipeline_tour.py"):
+        shutil.copy2(REPO / "notebooks" / f, clone / "notebooks" / f)
+    venv = tmp_path / f"{name}-venv"
+    (venv / "bin").mkdir(parents=True)
+    (venv / ".installed").touch()
+    (venv / ".lab-installed").touch()
+    _git(clone, "init", "-q")
+    _git(clone, "add", ".")
+    _git(clone, "commit", "-qm", "clone")
+    return clone, venv
+
+
+def test_make_lab_installs_the_output_filter_so_a_lab_session_leaves_git_status_clean(tmp_path):
+    if shutil.which("make") is None or shutil.which("git") is None:
+        pytest.skip("make and git are needed")
+    attrs = (REPO / ".gitattributes").read_text().splitlines()
+    assert "*.ipynb filter=nbstripout" in attrs and "*.ipynb diff=ipynb" in attrs
+    # without the filter a Lab session changes the notebook (what the issue saw)
+    bare, _ = _lab_clone(tmp_path, "bare")
+    _lab_save(bare / "notebooks" / "01_pipeline_tour.ipynb")
+    assert "language_info" in _git(bare, "diff") and "outputs" in _git(bare, "diff")
+    _git(bare, "add", "-u")
+    assert _git(bare, "status", "--porcelain").split() == ["M", "notebooks/01_pipeline_tour.ipynb"]
+    # make lab's filter target, then the same session: no change, nothing to commit
+    clone, venv = _lab_clone(tmp_path, "clone")
+    make = ["make", "-s", "git-filter", f"VENV={venv}", f"PY={sys.executable}"]
+    subprocess.run(make, cwd=clone, check=True)
+    assert "nbstripout" in _git(clone, "config", "--local", "filter.nbstripout.clean")
+    _lab_save(clone / "notebooks" / "01_pipeline_tour.ipynb")
+    assert _git(clone, "diff") == ""  # the .py twin rewritten by jupytext: unchanged too
+    _git(clone, "add", "-u")  # git status lists a resized file until its stat is refreshed
+    assert _git(clone, "status", "--porcelain") == ""
+    assert (clone / ".gitattributes").read_text() == (REPO / ".gitattributes").read_text()
+
+
+def test_make_lab_installs_the_lab_extra_once(tmp_path):
+    if shutil.which("make") is None:
+        pytest.skip("make is needed")
+    clone, venv = _lab_clone(tmp_path, "clone")
+    dry = subprocess.run(
+        ["make", "-n", "lab", f"VENV={venv}"], cwd=clone, capture_output=True, text=True, check=True
+    ).stdout
+    assert "pip install" not in dry and "nbstripout --install" in dry and "jupyter lab" in dry
+    (venv / ".lab-installed").unlink()  # a fresh clone: installed once
+    dry = subprocess.run(
+        ["make", "-n", "lab", f"VENV={venv}"], cwd=clone, capture_output=True, text=True, check=True
+    ).stdout
+    assert "pip install -q -e '.[dev,lab]'" in dry and "touch" in dry
+
+
+# 9. Feedback ---------------------------------------------------------------------------------
+
+
+def test_outside_a_terminal_progress_is_a_line_with_an_estimate_every_interval(monkeypatch):
+    import io
+    import time
+
+    from vpr_core import utils
+
+    monkeypatch.delenv("TQDM_DISABLE", raising=False)
+    monkeypatch.delenv("VPR_PROGRESS", raising=False)
+    monkeypatch.delitem(sys.modules, "ipykernel", raising=False)
+    monkeypatch.setattr(utils, "LINE_INTERVAL_S", 0.05)  # 30 s in the CLI
+    log = io.StringIO()  # not a TTY: a redirected log
+    for _ in utils.progress(range(6), desc="features query", file=log):
+        time.sleep(0.06)
+    lines = log.getvalue().splitlines()
+    assert "\r" not in log.getvalue() and len(lines) >= 3
+    assert all(line.startswith("features query:") for line in lines)
+    assert all("<" in line for line in lines)  # elapsed<remaining: the estimate
+    assert lines[-1].split("|")[-1].strip().startswith("6/6")
+    quick = io.StringIO()  # a loop shorter than the interval prints nothing
+    monkeypatch.setattr(utils, "LINE_INTERVAL_S", 30.0)
+    for _ in utils.progress(range(3), file=quick):
+        pass
+    assert quick.getvalue() == ""
+
+
+def test_in_a_notebook_progress_is_text_a_second_tab_can_show(monkeypatch, capsys):
+    import types
+
+    from tqdm.notebook import tqdm as tqdm_widget
+
+    from vpr_core import utils
+
+    monkeypatch.delenv("TQDM_DISABLE", raising=False)
+    monkeypatch.delenv("VPR_PROGRESS", raising=False)
+    monkeypatch.setitem(sys.modules, "ipykernel", types.ModuleType("ipykernel"))
+    bar = utils.progress(range(4), desc="landmarks query")
+    assert not isinstance(bar, tqdm_widget)
+    list(bar)
+    bar.close()
+    out = capsys.readouterr().out
+    assert "landmarks query" in out and "4/4" in out
