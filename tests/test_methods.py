@@ -132,6 +132,7 @@ def test_options_derive_from_the_fields():
         "min_index",
         "n_candidates",
         "spatial",
+        "weighting",
     )
     assert method_options(get_method("overlap_scheme2")) == (
         "n",
@@ -139,8 +140,9 @@ def test_options_derive_from_the_fields():
         "soft_nms_iou",
         "sigma",
         "spatial",
+        "weighting",
     )
-    assert method_options(get_method("global")) == ("spatial",)
+    assert method_options(get_method("global")) == ("spatial", "weighting")
 
 
 @pytest.mark.parametrize(
@@ -148,10 +150,10 @@ def test_options_derive_from_the_fields():
     [
         ("edgebox", {}, "Unknown method 'edgebox'. Valid methods: classical, dense"),
         ("overlap_scheme1", {"threshold": 0.4}, "Unknown option 'threshold'"),
-        ("dense", {"iou_threshold": 0.1}, "Options of 'dense': scales, per_scale, spatial\\."),
-        ("classical", {"min_index": 7}, "Options of 'classical': n, n_candidates, spatial\\."),
+        ("dense", {"iou_threshold": 0.1}, "Options of 'dense': scales, per_scale, spatial, weighting\\."),
+        ("classical", {"min_index": 7}, "Options of 'classical': n, n_candidates, spatial, weighting\\."),
         ("classical", {"soft_nms_iou": 0.3}, "'soft_nms_iou' for method 'classical'"),
-        ("global", {"n": 5}, "Options of 'global': spatial\\."),
+        ("global", {"n": 5}, "Options of 'global': spatial, weighting\\."),
         ("dense", {"scales": 0.25}, "method 'dense': Dense: option scales=0.25"),
         ("overlap_scheme1", {"iou_threshold": 1.5}, "option iou_threshold=1.5"),
         ("dense", {"per_scale": "25"}, "option per_scale='25'"),

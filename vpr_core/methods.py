@@ -19,7 +19,7 @@ from .landmarks.schemes import (
     option_text,
     scheme_identity,
 )
-from .matching import SPATIAL_OPTIONS
+from .matching import SPATIAL_OPTIONS, WEIGHTING_OPTIONS
 from .paper import SOFT_NMS_IOU, SOFT_NMS_SIGMA
 
 __all__ = [
@@ -52,11 +52,13 @@ class Matching:
     """How two images' landmarks are scored: Eq. (1), with Algorithm 4 (soft-NMS on the match
     scores) at IoU ``soft_nms_iou`` and Gaussian ``sigma`` when ``soft_nms_iou`` is set, and
     (not in the paper) a geometry-aware re-scoring of the matches when ``spatial`` is set
-    (:data:`~vpr_core.matching.SPATIAL_OPTIONS`; docs/DEFINITIONS.md)."""
+    (:data:`~vpr_core.matching.SPATIAL_OPTIONS`) and a database weighting of the terms when
+    ``weighting`` is set (:data:`~vpr_core.matching.WEIGHTING_OPTIONS`; docs/DEFINITIONS.md)."""
 
     soft_nms_iou: float | None = None
     sigma: float = SOFT_NMS_SIGMA
     spatial: str | None = None
+    weighting: str | None = None
 
     def __post_init__(self) -> None:
         iou, sigma = self.soft_nms_iou, self.sigma
@@ -74,18 +76,27 @@ class Matching:
                 f"None or one of {', '.join(map(repr, SPATIAL_OPTIONS))} (geometry-aware "
                 "score, not in the paper)",
             )
+        if self.weighting is not None and self.weighting not in WEIGHTING_OPTIONS:
+            raise _bad(
+                self,
+                "weighting",
+                f"None or one of {', '.join(map(repr, WEIGHTING_OPTIONS))} (database "
+                "weighting, not in the paper)",
+            )
 
     def options(self) -> tuple[str, ...]:
-        """The options that change a result: ``spatial`` always, the soft-NMS pair with it on."""
-        return (
-            ("soft_nms_iou", "sigma", "spatial") if self.soft_nms_iou is not None else ("spatial",)
-        )
+        """The options that change a result: ``spatial`` and ``weighting`` always, the soft-NMS
+        pair with it on."""
+        nms = ("soft_nms_iou", "sigma") if self.soft_nms_iou is not None else ()
+        return (*nms, "spatial", "weighting")
 
     def note(self) -> str:
-        """Its legend text: soft-NMS IoU and geometry option; empty at the paper's Eq. (1)."""
+        """Its legend text: soft-NMS IoU, geometry and weighting; empty at the paper's Eq. (1)."""
         parts = [] if self.soft_nms_iou is None else [f"IoU {self.soft_nms_iou:g}"]
         if self.spatial is not None:
             parts.append(f"geometry: {self.spatial}")
+        if self.weighting is not None:
+            parts.append(f"weighting: {self.weighting}")
         return ", ".join(parts)
 
 
@@ -188,11 +199,9 @@ def as_method(method: Any, **overrides: Any) -> Method:
     """
     if isinstance(method, str):
         return get_method(method, **overrides)
-    if set(overrides) == {"spatial"}:  # a matching option of every method, schemes included
-        base = as_method(method)
-        return dataclasses.replace(
-            base, matching=dataclasses.replace(base.matching, spatial=overrides["spatial"])
-        )
+    if overrides and set(overrides) <= {"spatial", "weighting"}:  # matching options of every
+        base = as_method(method)  # method, schemes included
+        return dataclasses.replace(base, matching=dataclasses.replace(base.matching, **overrides))
     if overrides:
         raise ValueError(
             f"options {sorted(overrides)} apply to a preset name only; set them on the value "

@@ -1,7 +1,5 @@
 """Section 3.1: CMR, CLS and ASL of landmark matches per Table-1 scale (Fig. 4).
-
-Definitions in docs/DEFINITIONS.md ("Scale statistics"); arrays are indexed by scale 1..9.
-"""
+Definitions in docs/DEFINITIONS.md ("Scale statistics"); arrays are indexed by scale 1..9."""
 
 from __future__ import annotations
 
@@ -47,15 +45,9 @@ logger = logging.getLogger("vpr_core")
 
 @dataclass
 class MatchRecord:
-    """Matches of one image pair, reduced to what the scale statistics need.
-
-    Attributes:
-        scales: ``(P,)`` int Table-1 scale (1..9) of each match's query-side landmark.
-        scores: ``(P,)`` pair scores ``1 - d*s``.
-        labels: ``(P,)`` bool, or None when unlabelled (then the pair does not enter CMR).
-        is_gt_pair: ground-truth pair (True) or query-irrelevant pair (False).
-        matches: ``(P, 2)`` (query box, reference box) indices, or None.
-    """
+    """Matches of one image pair: the ``(P,)`` Table-1 scale (1..9) of each match's query-side
+    landmark, its pair score ``1 - d*s``, its label (None: unlabelled, the pair does not enter
+    CMR), and optionally the ``(P, 2)`` (query box, reference box) indices."""
 
     scales: np.ndarray
     scores: np.ndarray
@@ -123,14 +115,8 @@ class ScaleStats:
         return np.arange(1, N_SCALES + 1)
 
     def cmr_intervals(self, n: int | None = None, seed: int = 0) -> np.ndarray:
-        """95% bootstrap interval of each scale's CMR, resampling query images.
-
-        Args:
-            n: resamples (default ``N_BOOTSTRAP``). seed: their seed.
-
-        Returns:
-            ``(10, 2)`` ``(low, high)`` per scale; NaN where the scale has no labelled match.
-        """
+        """``(10, 2)`` 95% bootstrap interval of each scale's CMR, resampling query images
+        (``n`` default ``N_BOOTSTRAP``); NaN where the scale has no labelled match."""
         n = N_BOOTSTRAP if n is None else int(n)
         out = np.full((N_SCALES + 1, 2), np.nan)
         recs = [r for r in self.records if r.is_gt_pair and r.labels is not None]
@@ -201,19 +187,8 @@ class ScaleStats:
                         "correct": (None if rec.labels is None else int(rec.labels[k])),
                     }
                 )
-        return pd.DataFrame(
-            rows,
-            columns=[
-                "query",
-                "reference",
-                "pair",
-                "query_box_index",
-                "reference_box_index",
-                "scale",
-                "score",
-                "correct",
-            ],
-        )
+        columns = "query reference pair query_box_index reference_box_index scale score correct"
+        return pd.DataFrame(rows, columns=columns.split())
 
 
 def _cls_asl(scales: np.ndarray, scores: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -240,15 +215,7 @@ def _cls_asl(scales: np.ndarray, scores: np.ndarray) -> tuple[np.ndarray, np.nda
 def scale_statistics_from_matches(
     records: Iterable[MatchRecord], meta: dict | None = None
 ) -> ScaleStats:
-    """CMR / CLS / ASL per Table-1 scale from per-pair match records (any method, any matcher).
-
-    Args:
-        records: :class:`MatchRecord` per image pair.
-        meta: stored in ``ScaleStats.meta``.
-
-    Returns:
-        :class:`ScaleStats`.
-    """
+    """CMR / CLS / ASL per Table-1 scale from per-pair match records (any method, any matcher)."""
     records = list(records)
     gt_sc, gt_s, irr_sc, irr_s, lab_sc, lab_v = [], [], [], [], [], []
     n_gt = n_irr = n_unl = 0
@@ -345,25 +312,11 @@ def scale_statistics(
     """Fig. 4 scale statistics of any landmark method (docs/DEFINITIONS.md, "Scale statistics").
 
     Each query with ground truth is matched (:func:`vpr_core.matching.match_landmarks`) with its
-    ground-truth reference(s), labelled by :func:`label_matches`, and with ``n_irrelevant``
-    sampled query-irrelevant references. Queries without ground truth are skipped.
-
-    Args:
-        dataset: ``PlaceDataset``.
-        boxes_q: per query, ``(Kq_i, 4)`` boxes. boxes_r: per reference, ``(Kr_j, 4)``.
-        desc_q: per query, ``(Kq_i, D)`` descriptors. desc_r: per reference, ``(Kr_j, D)``.
-        label_method: see :func:`label_matches`.
-        n_irrelevant: query-irrelevant references per query. seed: their sampling seed.
-        image_sizes: per query ``(H, W)`` (default: asked from the dataset).
-        queries: subset of queries (default all).
-        gt_pairs: ``"center"`` or ``"all"`` (:func:`ground_truth_references`).
-        soft_nms_iou: Algorithm 4 threshold of the matching, or None. sigma: its width.
-        iou_threshold: label IoU threshold.
-        labels: label CSV / DataFrame for ``file`` (read once).
-        **label_options: further :func:`label_matches` options.
-
-    Returns:
-        :class:`ScaleStats` (``meta`` records the settings).
+    ground-truth reference(s) (``gt_pairs``: :func:`ground_truth_references`), labelled by
+    :func:`label_matches` (``label_method``, ``labels``, ``iou_threshold``, ``**label_options``),
+    and with ``n_irrelevant`` query-irrelevant references sampled with ``seed``. Queries without
+    ground truth are skipped. Boxes ``(K_i, 4)`` and descriptors ``(K_i, D)`` per image;
+    ``image_sizes`` per query ``(H, W)`` (default: asked from the dataset).
     """
     gt = np.asarray(dataset.ground_truth, dtype=bool)
     nq, nr = gt.shape
@@ -405,17 +358,9 @@ def scale_statistics(
         pairs = [(r, True) for r in ground_truth_references(gt, q, gt_pairs)]
         pairs += [(r, False) for r in irr[q]]
         records += _query_records(
-            dataset,
-            q,
-            size_q,
-            boxes_q[q],
-            desc_q[q],
-            boxes_r,
-            desc_r,
-            pairs,
-            match_options,
+            dataset, q, size_q, boxes_q[q], desc_q[q], boxes_r, desc_r, pairs, match_options,
             label_options,
-        )
+        )  # fmt: skip
     meta = {
         "dataset": getattr(dataset, "title", getattr(dataset, "name", None)),
         "label_method": method,

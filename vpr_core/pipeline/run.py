@@ -94,6 +94,7 @@ def match(
     soft_nms_iou: float | None = None,
     sigma: float = SOFT_NMS_SIGMA,
     spatial: str | None = None,
+    weighting: str | None = None,
     shortlist: int | None = None,
     global_desc: dict[str, np.ndarray] | None = None,
     client=None,
@@ -108,6 +109,8 @@ def match(
         soft_nms_iou, sigma: Algorithm 4 settings.
         spatial: None (Eq. (1) as the paper) or a geometry-aware re-scoring
             (:data:`~vpr_core.matching.SPATIAL_OPTIONS`; not in the paper).
+        weighting: None (Eq. (1) as the paper) or a database weighting of its terms
+            (:data:`~vpr_core.matching.WEIGHTING_OPTIONS`; not in the paper).
         shortlist: None (exhaustive) or k: Eq. (1) only on each query's top-k references by
             the cosine of ``global_desc``.
         global_desc: ``{"query": (Nq, D'), "reference": (Nr, D')}`` whole-image descriptors
@@ -124,10 +127,17 @@ def match(
     t0 = time.perf_counter()
     if shortlist is None:
         if client is None:
-            sim = similarity_matrix(*args, soft_nms_iou=soft_nms_iou, sigma=sigma, spatial=spatial)
+            sim = similarity_matrix(
+                *args, soft_nms_iou=soft_nms_iou, sigma=sigma, spatial=spatial, weighting=weighting
+            )
         else:
             sim = similarity_blocks_distributed(
-                client, *args, soft_nms_iou=soft_nms_iou, sigma=sigma, spatial=spatial
+                client,
+                *args,
+                soft_nms_iou=soft_nms_iou,
+                sigma=sigma,
+                spatial=spatial,
+                weighting=weighting,
             )
         return sim, {
             "pairs": float(nq * nr),
@@ -140,7 +150,13 @@ def match(
     pairs, _ = shortlist_pairs(global_desc["query"], global_desc["reference"], shortlist)
     t1 = time.perf_counter()
     vals = similarity_pairs_distributed(
-        client, *args, pairs, soft_nms_iou=soft_nms_iou, sigma=sigma, spatial=spatial
+        client,
+        *args,
+        pairs,
+        soft_nms_iou=soft_nms_iou,
+        sigma=sigma,
+        spatial=spatial,
+        weighting=weighting,
     )  # client None: one similarity_pairs call
     sim = rerank(vals, pairs, nq, nr)
     t2 = time.perf_counter()
@@ -277,6 +293,7 @@ def run_method(
                 soft_nms_iou=conf.matching.soft_nms_iou,
                 sigma=conf.matching.sigma,
                 spatial=conf.matching.spatial,
+                weighting=conf.matching.weighting,
                 shortlist=k,
                 global_desc=glob,
                 client=client,
