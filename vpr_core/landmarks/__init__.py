@@ -5,20 +5,11 @@ schemes (one frozen dataclass each) the pipeline runs. Boxes are ``(K, 4)`` ``(x
 from __future__ import annotations
 
 from ..boxes import box_iou
+from ..paper import N_SCALES, SCALE_EDGES, SCALE_LABELS, SCALE_RANGE_LABELS, SCALE_RANGES
 from .coverage import landmark_coverage
 from .dense import dense_sampling
 from .edge_boxes import EDGE_BOXES_DEFAULTS, EdgeBoxes, edge_boxes
-from .scales import (
-    N_SCALES,
-    SCALE_EDGES,
-    SCALE_LABELS,
-    SCALE_RANGE_LABELS,
-    SCALE_RANGES,
-    normalized_scale,
-    scale_distribution,
-    scale_histogram,
-    scale_index,
-)
+from .scales import normalized_scale, scale_distribution, scale_histogram, scale_index
 from .schemes import (
     CandidateScheme,
     Dense,

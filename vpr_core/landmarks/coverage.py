@@ -8,22 +8,10 @@ import numpy as np
 
 from ..checks import check_boxes, check_image_size
 
-__all__ = ["landmark_coverage"]
-
 
 def landmark_coverage(boxes: np.ndarray, image_size: Sequence[int]) -> np.ndarray:
-    """How many boxes cover each pixel (Fig. 14).
-
-    Pixel ``(r, c)`` is covered by a box when its centre ``(c + 0.5, r + 0.5)`` lies in
-    ``[x, x + w) x [y, y + h)``; boxes are clipped to the image.
-
-    Args:
-        boxes: ``(K, 4)`` ``(x, y, w, h)``.
-        image_size: ``(H, W)``.
-
-    Returns:
-        ``(H, W)`` float64 count map.
-    """
+    """``(H, W)`` count of boxes covering each pixel (Fig. 14): pixel ``(r, c)`` is covered when
+    its centre ``(c + 0.5, r + 0.5)`` lies in ``[x, x + w) x [y, y + h)`` (boxes clipped)."""
     b = check_boxes(boxes)
     H, W = check_image_size(image_size)
     diff = np.zeros((H + 1, W + 1), dtype=np.float64)

@@ -11,8 +11,6 @@ import numpy as np
 from ..checks import check_image_size
 from ..paper import DENSE_PER_SCALE, DENSE_SCALES
 
-__all__ = ["dense_sampling"]
-
 
 def _grid_side(count: Any) -> int:
     """Side ``g`` of the ``g x g`` grid holding ``count`` boxes; ValueError if not a square."""
@@ -38,12 +36,7 @@ def _grid_boxes(area_ratio: float, g: int, H: int, W: int) -> np.ndarray:
         xs = np.arange(g) * ((W - w) / (g - 1))
         ys = np.arange(g) * ((H - h) / (g - 1))
     yy, xx = np.meshgrid(ys, xs, indexing="ij")  # row-major: y outer, x inner
-    block = np.empty((g * g, 4), dtype=np.float64)
-    block[:, 0] = xx.ravel()
-    block[:, 1] = yy.ravel()
-    block[:, 2] = w
-    block[:, 3] = h
-    return block
+    return np.stack([xx.ravel(), yy.ravel(), np.full(g * g, w), np.full(g * g, h)], axis=1)
 
 
 def dense_sampling(
@@ -53,13 +46,8 @@ def dense_sampling(
 ) -> np.ndarray:
     """Dense multi-scale landmarks (Section 4, Fig. 9; the grid is in docs/DEFINITIONS.md).
 
-    Args:
-        image_size: ``(H, W)``.
-        scales: area ratios in ``(0, 1]``, one per scale level.
-        per_scale: boxes per scale, a perfect square: one int or one count per scale.
-
-    Returns:
-        ``(sum(per_scale), 4)`` boxes, scale by scale, then row by row, then by increasing ``x``.
+    ``scales``: area ratios in ``(0, 1]``; ``per_scale``: a perfect square, one or one per scale.
+    Returns ``(sum(per_scale), 4)`` boxes, scale by scale, row by row, by increasing ``x``.
     """
     H, W = check_image_size(image_size)
     scales_arr = np.atleast_1d(np.asarray(scales, dtype=np.float64))

@@ -9,31 +9,11 @@ import numpy as np
 import pandas as pd
 
 from ..checks import check_boxes, check_image_size
-from ..paper import N_SCALES, SCALE_EDGES, SCALE_LABELS, SCALE_RANGE_LABELS, SCALE_RANGES
-
-__all__ = [
-    "N_SCALES",
-    "SCALE_EDGES",
-    "SCALE_LABELS",
-    "SCALE_RANGES",
-    "SCALE_RANGE_LABELS",
-    "normalized_scale",
-    "scale_distribution",
-    "scale_histogram",
-    "scale_index",
-]
+from ..paper import N_SCALES, SCALE_EDGES, SCALE_LABELS
 
 
 def normalized_scale(boxes: np.ndarray, image_size: Sequence[int]) -> np.ndarray:
-    """Normalized scale (Eq. 3): box area / image area, not clipped.
-
-    Args:
-        boxes: ``(K, 4)`` boxes.
-        image_size: ``(H, W)``.
-
-    Returns:
-        ``(K,)`` float64 area ratios.
-    """
+    """Normalized scale (Eq. 3) ``(K,)``: box area / image area, not clipped."""
     return _normalized_scale(check_boxes(boxes), check_image_size(image_size))
 
 
@@ -55,15 +35,8 @@ def _box_scale_index(b: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
 def scale_index(
     boxes_or_ratios: np.ndarray | float, image_size: Sequence[int] | None = None
 ) -> np.ndarray | int:
-    """Table-1 scale index (1..9) of boxes or of normalized scales (ratios above 1 give 9).
-
-    Args:
-        boxes_or_ratios: ``(K, 4)`` boxes (with ``image_size``) or ``(K,)`` / scalar ratios.
-        image_size: ``(H, W)`` when boxes are given.
-
-    Returns:
-        ``(K,)`` int64 scale indices (a Python int for a scalar ratio).
-    """
+    """Table-1 scale index (1..9) ``(K,)`` of ``(K, 4)`` boxes (with ``image_size``) or of
+    ``(K,)`` normalized scales (ratios above 1 give 9; a scalar ratio gives an int)."""
     if image_size is not None:
         return _box_scale_index(check_boxes(boxes_or_ratios), check_image_size(image_size))
     ratios = np.asarray(boxes_or_ratios, dtype=np.float64)
@@ -80,25 +53,15 @@ def scale_index(
 
 
 def scale_histogram(boxes: np.ndarray, image_size: Sequence[int] | None = None) -> np.ndarray:
-    """Count of boxes per Table-1 scale (Fig. 6).
-
-    Args:
-        boxes: ``(K, 4)`` boxes (with ``image_size``) or ``(K,)`` normalized scales.
-        image_size: ``(H, W)`` when boxes are given.
-
-    Returns:
-        ``(10,)`` int64 counts indexed by scale 1..9 (index 0 unused, always 0).
-    """
+    """``(10,)`` counts of boxes (or ratios, as :func:`scale_index`) per Table-1 scale 1..9
+    (Fig. 6; index 0 unused)."""
     idx = np.atleast_1d(scale_index(boxes, image_size))
     return np.bincount(idx, minlength=N_SCALES + 1).astype(np.int64)
 
 
 def scale_distribution(result: Any, dataset: Any) -> Any:
-    """Landmark counts per Table-1 scale of a run (the data of Fig. 6).
-
-    Returns:
-        ``(9, 2)`` DataFrame indexed ``Scale 1`` .. ``Scale 9``, columns ``query``, ``reference``.
-    """
+    """Landmark counts per Table-1 scale of a run (Fig. 6): ``(9, 2)`` DataFrame indexed
+    ``Scale 1`` .. ``Scale 9``, columns ``query``, ``reference``."""
     counts = {}
     for side in ("query", "reference"):
         h = np.zeros(N_SCALES + 1, dtype=np.int64)

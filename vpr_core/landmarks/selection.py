@@ -1,11 +1,6 @@
-"""Algorithms 1-3: choosing 100 landmarks from 1,000 Edge Box candidates (Sec. 3.2).
-
-- :func:`select_min_scale` -- Landmark Selection Scheme 1 (Algorithm 1): drop small scales.
-- :func:`select_scale_priority` -- Landmark Selection Scheme 2 (Algorithm 2): scale priority.
-- :func:`reduce_overlap` -- Overlap Reduction Scheme 1 (Algorithm 3): greedy IoU filtering.
-
-All walk the candidates in proposal order and return boxes ``(N, 4)`` float64 ``(x, y, w, h)``.
-"""
+"""Algorithms 1-3: choosing 100 landmarks from 1,000 Edge Box candidates (Sec. 3.2), each
+walking the candidates in proposal order; with ``return_indices`` also the kept candidates'
+``(N,)`` int64 indices. Fewer than ``n`` qualifying: all of them, and a logged warning."""
 
 from __future__ import annotations
 
@@ -14,17 +9,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..boxes import box_iou
-from ..checks import check_boxes
-from ..checks import check_int as check_count
+from ..boxes import _box_iou
+from ..checks import check_boxes, check_image_size, check_int, check_range
 from ..paper import MIN_SCALE_INDEX, N_LANDMARKS, N_SCALES, NMS_IOU, SCALE_PRIORITY_ORDER
-from .scales import scale_index
-
-__all__ = [
-    "reduce_overlap",
-    "select_min_scale",
-    "select_scale_priority",
-]
+from .scales import _box_scale_index
 
 logger = logging.getLogger("vpr_core")
 
@@ -37,14 +25,8 @@ def _result(boxes: np.ndarray, idx: list[int] | np.ndarray, return_indices: bool
 
 def _warn_undersupply(name: str, got: int, n: int, k: int) -> None:
     if got < n:
-        logger.warning(
-            "%s: only %d of the requested %d landmarks qualify among %d candidates; returning %d",
-            name,
-            got,
-            n,
-            k,
-            got,
-        )
+        msg = "%s: only %d of the requested %d landmarks qualify among %d candidates; returning %d"
+        logger.warning(msg, name, got, n, k, got)
 
 
 def select_min_scale(
@@ -54,28 +36,12 @@ def select_min_scale(
     min_index: int = MIN_SCALE_INDEX,
     return_indices: bool = False,
 ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
-    """Landmark Selection Scheme 1 (Algorithm 1).
-
-    Walks the candidates in proposal order and keeps the first ``n`` whose Table-1 scale index is
-    ``>= min_index`` (default 4, i.e. "> Scale 3"). If fewer than ``n`` qualify, all qualifying
-    candidates are returned and a warning is logged (the paper's loop would not terminate).
-
-    Args:
-        boxes: ``(K, 4)`` candidates in proposal order (the paper uses K = 1000 Edge Boxes).
-        image_size: ``(H, W)``.
-        n: number of landmarks to select.
-        min_index: smallest accepted scale index (1..9).
-        return_indices: also return the selected candidates' indices into ``boxes``.
-
-    Returns:
-        ``(N, 4)`` selected boxes in proposal order, ``N = min(n, #qualifying)``; with
-        ``return_indices`` a tuple ``(boxes, indices (N,) int64)``.
-    """
-    b = check_boxes(boxes)
-    n = check_count(n)
+    """Landmark Selection Scheme 1 (Algorithm 1): the first ``n`` candidates ``(K, 4)`` whose
+    Table-1 scale index is ``>= min_index`` (default 4, i.e. "> Scale 3")."""
+    b, size, n = check_boxes(boxes), check_image_size(image_size), check_int(n)
     if not 1 <= int(min_index) <= N_SCALES:
         raise ValueError(f"min_index must be in 1..9, got {min_index}")
-    idx = np.flatnonzero(scale_index(b, image_size) >= int(min_index))[:n]
+    idx = np.flatnonzero(_box_scale_index(b, size) >= int(min_index))[:n]
     _warn_undersupply("select_min_scale", idx.size, n, b.shape[0])
     return _result(b, idx, return_indices)
 
@@ -87,29 +53,13 @@ def select_scale_priority(
     order: Sequence[int] = SCALE_PRIORITY_ORDER,
     return_indices: bool = False,
 ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
-    """Landmark Selection Scheme 2 (Algorithm 2).
-
-    Takes all candidates of scale ``order[0]`` in proposal order, then all of ``order[1]``, ...,
-    stopping as soon as ``n`` are selected. Scales absent from ``order`` are never selected. If
-    fewer than ``n`` qualify, all of them are returned (in the above order) and a warning logged.
-
-    Args:
-        boxes: ``(K, 4)`` candidates in proposal order.
-        image_size: ``(H, W)``.
-        n: number of landmarks to select.
-        order: scale indices (1..9) by priority.
-        return_indices: also return the selected candidates' indices into ``boxes``.
-
-    Returns:
-        ``(N, 4)`` selected boxes grouped by scale priority (proposal order within a scale);
-        with ``return_indices`` a tuple ``(boxes, indices (N,) int64)``.
-    """
-    b = check_boxes(boxes)
-    n = check_count(n)
+    """Landmark Selection Scheme 2 (Algorithm 2): all candidates of scale ``order[0]``, then all
+    of ``order[1]``, ..., until ``n`` are selected; scales absent from ``order`` never are."""
+    b, size, n = check_boxes(boxes), check_image_size(image_size), check_int(n)
     order = [int(s) for s in order]
     if any(not 1 <= s <= N_SCALES for s in order) or len(set(order)) != len(order):
         raise ValueError(f"order must hold distinct scale indices in 1..9, got {order}")
-    sidx = scale_index(b, image_size)
+    sidx = _box_scale_index(b, size)
     picked: list[np.ndarray] = []
     total = 0
     for s in order:
@@ -129,29 +79,12 @@ def reduce_overlap(
     iou_threshold: float = NMS_IOU,
     return_indices: bool = False,
 ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
-    """Overlap Reduction Scheme 1 (Algorithm 3): greedy IoU filtering in proposal order.
-
-    The first candidate is always kept; a later candidate is kept if its IoU with every kept box
-    is ``<= iou_threshold``; stops once ``n`` are kept. If fewer than ``n`` survive, all survivors
-    are returned and a warning logged.
-
-    Each kept box's IoU with all later candidates (:func:`vpr_core.boxes.box_iou`) is folded into
-    a running maximum, so a candidate's test is one comparison.
-
-    Args:
-        boxes: ``(K, 4)`` candidates in proposal order.
-        n: number of landmarks to keep.
-        iou_threshold: IoU threshold ``t`` in ``[0, 1]``.
-        return_indices: also return the kept candidates' indices into ``boxes``.
-
-    Returns:
-        ``(N, 4)`` kept boxes in proposal order; with ``return_indices`` ``(boxes, indices)``.
+    """Overlap Reduction Scheme 1 (Algorithm 3): the first candidate is kept, then each one whose
+    IoU with every kept box is ``<= iou_threshold``, until ``n`` are kept. Each kept box's IoU
+    with the later candidates is folded into a running maximum: a candidate's test is one compare.
     """
-    b = check_boxes(boxes)
-    n = check_count(n)
-    t = float(iou_threshold)
-    if not 0.0 <= t <= 1.0:
-        raise ValueError(f"iou_threshold must be in [0, 1], got {iou_threshold}")
+    b, n = check_boxes(boxes), check_int(n)
+    t = check_range(iou_threshold, "iou_threshold", 0.0, 1.0)
     kept: list[int] = []
     max_iou = np.zeros(b.shape[0], dtype=np.float64)  # max IoU with the boxes kept so far
     for i in range(b.shape[0] if n > 0 else 0):
@@ -159,6 +92,8 @@ def reduce_overlap(
             break
         if i == 0 or max_iou[i] <= t:
             kept.append(i)
-            np.maximum(max_iou[i + 1 :], box_iou(b[i : i + 1], b[i + 1 :])[0], out=max_iou[i + 1 :])
+            np.maximum(
+                max_iou[i + 1 :], _box_iou(b[i : i + 1], b[i + 1 :])[0], out=max_iou[i + 1 :]
+            )
     _warn_undersupply("reduce_overlap", len(kept), n, b.shape[0])
     return _result(b, kept, return_indices)
