@@ -14,8 +14,6 @@ from ..checks import check_boxes, check_shape
 from ..labels import pair_matches
 from .base import draw_boxes
 
-__all__ = ["plot_descriptor_matrices", "plot_labelled_matches", "plot_pair", "plot_pair_terms"]
-
 
 def plot_labelled_matches(
     img_q: np.ndarray,
@@ -29,23 +27,9 @@ def plot_labelled_matches(
     lw: float = 1.2,
     title: str | None = None,
 ) -> Figure:
-    """Fig. 1-2: query and reference side by side, matched landmark boxes coloured by label.
-
-    Args:
-        img_q: ``(Hq, Wq, 3)`` uint8 query image (left).
-        img_r: ``(Hr, Wr, 3)`` uint8 reference image (right).
-        boxes_q: ``(Kq, 4)`` ``(x, y, w, h)`` query boxes.
-        boxes_r: ``(Kr, 4)`` reference boxes.
-        matches: ``(P, 2)`` (query box index, reference box index).
-        labels: ``(P,)`` bool (green = correct, red = incorrect) or ``None`` (all yellow).
-        ax: axes to draw on (default: a new figure sized to the canvas).
-        gap: white pixels between the two images.
-        lw: box / line width.
-        title: axes title (default: counts of correct / incorrect matches).
-
-    Returns:
-        The figure holding ``ax``. Boxes of each match and a line joining their centres.
-    """
+    """Fig. 1-2: query (left) and reference side by side, ``gap`` white pixels apart, each match
+    ``(P, 2)`` drawn as its two boxes joined by a line, coloured by its ``(P,)`` label (green
+    correct, red incorrect; None: yellow); ``title`` defaults to the counts."""
     iq = np.asarray(img_q)
     ir = np.asarray(img_r)
     if iq.ndim == 2:
@@ -109,16 +93,8 @@ def plot_labelled_matches(
 
 
 def plot_descriptor_matrices(descriptors: dict, title: str | None = None) -> Figure:
-    """Landmark descriptor matrices as heatmaps, one panel per image (pipeline tour, step 2).
-
-    Args:
-        descriptors: ``{panel title: (K, D) float descriptors}`` (one row per landmark).
-        title: optional suptitle.
-
-    Returns:
-        A ``1 x len(descriptors)`` figure; rows = landmarks, columns = descriptor dimensions,
-        colour = value (symmetric around 0, shared scale).
-    """
+    """``{panel title: (K, D) descriptors}`` as heatmaps, one panel each (pipeline tour, step 2):
+    rows landmarks, columns dimensions, colour the value (symmetric around 0, shared scale)."""
     if not descriptors:
         raise ValueError("plot_descriptor_matrices: descriptors is empty.")
     mats = {k: check_shape(v, "K D", f"descriptors[{k!r}]", float) for k, v in descriptors.items()}
@@ -151,19 +127,8 @@ def plot_pair_terms(
     title: str | None = None,
 ) -> Figure:
     """Eq. (1) as a picture: every reciprocal pair's term ``1 - d*s`` and the image score
-    (pipeline tour, step 4).
-
-    Args:
-        distances: ``(P,)`` cosine distances ``d`` of the matched pairs.
-        shape: ``(P,)`` shape penalties ``s`` (Eq. 2) of the same pairs.
-        n_a: landmarks of image a; n_b: landmarks of image b.
-        similarity: the Eq. (1) score ``S = sum(1 - d*s) / sqrt(n_a * n_b)`` to print.
-        title: optional suptitle.
-
-    Returns:
-        A two-panel figure: (a) the pair terms in decreasing order, (b) ``d`` against ``s``
-        coloured by the term.
-    """
+    (pipeline tour, step 4): (a) the terms of the ``(P,)`` distances and shape penalties in
+    decreasing order, with ``S = sum(1 - d*s) / sqrt(n_a * n_b)``; (b) ``d`` against ``s``."""
     d = np.asarray(distances, dtype=float).reshape(-1)
     s = np.asarray(shape, dtype=float).reshape(-1)
     if d.shape != s.shape:
@@ -193,12 +158,8 @@ def plot_pair_terms(
 def plot_pair(dataset: Any, result: Any, query: int = 0, reference: int | None = None) -> Figure:
     """Fig. 1-3, 8: the matched landmarks of one pair of a run, coloured correct / incorrect.
 
-    Labels from :func:`vpr_core.labels.pair_matches` (``exact`` on ``synthetic``, SIFT +
-    RANSAC on real images; an unverifiable pair is drawn unlabelled and the title says why).
-
-    Args:
-        dataset: the run's dataset. result: a run with ``keep_descriptors=True``.
-        query: query index. reference: None for its ground-truth reference.
+    Labels from :func:`vpr_core.labels.pair_matches` (an unverifiable pair is drawn unlabelled
+    and the title says why); ``reference`` None: the query's ground-truth reference.
     """
     pm = pair_matches(dataset, result, query, reference)
     fig = plot_labelled_matches(

@@ -10,23 +10,12 @@ from matplotlib.figure import Figure
 
 from ..evaluation import recall_rate_at_n
 
-__all__ = ["plot_recall_at_n"]
-
 
 def plot_recall_at_n(
     results_or_curves: Sequence | Mapping, title: str | None = None, n_max: int = 20
 ) -> Figure:
-    """RecallRate@N (y) against N (x), one line per method; legend outside the axes, right.
-
-    Args:
-        results_or_curves: objects with ``.label``, ``.similarity (Nq, Nr)``, ``.ground_truth``
-            (e.g. :class:`~vpr_core.pipeline.MethodResult`), or ``{label: (n,) RecallRate@N}``.
-        title: axes title (the caller names dataset, tolerance and protocol).
-        n_max: largest N for results (:func:`~vpr_core.evaluation.recall_rate_at_n`).
-
-    Returns:
-        The Figure (not saved).
-    """
+    """RecallRate@N against N = 1..``n_max``, one line per run (``MethodResult``) or per
+    ``{label: (n,) RecallRate@N}`` entry; legend outside the axes, right."""
     if isinstance(results_or_curves, Mapping):
         curves = {str(k): np.asarray(v, dtype=float) for k, v in results_or_curves.items()}
     else:

@@ -10,13 +10,8 @@ from matplotlib.figure import Figure
 
 from .base import new_axes
 
-__all__ = ["plot_asl", "plot_cls", "plot_cmr", "plot_scale_statistics"]
-
-
 _STATS_GT_COLOR = "tab:green"
 _STATS_IRR_COLOR = "tab:gray"
-
-
 _PANEL_SIZE = (5.0, 3.4)
 
 
@@ -57,18 +52,8 @@ def _stats_scale_axis(ax: Any, stats: Any, title: str, ylabel: str) -> None:
 
 
 def plot_cmr(stats: Any, ax: Any = None, color: str = "tab:blue") -> Figure:
-    """Fig. 4a: correct landmark matching rate per scale (bars; empty scales left blank).
-
-    Args:
-        stats: ``vpr_core.statistics.ScaleStats`` (arrays of length 10, index = scale).
-        ax: axes to draw on (default: a new figure).
-        color: bar colour.
-
-    Returns:
-        The figure holding ``ax``. Each bar carries its 95% bootstrap interval over query images
-        (:meth:`~vpr_core.statistics.ScaleStats.cmr_intervals`) and is annotated with its number
-        of labelled matches.
-    """
+    """Fig. 4a: correct landmark matching rate per scale of a ``ScaleStats`` (bars, empty scales
+    blank), each with its 95% bootstrap interval over query images and its labelled matches."""
     own = ax is None
     fig, ax = new_axes(ax, _PANEL_SIZE)
     scales = np.arange(1, 10)
@@ -131,15 +116,7 @@ def _stats_grouped(ax: Any, gt: np.ndarray, irr: np.ndarray) -> None:
 
 def plot_cls(stats: Any, ax: Any = None) -> Figure:
     """Fig. 4b: contribution of each scale to the similarity (CLS), ground-truth vs
-    query-irrelevant pairs (grouped bars; each group sums to 1 over the scales).
-
-    Args:
-        stats: ``ScaleStats``.
-        ax: axes to draw on (default: a new figure).
-
-    Returns:
-        The figure holding ``ax``.
-    """
+    query-irrelevant pairs (grouped bars; each group sums to 1 over the scales)."""
     own = ax is None
     fig, ax = new_axes(ax, _PANEL_SIZE)
     _stats_grouped(ax, stats.cls_gt, stats.cls_irrelevant)
@@ -150,15 +127,7 @@ def plot_cls(stats: Any, ax: Any = None) -> Figure:
 
 def plot_asl(stats: Any, ax: Any = None) -> Figure:
     """Fig. 4c: average pair score ``1 - d*s`` of the matched landmarks per scale (ASL),
-    ground-truth vs query-irrelevant pairs (grouped bars).
-
-    Args:
-        stats: ``ScaleStats``.
-        ax: axes to draw on (default: a new figure).
-
-    Returns:
-        The figure holding ``ax``.
-    """
+    ground-truth vs query-irrelevant pairs (grouped bars)."""
     own = ax is None
     fig, ax = new_axes(ax, _PANEL_SIZE)
     _stats_grouped(ax, stats.asl_gt, stats.asl_irrelevant)
@@ -168,16 +137,8 @@ def plot_asl(stats: Any, ax: Any = None) -> Figure:
 
 
 def plot_scale_statistics(stats: Any, title: str | None = None) -> Figure:
-    """Fig. 4: CMR, CLS and ASL side by side.
-
-    Args:
-        stats: ``vpr_core.statistics.ScaleStats``.
-        title: optional first line of the suptitle (e.g. the landmark method); the data line
-            (:func:`stats_line`: dataset, queries with ground truth, tolerance) follows.
-
-    Returns:
-        A 1x3-panel figure.
-    """
+    """Fig. 4: CMR, CLS and ASL side by side; ``title`` (e.g. the method) above the data line
+    (:func:`stats_line`)."""
     fig, axes = plt.subplots(1, 3, figsize=(14.0, 3.9))
     plot_cmr(stats, ax=axes[0])
     plot_cls(stats, ax=axes[1])

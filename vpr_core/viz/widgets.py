@@ -1,7 +1,5 @@
-"""Label landmark matches by hand in a notebook (optional ``ipywidgets``).
-
-The answers are appended to a CSV that ``label_matches(..., method="file")`` reads.
-"""
+"""Label landmark matches by hand in a notebook (optional ``ipywidgets``); the answers are
+appended to a CSV that ``label_matches(..., method="file")`` reads."""
 
 from __future__ import annotations
 
@@ -14,8 +12,6 @@ import numpy as np
 from ..labels import append_labels, pair_matches
 from .base import draw_boxes
 
-__all__ = ["label_widget", "pair_label_widget"]
-
 
 def label_widget(
     dataset: Any,
@@ -26,18 +22,8 @@ def label_widget(
     matches: np.ndarray,
     out: str | Path = "labels.csv",
 ) -> Any:
-    """Step through the matches of one pair, answer correct / wrong, then save to ``out``.
-
-    Args:
-        dataset: a ``PlaceDataset``.
-        q: query index. r: reference index.
-        boxes_q: ``(Kq, 4)`` query boxes. boxes_r: ``(Kr, 4)`` reference boxes.
-        matches: ``(P, 2)`` (query box index, reference box index).
-        out: the labels CSV (appended after the last answer).
-
-    Returns:
-        The ipywidgets container to display.
-    """
+    """An ipywidgets box stepping through the ``(P, 2)`` matches of pair (q, r): answer correct /
+    wrong; after the last answer the labels are appended to the CSV ``out``."""
     try:
         import ipywidgets as widgets
     except ImportError as exc:  # pragma: no cover - optional dependency
@@ -92,14 +78,8 @@ def pair_label_widget(
     reference: int | None = None,
     out: str | Path = "labels.csv",
 ) -> Any:
-    """:func:`label_widget` for one pair of a run (its boxes and reciprocal matches).
-
-    Args:
-        dataset: the run's dataset.
-        result: a ``MethodResult`` run with ``keep_descriptors=True``.
-        query: query index. reference: None for its ground-truth reference.
-        out: the labels CSV.
-    """
+    """:func:`label_widget` for one pair of a run with ``keep_descriptors=True`` (``reference``
+    None: the query's ground-truth reference)."""
     pm = pair_matches(dataset, result, query, reference)
     return label_widget(
         dataset,
