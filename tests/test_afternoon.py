@@ -252,3 +252,105 @@ def test_in_a_notebook_progress_is_text_a_second_tab_can_show(monkeypatch, capsy
     bar.close()
     out = capsys.readouterr().out
     assert "landmarks query" in out and "4/4" in out
+
+
+# 5. PR figures -------------------------------------------------------------------------------
+
+
+def _pr_result(label, sim, gt, **extra):
+    from types import SimpleNamespace
+
+    from vpr_core.evaluation import evaluate, pr_curve
+
+    return SimpleNamespace(
+        label=label,
+        similarity=sim,
+        ground_truth=gt,
+        dataset="toy",
+        tolerance=0,
+        protocol="ratio",
+        metrics=evaluate(sim, gt),
+        intervals={},
+        curve=lambda: pr_curve(sim, gt, warn=False),
+        **extra,
+    )
+
+
+def _axes_inches(fig) -> tuple[float, float]:
+    fig.canvas.draw()
+    bb = fig.axes[0].get_window_extent()
+    return round(bb.width / fig.dpi, 3), round(bb.height / fig.dpi, 3)
+
+
+def test_a_long_legend_entry_keeps_the_axes_size_and_wraps(tmp_path):
+    import numpy as np
+
+    from vpr_core.viz import plot_pr_curves
+
+    rng = np.random.default_rng(0)
+    gt = np.eye(8, dtype=bool)
+    good = gt + rng.random((8, 8)) * 0.9
+    zero = np.where(gt, 0.0, 1.0) + rng.random((8, 8)) * 0.1  # never correctly matched
+    short = plot_pr_curves([_pr_result("dense", good, gt)], title="Fig. 7a")
+    long = plot_pr_curves(
+        [_pr_result("dense", good, gt)]
+        + [_pr_result(f"overlap scheme {i} with a long name", zero, gt) for i in range(6)],
+        title="Fig. 7a",
+    )
+    assert _axes_inches(short) == _axes_inches(long) == (4.6, 3.0)
+    texts = [t.get_text() for t in long.axes[0].get_legend().get_texts()]
+    assert any("no curve" in t for t in texts)
+    assert all(len(line) <= 46 for t in texts for line in t.splitlines())
+    assert base.layout_problems(long) == [] and base.layout_problems(short) == []
+    base.save_figure(long, tmp_path / "long.png")  # looked at: the axes stay readable
+    plt.close("all")
+
+
+def test_a_curve_starts_at_its_last_point_at_recall_zero_and_says_it():
+    import numpy as np
+
+    from vpr_core.evaluation import auc_pr, pr_curve
+    from vpr_core.viz import plot_pr_curves
+
+    gt = np.eye(4, dtype=bool)
+    sim = np.array(  # the most confident matches are wrong: precision 1 -> 0 at recall 0
+        [
+            [0.51, 0.95, 0.14, 0.95],
+            [0.31, 0.42, 0.83, 0.41],
+            [0.55, 0.03, 0.75, 0.54],
+            [0.33, 0.79, 0.3, 0.45],
+        ]
+    )
+    curve = pr_curve(sim, gt, warn=False)
+    assert (curve.recall == 0).sum() > 1  # a vertical segment at recall 0
+    fig = plot_pr_curves([_pr_result("dense", sim, gt)])
+    x, y = fig.axes[0].lines[0].get_data()
+    assert (np.asarray(x) == 0).sum() == 1
+    assert np.trapezoid(y, x) == pytest.approx(auc_pr(curve))  # the drawn area is the AUC
+    assert "last point at recall 0" in fig.axes[0].get_legend().get_title().get_text()
+    plt.close(fig)
+
+
+# 8. Names and titles -------------------------------------------------------------------------
+
+
+def test_pr_titles_name_every_non_default_setting_pooling_roi_included():
+    import numpy as np
+
+    from vpr_core.viz import plot_pr_curves
+    from vpr_core.viz.curves import dataset_line
+
+    gt = np.eye(4, dtype=bool)
+    sim = gt + 0.1
+    roi = {"backbone": "efficientnet_lite0", "pooling": "roi", "dim": 128}
+    runs = [_pr_result(m, sim, gt, encoder=roi, shortlist=25) for m in ("dense", "classical")]
+    line = dataset_line(runs)
+    assert line.endswith("protocol ratio, pooling roi, shortlist k=25")
+    assert "backbone" not in line  # the default is not repeated
+    hog = {**roi, "backbone": "hog", "pooling": "crop"}
+    assert dataset_line([_pr_result("d", sim, gt, encoder=hog, shortlist=None)]).endswith(
+        "protocol ratio, backbone hog"
+    )
+    fig = plot_pr_curves(runs, title="Fig. 13")
+    assert "pooling roi" in fig.axes[0].get_title(loc="left")
+    plt.close(fig)

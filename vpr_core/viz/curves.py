@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import textwrap
+
 import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
@@ -15,7 +17,13 @@ from ..evaluation.compare import identical_to
 from ..paper import SCALE_LABELS
 from .base import METHOD_COLORS, curve_note
 
-__all__ = ["dataset_line", "plot_metric_bars", "plot_pr_curves", "plot_scale_distribution"]
+__all__ = [
+    "dataset_line",
+    "plot_metric_bars",
+    "plot_pr_curves",
+    "plot_scale_distribution",
+    "settings_text",
+]
 
 
 def plot_scale_distribution(
@@ -60,9 +68,29 @@ def plot_scale_distribution(
     return fig
 
 
+#: The run settings a figure title names only when they differ from these (the CLI's defaults).
+DEFAULT_SETTINGS = {"backbone": "efficientnet_lite0", "pooling": "crop"}
+
+
+def settings_text(results) -> str:
+    """``"backbone hog, pooling roi, shortlist k=25"``: the run settings every result shares that
+    differ from :data:`DEFAULT_SETTINGS` (and a shortlist), or ``""``; peers are left out."""
+    runs = [r for r in results if isinstance(getattr(r, "encoder", None), dict) and r.encoder]
+    parts = []
+    for key, default in DEFAULT_SETTINGS.items():
+        values = {str(r.encoder.get(key)) for r in runs if r.encoder.get(key) is not None}
+        if len(values) == 1 and (value := values.pop()) != str(default):
+            parts.append(f"{key} {value}")
+    shortlists = {getattr(r, "shortlist", None) for r in runs}
+    if len(shortlists) == 1 and (k := shortlists.pop()) is not None:
+        parts.append(f"shortlist k={k}")
+    return ", ".join(parts)
+
+
 def dataset_line(results) -> str:
     """``"<dataset>: 18 of 20 queries with ground truth, tolerance 0, protocol ratio"``: the line
-    every PR / statistics figure carries under its title (for ground truth read from a file,
+    every PR / statistics figure carries under its title, then the non-default run settings
+    (:func:`settings_text`; e.g. ``pooling roi``). For ground truth read from a file,
     ``"ground truth from file: 1-5 correct references per query (median 5)"`` on a line of its
     own instead of the tolerance: :func:`~vpr_core.datasets.ground_truth.ground_truth_text`)."""
 
@@ -72,19 +100,44 @@ def dataset_line(results) -> str:
     from_file = getattr(r, "ground_truth_from_file", False)
     truth = ground_truth_text(r.ground_truth, r.tolerance, from_file)
     protocol = f"protocol {getattr(r, 'protocol', 'ratio')}"
+    extra = settings_text(results)
+    protocol += f", {extra}" if extra else ""
     if from_file:  # the longer wording gets a line of its own
         return f"{name}: {n_gt} of {n_q} queries with ground truth, {protocol};\n{truth}"
     return f"{name}: {n_gt} of {n_q} queries with ground truth, {truth}, {protocol}"
 
 
+#: PR figure geometry in inches: the axes keep this size whatever the legend holds.
+PR_AXES = (4.6, 3.0)
+#: Width (inches) of the legend column beside the axes; entries wrap at :data:`LEGEND_CHARS`.
+PR_LEGEND_WIDTH = 3.3
+LEGEND_CHARS = 46
+_LEFT, _BOTTOM, _GAP, _LINE = 0.62, 0.5, 0.18, 0.165
+
+
+def _wrap(text: str) -> str:
+    return "\n".join(textwrap.wrap(text, LEGEND_CHARS, subsequent_indent="  "))
+
+
+def _from_last_zero(recall: np.ndarray, precision: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The curve from its last point at recall 0: the earlier ones (thresholds accepting no
+    correct match) are a vertical segment that adds no area; the drawn area is the AUC."""
+    r = np.asarray(recall, dtype=float)
+    start = int(np.flatnonzero(r <= 0)[-1]) if (r <= 0).any() else 0
+    return r[start:], np.asarray(precision, dtype=float)[start:]
+
+
 def plot_pr_curves(
     results, title: str | None = None, colors: dict | None = None
 ) -> matplotlib.figure.Figure:
-    """Precision (y) against recall (x) of several results; the legend (beside the axes, never
-    over the curves) gives each AUC with its 95% bootstrap interval. A dashed grey line is the
+    """Precision (y) against recall (x) of several results; the legend, in a column of fixed
+    width beside the axes (never over the curves; long entries wrapped, the axes keep
+    :data:`PR_AXES`), gives each AUC with its 95% bootstrap interval. A dashed grey line is the
     chance level: the precision a random ranking of the same ground truth keeps
     (:func:`~vpr_core.evaluation.chance.chance_precision`), with its AUC
-    (:func:`~vpr_core.evaluation.chance`) in the legend.
+    (:func:`~vpr_core.evaluation.chance`) in the legend. Each curve starts at its last point at
+    recall 0 (the thresholds before it accept no correct match and add no area; the legend
+    says so): the area under the drawn curve is its AUC.
 
     A result whose similarity matrix equals an earlier one's has the same curve: it is drawn
     once and its legend entry reads ``= <earlier label>``.
@@ -102,7 +155,13 @@ def plot_pr_curves(
     results = list(results)
     if not results:
         raise ValueError("plot_pr_curves needs at least one result")
-    fig, ax = plt.subplots(figsize=(8.6, 4.4), constrained_layout=True)
+    head = f"{title}\n" if title else ""
+    heading = head + dataset_line(results)
+    top = _GAP + _LINE * (heading.count("\n") + 1)
+    width = _LEFT + PR_AXES[0] + 0.2 + PR_LEGEND_WIDTH
+    fig = plt.figure()
+    ax = fig.add_axes((0, 0, 1, 1))
+    _place(fig, ax, width, _BOTTOM + PR_AXES[1] + top, _BOTTOM)
     colors = dict(colors or {})
     spare = iter([f"C{i}" for i in range(10)] + [plt.cm.tab20(i) for i in range(20)])
     used: set[str] = set()
@@ -114,7 +173,7 @@ def plot_pr_curves(
             else f"AUC {auc_pr(r.curve()):.3f}"
         )
         if twin is not None:  # same matrix: same curve; say so instead of hiding it
-            ax.plot([], [], lw=0, label=f"{r.label} (= {twin}, {auc})")
+            ax.plot([], [], lw=0, label=_wrap(f"{r.label} (= {twin}, {auc})"))
             continue
         color = colors.get(r.label) or METHOD_COLORS.get(r.label)
         if color is None or to_hex(color) in used:
@@ -122,8 +181,12 @@ def plot_pr_curves(
         used.add(to_hex(color))
         curve = r.curve()
         note = curve_note(curve.recall, curve.precision)  # an AUC-0 curve lies on the axis
-        label = f"{r.label} ({auc}{note})"
-        ax.plot(curve.recall, curve.precision, lw=1.6, color=color, label=label)
+        ax.plot(
+            *_from_last_zero(curve.recall, curve.precision),
+            lw=1.6,
+            color=color,
+            label=_wrap(f"{r.label} ({auc}{note})"),
+        )
     protocol = getattr(results[0], "protocol", "ratio")
     level = chance_precision(results[0].ground_truth, protocol)
     chance_auc = chance(results[0].ground_truth, protocol, ks=(1,))["auc"]
@@ -132,26 +195,35 @@ def plot_pr_curves(
         color="0.45",
         ls="--",
         lw=1.0,
-        label=f"chance (random ranking): precision {level:.3f}, AUC {chance_auc:.3f}",
+        label=_wrap(f"chance (random ranking): precision {level:.3f}, AUC {chance_auc:.3f}"),
     )
     ax.set_xlim(0.0, 1.0)
     ax.set_ylim(0.0, 1.02)
     ax.set_xlabel("recall")
     ax.set_ylabel("precision")
     ax.grid(alpha=0.3)
-    ax.legend(
+    legend = ax.legend(
         loc="upper left",
-        bbox_to_anchor=(1.02, 1.0),
+        bbox_to_anchor=(1.04, 1.0),
         fontsize=8,
         frameon=False,
-        title="AUC with 95% CI",
+        title="AUC with 95% CI; curves start at their\nlast point at recall 0 (area = AUC)",
         title_fontsize=8,
     )
-    head = f"{title}\n" if title else ""
-    ax.set_title(head + dataset_line(results), fontsize=9, loc="left")
-    fig.draw_without_rendering()  # lay out once, then freeze: every later render is the same
-    fig.set_layout_engine("none")
+    legend._legend_box.align = "left"
+    ax.set_title(heading, fontsize=9, loc="left")
+    # the axes keep PR_AXES (inches); a legend taller than them makes the figure taller
+    fig.draw_without_rendering()
+    below = max(0.0, 0.05 - legend.get_window_extent().y0 / fig.dpi)
+    if below:
+        _place(fig, ax, width, _BOTTOM + below + PR_AXES[1] + top, _BOTTOM + below)
     return fig
+
+
+def _place(fig, ax, width: float, height: float, bottom: float) -> None:
+    """Size the figure (inches) and put the axes at ``bottom`` with the size :data:`PR_AXES`."""
+    fig.set_size_inches(width, height)
+    ax.set_position((_LEFT / width, bottom / height, PR_AXES[0] / width, PR_AXES[1] / height))
 
 
 def plot_metric_bars(
