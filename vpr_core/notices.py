@@ -1,14 +1,10 @@
-"""Warnings that change what a number means: logged on ``vpr_core`` and raised as VPRWarning.
-
-Filter them with ``warnings.simplefilter("ignore", VPRWarning)``.
-"""
+"""Warnings that change what a number means: logged on ``vpr_core`` and raised as VPRWarning
+(filter them with ``warnings.simplefilter("ignore", VPRWarning)``)."""
 
 from __future__ import annotations
 
 import logging
 import warnings
-
-__all__ = ["VPRWarning", "notice"]
 
 logger = logging.getLogger("vpr_core")
 
@@ -18,15 +14,9 @@ class VPRWarning(UserWarning):
 
 
 def notice(message: str, stacklevel: int = 3) -> str:
-    """Log ``message`` on the ``vpr_core`` logger and raise it as a :class:`VPRWarning`.
-
-    Args:
-        message: the full sentence (what happened, what it changes, the fix).
-        stacklevel: for ``warnings.warn``; 3 points at the caller of ``notice``'s caller.
-
-    Returns:
-        ``message``, so a caller can also record it (e.g. on a result's ``.warnings``).
-    """
+    """Log ``message`` (what happened, what it changes, the fix) on the ``vpr_core`` logger and
+    raise it as a :class:`VPRWarning` (``stacklevel`` 3: the caller of ``notice``'s caller);
+    returns it, so a caller can also record it (e.g. on a result's ``.warnings``)."""
     logger.warning(message)
     warnings.warn(message, VPRWarning, stacklevel=stacklevel)
     return message

@@ -1,7 +1,5 @@
-"""The paper's constants, written once: every other module imports them from here.
-
-Section, table, equation and algorithm numbers are the paper's; docs/PAPER_MAP.md maps them to code.
-"""
+"""The paper's constants, written once: every other module imports them from here. Section,
+table, equation and algorithm numbers are the paper's; docs/PAPER_MAP.md maps them to code."""
 
 from __future__ import annotations
 
@@ -9,35 +7,6 @@ from collections.abc import Sequence
 from typing import Any
 
 import pandas as pd
-
-__all__ = [
-    "ALEXNET_CONV3_DIM",
-    "ALEXNET_INPUT",
-    "DENSE_PER_SCALE",
-    "DENSE_SCALES",
-    "DENSE_TABLES",
-    "FIG7_NMS_THRESHOLDS",
-    "FIG7_SOFT_NMS_THRESHOLDS",
-    "MIN_SCALE_INDEX",
-    "NMS_IOU",
-    "N_CANDIDATES",
-    "N_LANDMARKS",
-    "N_SCALES",
-    "PROJECTION_DIM",
-    "SCALE_EDGES",
-    "SCALE_LABELS",
-    "SCALE_PRIORITY_ORDER",
-    "SCALE_RANGES",
-    "SCALE_RANGE_LABELS",
-    "SOFT_NMS_IOU",
-    "SOFT_NMS_SIGMA",
-    "TABLE2",
-    "TABLE3",
-    "TABLE4",
-    "dense_set_label",
-    "dense_settings",
-    "table1",
-]
 
 # ---- landmark counts (Sec. 2.1, 3.2) ----------------------------------------------------------
 #: Landmarks per image in every scheme.

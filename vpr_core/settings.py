@@ -1,56 +1,12 @@
-"""The environment, read in one place: every ``VPR_*`` variable the workbench honours.
-
-Library functions take parameters; where a parameter is left at ``None`` they may fall back to
-the setting named here. Nothing in ``vpr_core`` reads ``os.environ`` anywhere else, and nothing
-writes it: the study runner hands its notebook kernels their settings through the ``env=`` of
-the process it starts.
-
-=============================  ==============================================================
-``VPR_OUTPUT_DIR``             output root of figures/, results/, runs/ (default: the
-                               project checkout holding the cwd, else the cwd)
-``VPR_CACHE_DIR``              cache root (default: ``<output root>/.cache``)
-``VPR_DASK_SCHEDULER``         Dask scheduler address; read by the CLI only
-``VPR_SCHEDULER_TIMEOUT``      seconds to wait for a Dask scheduler (default 15)
-``VPR_SED_MODEL``              structured-edge model file of Edge Boxes
-``VPR_ALEXNET_WEIGHTS``        AlexNet weights file (``alexnet_conv3``)
-``VPR_EFFICIENTNET_<V>_WEIGHTS``  weights file of EfficientNet-Lite variant V (LITE0...)
-``VPR_BENCH_ROOT``             a VPR-Bench checkout (precomputed peers)
-``VPR_DATASETS``               extra study datasets, ``name=root;name=root``
-``VPR_TUNE_MALLOC``            ``0`` leaves glibc's allocator alone in the CLI / runner
-``TQDM_DISABLE``               any value: no progress bars
-=============================  ==============================================================
-"""
+"""The environment, read in one place: every ``VPR_*`` variable the workbench honours (table in
+environment.md). Library functions take parameters and fall back to these only where one is
+None; nothing in ``vpr_core`` reads ``os.environ`` elsewhere, and nothing writes it."""
 
 from __future__ import annotations
 
 import math
 import os
 from collections.abc import Mapping
-
-__all__ = [
-    "ALEXNET_ENV",
-    "BENCH_ROOT_ENV",
-    "CACHE_ENV",
-    "DATASETS_ENV",
-    "OUTPUT_ENV",
-    "SCHEDULER_ENV",
-    "SCHEDULER_TIMEOUT_ENV",
-    "SED_MODEL_ENV",
-    "TUNE_MALLOC_ENV",
-    "alexnet_weights",
-    "bench_root",
-    "cache_dir",
-    "child_environment",
-    "dask_scheduler",
-    "efficientnet_weights",
-    "extra_datasets",
-    "output_dir",
-    "progress_disabled",
-    "progress_style",
-    "scheduler_timeout",
-    "sed_model",
-    "tune_malloc",
-]
 
 OUTPUT_ENV = "VPR_OUTPUT_DIR"
 CACHE_ENV = "VPR_CACHE_DIR"
@@ -85,11 +41,7 @@ def dask_scheduler() -> str | None:
 
 
 def scheduler_timeout(default: float = 15.0) -> float:
-    """``$VPR_SCHEDULER_TIMEOUT`` in seconds (default 15).
-
-    Raises:
-        ValueError: not a positive finite number (``inf`` and ``nan`` included).
-    """
+    """``$VPR_SCHEDULER_TIMEOUT`` in seconds (default 15); ValueError unless positive, finite."""
     raw = _get(SCHEDULER_TIMEOUT_ENV)
     if raw is None:
         return default
@@ -131,11 +83,7 @@ def bench_root() -> str | None:
 
 
 def extra_datasets() -> dict[str, str]:
-    """``$VPR_DATASETS`` as ``{name: root}`` (entries ``name=root`` separated by ``;``).
-
-    Raises:
-        ValueError: a malformed entry (the message shows the expected form).
-    """
+    """``$VPR_DATASETS`` as ``{name: root}`` (entries ``name=root`` separated by ``;``)."""
     found: dict[str, str] = {}
     for item in filter(None, (os.environ.get(DATASETS_ENV) or "").split(";")):
         name, sep, root = item.partition("=")

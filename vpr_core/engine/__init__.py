@@ -1,13 +1,6 @@
-"""Engines that make the study fast and scale it out (issue 10).
-
-* :mod:`~vpr_core.engine.shortlist`: a whole-image descriptor picks each query's top-k
-  references (:func:`shortlist_pairs`), Eq. (1) re-ranks only those (:func:`rerank`: NaN
-  elsewhere, "not ranked").
-* :mod:`~vpr_core.engine.distributed`: feature extraction over image shards and matching over
-  query blocks as ``dask.distributed`` tasks when a scheduler is given (``--scheduler`` /
-  ``$VPR_DASK_SCHEDULER``), in-process otherwise; results equal the in-process ones exactly.
-  Dask is imported only when a scheduler is used.
-"""
+"""Opt-in scale-out: a global-descriptor shortlist re-ranked by Eq. (1) (:mod:`.shortlist`), and
+extraction and matching as ``dask.distributed`` tasks when a scheduler is given
+(:mod:`.distributed`; Dask imported only then), equal to the in-process results."""
 
 from __future__ import annotations
 
