@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from vpr_core.boxes import box_iou
-from vpr_core.matching.core import NMS_TIE_TOL, SPATIAL_TAU
+from vpr_core.matching.core import CONTRAST_SIGMA_MIN, NMS_TIE_TOL, SPATIAL_TAU
 from vpr_core.matching.reciprocal import TIE_TOL
 from vpr_core.paper import SOFT_NMS_SIGMA
 
@@ -114,10 +114,39 @@ def consistency_weights(ba, bb, matches, tau: float = SPATIAL_TAU) -> np.ndarray
     return np.exp(-((delta - med) ** 2).sum(axis=1) / (2 * tau**2))
 
 
+def term_weights(weighting, desc_q, reference_descs):
+    """(Not in the paper) ``f(i, c)``: the weight of query landmark ``i``'s term with cosine ``c``,
+    statistics over ``reference_descs`` (those with landmarks)."""
+    cos = [cosine_similarity(desc_q, d) for d in reference_descs if len(d)]
+    if weighting == "contrast":
+        b = np.stack([c.max(axis=1) for c in cos], axis=1)  # (K, N): b_i(r)
+        mu, sd = b.mean(axis=1), b.std(axis=1)
+
+        def contrast(i, c):
+            ok = sd[i] > CONTRAST_SIGMA_MIN
+            return np.where(ok, np.maximum(0.0, (c - mu[i]) / np.where(ok, sd[i], 1.0)), 0.0)
+
+        return contrast
+    assert weighting == "idf"
+    n = np.zeros(len(desc_q))
+    for c in cos:
+        n[reciprocal_from_sim(c)[:, 0]] += 1
+    idf = np.log((len(cos) + 1) / (n + 1))
+    return lambda i, c: idf[i]
+
+
 def match_landmarks(
-    desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou=None, sigma=SOFT_NMS_SIGMA, spatial=None
+    desc_a,
+    boxes_a,
+    desc_b,
+    boxes_b,
+    soft_nms_iou=None,
+    sigma=SOFT_NMS_SIGMA,
+    spatial=None,
+    weights=None,
 ):
-    """``dict`` of matches, distances, shape, raw_scores, weights, scores, similarity, n_a, n_b."""
+    """``dict`` of matches, distances, shape, raw_scores, weights, db_weights, scores, similarity,
+    n_a, n_b; ``weights``: None or a :func:`term_weights` function."""
     a, b = np.asarray(desc_a, np.float64), np.asarray(desc_b, np.float64)
     ba = np.asarray(boxes_a, np.float64).reshape(-1, 4)
     bb = np.asarray(boxes_b, np.float64).reshape(-1, 4)
@@ -129,7 +158,8 @@ def match_landmarks(
     raw = 1.0 - dist * shp
     assert spatial in (None, "consistency")
     w = np.ones(len(m)) if spatial is None else consistency_weights(ba, bb, m)
-    scores = raw * w
+    wd = np.ones(len(m)) if weights is None else weights(i, 1.0 - dist)
+    scores = raw * w * wd
     if soft_nms_iou is not None and len(m) > 1:
         scores = soft_nms_scores(scores, match_overlaps(ba, bb, m), soft_nms_iou, sigma)
     na, nb = len(a), len(b)
@@ -140,6 +170,7 @@ def match_landmarks(
         "shape": shp,
         "raw_scores": raw,
         "weights": w,
+        "db_weights": wd,
         "scores": scores,
         "similarity": sim,
         "n_a": na,
@@ -153,3 +184,15 @@ def image_similarity(
     """Eq. (1) of two images."""
     res = match_landmarks(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou, sigma, spatial)
     return res["similarity"]
+
+
+def similarity_matrix(qd, qb, rd, rb, weighting=None, sample=None, **kw):
+    """``(Nq, Nr)`` Eq. (1); with ``weighting``, statistics over the references ``sample``
+    (default: all)."""
+    stats_refs = [rd[j] for j in (range(len(rd)) if sample is None else sample)]
+    out = np.zeros((len(qd), len(rd)))
+    for i in range(len(qd)):
+        w = None if weighting is None else term_weights(weighting, qd[i], stats_refs)
+        for j in range(len(rd)):
+            out[i, j] = match_landmarks(qd[i], qb[i], rd[j], rb[j], weights=w, **kw)["similarity"]
+    return out

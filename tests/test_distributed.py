@@ -276,3 +276,25 @@ def test_a_malformed_address_is_refused_at_once(capsys):
     err = capsys.readouterr().err
     assert rc == 2 and "tcp://HOST:PORT" in err and "Traceback" not in err
     assert time.perf_counter() - t0 < 30  # no stall in a client's __del__
+
+
+@pytest.mark.parametrize(("weighting", "nr"), [("contrast", 13), ("idf", 13), ("contrast", 300)])
+def test_weighting_on_cluster_equals_in_process(client, weighting, nr):
+    """(Not in the paper) database weighting: a task's statistics are the in-process ones (all
+    references, or with Nr > 256 the seeded sample, scattered to every worker)."""
+    rng = np.random.default_rng(9)
+    qd, qb = _random_sets(rng, 11, dim=16, kmin=1, kmax=6)
+    rd, rb = _random_sets(rng, nr, dim=16, kmin=1, kmax=6)
+    kw = {"soft_nms_iou": None, "weighting": weighting}
+    want = similarity_matrix(qd, qb, rd, rb, show_progress=False, **kw)
+    got = similarity_blocks_distributed(client, qd, qb, rd, rb, block_queries=4, **kw)
+    assert np.array_equal(got, want)
+    assert not np.array_equal(got, similarity_matrix(qd, qb, rd, rb, show_progress=False))
+    pairs = np.stack([rng.integers(0, 11, 60), rng.integers(0, nr, 60)], axis=1)
+    want_p = similarity_pairs(qd, qb, rd, rb, pairs, show_progress=False, **kw)
+    got_p = similarity_pairs_distributed(
+        client, qd, qb, rd, rb, pairs, block_queries=3, block_references=4, **kw
+    )
+    assert np.array_equal(got_p, want_p)
+    if nr <= 256:  # statistics over every reference: the matrix path's values
+        np.testing.assert_allclose(got_p, want[pairs[:, 0], pairs[:, 1]], atol=1e-7, rtol=0)

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..matching import check_pairs, similarity_matrix, similarity_pairs
-from ..matching.core import check_spatial
+from ..matching.core import check_spatial, check_weighting, weighting_sample
 from ..paper import SOFT_NMS_SIGMA
 from .client import gather_in_order
 
@@ -57,7 +57,7 @@ def _query_part(qd: list, qb: list, q0: int, q1: int, wide: int) -> _Part:
     return _Part(qd[q0:q1] + [qd[wide]], qb[q0:q1] + [qb[wide]])
 
 
-def _matrix_task(qpart: _Part, refs: _Part, soft_nms_iou, sigma, spatial) -> np.ndarray:
+def _matrix_task(qpart: _Part, refs: _Part, soft_nms_iou, sigma, spatial, weighting) -> np.ndarray:
     """Task: Eq. (1) of a query block x all references; ``(bq, Nr)`` (extra row dropped)."""
     out = similarity_matrix(
         qpart.desc,
@@ -67,6 +67,7 @@ def _matrix_task(qpart: _Part, refs: _Part, soft_nms_iou, sigma, spatial) -> np.
         soft_nms_iou=soft_nms_iou,
         sigma=sigma,
         spatial=spatial,
+        weighting=weighting,
         batch_size=QUERY_BATCH,
         show_progress=False,
     )
@@ -83,6 +84,7 @@ def similarity_blocks_distributed(
     sigma: float = SOFT_NMS_SIGMA,
     block_queries: int = 128,
     spatial: str | None = None,
+    weighting: str | None = None,
 ) -> np.ndarray:
     """Exhaustive Eq. (1) matrix as Dask tasks over query blocks.
 
@@ -97,6 +99,8 @@ def similarity_blocks_distributed(
         soft_nms_iou, sigma: Algorithm 4 settings.
         block_queries: queries per task (rounded up to a multiple of 8).
         spatial: geometry-aware re-scoring (not in the paper), as in ``similarity_matrix``.
+        weighting: database weighting (not in the paper), as in ``similarity_matrix``; each
+            task holds every reference, so its statistics are the in-process ones.
 
     Returns:
         ``(Nq, Nr)`` float64, equal to the in-process ``similarity_matrix`` exactly.
@@ -111,8 +115,10 @@ def similarity_blocks_distributed(
             soft_nms_iou=soft_nms_iou,
             sigma=sigma,
             spatial=spatial,
+            weighting=weighting,
         )
     check_spatial(spatial)
+    check_weighting(weighting)
     qd, qb = _check_lists(query_desc, query_boxes, "query")
     rd, rb = _check_lists(reference_desc, reference_boxes, "reference")
     wide = _widest(qd)
@@ -122,7 +128,9 @@ def similarity_blocks_distributed(
     for q0 in starts:
         part = client.scatter(_query_part(qd, qb, q0, q0 + bq, wide), hash=False)
         futures.append(
-            client.submit(_matrix_task, part, refs, soft_nms_iou, sigma, spatial, pure=False)
+            client.submit(
+                _matrix_task, part, refs, soft_nms_iou, sigma, spatial, weighting, pure=False
+            )
         )
     out = np.empty((len(qd), len(rd)), dtype=np.float64)
     for q0, block in zip(
@@ -142,13 +150,22 @@ def _pairs_task(
     soft_nms_iou,
     sigma,
     spatial,
+    weighting=None,
+    sample: _Part | None = None,
 ) -> np.ndarray:
-    """Task: Eq. (1) of listed pairs; ``local_pairs`` index ``qpart`` and ``ref_ids``."""
+    """Task: Eq. (1) of listed pairs; ``local_pairs`` index ``qpart`` and ``ref_ids``.
+
+    With a weighting, ``sample`` holds the references of its statistics (appended after the
+    listed ones, in their global order)."""
     rd, rb = [], []
     for j in ref_ids:
         b = int(np.searchsorted(rstarts, j, side="right")) - 1
         rd.append(rblocks[b].desc[j - rstarts[b]])
         rb.append(rblocks[b].boxes[j - rstarts[b]])
+    local_sample = None
+    if sample is not None:
+        local_sample = np.arange(len(rd), len(rd) + len(sample.desc))
+        rd, rb = rd + sample.desc, rb + sample.boxes
     return similarity_pairs(
         qpart.desc,
         qpart.boxes,
@@ -158,7 +175,9 @@ def _pairs_task(
         soft_nms_iou=soft_nms_iou,
         sigma=sigma,
         spatial=spatial,
+        weighting=weighting,
         show_progress=False,
+        sample=local_sample,
     )
 
 
@@ -174,6 +193,7 @@ def similarity_pairs_distributed(
     block_queries: int = 128,
     block_references: int = 512,
     spatial: str | None = None,
+    weighting: str | None = None,
 ) -> np.ndarray:
     """Eq. (1) of listed pairs (a shortlist) as Dask tasks over query blocks.
 
@@ -190,6 +210,9 @@ def similarity_pairs_distributed(
         block_queries: queries per task (rounded up to a multiple of 8).
         block_references: references per scattered block.
         spatial: geometry-aware re-scoring (not in the paper), as in ``similarity_matrix``.
+        weighting: database weighting (not in the paper), as in ``similarity_pairs``: the
+            references of its statistics (:func:`~vpr_core.matching.core.weighting_sample`)
+            are scattered once to every worker.
 
     Returns:
         ``(P,)`` float64 in the order of ``pairs``, equal to the in-process result exactly.
@@ -206,8 +229,10 @@ def similarity_pairs_distributed(
             soft_nms_iou=soft_nms_iou,
             sigma=sigma,
             spatial=spatial,
+            weighting=weighting,
         )
     check_spatial(spatial)
+    check_weighting(weighting)
     qd, qb = _check_lists(query_desc, query_boxes, "query")
     rd, rb = _check_lists(reference_desc, reference_boxes, "reference")
     pr = check_pairs(pairs, len(qd), len(rd))
@@ -217,6 +242,11 @@ def similarity_pairs_distributed(
     wide_ref = client.scatter(_Part([rd[wide_r]], [rb[wide_r]]), broadcast=True, hash=False)
     rstarts = list(range(0, len(rd), br))
     rfut = [client.scatter(_Part(rd[s : s + br], rb[s : s + br]), hash=False) for s in rstarts]
+    sample = None
+    if weighting is not None:
+        ids = weighting_sample(len(rd)).tolist()
+        part = _Part([rd[j] for j in ids], [rb[j] for j in ids])
+        sample = client.scatter(part, broadcast=True, hash=False)
     futures, rows_of = [], []
     for q0 in range(0, len(qd), bq):
         rows = np.flatnonzero((pr[:, 0] >= q0) & (pr[:, 0] < q0 + bq))
@@ -238,6 +268,8 @@ def similarity_pairs_distributed(
                 soft_nms_iou,
                 sigma,
                 spatial,
+                weighting,
+                sample,
                 pure=False,
             )
         )

@@ -5,7 +5,7 @@ Public functions in :mod:`.similarity`, the core they share in :mod:`.core`.
 
 from __future__ import annotations
 
-from .core import SPATIAL_OPTIONS
+from .core import SPATIAL_OPTIONS, WEIGHTING_OPTIONS
 from .similarity import (
     MatchResult,
     check_pairs,
@@ -16,10 +16,12 @@ from .similarity import (
     shape_penalty,
     similarity_matrix,
     similarity_pairs,
+    weighted_matches,
 )
 
 __all__ = [
     "SPATIAL_OPTIONS",
+    "WEIGHTING_OPTIONS",
     "MatchResult",
     "check_pairs",
     "cosine_distance",
@@ -29,4 +31,5 @@ __all__ = [
     "shape_penalty",
     "similarity_matrix",
     "similarity_pairs",
+    "weighted_matches",
 ]

@@ -11,6 +11,7 @@ import threading
 from dataclasses import dataclass
 from typing import NamedTuple
 
+import numpy as np
 import torch
 
 from ..checks import check_choice, check_range
@@ -27,16 +28,24 @@ from .sides import (
 
 __all__ = [
     "BLOCK_BYTES",
+    "CONTRAST_SIGMA_MIN",
     "NMS_TIE_TOL",
     "SPATIAL_OPTIONS",
     "SPATIAL_TAU",
+    "WEIGHTING_OPTIONS",
+    "WEIGHTING_SAMPLE",
     "BlockPairs",
+    "Matches",
     "Problem",
     "check_spatial",
+    "check_weighting",
+    "database_weights",
     "score_block",
     "shape_terms",
     "soft_nms",
     "spatial_weights",
+    "weighting_sample",
+    "weighting_stats",
 ]
 
 #: Soft-NMS: current pair scores closer than this to the best are ties (lowest pair index wins).
@@ -50,6 +59,15 @@ SPATIAL_OPTIONS = ("consistency",)
 #: (Not in the paper.) Width of the ``spatial="consistency"`` Gaussian, in units of the image's
 #: landmark extent (0.1: a match displaced a tenth of the image from the consensus keeps 61%).
 SPATIAL_TAU = 0.1
+#: (Not in the paper.) Names of the database weightings of the Eq. (1) terms (``weighting=``;
+#: docs/DEFINITIONS.md, "(not in the paper) database weighting").
+WEIGHTING_OPTIONS = ("contrast", "idf")
+#: (Not in the paper.) References (a seed-0 sample) whose cosines give the weighting statistics
+#: of a shortlist run; every reference when there are at most this many.
+WEIGHTING_SAMPLE = 256
+#: (Not in the paper.) A contrast standard deviation at or below this counts as 0 (the float32
+#: cosines cannot tell the references apart): the landmark's weight is 0.
+CONTRAST_SIGMA_MIN = 1e-6
 
 
 # ---- Eq. (2) and Algorithm 4 -------------------------------------------------------------
@@ -111,7 +129,7 @@ def _nms_block(
     shp: torch.Tensor,
     recip: torch.Tensor,
     ri_p: torch.Tensor,
-    s64: torch.Tensor,
+    cos64: torch.Tensor,
     iou_q: torch.Tensor,
     iou_r: torch.Tensor,
     t: float,
@@ -125,10 +143,10 @@ def _nms_block(
         score: ``(nq, nr, Kq)`` pair scores per query landmark (times ``weight`` when given);
             shp: their Eq. (2) penalties.
         recip: ``(nq, nr, Kq)`` bool reciprocal; ri_p: ``(nq, nr, Kq)`` matched reference landmark.
-        s64: ``(nq, Kq, nr, Kr)`` float64 cosines of the block.
+        cos64: ``(nq, nr, Kq)`` float64 cosine of each query landmark and its match.
         iou_q: ``(nq, Kq, Kq)``; iou_r: ``(nr, Kr, Kr)`` per-image box IoUs.
         t, sigma: soft-NMS parameters.
-        weight: ``(nq, nr, Kq)`` spatial weights (:func:`spatial_weights`) or None.
+        weight: ``(nq, nr, Kq)`` weights of the terms (spatial, database) or None.
 
     Returns:
         ``(nq, nr, Kq)`` rescaled scores (unchanged where not matched).
@@ -149,7 +167,7 @@ def _nms_block(
         jj = ri_p[gq, gr].gather(1, order)
         # float64 cosines of the matched pairs: the argmax of Algorithm 4 is discontinuous at
         # ties, so the scores must be exact to ~1e-15, not just ~1e-7
-        cos = s64[gq[:, None], ii, gr[:, None], jj][alive].clamp(-1.0, 1.0)
+        cos = cos64[gq, gr].gather(1, order)[alive].clamp(-1.0, 1.0)
         sc = torch.zeros(alive.shape, dtype=torch.float64, device=score.device)
         sc[alive] = 1.0 - (1.0 - cos) * shp[gq, gr].gather(1, order)[alive]
         if weight is not None:
@@ -202,7 +220,88 @@ def spatial_weights(
     return torch.where(recip, w, torch.ones_like(w))
 
 
+# ---- (not in the paper) database weighting ------------------------------------------------
+def weighting_sample(n_references: int) -> np.ndarray:
+    """Sorted indices of the references whose cosines give a shortlist's weighting statistics.
+
+    Every reference when there are at most :data:`WEIGHTING_SAMPLE`, else that many drawn
+    without replacement by ``np.random.default_rng(0)`` (docs/DEFINITIONS.md).
+    """
+    if n_references <= WEIGHTING_SAMPLE:
+        return np.arange(n_references, dtype=np.int64)
+    pick = np.random.default_rng(0).choice(n_references, WEIGHTING_SAMPLE, replace=False)
+    return np.sort(pick).astype(np.int64)
+
+
+def weighting_stats(
+    weighting: str, m: Matches, has: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Per query landmark ``(nq, Kq)`` statistics over the references of ``m`` with landmarks.
+
+    Args:
+        weighting: a name in :data:`WEIGHTING_OPTIONS`.
+        m: matches of ``nq`` query images x the references that define the statistics.
+        has: ``(nr,)`` bool: the reference has at least one landmark (only those count).
+
+    Returns:
+        ``contrast``: ``(mu, sigma)`` of the best cosines ``b_i(r)`` (population std);
+        ``idf``: ``(log((N + 1) / (n_i + 1)), N)``, ``n_i`` the references that landmark ``i``
+        reciprocally matches, ``N`` the references (as a ``(1,)`` tensor).
+    """
+    if weighting == "contrast":
+        b = m.best[:, has].clamp(-1.0, 1.0)  # (nq, N, Kq)
+        mu = b.mean(1)
+        sd = ((b - mu.unsqueeze(1)) ** 2).mean(1).sqrt()
+        return mu, sd
+    n = m.recip[:, has].sum(1).to(torch.float64)
+    total = has.sum().to(torch.float64)
+    return torch.log((total + 1.0) / (n + 1.0)), total.reshape(1)
+
+
+def database_weights(
+    weighting: str, best: torch.Tensor, stats: tuple[torch.Tensor, torch.Tensor]
+) -> torch.Tensor:
+    """``(nq, nr, Kq)`` weight of each query landmark's term (docs/DEFINITIONS.md).
+
+    ``contrast``: ``max(0, (c - mu_i) / sigma_i)`` with ``c`` the landmark's cosine to its match
+    (its best cosine ``b_i(r)`` in that reference), 0 where ``sigma_i <= CONTRAST_SIGMA_MIN``;
+    ``idf``: the landmark's ``log((N + 1) / (n_i + 1))``.
+
+    Args:
+        weighting: a name in :data:`WEIGHTING_OPTIONS`; best: ``(nq, nr, Kq)`` ``b_i(r)``;
+            stats: from :func:`weighting_stats`.
+    """
+    a, b = stats
+    if weighting == "idf":
+        return a.unsqueeze(1).expand_as(best)
+    ok = (b > CONTRAST_SIGMA_MIN).unsqueeze(1)
+    z = (best.clamp(-1.0, 1.0) - a.unsqueeze(1)) / torch.where(ok, b.unsqueeze(1), 1.0)
+    return torch.where(ok, z.clamp(min=0.0), 0.0)
+
+
 # ---- Eq. (1) for one block of image pairs ------------------------------------------------
+class Matches(NamedTuple):
+    """Reciprocal nearest neighbours of ``nq x nr`` image pairs, ``(nq, nr, Kq)`` per query
+    landmark ``i``: its best cosine ``b_i(r)`` in each reference, that landmark ``j``, and
+    whether ``(i, j)`` is reciprocal."""
+
+    best: torch.Tensor  # float64 b_i(r) = cos(i, j)
+    nn: torch.Tensor  # int64 j
+    recip: torch.Tensor  # bool
+    cos64: torch.Tensor | None  # float64 cos(i, j) exact to ~1e-15 (Algorithm 4 only)
+
+
+def cat_matches(parts: list[Matches]) -> Matches:
+    """The matches of several reference blocks side by side (along the reference axis)."""
+    cos = None if parts[0].cos64 is None else torch.cat([p.cos64 for p in parts], 1)  # type: ignore[misc]
+    return Matches(
+        torch.cat([p.best for p in parts], 1),
+        torch.cat([p.nn for p in parts], 1),
+        torch.cat([p.recip for p in parts], 1),
+        cos,
+    )
+
+
 class BlockPairs(NamedTuple):
     """Reciprocal pairs of a block and their Eq. (1) terms, one entry per pair (``(P,)`` each)."""
 
@@ -213,88 +312,101 @@ class BlockPairs(NamedTuple):
     cos: torch.Tensor  # cosine, clipped to [-1, 1]
     shape: torch.Tensor  # Eq. (2) penalty
     raw: torch.Tensor  # 1 - d * s
-    score: torch.Tensor  # the Eq. (1) summand (times `weight`, then soft-NMS when on)
+    score: torch.Tensor  # the Eq. (1) summand (times the weights, then soft-NMS when on)
     weight: torch.Tensor  # spatial weight (not in the paper; 1 with spatial=None)
+    db_weight: torch.Tensor  # database weight (not in the paper; 1 with weighting=None)
 
 
 def score_block(
-    s: torch.Tensor,
+    m: Matches,
     q: Side,
     r: Side,
     qsel: Selection,
     rsel: Selection,
-    margin: float,
     nms: tuple | None,
-    s64: torch.Tensor | None = None,
-    work: torch.Tensor | None = None,
     keep_pairs: bool = False,
     spatial: str | None = None,
+    weight: torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, BlockPairs | None]:
-    """Eq. (1) for a block of image pairs from its landmark cosines.
+    """Eq. (1) of a block of image pairs from their reciprocal matches:
+    ``S = sum over reciprocal (i, j) of (1 - d_ij * s_ij) / sqrt(n_a * n_b)``.
 
     Args:
-        s: ``(nq * Kq, nr * Kr)`` cosines (matmul dtype) of queries ``qsel`` x references
-            ``rsel``; padded entries are overwritten in place.
-        q, r: prepared sides; margin: float error bound of ``s``.
-        nms: ``(iou_q, iou_r, t, sigma)`` or None.
-        s64: ``(nq, Kq, nr, Kr)`` float64 cosines (soft-NMS only).
-        work: flat scratch buffer of ``s``'s dtype (see :func:`reciprocal`), or None.
+        m: the matches of the images ``qsel`` x ``rsel`` (:meth:`Problem.matches`).
+        q, r: prepared sides; nms: ``(iou_q, iou_r, t, sigma)`` (Algorithm 4) or None.
         keep_pairs: also return the reciprocal pairs and their terms.
-        spatial: None (the paper) or a name in :data:`SPATIAL_OPTIONS`: each term ``1 - d * s``
-            is multiplied by its :func:`spatial_weights` before soft-NMS and the sum.
+        spatial: None (the paper) or a name in :data:`SPATIAL_OPTIONS`: each term is multiplied
+            by its :func:`spatial_weights` before soft-NMS and the sum (not in the paper).
+        weight: ``(nq, nr, Kq)`` database weights (:func:`database_weights`) or None (not in
+            the paper); they multiply the terms likewise.
 
     Returns:
         ``((nq, nr) float64 similarities, BlockPairs or None)``.
     """
     nq, nr = selection_size(qsel), selection_size(rsel)
-    rv, ri_p, recip = reciprocal(s, q, r, qsel, rsel, margin, work)
-    norm = torch.sqrt(q.count[qsel][:, None] * r.count[rsel][None, :])
+    norm = torch.sqrt(q.count[qsel][:, None] * r.count[rsel][None, :])  # sqrt(n_a * n_b)
     norm = torch.where(norm > 0, norm, torch.full_like(norm, math.inf))  # no landmark: 0
-    # (not in the paper) geometry-aware re-scoring: weights multiply 1 - d * s before soft-NMS
-    wt = None if spatial is None else spatial_weights(q, r, qsel, rsel, ri_p, recip)
+    wsp = None if spatial is None else spatial_weights(q, r, qsel, rsel, m.nn, m.recip)
     if nms is None:
         # only the reciprocal pairs (a fraction of all query landmarks)
-        g, rr, i = recip.nonzero(as_tuple=True)  # sorted: pair (g, rr), then landmark i
-        j = ri_p[g, rr, i]
-        cos = rv[g, i, rr].clamp(-1.0, 1.0)
+        g, rr, i = m.recip.nonzero(as_tuple=True)  # sorted: pair (g, rr), then landmark i
+        j = m.nn[g, rr, i]
+        cos = m.best[g, rr, i].clamp(-1.0, 1.0)
         wq = q.wh[selection_index(qsel, g), i]  # (P, 2)
         wr = r.wh[selection_index(rsel, rr), j]
-        shp = shape_terms(wq[:, 0], wr[:, 0], wq[:, 1], wr[:, 1])
+        shp = shape_terms(wq[:, 0], wr[:, 0], wq[:, 1], wr[:, 1])  # Eq. (2)
         raw = 1.0 - (1.0 - cos) * shp  # 1 - d * s
-        w = torch.ones_like(raw) if wt is None else wt[g, rr, i]
-        score = raw if wt is None else raw * w
-        total = torch.zeros(nq * nr, dtype=torch.float64, device=s.device)
+        score = raw
+        ws = torch.ones_like(raw) if wsp is None else wsp[g, rr, i]
+        wd = torch.ones_like(raw) if weight is None else weight[g, rr, i]
+        if wsp is not None:
+            score = score * ws
+        if weight is not None:
+            score = score * wd
+        total = torch.zeros(nq * nr, dtype=torch.float64, device=norm.device)
         total.index_add_(0, g * nr + rr, score)
         sim = total.view(nq, nr) / norm  # Eq. (1)
-        pairs = BlockPairs(g, rr, i, j, cos, shp, raw, score, w) if keep_pairs else None
+        pairs = BlockPairs(g, rr, i, j, cos, shp, raw, score, ws, wd) if keep_pairs else None
         return sim, pairs
-    cos_p = rv.permute(0, 2, 1).clamp(-1.0, 1.0)  # (nq, nr, Kq)
+    cos_p = m.best.clamp(-1.0, 1.0)  # (nq, nr, Kq)
     wh_q = q.wh[qsel].unsqueeze(1)  # (nq, 1, Kq, 2)
     wh_r = r.wh[rsel].unsqueeze(0).expand(nq, -1, -1, -1)  # (nq, nr, Kr, 2)
-    wh_r = wh_r.gather(2, ri_p.unsqueeze(3).expand(-1, -1, -1, 2))  # (nq, nr, Kq, 2)
-    shp_p = shape_terms(wh_q[..., 0], wh_r[..., 0], wh_q[..., 1], wh_r[..., 1])
+    wh_r = wh_r.gather(2, m.nn.unsqueeze(3).expand(-1, -1, -1, 2))  # (nq, nr, Kq, 2)
+    shp_p = shape_terms(wh_q[..., 0], wh_r[..., 0], wh_q[..., 1], wh_r[..., 1])  # Eq. (2)
     raw_p = 1.0 - (1.0 - cos_p) * shp_p  # 1 - d * s
+    wt = wsp if weight is None else weight if wsp is None else wsp * weight
     iou_q, iou_r, t, sigma = nms
-    assert s64 is not None
-    score_p = _nms_block(
+    assert m.cos64 is not None
+    score_p = _nms_block(  # Algorithm 4
         raw_p if wt is None else raw_p * wt,
         shp_p,
-        recip,
-        ri_p,
-        s64,
+        m.recip,
+        m.nn,
+        m.cos64,
         iou_q[qsel],
         iou_r[rsel],
         t,
         sigma,
         wt,
     )
-    sim = torch.where(recip, score_p, torch.zeros_like(score_p)).sum(2) / norm  # Eq. (1)
+    sim = torch.where(m.recip, score_p, torch.zeros_like(score_p)).sum(2) / norm  # Eq. (1)
     pairs = None
     if keep_pairs:
-        g, rr, i = recip.nonzero(as_tuple=True)
+        g, rr, i = m.recip.nonzero(as_tuple=True)
         at = (g, rr, i)
-        w_at = torch.ones_like(raw_p[at]) if wt is None else wt[at]
-        pairs = BlockPairs(g, rr, i, ri_p[at], cos_p[at], shp_p[at], raw_p[at], score_p[at], w_at)
+        ones = torch.ones_like(raw_p[at])
+        pairs = BlockPairs(
+            g,
+            rr,
+            i,
+            m.nn[at],
+            cos_p[at],
+            shp_p[at],
+            raw_p[at],
+            score_p[at],
+            ones if wsp is None else wsp[at],
+            ones if weight is None else weight[at],
+        )
     return sim, pairs
 
 
@@ -307,6 +419,16 @@ def check_spatial(spatial: str | None) -> str | None:
             f"valid: None, {', '.join(repr(n) for n in SPATIAL_OPTIONS)}"
         )
     return spatial
+
+
+def check_weighting(weighting: str | None) -> str | None:
+    """``weighting`` if it is None or a name in :data:`WEIGHTING_OPTIONS`; else a clear error."""
+    if weighting is not None and weighting not in WEIGHTING_OPTIONS:
+        raise ValueError(
+            f"unknown weighting {weighting!r} (database weighting, not in the paper); "
+            f"valid: None, {', '.join(repr(n) for n in WEIGHTING_OPTIONS)}"
+        )
+    return weighting
 
 
 _LOCAL = threading.local()
@@ -335,6 +457,7 @@ class Problem:
     nms: tuple | None
     empty: bool
     spatial: str | None = None
+    weighting: str | None = None
 
     @classmethod
     def build(
@@ -349,6 +472,7 @@ class Problem:
         matmul_dtype: str = "float32",
         sides: tuple[str, str] = ("query", "reference"),
         spatial: str | None = None,
+        weighting: str | None = None,
     ) -> Problem:
         """Check every input once and prepare both sides (arguments: see ``similarity_matrix``).
 
@@ -360,6 +484,7 @@ class Problem:
         check_range(sigma, "sigma (soft-NMS width)", 0.0, low_open=True)
         check_choice(matmul_dtype, "matmul_dtype", ("float32", "float64"))
         check_spatial(spatial)
+        check_weighting(weighting)
         dev = torch.device(device)
         if dev.type == "cuda" and not torch.cuda.is_available():
             raise ValueError(f"device={device!r} but torch sees no CUDA GPU; use device='cpu'")
@@ -383,25 +508,60 @@ class Problem:
         if not empty:
             q.build_caches(unit64=nms is not None)
             r.build_caches(unit64=nms is not None)
-        return cls(q, r, dev, mm_dtype, margin, nms, empty, spatial)
+        return cls(q, r, dev, mm_dtype, margin, nms, empty, spatial, weighting)
 
-    def block(
-        self, qsel: Selection, rsel: Selection, keep_pairs: bool = False
-    ) -> tuple[torch.Tensor, BlockPairs | None]:
-        """Eq. (1) of the images ``qsel`` x ``rsel``: ``((nq, nr) float64, pairs or None)``."""
+    def matches(self, qsel: Selection, rsel: Selection) -> Matches:
+        """Reciprocal nearest neighbours of the images ``qsel`` x ``rsel`` (one matmul)."""
         q, r = self.q, self.r
         a = q.images(qsel)
         b = r.images(rsel)
         n = a.shape[0] * b.shape[0]
         buf, work = _buffers(n, q.k * b.shape[0], self.mm_dtype, self.dev)
         s = torch.matmul(a, b.T, out=buf[:n].view(a.shape[0], b.shape[0]))
-        s64 = None
+        rv, ri_p, recip = reciprocal(s, q, r, qsel, rsel, self.margin, work)
+        cos64 = None
         if self.nms is not None:
             # float64 cosines for soft-NMS scores: Algorithm 4's argmax is discontinuous at
             # ties, so its scores must be exact to ~1e-15
             s64 = (q.unit_images64(qsel) @ r.unit_images64(rsel).T).view(
                 a.shape[0] // q.k, q.k, b.shape[0] // r.k, r.k
             )
-        return score_block(
-            s, q, r, qsel, rsel, self.margin, self.nms, s64, work, keep_pairs, self.spatial
-        )
+            cos64 = s64.permute(0, 2, 1, 3).gather(3, ri_p.unsqueeze(3)).squeeze(3)
+        return Matches(rv.permute(0, 2, 1), ri_p, recip, cos64)
+
+    def block(
+        self, qsel: Selection, rsel: Selection, keep_pairs: bool = False
+    ) -> tuple[torch.Tensor, BlockPairs | None]:
+        """Eq. (1) of the images ``qsel`` x ``rsel``: ``((nq, nr) float64, pairs or None)``."""
+        m = self.matches(qsel, rsel)
+        return score_block(m, self.q, self.r, qsel, rsel, self.nms, keep_pairs, self.spatial)
+
+    def chunked(self, qsel: Selection, refs: torch.Tensor | slice, size: int) -> Matches:
+        """The matches of ``qsel`` x ``refs`` (a slice or indices), ``size`` references a matmul."""
+        if isinstance(refs, slice):
+            sels: list[Selection] = [
+                slice(r0, min(r0 + size, refs.stop)) for r0 in range(refs.start, refs.stop, size)
+            ]
+        else:
+            sels = [refs[c0 : c0 + size] for c0 in range(0, int(refs.numel()), size)]
+        return cat_matches([self.matches(qsel, s) for s in sels])
+
+    def weighted(
+        self,
+        qsel: Selection,
+        rsel: Selection,
+        m: Matches,
+        stats_from: tuple[Matches, Selection],
+        keep_pairs: bool = False,
+    ) -> tuple[torch.Tensor, BlockPairs | None]:
+        """Eq. (1) with database-weighted terms of ``qsel`` x ``rsel`` (matches ``m``).
+
+        Args:
+            stats_from: the matches of ``qsel`` x the references that define the statistics,
+                and those references.
+        """
+        assert self.weighting is not None
+        ms, ssel = stats_from
+        stats = weighting_stats(self.weighting, ms, self.r.count[ssel] > 0)
+        w = database_weights(self.weighting, m.best, stats)
+        return score_block(m, self.q, self.r, qsel, rsel, self.nms, keep_pairs, self.spatial, w)

@@ -16,7 +16,7 @@ import torch
 from ..checks import check_boxes
 from ..paper import SOFT_NMS_SIGMA
 from ..utils import progress
-from .core import BLOCK_BYTES, Problem, shape_terms
+from .core import BLOCK_BYTES, Problem, shape_terms, weighting_sample
 from .sides import LandmarkSets, rescale_rows, unit_rows
 
 __all__ = [
@@ -29,6 +29,7 @@ __all__ = [
     "shape_penalty",
     "similarity_matrix",
     "similarity_pairs",
+    "weighted_matches",
 ]
 
 
@@ -40,6 +41,7 @@ def similarity_matrix(
     soft_nms_iou: float | None = None,
     sigma: float = SOFT_NMS_SIGMA,
     spatial: str | None = None,
+    weighting: str | None = None,
     device: str | torch.device = "cpu",
     batch_size: int | None = None,
     ref_batch_size: int | None = None,
@@ -64,6 +66,9 @@ def similarity_matrix(
         spatial: None (the paper) or ``"consistency"`` (not in the paper): geometry-aware
             re-scoring of the reciprocal matches, docs/DEFINITIONS.md; valid names:
             :data:`~.core.SPATIAL_OPTIONS`.
+        weighting: None (the paper) or ``"contrast"`` / ``"idf"`` (not in the paper): each
+            term weighted by how much better its query landmark matches this reference than
+            the others, statistics over every reference; docs/DEFINITIONS.md.
         device: torch device (``"cpu"``, ``"cuda"``).
         batch_size: queries per block (default: 8).
         ref_batch_size: references per block (default: a block of ~8 MB of float32 cosines).
@@ -83,6 +88,7 @@ def similarity_matrix(
         device,
         matmul_dtype,
         spatial=spatial,
+        weighting=weighting,
     )
     q, r = prob.q, prob.r
     out = torch.zeros((q.n, r.n), dtype=torch.float64, device=prob.dev)
@@ -96,7 +102,16 @@ def similarity_matrix(
         q1, r1 = min(q0 + bq, q.n), min(r0 + br, r.n)
         out[q0:q1, r0:r1] = prob.block(slice(q0, q1), slice(r0, r1))[0]
 
-    tasks = [partial(task, q0, r0) for q0 in range(0, q.n, bq) for r0 in range(0, r.n, br)]
+    def weighted_task(q0: int) -> None:
+        # (not in the paper) the weights need every reference: one query batch at a time
+        qs, rs = slice(q0, min(q0 + bq, q.n)), slice(0, r.n)
+        m = prob.chunked(qs, rs, br)
+        out[qs] = prob.weighted(qs, rs, m, (m, rs))[0]
+
+    if prob.weighting is None:
+        tasks = [partial(task, q0, r0) for q0 in range(0, q.n, bq) for r0 in range(0, r.n, br)]
+    else:
+        tasks = [partial(weighted_task, q0) for q0 in range(0, q.n, bq)]
     _run(prob, tasks, show_progress)
     return out.cpu().numpy()
 
@@ -110,10 +125,12 @@ def similarity_pairs(
     soft_nms_iou: float | None = None,
     sigma: float = SOFT_NMS_SIGMA,
     spatial: str | None = None,
+    weighting: str | None = None,
     device: str | torch.device = "cpu",
     ref_batch_size: int | None = None,
     matmul_dtype: str = "float32",
     show_progress: bool = True,
+    sample: np.ndarray | None = None,
 ) -> np.ndarray:
     """Eq. (1) similarity of the listed (query, reference) image pairs only (e.g. a shortlist).
 
@@ -128,10 +145,14 @@ def similarity_pairs(
         spatial: None (the paper) or ``"consistency"`` (not in the paper): geometry-aware
             re-scoring of the reciprocal matches, docs/DEFINITIONS.md; valid names:
             :data:`~.core.SPATIAL_OPTIONS`.
+        weighting: None (the paper) or ``"contrast"`` / ``"idf"`` (not in the paper), with
+            statistics over the references ``sample``; docs/DEFINITIONS.md.
         device: torch device (``"cpu"``, ``"cuda"``).
         ref_batch_size: references per matmul (default: a block of ~8 MB of float32 cosines).
         matmul_dtype: ``"float32"`` (fast) or ``"float64"``.
         show_progress: progress bar over queries (``TQDM_DISABLE=1`` silences it).
+        sample: indices of the references whose cosines give the weighting statistics
+            (default: :func:`~.core.weighting_sample`, all of them up to 256).
 
     Returns:
         ``(P,)`` float64 similarities, in the order of ``pairs``.
@@ -146,9 +167,11 @@ def similarity_pairs(
         device,
         matmul_dtype,
         spatial=spatial,
+        weighting=weighting,
     )
     q, r = prob.q, prob.r
     pr = check_pairs(pairs, q.n, r.n)
+    ids = weighting_sample(r.n) if sample is None else _check_sample(sample, r.n)
     out = np.zeros(pr.shape[0], dtype=np.float64)
     if prob.empty or pr.shape[0] == 0:
         return out
@@ -157,8 +180,17 @@ def similarity_pairs(
     starts = np.flatnonzero(np.r_[True, pr[order[1:], 0] != pr[order[:-1], 0]])
     groups = np.split(order, starts[1:])
 
+    samp = torch.from_numpy(ids).to(prob.dev)
+
     def task(rows: np.ndarray) -> None:
         qi = int(pr[rows[0], 0])
+        if prob.weighting is not None:  # (not in the paper) statistics over the sample
+            qs = slice(qi, qi + 1)
+            ridx = torch.from_numpy(pr[rows, 1]).to(prob.dev)
+            m = prob.chunked(qs, ridx, br)
+            stats = (prob.chunked(qs, samp, br), samp)
+            out[rows] = prob.weighted(qs, ridx, m, stats)[0][0].cpu().numpy()
+            return
         for c0 in range(0, rows.shape[0], br):
             chunk = rows[c0 : c0 + br]
             ridx = torch.from_numpy(pr[chunk, 1]).to(prob.dev)
@@ -188,6 +220,16 @@ def check_pairs(pairs: np.ndarray | Sequence, nq: int, nr: int) -> np.ndarray:
                 f"0..{n - 1} ({n} {what} images)"
             )
     return arr
+
+
+def _check_sample(sample: np.ndarray | Sequence, nr: int) -> np.ndarray:
+    """``sample`` as int64 reference indices (at least one, each in ``0..nr-1``)."""
+    arr = np.asarray(sample)
+    if arr.ndim != 1 or arr.size == 0 or not np.issubdtype(arr.dtype, np.integer):
+        raise ValueError(f"sample must be a non-empty 1-D array of reference indices, got {arr!r}")
+    if arr.min() < 0 or arr.max() >= nr:
+        raise ValueError(f"sample holds reference indices outside 0..{nr - 1} ({nr} references)")
+    return arr.astype(np.int64)
 
 
 def _run(prob: Problem, tasks: Sequence[Callable[[], None]], show_progress: bool) -> None:
@@ -237,6 +279,8 @@ class MatchResult:
         n_a: number of landmarks of image a.
         n_b: number of landmarks of image b.
         spatial_weights: ``(P,)`` geometry weights (not in the paper; all 1 with ``spatial=None``).
+        weights: ``(P,)`` database weights (not in the paper; :func:`weighted_matches`), None
+            without a weighting.
     """
 
     matches: np.ndarray
@@ -248,6 +292,81 @@ class MatchResult:
     n_a: int
     n_b: int
     spatial_weights: np.ndarray
+    weights: np.ndarray | None = None
+
+
+def _result(p, sim: float, na: int, nb: int, weights: bool = False) -> MatchResult:
+    """A :class:`MatchResult` from the core's pairs of one image pair."""
+    return MatchResult(
+        matches=torch.stack([p.i, p.j], dim=1).cpu().numpy().astype(np.int64),
+        distances=(1.0 - p.cos).cpu().numpy(),
+        shape=p.shape.cpu().numpy(),
+        scores=p.score.cpu().numpy(),
+        similarity=sim,
+        raw_scores=p.raw.cpu().numpy(),
+        n_a=na,
+        n_b=nb,
+        spatial_weights=p.weight.cpu().numpy(),
+        weights=p.db_weight.cpu().numpy() if weights else None,
+    )
+
+
+def weighted_matches(
+    query_desc: LandmarkSets,
+    query_boxes: LandmarkSets,
+    reference_desc: LandmarkSets,
+    reference_boxes: LandmarkSets,
+    pairs: np.ndarray | Sequence,
+    weighting: str,
+    soft_nms_iou: float | None = None,
+    sigma: float = SOFT_NMS_SIGMA,
+    spatial: str | None = None,
+    sample: np.ndarray | None = None,
+) -> list[MatchResult]:
+    """The matches of the listed image pairs with their database weights (not in the paper).
+
+    The same core and statistics as :func:`similarity_pairs` (``similarity`` equals its value);
+    ``weights`` holds each match's weight. An exhaustive run's statistics cover every reference:
+    pass ``sample=np.arange(Nr)`` to see its weights when ``Nr > 256``.
+
+    Args:
+        query_desc, query_boxes, reference_desc, reference_boxes, pairs: as
+            :func:`similarity_pairs`; weighting: ``"contrast"`` or ``"idf"``.
+        soft_nms_iou, sigma, spatial, sample: as :func:`similarity_pairs`.
+
+    Returns:
+        One :class:`MatchResult` per row of ``pairs``.
+    """
+    if weighting is None:
+        raise ValueError("weighted_matches needs weighting='contrast' or 'idf', got None")
+    prob = Problem.build(
+        query_desc,
+        query_boxes,
+        reference_desc,
+        reference_boxes,
+        soft_nms_iou,
+        sigma,
+        spatial=spatial,
+        weighting=weighting,
+    )
+    q, r = prob.q, prob.r
+    pr = check_pairs(pairs, q.n, r.n)
+    samp = torch.from_numpy(weighting_sample(r.n) if sample is None else _check_sample(sample, r.n))
+    br = max(1, BLOCK_BYTES // (4 * q.k * r.k))
+    stats: dict[int, tuple] = {}
+    out = []
+    for qi, rj in pr.tolist():
+        na, nb = int(q.count[qi]), int(r.count[rj])
+        if prob.empty:
+            e = np.zeros(0, dtype=np.float64)
+            out.append(MatchResult(np.zeros((0, 2), np.int64), e, e, e, 0.0, e, na, nb, e, e))
+            continue
+        qs, ridx = slice(qi, qi + 1), torch.tensor([rj])
+        if qi not in stats:
+            stats[qi] = (prob.chunked(qs, samp, br), samp)
+        sim, p = prob.weighted(qs, ridx, prob.matches(qs, ridx), stats[qi], keep_pairs=True)
+        out.append(_result(p, float(sim[0, 0]), na, nb, weights=True))
+    return out
 
 
 def _match_pair(
@@ -276,19 +395,7 @@ def _match_pair(
         e = np.zeros(0, dtype=np.float64)
         return MatchResult(np.zeros((0, 2), dtype=np.int64), e, e, e, 0.0, e, na, nb, e)
     sim, p = prob.block(slice(0, 1), slice(0, 1), keep_pairs=True)
-    assert p is not None
-    matches = torch.stack([p.i, p.j], dim=1).cpu().numpy().astype(np.int64)
-    return MatchResult(
-        matches=matches,
-        distances=(1.0 - p.cos).cpu().numpy(),
-        shape=p.shape.cpu().numpy(),
-        scores=p.score.cpu().numpy(),
-        similarity=float(sim[0, 0]),
-        raw_scores=p.raw.cpu().numpy(),
-        n_a=na,
-        n_b=nb,
-        spatial_weights=p.weight.cpu().numpy(),
-    )
+    return _result(p, float(sim[0, 0]), na, nb)
 
 
 def match_landmarks(

@@ -1,0 +1,205 @@
+"""(Not in the paper) database weighting of the Eq. (1) terms: ``weighting="contrast" | "idf"``
+against the NumPy oracle (oracle_pairwise.py), its hand-made cases and its plumbing."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import oracle_pairwise as oracle
+import pytest
+import torch
+from test_matching import _random_sets
+
+from vpr_core.matching import (
+    WEIGHTING_OPTIONS,
+    similarity_matrix,
+    similarity_pairs,
+    weighted_matches,
+)
+from vpr_core.matching.core import WEIGHTING_SAMPLE, weighting_sample
+from vpr_core.methods import Matching, as_method, get_method, method_label, run_key
+
+BOX = [0.0, 0.0, 10.0, 10.0]
+
+
+def _sets(seed: int, nq: int = 6, nr: int = 7, dim: int = 48):
+    rng = np.random.default_rng(seed)
+    qd, qb = _random_sets(rng, nq, 1, 14, dim)
+    rd, rb = _random_sets(rng, nr, 1, 14, dim)
+    rd[2], rb[2] = qd[3].copy(), qb[3].copy()  # every landmark of query 3 matches reference 2
+    qd[nq - 1], qb[nq - 1] = np.zeros((0, dim), np.float32), np.zeros((0, 4))  # no landmark
+    return qd, qb, rd, rb
+
+
+@pytest.mark.parametrize("weighting", WEIGHTING_OPTIONS)
+@pytest.mark.parametrize(("t", "spatial"), [(None, None), (0.3, None), (None, "consistency")])
+def test_similarity_matrix_equals_oracle(weighting, t, spatial):
+    qd, qb, rd, rb = _sets(7)
+    want = oracle.similarity_matrix(
+        qd, qb, rd, rb, weighting=weighting, soft_nms_iou=t, spatial=spatial
+    )
+    kw = {"soft_nms_iou": t, "spatial": spatial, "weighting": weighting, "show_progress": False}
+    got = similarity_matrix(qd, qb, rd, rb, batch_size=4, ref_batch_size=3, **kw)
+    np.testing.assert_allclose(got, want, atol=1e-6, rtol=0)
+    np.testing.assert_allclose(
+        similarity_matrix(qd, qb, rd, rb, matmul_dtype="float64", **kw), want, atol=1e-12, rtol=0
+    )
+    plain = oracle.similarity_matrix(qd, qb, rd, rb, soft_nms_iou=t, spatial=spatial)
+    assert np.abs(want - plain).max() > 0.1  # the weighting changes the scores
+    assert np.all(got[-1] == 0)  # a query without landmarks
+    # the listed pairs give the same values (statistics over all 7 references, <= 256)
+    pairs = np.array([[0, 1], [3, 2], [4, 6], [3, 2], [5, 0], [1, 1]])
+    got_p = similarity_pairs(qd, qb, rd, rb, pairs, ref_batch_size=2, **kw)
+    np.testing.assert_allclose(got_p, got[pairs[:, 0], pairs[:, 1]], atol=1e-7, rtol=0)
+    # and weighted_matches gives each pair's terms with their weights
+    for (i, j), res in zip(
+        pairs, weighted_matches(qd, qb, rd, rb, pairs, weighting, t, 0.5, spatial), strict=True
+    ):
+        o = oracle.match_landmarks(
+            qd[i], qb[i], rd[j], rb[j], t, 0.5, spatial, oracle.term_weights(weighting, qd[i], rd)
+        )
+        np.testing.assert_array_equal(res.matches, o["matches"])
+        np.testing.assert_allclose(res.weights, o["db_weights"], atol=1e-5, rtol=0)
+        assert res.similarity == pytest.approx(want[i, j], abs=1e-6)
+
+
+@pytest.mark.parametrize("weighting", WEIGHTING_OPTIONS)
+def test_shortlist_statistics_come_from_the_sample(weighting):
+    qd, qb, rd, rb = _sets(11, nq=4, nr=9)
+    sample = np.array([0, 2, 5, 8])
+    pairs = np.array([[0, 1], [1, 2], [2, 7], [0, 5]])
+    got = similarity_pairs(qd, qb, rd, rb, pairs, weighting=weighting, sample=sample)
+    want = oracle.similarity_matrix(qd, qb, rd, rb, weighting=weighting, sample=sample)
+    np.testing.assert_allclose(got, want[pairs[:, 0], pairs[:, 1]], atol=1e-6, rtol=0)
+    full = oracle.similarity_matrix(qd, qb, rd, rb, weighting=weighting)
+    assert not np.allclose(got, full[pairs[:, 0], pairs[:, 1]], atol=1e-4)
+    with pytest.raises(ValueError, match="outside 0..8"):
+        similarity_pairs(qd, qb, rd, rb, pairs, weighting=weighting, sample=[0, 9])
+
+
+def test_weighting_sample_is_fixed_and_all_references_up_to_256():
+    np.testing.assert_array_equal(weighting_sample(WEIGHTING_SAMPLE), np.arange(WEIGHTING_SAMPLE))
+    s = weighting_sample(716)
+    assert len(s) == WEIGHTING_SAMPLE == 256 and np.all(np.diff(s) > 0) and s.max() < 716
+    np.testing.assert_array_equal(s, weighting_sample(716))  # seeded
+    assert len(np.setdiff1d(s, np.arange(256))) > 100  # spread over the route
+
+
+def _contrast_case():
+    """Query landmark 0 matches every reference equally well (a wall); landmark 1 matches
+    reference 0 far better than the others (a rare object)."""
+    e = np.eye(6)
+    wall, rare = e[0], e[1]
+    qd = [np.stack([wall, rare])]
+    rd = [
+        np.stack([0.8 * wall + 0.6 * e[2], 0.9 * rare + math.sqrt(0.19) * e[3]]),
+        np.stack([0.8 * wall + 0.6 * e[4], 0.1 * rare + math.sqrt(0.99) * e[5]]),
+        np.stack([0.8 * wall + 0.6 * e[3], 0.1 * rare + math.sqrt(0.99) * e[2]]),
+    ]
+    boxes = [np.array([BOX, BOX])] * 3
+    return qd, [boxes[0]], rd, boxes
+
+
+def test_contrast_by_hand_a_landmark_matching_every_place_carries_nothing():
+    qd, qb, rd, rb = _contrast_case()
+    plain = similarity_matrix(qd, qb, rd, rb, matmul_dtype="float64")
+    # cosines: wall 0.8 everywhere; rare 0.9, 0.1, 0.1 -> plain Eq. (1) (0.8 + 0.9) / 2 for r0
+    np.testing.assert_allclose(plain[0], [0.85, 0.45, 0.45], atol=1e-12)
+    got = similarity_matrix(qd, qb, rd, rb, weighting="contrast", matmul_dtype="float64")
+    # wall: sigma 0 -> weight 0. rare: mu 1.1/3, sigma sqrt(((0.9 - mu)^2 + 2 (0.1 - mu)^2) / 3)
+    mu = 1.1 / 3
+    sd = math.sqrt(((0.9 - mu) ** 2 + 2 * (0.1 - mu) ** 2) / 3)
+    w0 = (0.9 - mu) / sd  # = sqrt(2): above the mean by sqrt(2) standard deviations
+    assert w0 == pytest.approx(math.sqrt(2))
+    np.testing.assert_allclose(got[0], [0.9 * w0 / 2, 0, 0], atol=1e-12)
+    res = weighted_matches(qd, qb, rd, rb, [[0, 0], [0, 1]], "contrast")
+    np.testing.assert_allclose(res[0].weights, [0.0, w0], atol=1e-6)
+    np.testing.assert_allclose(res[1].weights, [0.0, 0.0], atol=1e-6)  # 0.1 < mu: clipped to 0
+    # one reference: sigma 0 for every landmark, every weight 0
+    one = similarity_matrix(qd, qb, rd[:1], rb[:1], weighting="contrast")
+    assert one[0, 0] == 0.0
+
+
+def test_idf_by_hand():
+    qd, qb, rd, rb = _contrast_case()
+    got = similarity_matrix(qd, qb, rd, rb, weighting="idf", matmul_dtype="float64")
+    # the wall matches all 3 references: log(4 / 4) = 0; the rare landmark is reciprocal in all
+    # three too (each reference's landmark 1 is nearest to it), so every term weighs 0 ...
+    np.testing.assert_allclose(got, 0.0, atol=1e-12)
+    # ... until a reference offers the rare landmark nothing nearer than the wall
+    rd2 = [rd[0], rd[1][:1], rd[2][:1]]
+    rb2 = [rb[0], rb[1][:1], rb[2][:1]]
+    got = similarity_matrix(qd, qb, rd2, rb2, weighting="idf", matmul_dtype="float64")
+    assert got[0, 0] == pytest.approx(0.9 * math.log(4 / 2) / 2, abs=1e-12)
+    np.testing.assert_allclose(got[0, 1:], 0.0, atol=1e-12)
+
+
+def test_weighted_same_bits_for_any_thread_count():
+    qd, qb, rd, rb = _sets(13, nq=10, nr=9)
+    threads = torch.get_num_threads()
+    try:
+        out = []
+        for n in (1, 2):
+            torch.set_num_threads(n)
+            out.append(similarity_matrix(qd, qb, rd, rb, weighting="contrast", batch_size=3))
+    finally:
+        torch.set_num_threads(threads)
+    np.testing.assert_array_equal(out[0], out[1])
+
+
+def test_unknown_weighting_lists_the_valid_ones():
+    d, bx = [np.ones((3, 8))], [np.ones((3, 4))]
+    with pytest.raises(ValueError, match=r"unknown weighting 'tfidf'.*valid: None, 'contrast'"):
+        similarity_matrix(d, bx, d, bx, weighting="tfidf")
+    with pytest.raises(ValueError, match="valid: None, 'contrast', 'idf'"):
+        similarity_pairs(d, bx, d, bx, [[0, 0]], weighting="Contrast")
+    with pytest.raises(ValueError, match="weighting='tfidf' is not valid"):
+        Matching(weighting="tfidf")
+
+
+def test_matching_value_keeps_default_keys_and_labels():
+    assert Matching().weighting is None
+    for name in ("dense", "classical", "overlap_scheme2"):
+        m = get_method(name)
+        assert run_key(m) == name and "weighting" not in method_label(m)
+    m = get_method("dense", weighting="contrast")
+    assert run_key(m) == "dense(weighting=contrast)"
+    assert method_label(m) == "dense (weighting: contrast)"
+    assert (
+        run_key(get_method("overlap_scheme2", weighting="idf")) == "overlap_scheme2(weighting=idf)"
+    )
+    # a matching option of every method, bare schemes and Method values included
+    from vpr_core.landmarks.schemes import Dense
+
+    assert as_method(Dense(), weighting="idf").matching == Matching(weighting="idf")
+    both = as_method("classical", spatial="consistency", weighting="contrast")
+    assert both.matching == Matching(spatial="consistency", weighting="contrast")
+    assert as_method(get_method("dense"), weighting="idf").matching.weighting == "idf"
+
+
+def test_run_method_passes_the_weighting_to_the_matcher():
+    from vpr_core.datasets import load_dataset
+    from vpr_core.pipeline import run_method
+
+    ds = load_dataset("synthetic", n_places=5, image_size=(64, 112))
+    kw = {"dim": 64, "n_bootstrap": 0, "keep_descriptors": True}
+    plain = run_method("dense", ds, per_scale=4, **kw)
+    for weighting in WEIGHTING_OPTIONS:
+        r = run_method("dense", ds, per_scale=4, weighting=weighting, **kw)
+        assert (
+            r.config.matching.weighting == weighting
+            and r.run == f"dense(per_scale=4, weighting={weighting})"
+        )
+        d, b = r.descriptors, r.boxes
+        want = similarity_matrix(
+            d["query"], b["query"], d["reference"], b["reference"], weighting=weighting
+        )
+        np.testing.assert_array_equal(r.similarity, want)
+        assert not np.allclose(r.similarity, plain.similarity)
+    # the shortlist path: Eq. (1) with the weights on each query's top 3
+    r = run_method("dense", ds, per_scale=4, weighting="contrast", shortlist=3, **kw)
+    assert np.isnan(r.similarity).sum() == 5 * 2
+    full = run_method("dense", ds, per_scale=4, weighting="contrast", **kw).similarity
+    kept = ~np.isnan(r.similarity)
+    np.testing.assert_allclose(r.similarity[kept], full[kept], atol=1e-7, rtol=0)
