@@ -1,29 +1,6 @@
-"""The paper's claims against the study's numbers: one row per claim, one column per dataset.
-
-Every claim is a signed difference between two runs of one figure, each named by its
-configuration (method and options, :func:`vpr_core.methods.run_key`), never by a legend text.
-The numbers are ``dAUC`` of the ratio protocol from the comparison table that a notebook saves
-as ``results/<label>/<figure>.csv`` (:func:`vpr_core.evaluation.compare`: paired bootstrap
-against the figure's baseline). The first observation is the difference of correct-match rates
-between large (Table-1 Scales 5-7) and small (Scales 1-3) landmarks, bootstrapped over query
-images from the labelled matches notebook 02 saves as ``results/<label>/fig04_matches.csv``.
-
-Verdicts (95% intervals, :data:`~vpr_core.evaluation.N_BOOTSTRAP` resamples, seed 0):
-
-* claim "a > b": **holds** when the interval of ``a - b`` lies above 0, **does not hold** when
-  it lies below 0, **inconclusive** when it contains 0 (with the queries that would decide it
-  if effect and spread stayed as measured: "needs ~N queries");
-* claim "a ~ b" (on par): **holds** when the interval contains 0 (no difference found; this is
-  absence of evidence, said so in the text), **does not hold** otherwise;
-* no claim (``"?"``): **finding: higher / lower** or **inconclusive**;
-* **not testable (identical results)**: both runs gave the same ranking for every query (e.g.
-  on 64x32 Nordland frames Edge Boxes yields ~13 proposals, all at Scale >= 6, so the selection
-  schemes keep the same boxes as classical);
-* **not run**: the dataset has no such result.
-
-``vpr-study findings`` prints :func:`findings_markdown`; the runner writes
-``results/findings.md`` after ``make study``.
-"""
+"""The paper's claims against the study's numbers: one row per claim, one column per dataset,
+each claim a signed difference between two runs named by configuration (``run_key``), with
+its verdict (docs/DEFINITIONS.md, "Verdicts"); ``vpr-study findings`` prints the table."""
 
 from __future__ import annotations
 
@@ -38,16 +15,6 @@ from vpr_core import paths
 from vpr_core.evaluation.bootstrap import N_BOOTSTRAP, needs_text
 from vpr_core.methods import get_method, run_key
 from vpr_core.paper import TABLE2, TABLE3, TABLE4
-
-__all__ = [
-    "CLAIMS",
-    "OBSERVATION_1",
-    "Claim",
-    "cmr_difference",
-    "findings_markdown",
-    "findings_table",
-    "result_labels",
-]
 
 
 @dataclass(frozen=True)
@@ -84,130 +51,50 @@ def _dense(table: dict, name: str) -> tuple[str, dict]:
 
 _C: tuple[str, dict] = ("classical", {})
 _D: tuple[str, dict] = ("dense", {})
+_S1: tuple[str, dict] = ("selection_scheme1", {})
+_F5, _F7A, _F7B = "fig05_selection", "fig07a_overlap_nms", "fig07b_overlap_soft_nms"
+_T2, _T3, _T4 = "fig10_scale_levels", "fig11_landmarks_per_scale", "fig12_normalized_scales"
+_O1, _O2 = "overlap_scheme1", "overlap_scheme2"
+_F13 = "fig13_comparison"
 
 #: The paper's claims, in paper order (observation 1 is handled by :func:`cmr_difference`).
+# fmt: off
 CLAIMS: tuple[Claim, ...] = (
-    Claim(
-        "Fig. 5: selection Scheme 1 beats classical",
-        "fig05_selection",
-        ("selection_scheme1", {}),
-        _C,
-        ">",
-    ),
-    Claim(
-        "Fig. 5: selection Scheme 2 lags behind classical",
-        "fig05_selection",
-        ("selection_scheme2", {}),
-        _C,
-        "<",
-    ),
-    Claim(
-        "Fig. 7a: NMS (Alg. 3) at IoU 0.4 falls below classical",
-        "fig07a_overlap_nms",
-        ("overlap_scheme1", {"iou_threshold": 0.4}),
-        _C,
-        "<",
-    ),
-    Claim(
-        "Fig. 7a: NMS at IoU 0.7 is on par with classical",
-        "fig07a_overlap_nms",
-        ("overlap_scheme1", {"iou_threshold": 0.7}),
-        _C,
-        "~",
-    ),
-    Claim(
-        "Fig. 7b: soft-NMS (Alg. 4) at IoU 0.3 falls below classical",
-        "fig07b_overlap_soft_nms",
-        ("overlap_scheme2", {"soft_nms_iou": 0.3}),
-        _C,
-        "<",
-    ),
-    Claim(
-        "Fig. 7b: soft-NMS at IoU 0.7 is on par with classical",
-        "fig07b_overlap_soft_nms",
-        ("overlap_scheme2", {"soft_nms_iou": 0.7}),
-        _C,
-        "~",
-    ),
-    Claim(
-        "Table 2: 4 scales x 25 (Set 5) beat one scale x 100 (Set 1)",
-        "fig10_scale_levels",
-        _dense(TABLE2, "Set 5"),
-        _dense(TABLE2, "Set 1"),
-        ">",
-    ),
-    Claim(
-        "Table 2: one large scale (Set 2, 0.49) is worse than Set 1",
-        "fig10_scale_levels",
-        _dense(TABLE2, "Set 2"),
-        _dense(TABLE2, "Set 1"),
-        "<",
-    ),
-    Claim(
-        "Table 2: six scales x 16 (Set 6) are worse even than one scale (Set 1)",
-        "fig10_scale_levels",
-        _dense(TABLE2, "Set 6"),
-        _dense(TABLE2, "Set 1"),
-        "<",
-    ),
-    Claim(
-        "Table 3: the most uneven split (Set 4) is worse than uniform 25 each (Set 1)",
-        "fig11_landmarks_per_scale",
-        _dense(TABLE3, "Set 4"),
-        _dense(TABLE3, "Set 1"),
-        "<",
-    ),
-    Claim(
-        "Table 4: similar scales (Set 2) are on par with Set 1",
-        "fig12_normalized_scales",
-        _dense(TABLE4, "Set 2"),
-        _dense(TABLE4, "Set 1"),
-        "~",
-    ),
-    Claim(
-        "Table 4: small scales (Set 3) are worse than Set 1",
-        "fig12_normalized_scales",
-        _dense(TABLE4, "Set 3"),
-        _dense(TABLE4, "Set 1"),
-        "<",
-    ),
-    Claim(
-        "Table 4: oversize scales (Set 4) are worse than Set 1",
-        "fig12_normalized_scales",
-        _dense(TABLE4, "Set 4"),
-        _dense(TABLE4, "Set 1"),
-        "<",
-    ),
-    Claim("Fig. 13: classical is clearly worse than dense", "fig13_comparison", _C, _D, "<"),
-    Claim(
-        "Fig. 13: Scheme 1 is slightly worse than dense",
-        "fig13_comparison",
-        ("selection_scheme1", {}),
-        _D,
-        "<",
-    ),
-    Claim(
-        "(not in the paper) a global descriptor vs dense landmarks",
-        "fig13_comparison",
-        ("global", {}),
-        _D,
-        "?",
-    ),
-    Claim(
-        "(not in the paper) geometry-aware score: dense with vs without",
-        "geometry_dense",
-        ("dense", {"spatial": "consistency"}),
-        _D,
-        "?",
-    ),
-    Claim(
-        "(not in the paper) geometry-aware score: classical with vs without",
-        "geometry_classical",
-        ("classical", {"spatial": "consistency"}),
-        _C,
-        "?",
-    ),
+    Claim("Fig. 5: selection Scheme 1 beats classical", _F5, _S1, _C, ">"),
+    Claim("Fig. 5: selection Scheme 2 lags behind classical",
+          _F5, ("selection_scheme2", {}), _C, "<"),
+    Claim("Fig. 7a: NMS (Alg. 3) at IoU 0.4 falls below classical",
+          _F7A, (_O1, {"iou_threshold": 0.4}), _C, "<"),
+    Claim("Fig. 7a: NMS at IoU 0.7 is on par with classical",
+          _F7A, (_O1, {"iou_threshold": 0.7}), _C, "~"),
+    Claim("Fig. 7b: soft-NMS (Alg. 4) at IoU 0.3 falls below classical",
+          _F7B, (_O2, {"soft_nms_iou": 0.3}), _C, "<"),
+    Claim("Fig. 7b: soft-NMS at IoU 0.7 is on par with classical",
+          _F7B, (_O2, {"soft_nms_iou": 0.7}), _C, "~"),
+    Claim("Table 2: 4 scales x 25 (Set 5) beat one scale x 100 (Set 1)",
+          _T2, _dense(TABLE2, "Set 5"), _dense(TABLE2, "Set 1"), ">"),
+    Claim("Table 2: one large scale (Set 2, 0.49) is worse than Set 1",
+          _T2, _dense(TABLE2, "Set 2"), _dense(TABLE2, "Set 1"), "<"),
+    Claim("Table 2: six scales x 16 (Set 6) are worse even than one scale (Set 1)",
+          _T2, _dense(TABLE2, "Set 6"), _dense(TABLE2, "Set 1"), "<"),
+    Claim("Table 3: the most uneven split (Set 4) is worse than uniform 25 each (Set 1)",
+          _T3, _dense(TABLE3, "Set 4"), _dense(TABLE3, "Set 1"), "<"),
+    Claim("Table 4: similar scales (Set 2) are on par with Set 1",
+          _T4, _dense(TABLE4, "Set 2"), _dense(TABLE4, "Set 1"), "~"),
+    Claim("Table 4: small scales (Set 3) are worse than Set 1",
+          _T4, _dense(TABLE4, "Set 3"), _dense(TABLE4, "Set 1"), "<"),
+    Claim("Table 4: oversize scales (Set 4) are worse than Set 1",
+          _T4, _dense(TABLE4, "Set 4"), _dense(TABLE4, "Set 1"), "<"),
+    Claim("Fig. 13: classical is clearly worse than dense", _F13, _C, _D, "<"),
+    Claim("Fig. 13: Scheme 1 is slightly worse than dense", _F13, _S1, _D, "<"),
+    Claim("(not in the paper) a global descriptor vs dense landmarks",
+          _F13, ("global", {}), _D, "?"),
+    Claim("(not in the paper) geometry-aware score: dense with vs without",
+          "geometry_dense", ("dense", {"spatial": "consistency"}), _D, "?"),
+    Claim("(not in the paper) geometry-aware score: classical with vs without",
+          "geometry_classical", ("classical", {"spatial": "consistency"}), _C, "?"),
 )
+# fmt: on
 
 #: Observation 1 (Fig. 4): large landmarks (Scales 5-7) match correctly more often than small
 #: ones (Scales 1-3).
@@ -262,20 +149,9 @@ def _claim_cell(folder: Path, claim: Claim) -> tuple[str, str]:
 def cmr_difference(
     matches: pd.DataFrame, n: int = N_BOOTSTRAP, seed: int = 0
 ) -> tuple[float, float, float]:
-    """CMR(Scales 5-7) - CMR(Scales 1-3) of labelled ground-truth matches, bootstrapped over
-    query images (all matches of a drawn query count).
-
-    Args:
-        matches: :meth:`~vpr_core.statistics.ScaleStats.matches_frame` (columns ``query``,
-            ``pair``, ``scale``, ``correct``); only ``pair == "gt"`` rows are used.
-        n: resamples. seed: their seed.
-
-    Returns:
-        ``(difference, low, high)``: 95% percentile interval.
-
-    Raises:
-        ValueError: no labelled ground-truth match at Scales 1-3 or 5-7.
-    """
+    """``(difference, low, high)``: CMR(Scales 5-7) - CMR(Scales 1-3) of the labelled
+    ground-truth matches of a ``ScaleStats.matches_frame``, with its 95% interval bootstrapped
+    over query images (all matches of a drawn query count)."""
     m = matches[(matches["pair"] == "gt") & matches["correct"].notna()]
     groups = {"small": m["scale"].between(1, 3), "large": m["scale"].between(5, 7)}
     if not all(g.any() for g in groups.values()):
@@ -329,16 +205,8 @@ def result_labels(first: Sequence[str] = (), out: str | Path | None = None) -> l
 
 
 def findings_table(labels: Sequence[str], out: str | Path | None = None) -> pd.DataFrame:
-    """One row per claim, two columns per dataset label (``<label>`` value and verdict).
-
-    Args:
-        labels: result folders under ``<output root>/results/`` (e.g. ``["synthetic",
-            "gardens_point_mini", "nordland_step50"]``).
-        out: another output root (default :func:`vpr_core.paths.output_root`).
-
-    Returns:
-        DataFrame indexed by claim text.
-    """
+    """One row per claim (the index), two columns per result folder label under
+    ``<output root>/results/`` (value and verdict)."""
     root = paths.output_root() if out is None else Path(out)
     rows = []
     for claim in (None, *CLAIMS):
