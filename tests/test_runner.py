@@ -14,9 +14,7 @@ def test_registry_is_one_list():
     assert len(stems) == len(set(stems)), "a figure stem is registered twice"
     by_nb = runner.expected_figures()
     assert list(by_nb) == sorted(by_nb)
-    assert runner.figure_spec("fig05_selection").notebook == "03_landmark_selection"
-    with pytest.raises(KeyError, match="fig05_selection"):
-        runner.figure_spec("fig99")
+    assert "fig05_selection" in by_nb["03_landmark_selection"]
 
 
 def test_every_registered_figure_is_saved_by_its_notebook():

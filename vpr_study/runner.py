@@ -1,17 +1,6 @@
-"""Execute the study notebooks headless (papermill) and check their figures.
-
-``vpr-study run`` and ``make study`` call :func:`run_study`. Each notebook of the source
-checkout's ``notebooks/`` is executed with its ``parameters`` cell overridden (dataset, root,
-backbone, label, options, limit), with the working directory ``notebooks/``, into
-``<output root>/runs/<label>/<notebook>.ipynb``. The kernels get the absolute output and
-cache roots (:func:`kernel_settings`), so they write where the caller works, not into
-``notebooks/``. Afterwards every figure that :data:`FIGURES` lists for the notebook must
-exist in ``figures/<label>/``, else a clear error lists the missing ones.
-
-The orchestration lives here, outside the pipeline packages: the list of figures
-(:data:`FIGURES`), the real datasets of ``make study`` (:func:`study_datasets`) and the quick
-settings of the headless tests (:data:`QUICK_PLACES`, :data:`QUICK_IMAGES`).
-"""
+"""Execute the study notebooks headless (papermill) with their ``parameters`` cell overridden,
+into ``<output root>/runs/<label>/``, and check that each wrote the figures :data:`FIGURES` lists;
+also the real datasets of ``make study`` (:func:`study_datasets`) and the quick test settings."""
 
 from __future__ import annotations
 
@@ -30,27 +19,6 @@ from vpr_core import paths, settings
 from vpr_core.datasets import load_dataset
 from vpr_study.findings import findings_markdown, result_labels
 
-__all__ = [
-    "FIGURES",
-    "NORDLAND_STUDY",
-    "PARAMETER_TYPES",
-    "QUICK_IMAGES",
-    "QUICK_PLACES",
-    "FigureSpec",
-    "check_parameters",
-    "expected_figures",
-    "figure_spec",
-    "kernel_settings",
-    "notebook_parameters",
-    "notebook_paths",
-    "notebooks_dir",
-    "output_label",
-    "run_study",
-    "source_checkout",
-    "study_datasets",
-    "summary_table",
-]
-
 logger = logging.getLogger("vpr_core")
 
 #: Places of the ``synthetic`` dataset in quick mode (the headless notebook tests).
@@ -61,14 +29,8 @@ QUICK_IMAGES = 20
 
 @dataclass(frozen=True)
 class FigureSpec:
-    """One expected figure file.
-
-    Attributes:
-        stem: file stem under ``figures/<label>/`` (``.png``).
-        notebook: the notebook (stem) that writes it.
-        paper: the paper item it reproduces (``"Fig. 5"``), or what it shows when the paper has
-            no such figure.
-    """
+    """One expected figure ``figures/<label>/<stem>.png``, the notebook that writes it and the
+    paper item it reproduces (``"Fig. 5"``), or what it shows when the paper has no such figure."""
 
     stem: str
     notebook: str
@@ -111,18 +73,6 @@ FIGURES: tuple[FigureSpec, ...] = (
 )
 
 
-def figure_spec(stem: str) -> FigureSpec:
-    """The :data:`FIGURES` entry of a figure stem.
-
-    Raises:
-        KeyError: unknown stem (the message lists the valid ones).
-    """
-    for spec in FIGURES:
-        if spec.stem == stem:
-            return spec
-    raise KeyError(f"Unknown figure {stem!r}; registered: {', '.join(s.stem for s in FIGURES)}.")
-
-
 def expected_figures() -> dict[str, list[str]]:
     """``{notebook stem: [figure stems]}`` in notebook order."""
     out: dict[str, list[str]] = {}
@@ -139,16 +89,9 @@ NORDLAND_STUDY = {"dataset": "nordland", "options": {"step": 50, "tolerance": 0}
 
 
 def study_datasets() -> dict[str, dict]:
-    """Real datasets found beside the project, for the comparison notebooks (03-06).
-
-    ``../shared/data/gardens_point_mini`` next to the source checkout (10 Gardens Point
-    day/night pairs, crop pooling), ``../shared/data/nordland_64x32`` (the
-    :data:`NORDLAND_STUDY` subset) when present, and any ``VPR_DATASETS`` entries
-    (:func:`vpr_core.settings.extra_datasets`; loader defaults, crop pooling).
-
-    Returns:
-        ``{label: {"dataset": loader name, "root": folder, "options": {...}, "pooling": ...}}``.
-    """
+    """``{label: {"dataset", "root", "options", "pooling"}}`` of the real datasets beside the
+    project for notebooks 03-06: ``../shared/data/gardens_point_mini`` (crop pooling) and
+    ``nordland_64x32`` (:data:`NORDLAND_STUDY`) when present, and any ``VPR_DATASETS`` entries."""
     found: dict[str, dict] = {}
     checkout = source_checkout()
     if checkout is not None:
@@ -182,12 +125,8 @@ PARAMETER_TYPES: dict[str, tuple[type, ...]] = {
 
 
 def check_parameters(**params) -> None:
-    """Refuse notebook parameters of the wrong type with one line naming each and the fix
-    (instead of a ``**``/``TypeError`` from deep inside a later cell).
-
-    Raises:
-        TypeError: e.g. ``options must be a dict such as {"tolerance": 0}, got a list``.
-    """
+    """Refuse notebook parameters of the wrong type with one TypeError line naming each and the
+    fix (``options must be a dict such as {"tolerance": 0}, got a list``)."""
     bad = []
     for name, value in params.items():
         types = PARAMETER_TYPES.get(name)
@@ -241,11 +180,7 @@ def source_checkout() -> Path | None:
 
 
 def notebooks_dir() -> Path:
-    """The study notebooks' folder: ``notebooks/`` of the source checkout.
-
-    Raises:
-        FileNotFoundError: the package runs from an install without the repository.
-    """
+    """The study notebooks' folder: ``notebooks/`` of the source checkout."""
     root = source_checkout()
     if root is None or not (root / "notebooks").is_dir():
         raise FileNotFoundError(
@@ -257,12 +192,7 @@ def notebooks_dir() -> Path:
 
 
 def notebook_paths(names: Sequence[str] | None = None) -> list[Path]:
-    """The study notebooks (``notebooks/NN_*.ipynb``) in order, optionally a subset by stem.
-
-    Raises:
-        ValueError: an unknown stem (the message lists the valid ones).
-        FileNotFoundError: no notebooks (see :func:`notebooks_dir`).
-    """
+    """The study notebooks (``notebooks/NN_*.ipynb``) in order, optionally a subset by stem."""
     folder = notebooks_dir()
     found = sorted(folder.glob("[0-9][0-9]_*.ipynb"))
     if not found:
@@ -298,15 +228,9 @@ def summary_table(label: str) -> pd.DataFrame:
 
 
 def kernel_settings() -> dict[str, str]:
-    """The settings the study runner hands its notebook kernels (through the ``env=`` of the
-    papermill process it starts; nothing writes ``os.environ``).
-
-    Returns:
-        ``{variable: value}``: the absolute output and cache roots (:mod:`vpr_core.paths`), so a
-        kernel in ``notebooks/`` writes and reads where the caller does; inline figures in the
-        executed notebooks (even when the caller runs with ``MPLBACKEND=Agg``); text progress
-        bars the saved notebooks can show.
-    """
+    """The ``env=`` settings of the notebook kernels: the absolute output and cache roots (a
+    kernel in ``notebooks/`` writes where the caller does), inline figures even under
+    ``MPLBACKEND=Agg``, and text progress bars the saved notebooks can show."""
     return {
         settings.OUTPUT_ENV: str(paths.output_root()),
         settings.CACHE_ENV: str(paths.cache_root()),
@@ -331,34 +255,15 @@ def _print_summary(table: pd.DataFrame, label: str, backbone: str) -> None:
     with pd.option_context(
         "display.width", 200, "display.max_rows", 200, "display.float_format", "{:.3f}".format
     ):
-        cols = [
-            c
-            for c in (
-                "notebook",
-                "figure",
-                "method",
-                "AUC",
-                "AUC lo",
-                "AUC hi",
-                "R@100P",
-                "R@1",
-                "R@1 lo",
-                "R@1 hi",
-            )
-            if c in table.columns
-        ]
+        want = ["notebook", "figure", "method", "AUC", "AUC lo", "AUC hi", "R@100P", "R@1"]
+        cols = [c for c in [*want, "R@1 lo", "R@1 hi"] if c in table.columns]
         print(f"\nSummary ({label}, backbone {backbone}):")
         print(table[cols].to_string(index=False))
 
 
 #: The comparison notebooks that ``make study`` also runs on the real datasets beside the
 #: project (:func:`study_datasets`).
-REAL_DATA_NOTEBOOKS = (
-    "03_landmark_selection",
-    "04_overlap",
-    "05_dense_sampling_parameters",
-    "06_comparison",
-)
+REAL_DATA_NOTEBOOKS = (_NB3, _NB4, _NB5, _NB6)
 
 
 #: The child process of :func:`_execute`: papermill with the kernel's output streamed to the
@@ -416,9 +321,7 @@ def _run_label(label: str, selected: Sequence[Path], params: dict, kernel: str) 
 
 def _write_findings(labels: Sequence[str]) -> None:
     """``results/findings.md``: the paper's claims against these labels' paired differences."""
-    labels = result_labels(
-        labels
-    )  # this run's, then every other result folder (make study-nordland)
+    labels = result_labels(labels)  # this run's, then every other result folder
     text = findings_markdown(labels)
     out = paths.results_dir() / "findings.md"
     out.write_text(text + "\n")
@@ -438,29 +341,14 @@ def run_study(
     pooling: str = "crop",
     shortlist: int | None = None,
 ) -> pd.DataFrame:
-    """Execute the notebooks with papermill and verify their figures.
+    """Execute the notebooks (all, or the stems in ``notebooks``) with papermill, verify their
+    figures and return the summary metrics table of ``dataset`` (also printed).
 
-    Args:
-        dataset: :func:`~vpr_core.datasets.load_dataset` name.
-        root: dataset folder (made absolute: the kernels run in ``notebooks/``).
-        backbone: landmark encoder backbone.
-        quick: the small headless run (outputs under ``<dataset>_quick``).
-        notebooks: subset of notebook stems (default: all, in order).
-        kernel: Jupyter kernel name.
-        real_data: also run :data:`REAL_DATA_NOTEBOOKS` (of those selected) on every real
-            dataset of :func:`study_datasets` (outputs under
-            ``figures/<label>/``, ``results/<label>/``); default: on for the full
-            ``synthetic`` study, off otherwise.
-        label: output subfolder (default: the dataset's name; ``_quick`` appended in quick mode).
-        options: loader options of ``dataset`` (e.g. ``{"step": 5, "tolerance": 0}``).
-        pooling, shortlist: passed to every ``run_method`` of the notebooks.
-
-    Returns:
-        The summary metrics table of ``dataset`` (also printed, then one per real dataset).
-
-    Raises:
-        RuntimeError: a notebook failed (the message names it and the executed copy to open)
-            or expected figures are missing.
+    ``real_data``: also run :data:`REAL_DATA_NOTEBOOKS` on every dataset of :func:`study_datasets`
+    (default: on for the full ``synthetic`` study). ``label``: the output subfolder (default the
+    dataset's name; ``_quick`` appended in quick mode). ``options``: loader options; ``pooling``
+    and ``shortlist`` go to every ``run_method`` of the notebooks. RuntimeError names a failed
+    notebook (and the executed copy to open) or the missing figures.
     """
     if isinstance(root, Path):
         root = str(root)
@@ -488,14 +376,7 @@ def run_study(
     if real_data is None:
         real_data = dataset == "synthetic" and not quick and label is None
     params = notebook_parameters(
-        dataset,
-        root,
-        backbone,
-        quick,
-        label=label,
-        options=options,
-        pooling=pooling,
-        shortlist=shortlist,
+        dataset, root, backbone, quick, label, options, pooling=pooling, shortlist=shortlist
     )
     label = params["label"]
     selected = notebook_paths(notebooks)
