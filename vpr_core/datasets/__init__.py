@@ -1,17 +1,6 @@
-"""Place-recognition datasets: one loader per dataset, a registry, and the synthetic generator.
-
-Where things live:
-
-* :mod:`.base`: :class:`PlaceDataset`, :func:`read_image` (refuses truncated and too-small
-  images), :func:`list_images`;
-* :mod:`.ground_truth`: ground-truth files, the frame-aligned rule, tolerance widening, coverage
-  checks (:func:`check_ground_truth`);
-* one module per loader: :mod:`.gardens_point`, :mod:`.mapillary_berlin`, :mod:`.freiburg`,
-  :mod:`.folder`, :mod:`.nordland`, :mod:`.vpr_bench`, :mod:`.utm`, and :mod:`.synthetic`
-  (the embedded default);
-* :mod:`.download`: :func:`download_dataset`;
-* here: the registry :data:`DATASETS` and :func:`load_dataset`.
-"""
+"""Place-recognition datasets: :class:`PlaceDataset` (``base``), image files (``images``), ground
+truth (``ground_truth``), one module per loader, the synthetic generator and downloads; here the
+registry :data:`DATASETS` and :func:`load_dataset`."""
 
 from __future__ import annotations
 

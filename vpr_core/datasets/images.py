@@ -1,7 +1,5 @@
-"""Image files: which files are images, how they are listed, and how one is read.
-
-Damaged, truncated, oversized and tiny images are refused by name (see :func:`read_image`).
-"""
+"""Image files: which files are images, how they are listed, and how one is read; damaged,
+truncated, oversized and tiny images are refused by name (:func:`read_image`)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,5 @@
-"""Matching on a Dask cluster: query blocks scored by the in-process core, equal to it exactly.
-
-Why each task carries the widest image of each side: docs/DISTRIBUTED.md ("Determinism").
-"""
+"""Matching on a Dask cluster: query blocks scored by the in-process core, equal to it exactly
+(why each task carries the widest image of each side: docs/DISTRIBUTED.md)."""
 
 from __future__ import annotations
 

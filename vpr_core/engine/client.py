@@ -1,9 +1,6 @@
-"""Connecting to a Dask cluster: the scheduler address and the client (used by the engine).
-
-The address comes from the ``scheduler`` argument only (the CLI fills it from ``--scheduler`` or
-``$VPR_DASK_SCHEDULER`` via :func:`vpr_core.settings.dask_scheduler`); without one everything
-runs in-process and Dask is never imported.
-"""
+"""Connecting to a Dask cluster: the scheduler address comes from the ``scheduler`` argument only
+(the CLI fills it from ``--scheduler`` or ``$VPR_DASK_SCHEDULER``); without one everything runs
+in-process and Dask is never imported."""
 
 from __future__ import annotations
 

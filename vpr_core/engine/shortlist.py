@@ -1,7 +1,5 @@
-"""Shortlist + re-rank: a whole-image descriptor picks top-k references per query, Eq. (1) re-ranks.
-
-Definitions (NaN = not ranked, S2 inside the shortlist, ties): docs/DEFINITIONS.md ("Shortlist").
-"""
+"""Shortlist + re-rank: a whole-image descriptor picks top-k references per query, Eq. (1)
+re-ranks them (NaN = not ranked, S2 inside the shortlist, ties: docs/DEFINITIONS.md)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,5 @@
-"""Precision-recall curves and the table metrics (AUC, R@100P, R@K).
-
-Protocols, NaN = not ranked, queries that retrieve nothing: docs/DEFINITIONS.md ("Protocols",
-"NaN = not ranked"); their chance level is :mod:`vpr_core.evaluation.chance`."""
+"""Precision-recall curves and the table metrics (AUC, R@100P, R@K); protocols and NaN = not
+ranked: docs/DEFINITIONS.md; chance levels: :mod:`vpr_core.evaluation.chance`."""
 
 from __future__ import annotations
 

@@ -1,8 +1,6 @@
-"""Edge Boxes (Zitnick & Dollar, ECCV 2014), the classical landmark proposals (Sec. 2.1).
-
-OpenCV-contrib ``ximgproc`` Edge Boxes on a structured-edge map (when the user supplies the model)
-or on a gradient edge map. Boxes come back in proposal order (descending objectness score).
-"""
+"""Edge Boxes (Zitnick & Dollar, ECCV 2014), the classical landmark proposals (Sec. 2.1): OpenCV-
+contrib ``ximgproc`` on a structured-edge map (when the user supplies the model) or a gradient
+edge map; boxes in proposal order (descending objectness score)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,5 @@
-"""Landmark schemes as values: one frozen dataclass per scheme, checked once when it is made.
-
-Any frozen dataclass with ``boxes(self, image) -> (K, 4)`` is a scheme (docs/DEFINITIONS.md).
-"""
+"""Landmark schemes as values: one frozen dataclass per scheme, checked once when it is made; any
+frozen dataclass with ``boxes(self, image) -> (K, 4)`` is a scheme (docs/DEFINITIONS.md)."""
 
 from __future__ import annotations
 

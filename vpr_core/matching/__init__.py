@@ -1,7 +1,5 @@
-"""Landmark matching: Eq. (1)-(2), reciprocal nearest neighbours and Algorithm 4, in one torch core.
-
-Public functions in :mod:`.similarity`, the core they share in :mod:`.core`.
-"""
+"""Landmark matching: Eq. (1)-(2), reciprocal nearest neighbours and Algorithm 4, in one torch core
+(:mod:`.core`); the public functions are in :mod:`.similarity`."""
 
 from __future__ import annotations
 

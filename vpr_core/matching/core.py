@@ -1,8 +1,6 @@
 """The one matching core: Eq. (1) with Eq. (2) and optional Algorithm 4 for blocks of image pairs.
-
-Its inputs are prepared in :mod:`.sides`, its matches found in :mod:`.reciprocal`.
-Definitions: ``docs/DEFINITIONS.md`` (Matching). Public entry points: :mod:`.similarity`.
-"""
+Inputs prepared in :mod:`.sides`, matches found in :mod:`.reciprocal`, public entry points in
+:mod:`.similarity`; definitions in docs/DEFINITIONS.md (Matching)."""
 
 from __future__ import annotations
 

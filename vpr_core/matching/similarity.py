@@ -1,7 +1,5 @@
-"""Public matching functions, each a case of the one core (:class:`.core.Problem`).
-
-Many pairs: :func:`similarity_matrix`, :func:`similarity_pairs`; one pair: the rest (float64).
-"""
+"""Public matching functions, each a case of the one core (:class:`.core.Problem`): many pairs
+(:func:`similarity_matrix`, :func:`similarity_pairs`), one pair (the rest, float64)."""
 
 from __future__ import annotations
 

@@ -1,14 +1,6 @@
-"""On-disk cache entries: atomic writes, and reads that heal a corrupted or foreign entry.
-
-Every stage stores ``.npz`` files under :func:`vpr_core.utils.cache_dir`. Each entry records
-what it was computed from (its *identity*: stage, configuration hash, image key) and is
-checked on read against what the caller expects, with the caller's shape checks (descriptor
-dimension, box columns, matrix shape). A file that cannot be read (truncated by a crash or a
-full disk, or damaged), holds another entry (a valid ``.npz`` copied under the wrong name) or
-fails a check is treated as missing: its path and the reason are logged once, the file is
-removed, and the caller recomputes it, so a damaged cache never stops a run and never changes
-a number.
-"""
+"""On-disk cache entries: atomic writes, and reads that heal a corrupted or foreign entry (each
+records its identity and is checked on read; a file that fails is logged, removed and
+recomputed, so a damaged cache never stops a run and never changes a number)."""
 
 from __future__ import annotations
 

@@ -1,9 +1,6 @@
-"""View geometry: the day reference and night query cameras of a place, and their homography.
-
-Everything is scalar Python float arithmetic (no LAPACK, no OpenCV): rotations use ``math.cos`` /
-``math.sin`` rounded to the grid of :func:`.exact.to_grid`, homographies come from
-:func:`.exact.solve_homography`, so the matrices are identical on every CPU.
-"""
+"""View geometry: the day reference and night query cameras of a place, and their homography, in
+scalar Python floats (grid-rounded rotations, :func:`.exact.solve_homography`; no LAPACK, no
+OpenCV), so the matrices are identical on every CPU."""
 
 from __future__ import annotations
 

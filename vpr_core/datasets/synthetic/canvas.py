@@ -1,8 +1,5 @@
-"""The world canvas of one place and its fill / paste / text primitives.
-
-Drawing uses integer coordinates and OpenCV's ``LINE_8`` primitives only (integer rasterisation);
-fills are elementwise float64 arithmetic (see :mod:`.exact`).
-"""
+"""The world canvas of one place and its fill / paste / text primitives: integer-coordinate
+OpenCV ``LINE_8`` drawing and elementwise float64 fills (:mod:`.exact`)."""
 
 from __future__ import annotations
 

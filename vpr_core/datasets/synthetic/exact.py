@@ -1,21 +1,6 @@
-"""CPU-independent image arithmetic for the generator (the same pixels on every machine).
-
-Why each primitive is exact (docs/SYNTHETIC.md has the long version):
-
-* IEEE-754 float64 ``+ - * /`` and ``sqrt`` are correctly rounded, in scalar and in SIMD code
-  alike, and one NumPy ufunc call performs one such operation per element (no fused
-  multiply-add). Chains of elementwise float64 ufuncs therefore give identical bits on every CPU.
-* Integer sums (``np.cumsum`` on ``int64``) are exact in any order.
-* Reductions over floats (``sum``, ``mean``, ``dot``, BLAS / LAPACK) and transcendental functions
-  (``exp``, ``pow``, ``sin``, ``cos``) may differ in the last bit between SIMD paths or libm
-  variants; they are avoided on images, and their few scalar uses (kernel weights, gamma tables,
-  rotations, random normals) are rounded to a coarse binary grid (:func:`to_grid`) before they can
-  reach a quantisation, so a last-bit difference would have to fall exactly on a grid midpoint.
-* Homographies are solved and composed in pure Python floats (scalar IEEE arithmetic), not LAPACK.
-
-Nothing here calls OpenCV's resize, warp or blur: their SIMD dispatch (SSE4 / AVX2 / AVX-512)
-and fixed-point shortcuts differ between CPUs.
-"""
+"""CPU-independent image arithmetic for the generator (the same pixels on every machine): only
+correctly rounded elementwise float64 ops, exact integer sums, pure-Python homographies and
+grid-rounded transcendentals; no OpenCV resize, warp or blur (why: docs/SYNTHETIC.md)."""
 
 from __future__ import annotations
 

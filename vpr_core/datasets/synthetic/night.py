@@ -1,8 +1,5 @@
-"""Night illumination of the canvas: exposure, gamma, colour cast, lit windows, lamp glare.
-
-Exact arithmetic only (see :mod:`.exact`): a grid-rounded gamma table, elementwise float64,
-an integer-indexed 4x4 block mean, the float64 separable blur and bilinear upsampling.
-"""
+"""Night illumination of the canvas: exposure, gamma, colour cast, lit windows, lamp glare, in
+exact arithmetic only (:mod:`.exact`)."""
 
 from __future__ import annotations
 

@@ -1,8 +1,5 @@
-"""Render one place: the day reference and the night query with their homography.
-
-Every step is exact (see :mod:`.exact` and docs/SYNTHETIC.md): own float64 warps and blur,
-grid-rounded normal noise, integer-coordinate drawing, ``floor(255 x + 0.5)`` quantisation.
-"""
+"""Render one place: the day reference and the night query with their homography; every step is
+exact (:mod:`.exact`, docs/SYNTHETIC.md), down to the ``floor(255 x + 0.5)`` quantisation."""
 
 from __future__ import annotations
 

@@ -1,8 +1,5 @@
-"""Wall and poster textures from scikit-image's bundled images (no downloads).
-
-Textures are kept as ``uint8`` and normalised with integer statistics; resampling uses the exact
-primitives of :mod:`.exact` (no OpenCV resize / blur).
-"""
+"""Wall and poster textures from scikit-image's bundled images (no downloads), kept as ``uint8``,
+normalised with integer statistics and resampled with the exact primitives of :mod:`.exact`."""
 
 from __future__ import annotations
 
