@@ -8,6 +8,7 @@ import shutil
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from vpr_core.baselines import PRECOMPUTED_FILE, find_vprbench_peers, peer_from_matrix
 from vpr_core.datasets import load_dataset
@@ -110,3 +111,97 @@ def test_cli_peer_name_is_escaped(tmp_path, capsys):
     (path,) = (tmp_path / "results" / "synthetic").glob("eval_*[0-9a-f].csv")
     _assert_no_formula(path)
     assert any(c.startswith("'-2+3") for c in _cells(path))
+
+
+# ------------------------------------------------------------------------------------------
+# 32.2 structured-edge model files: checked against their own sizes before OpenCV reads them
+# ------------------------------------------------------------------------------------------
+
+#: id -> (replaced text of the test forest, replacement); each one crashed or hung OpenCV.
+BAD_FORESTS = {
+    "child beyond the tree": ("[ 2, 0, 0 ]", "[ 100, 0, 0 ]"),
+    "negative child": ("[ 2, 0, 0 ]", "[ -5, 0, 0 ]"),
+    "child pointing at itself": ("[ 2, 0, 0 ]", "[ 1, 0, 0 ]"),
+    "feature id beyond the features": ("[ 904, 0, 0 ]", "[ 1000000000, 0, 0 ]"),
+    "negative feature id": ("[ 904, 0, 0 ]", "[ -3, 0, 0 ]"),
+    "edge boundary beyond edgeBins": ("[ 0, 0, 0, 64 ]", "[ 0, 0, 0, 6400 ]"),
+    "edge bin beyond the patch": ("[8, 24,", "[100000, 24,"),
+    "1000 gradient orientations": (
+        "numberOfGradientOrientations: 4",
+        "numberOfGradientOrientations: 1000",
+    ),
+    "huge patch": ("patchSize: 32", "patchSize: 100000"),
+    "negative smoothing radius": ("regFeatureSmoothingRadius: 2", "regFeatureSmoothingRadius: -4"),
+}
+
+_PROBE = """
+import sys
+import numpy as np
+import pytest
+from vpr_core.landmarks.edge_boxes import edge_boxes
+image = np.random.default_rng(0).integers(0, 255, (90, 120, 3), dtype=np.uint8)
+for path in sys.argv[1:]:
+    try:
+        edge_boxes(image, max_boxes=20, model=path)
+        print("ACCEPTED", path, flush=True)
+    except ValueError as exc:
+        print("REFUSED", str(exc).replace(chr(10), " | "), flush=True)
+"""
+
+
+def test_structured_edge_models_out_of_their_own_sizes_are_refused(tmp_path):
+    """Each hostile forest is refused with a one-line error naming the file (run in a child
+    process: before the checks, OpenCV killed the process with SIGSEGV or looped forever)."""
+    import gzip
+    import subprocess
+    import sys
+
+    from test_landmarks import write_sed_model
+
+    good = tmp_path / "good.yml.gz"
+    write_sed_model(good, n_trees=2)
+    with gzip.open(good, "rt") as fh:
+        text = fh.read()
+    paths = []
+    for k, (old, new) in enumerate(BAD_FORESTS.values()):
+        assert old in text, old
+        path = tmp_path / f"bad{k}.yml.gz"
+        with gzip.open(path, "wt") as fh:
+            fh.write(text.replace(old, new))
+        paths.append(str(path))
+    run = subprocess.run(
+        [sys.executable, "-c", _PROBE, str(good), *paths],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    lines = run.stdout.splitlines()
+    assert run.returncode == 0, (run.returncode, lines, run.stderr[-2000:])
+    assert lines[0] == f"ACCEPTED {good}"
+    for case, path, line in zip(BAD_FORESTS, paths, lines[1:], strict=True):
+        assert line.startswith("REFUSED") and path in line and " | " not in line, (case, line)
+
+
+def test_dense_edge_maps_are_bounded_and_said(tmp_path, gardens_point_mini_root):
+    """A forest that paints a line through every patch marks ~80% of a noise image as edges
+    (270 x 480: 49 s in OpenCV's Edge Boxes before the budget, 4 s after); the strongest 25%
+    are kept, said once; a natural image is below the budget and untouched."""
+    import warnings
+
+    from PIL import Image
+    from test_landmarks import write_sed_model
+
+    from vpr_core.landmarks.edge_boxes import MAX_EDGE_DENSITY, edge_boxes
+    from vpr_core.notices import VPRWarning
+
+    model = tmp_path / "dense.yml.gz"
+    write_sed_model(model, n_trees=2)
+    noise = np.random.default_rng(0).integers(0, 255, (135, 240, 3), dtype=np.uint8)
+    with pytest.warns(VPRWarning, match=rf"{model}.*keeps the strongest 25%"):
+        first = edge_boxes(noise, max_boxes=200, model=model)
+    assert MAX_EDGE_DENSITY == 0.25 and len(first) > 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", VPRWarning)  # said once per edge map; same boxes again
+        np.testing.assert_array_equal(edge_boxes(noise, max_boxes=200, model=model).boxes, first)
+        photo = np.asarray(Image.open(gardens_point_mini_root / "query" / "0.jpg").convert("RGB"))
+        edge_boxes(photo, max_boxes=50, model="gradient")

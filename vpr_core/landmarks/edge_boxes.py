@@ -4,8 +4,10 @@ edge map; boxes in proposal order (descending objectness score)."""
 
 from __future__ import annotations
 
+import gzip
 import logging
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -16,6 +18,7 @@ import numpy as np
 from .. import settings
 from ..checks import check_image
 from ..checks import check_int as check_count
+from ..notices import notice
 from ..paper import N_LANDMARKS
 from ..utils import file_sha256
 
@@ -101,19 +104,24 @@ def edge_model_id(model: str | os.PathLike | None = None) -> str:
     return f"sha256:{file_sha256(path)}"
 
 
-#: ``options`` of a structured-edge model file that must be positive integers.
-_SED_OPTIONS = (
-    "stride",
-    "shrinkNumber",
-    "patchSize",
-    "patchInnerSize",
-    "numberOfGradientOrientations",
-    "gradientNormalizationRadius",
-    "selfsimilarityGridSize",
-    "numberOfTrees",
-    "numberOfTreesToEvaluate",
-)
+#: ``options`` of a structured-edge model file that must be positive integers, with the largest
+#: value accepted (opencv_extra's model: stride 2, shrink 2, patch 32 / 16, 4 orientations,
+#: radius 4, grid 5, 8 trees); larger ones only make OpenCV allocate without bound.
+_SED_OPTIONS = {
+    "stride": 64,
+    "shrinkNumber": 16,
+    "patchSize": 256,
+    "patchInnerSize": 256,
+    "numberOfGradientOrientations": 64,
+    "gradientNormalizationRadius": 64,
+    "selfsimilarityGridSize": 64,
+    "numberOfTrees": 1024,
+    "numberOfTreesToEvaluate": 1024,
+}
+#: ``options`` that may be 0 (OpenCV reads a missing one as 0): smoothing radii.
+_SED_RADII = ("gradientSmoothingRadius", "regFeatureSmoothingRadius", "ssFeatureSmoothingRadius")
 _SED_TREES = ("childs", "featureIds", "thresholds", "edgeBoundaries", "edgeBins")
+_FLOW_LIST = re.compile(r"\[([^\[\]]*)\]")
 
 
 def _bad_model(path: Path, why: str) -> ValueError:
@@ -124,16 +132,67 @@ def _bad_model(path: Path, why: str) -> ValueError:
     )
 
 
-def _tree_sizes(node: Any) -> list[int]:
-    """Lengths of the per-tree sequences of one model field (``[]`` when absent or not a list)."""
-    if node.empty() or not node.isSeq():
-        return []
-    return [node.at(i).size() for i in range(node.size())]
+def _model_options(fs: Any, path: Path) -> dict[str, int]:
+    """The model's options as OpenCV reads them, each checked against :data:`_SED_OPTIONS`."""
+    options = fs.getNode("options")
+    if options.empty() or not options.isMap():
+        raise _bad_model(path, "no 'options' map")
+    opt = {}
+    for key in (*_SED_OPTIONS, *_SED_RADII):
+        node = options.getNode(key)
+        value = node.real() if node.isInt() or node.isReal() else (0.0 if key in _SED_RADII else -1)
+        low, high = (0, 256) if key in _SED_RADII else (1, _SED_OPTIONS[key])
+        if not low <= value <= high or value != int(value):
+            raise _bad_model(path, f"options.{key} must be an integer in [{low}, {high}]")
+        opt[key] = int(value)
+    if (
+        opt["patchInnerSize"] > opt["patchSize"]
+        or opt["numberOfTreesToEvaluate"] > opt["numberOfTrees"]
+        or opt["patchSize"] % opt["shrinkNumber"]
+        or opt["selfsimilarityGridSize"] > opt["patchSize"] // opt["shrinkNumber"]
+    ):
+        raise _bad_model(path, "inconsistent options (patch sizes, shrink, grid or tree counts)")
+    return opt
+
+
+def _model_trees(path: Path, fs: Any) -> dict[str, list[np.ndarray]]:
+    """Each tree field of the model file as one array per tree, read from the YAML text and
+    checked against what OpenCV's FileStorage reads (tree counts, tree sizes, end values)."""
+    raw = path.read_bytes()
+    text = (gzip.decompress(raw) if raw[:2] == b"\x1f\x8b" else raw).decode("utf-8", "replace")
+    trees: dict[str, list[np.ndarray]] = {}
+    for key in _SED_TREES:
+        blocks = re.findall(rf"(?ms)^{key}:[ \t]*\n(.*?)(?=^\S|\Z)", text)
+        if len(blocks) != 1:
+            raise _bad_model(path, f"'{key}' must appear once as a YAML list of trees")
+        if _FLOW_LIST.sub("", blocks[0]).strip(" \t\r\n-[],"):
+            raise _bad_model(path, f"'{key}' is not a list of [ ... ] trees (the YAML layout)")
+        try:
+            trees[key] = [
+                np.array([float(v) for v in items.split(",") if v.strip()])
+                for items in _FLOW_LIST.findall(blocks[0])
+            ]
+        except ValueError:
+            raise _bad_model(path, f"'{key}' holds a value that is not a number") from None
+        node = fs.getNode(key)
+        seen = [node.at(t) for t in range(node.size())] if node.isSeq() else []
+        if [n.size() for n in seen] != [len(a) for a in trees[key]] or any(
+            len(a)
+            and key != "thresholds"
+            and (a[0], a[-1]) != (n.at(0).real(), n.at(n.size() - 1).real())
+            for a, n in zip(trees[key], seen, strict=True)
+        ):
+            raise _bad_model(path, f"'{key}' reads differently in OpenCV (not the YAML layout)")
+        if key != "thresholds" and any(
+            (a != np.round(a)).any() or (np.abs(a) >= 2**31).any() for a in trees[key]
+        ):
+            raise _bad_model(path, f"'{key}' must hold integers")
+    return trees
 
 
 def _check_model(path: Path) -> None:
-    """Refuse a structured-edge model file OpenCV would crash on (it divides by the tree count and
-    indexes the trees unchecked): readable FileStorage, positive options, consistent tree arrays."""
+    """Refuse a structured-edge model file OpenCV would crash or loop on (it indexes its trees
+    unchecked): readable FileStorage, bounded options, every index within the model's sizes."""
     try:
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     except (cv2.error, SystemError) as exc:  # the binding wraps a parse error in SystemError
@@ -142,30 +201,41 @@ def _check_model(path: Path) -> None:
     try:
         if not fs.isOpened():
             raise _bad_model(path, "not a readable OpenCV FileStorage")
-        options = fs.getNode("options")
-        if options.empty() or not options.isMap():
-            raise _bad_model(path, "no 'options' map")
-        opt = {}
-        for key in _SED_OPTIONS:
-            node = options.getNode(key)
-            value = node.real() if node.isInt() or node.isReal() else 0.0
-            if value < 1 or value != int(value):
-                raise _bad_model(path, f"options.{key} must be a positive integer")
-            opt[key] = int(value)
-        if opt["patchInnerSize"] > opt["patchSize"] or (
-            opt["numberOfTreesToEvaluate"] > opt["numberOfTrees"]
-        ):
-            raise _bad_model(path, "inconsistent options (patch sizes or tree counts)")
-        sizes = {key: _tree_sizes(fs.getNode(key)) for key in _SED_TREES}
-        if len(sizes["childs"]) != opt["numberOfTrees"] or not all(sizes["childs"]):
-            raise _bad_model(path, f"'childs' must hold {opt['numberOfTrees']} non-empty trees")
-        for key in ("featureIds", "thresholds"):
-            if sizes[key] != sizes["childs"]:
-                raise _bad_model(path, f"'{key}' does not match the trees of 'childs'")
-        if sum(sizes["edgeBoundaries"]) < sum(sizes["childs"]) or not sizes["edgeBins"]:
-            raise _bad_model(path, "'edgeBoundaries' / 'edgeBins' missing or too short")
+        opt = _model_options(fs, path)
+        trees = _model_trees(path, fs)
     finally:
         fs.release()
+    n_trees = opt["numberOfTrees"]
+    sizes = [len(a) for a in trees["childs"]]
+    if len(sizes) != n_trees or not all(sizes):
+        raise _bad_model(path, f"'childs' must hold {n_trees} non-empty trees")
+    if len(set(sizes)) != 1:
+        raise _bad_model(path, f"the trees of 'childs' differ in size ({sorted(set(sizes))})")
+    for key in ("featureIds", "thresholds"):
+        if [len(a) for a in trees[key]] != sizes:
+            raise _bad_model(path, f"'{key}' does not match the trees of 'childs'")
+    n_nodes = sizes[0]
+    out = 2 * (opt["numberOfGradientOrientations"] + 1) + 3
+    grid = opt["selfsimilarityGridSize"] ** 2
+    n_features = (opt["patchSize"] // opt["shrinkNumber"]) ** 2 * out + grid * (grid - 1) // 2 * out
+    local = np.arange(n_nodes)
+    for childs, ids in zip(trees["childs"], trees["featureIds"], strict=True):
+        split = childs != 0  # leaves hold 0; a split's children are childs - 1 and childs
+        if ((childs[split] - 1 <= local[split]) | (childs[split] > n_nodes - 1)).any():
+            raise _bad_model(
+                path, f"'childs' must point forward within each tree of {n_nodes} nodes"
+            )
+        if ((ids[split] < 0) | (ids[split] >= n_features)).any():
+            raise _bad_model(path, f"'featureIds' must lie in [0, {n_features}) at every split")
+    bounds = np.concatenate(trees["edgeBoundaries"] or [np.zeros(0)])
+    bins = np.concatenate(trees["edgeBins"] or [np.zeros(0)])
+    if len(bounds) < n_trees * n_nodes + 1 or ((bounds < 0) | (bounds > len(bins))).any():
+        raise _bad_model(
+            path, f"'edgeBoundaries' must hold {n_trees * n_nodes + 1} offsets into 'edgeBins'"
+        )
+    n_bins = opt["patchInnerSize"] ** 2 * out
+    if ((bins < 0) | (bins >= n_bins)).any():
+        raise _bad_model(path, f"'edgeBins' must lie in [0, {n_bins})")
 
 
 def _structured_edges(image: np.ndarray, path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -236,6 +306,42 @@ def _gradient_edges(
     if nms:
         mag = _edge_nms(mag, orient)
     return mag.astype(np.float32), orient
+
+
+#: Largest share of pixels Edge Boxes gets as edges (``>= edge_min_mag``). Natural images have
+#: 5-15% (Gardens Point, Nordland, synthetic); a denser map (a model painting every patch, noise)
+#: makes OpenCV's edge grouping take minutes per image, so only the strongest are kept.
+MAX_EDGE_DENSITY = 0.25
+_DENSE_NOTICED: set[str] = set()
+
+
+def _detail(model_path: Path | None) -> str:
+    """The edge map's name in messages: the model file, or the gradient map."""
+    return f"structured-edge model {model_path}" if model_path else "gradient (Scharr) edge map"
+
+
+def _bounded_edges(edges: np.ndarray, min_mag: float, detail: str) -> np.ndarray:
+    """``edges`` with at most :data:`MAX_EDGE_DENSITY` of its pixels at ``>= min_mag``: the
+    strongest kept, ties at the cut drawn with a fixed seed; said once per edge map source."""
+    on = np.flatnonzero(edges.ravel() >= min_mag)
+    budget = int(MAX_EDGE_DENSITY * edges.size)
+    if len(on) <= budget:
+        return edges
+    flat = edges.ravel()
+    cut = np.partition(flat[on], len(on) - budget)[len(on) - budget]
+    keep = flat > cut
+    ties = np.flatnonzero(flat == cut)
+    keep[np.random.default_rng(0).permutation(ties)[: budget - int(keep.sum())]] = True
+    if detail not in _DENSE_NOTICED:
+        _DENSE_NOTICED.add(detail)
+        notice(
+            f"edge_boxes: the {detail} marks {len(on) / edges.size:.0%} of an image's pixels "
+            f"as edges; Edge Boxes keeps the strongest {MAX_EDGE_DENSITY:.0%} (a work budget: "
+            "a denser map takes minutes per image), so its proposals differ from OpenCV's on "
+            "the full map. Said once per edge map; a natural image has 5-15%.",
+            stacklevel=4,
+        )
+    return np.where(keep.reshape(edges.shape), edges, 0.0).astype(np.float32)
 
 
 def _proposals(
@@ -351,9 +457,7 @@ def edge_boxes(
         source = "gradient"
     if source not in _LOGGED_SOURCES:
         _LOGGED_SOURCES.add(source)
-        detail = (
-            f"structured-edge model {model_path}" if model_path else "gradient (Scharr) edge map"
-        )
-        logger.info("edge_boxes: using %s", detail)
+        logger.info("edge_boxes: using %s", _detail(model_path))
+    edges = _bounded_edges(edges, float(p["edge_min_mag"]), _detail(model_path))
     boxes, scores = _proposals(edges, orient, p, max_boxes, image.shape[:2])
     return EdgeBoxes(boxes, scores, source)
