@@ -306,3 +306,26 @@ def test_repeated_facades_alias_places():
     same_alias = (w0.img[band] == w1.img[band]).all(axis=2).mean()
     same_easy = (e0.img[band] == e1.img[band]).all(axis=2).mean()
     assert same_alias > same_easy + 0.2, (same_alias, same_easy)
+
+
+def test_repetition_setting_off_by_default_and_repeats_the_route(tmp_path):
+    """(Not in the paper) ``repetition``: 0 is the default route (same folder, same pixels);
+    0.9 repeats a few shared buildings along the route, so different places look more alike."""
+    plain = load_dataset("synthetic", n_places=2, image_size=SMALL)
+    zero = load_dataset("synthetic", n_places=2, image_size=SMALL, repetition=0)
+    assert zero.root == plain.root and "repetition" not in zero.meta
+    rep = load_dataset("synthetic", n_places=6, image_size=SMALL, repetition=0.9)
+    assert rep.root != plain.root and rep.meta["repetition"] == 0.9
+    assert json.loads((rep.root / "manifest.json").read_text())["repetition"] == 0.9
+    assert not np.array_equal(rep.load_image("reference", 0), plain.load_image("reference", 0))
+    base = load_dataset("synthetic", n_places=6, image_size=SMALL)
+
+    def alike(ds) -> float:  # mean structure correlation of different places' references
+        g = [_grad(ds.load_image("reference", i)) for i in range(6)]
+        full = np.ones(g[0].shape, dtype=bool)
+        return float(np.mean([_ncc(g[i], g[j], full) for i in range(6) for j in range(i)]))
+
+    assert alike(rep) > alike(base) + 0.02
+    for bad in (-0.1, 1.5, True, "high"):
+        with pytest.raises(ValueError, match="repetition must be a number in"):
+            load_dataset("synthetic", n_places=1, image_size=SMALL, repetition=bad)

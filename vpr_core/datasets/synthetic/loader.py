@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from pathlib import Path
@@ -20,6 +21,9 @@ from .difficulty import SyntheticDifficulty, resolve_difficulty
 #: Generator version: part of every cache key. 6: exact arithmetic (same pixels on every CPU)
 #: and difficulty settings.
 SYNTHETIC_VERSION = 6
+#: (Not in the paper.) Shared buildings of a route with ``repetition > 0``: few, so that every
+#: place shows the same facades in another arrangement.
+REPETITION_POOL = 3
 
 
 def _write_png(path: Path, rgb: np.ndarray) -> None:
@@ -41,6 +45,7 @@ def load_synthetic(
     image_size: tuple[int, int] = (360, 640),
     tolerance: int = 0,
     difficulty: str | SyntheticDifficulty = "default",
+    repetition: float = 0.0,
 ) -> PlaceDataset:
     """The embedded default: a generated street route (DESIGN.md section 3).
 
@@ -68,6 +73,11 @@ def load_synthetic(
         tolerance: ``|q - r| <= tolerance`` ground truth.
         difficulty: A name of ``DIFFICULTIES`` (``easy``, ``default``, ``hard``) or a
             :class:`SyntheticDifficulty`.
+        repetition: (Not in the paper.) Probability in ``[0, 1]`` that a building is an exact
+            copy of one of :data:`REPETITION_POOL` buildings shared by the whole route, which then
+            repeats itself: places differ in the arrangement of the same facades and a few rare
+            elements (unique buildings, trees, lamps, signs). 0 (default): the difficulty's own
+            setting, the same pixels and cache folder as without it.
 
     Raises:
         ValueError: bad ``n_places``, ``seed``, ``image_size``, ``tolerance`` or an unknown
@@ -88,7 +98,17 @@ def load_synthetic(
             f"synthetic: image_size must be (H, W) with H, W >= 32, got {image_size!r}; "
             "e.g. image_size=(360, 640)."
         )
+    if (
+        isinstance(repetition, bool)
+        or not isinstance(repetition, (int, float, np.number))
+        or not (0 <= repetition <= 1)
+    ):
+        raise ValueError(f"synthetic: repetition must be a number in [0, 1], got {repetition!r}.")
     n_places, seed = int(n_places), int(seed)
+    if repetition > 0:
+        diff = dataclasses.replace(
+            diff, repeat_facades=float(repetition), facade_pool=REPETITION_POOL, style_share=1.0
+        )
     params = {
         "generator": "synthetic",
         "version": SYNTHETIC_VERSION,
@@ -97,6 +117,8 @@ def load_synthetic(
         "difficulty": diff_name,
         "difficulty_settings": diff.as_dict(),
     }
+    if repetition > 0:  # absent at 0: the default route keeps its cache key
+        params["repetition"] = float(repetition)
     out = (
         Path(root).expanduser()
         if root is not None
