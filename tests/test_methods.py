@@ -16,7 +16,6 @@ from vpr_core.methods import (
     as_method,
     available_methods,
     get_method,
-    method_identity,
     method_label,
     method_options,
     run_key,
@@ -211,16 +210,6 @@ def test_method_refuses_a_bad_name_or_matching():
         Method("", Dense())
     with pytest.raises(TypeError, match="matching must be a vpr_core.methods.Matching"):
         Method("x", Dense(), {"soft_nms_iou": None})  # type: ignore[arg-type]
-
-
-def test_method_identity_is_the_value():
-    a = method_identity(get_method("dense", per_scale=9))
-    assert a == method_identity(Method("other name", Dense(per_scale=9)))
-    assert a != method_identity(get_method("dense", per_scale=16))
-    assert a["landmarks"]["scheme"] == "vpr_core.landmarks.schemes.Dense"
-    assert a["matching"] == {"soft_nms_iou": None, "sigma": 0.5, "spatial": None}
-    user = method_identity(as_method(Stripes(2)))
-    assert user["landmarks"]["params"] == {"k": 2, "margin": 0.0} and user["landmarks"]["code"]
 
 
 def test_spatial_is_a_matching_option_of_every_method():

@@ -27,6 +27,7 @@ from vpr_core.landmarks import (
 )
 from vpr_core.landmarks.schemes import check_scheme, scheme_identity
 from vpr_core.pipeline import run_method
+from vpr_core.utils import code_version
 
 SIZE = (360, 640)
 
@@ -141,33 +142,15 @@ def _grid_class(offset: float):
     return Grid
 
 
-def test_a_user_schemes_identity_is_class_fields_and_code():
+def test_a_user_schemes_identity_is_class_fields_and_declared_version():
     a, b = _grid_class(0.0), _grid_class(0.0)
     ident = scheme_identity(a(g=3))
     assert ident["scheme"].endswith("_grid_class.<locals>.Grid") and ident["params"] == {"g": 3}
-    assert scheme_identity(b(g=3)) == ident  # same class text, same fields: same identity
-    assert scheme_identity(a(g=2)) != ident
-    assert scheme_identity(Dense())["code"] == ""  # the package's code is versioned per stage
-
-
-def test_a_user_scheme_with_other_code_is_another_scheme():
-    @dataclasses.dataclass(frozen=True)
-    class Grid:
-        g: int = 2
-
-        def boxes(self, image):
-            return np.zeros((self.g, 4))
-
-    first = scheme_identity(Grid())
-
-    @dataclasses.dataclass(frozen=True)
-    class Grid:  # noqa: F811 - the same cell, edited
-        g: int = 2
-
-        def boxes(self, image):
-            return np.ones((self.g, 4))
-
-    assert scheme_identity(Grid()) != first
+    assert ident["version"] is None  # no declared version: its boxes are never stored
+    assert scheme_identity(b(g=3)) == ident and scheme_identity(a(g=2)) != ident
+    b.version = "2"  # a class attribute (ClassVar[str]): the user's promise
+    assert scheme_identity(b(g=3))["version"] == "user 2"
+    assert scheme_identity(Dense())["version"] == code_version("landmarks")  # the package's
 
 
 @pytest.mark.parametrize(
@@ -232,11 +215,11 @@ def test_a_user_scheme_runs_is_cached_compared_and_plotted(small, caplog):
     assert isinstance(mine.config.landmarks, CentreGrid)
     with caplog.at_level(logging.INFO, logger="vpr_core"):
         again = run_method(CentreGrid(g=3), small, backbone="hog", n_bootstrap=20)
-    assert len(CALLS) == 12, "the second run reads the landmark cache"
-    assert "(read from the cache)" in caplog.text  # and the results cache
+    assert len(CALLS) == 24, "a user scheme without a version is recomputed on every run"
+    assert "(read from the cache)" in caplog.text  # the same boxes: the results cache
     np.testing.assert_array_equal(again.similarity, mine.similarity)
     other = run_method(CentreGrid(), small, backbone="hog", n_bootstrap=20)
-    assert len(CALLS) == 24 and other.run == "CentreGrid"  # other fields: computed again
+    assert len(CALLS) == 36 and other.run == "CentreGrid"
     dense = run_method("dense", small, backbone="hog", n_bootstrap=20, scales=(0.25,), per_scale=4)
     table = compare([dense, mine, other])
     assert list(table["run"]) == [

@@ -17,7 +17,6 @@ from .landmarks.schemes import (
     WholeImage,
     check_scheme,
     option_text,
-    scheme_identity,
 )
 from .matching import SPATIAL_OPTIONS, WEIGHTING_OPTIONS
 from .paper import SOFT_NMS_IOU, SOFT_NMS_SIGMA
@@ -29,7 +28,6 @@ __all__ = [
     "as_method",
     "available_methods",
     "get_method",
-    "method_identity",
     "method_label",
     "method_options",
     "run_key",
@@ -273,13 +271,3 @@ def method_label(method: Method) -> str:
             )
     text = "; ".join(n for n in notes if n)
     return f"{method.name} ({text})" if text else method.name
-
-
-def method_identity(method: Method) -> dict[str, Any]:
-    """What a method's numbers depend on, beside the data and the encoder (cache keys hash it):
-    the scheme's identity (:func:`~vpr_core.landmarks.schemes.scheme_identity`) and the
-    matching settings."""
-    return {
-        "landmarks": scheme_identity(method.landmarks),
-        "matching": dataclasses.asdict(method.matching),
-    }

@@ -13,7 +13,6 @@ import sys
 import types
 import warnings
 from collections.abc import Iterable, Mapping
-from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -221,6 +220,7 @@ def read_rows(path: str | os.PathLike) -> list[dict[str, str]]:
     with open(path, newline="") as f:
         return list(csv.DictReader(f))
 
+
 #: First characters that make a spreadsheet evaluate a cell as a formula.
 FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
 
@@ -238,7 +238,6 @@ def csv_safe(value: Any) -> Any:
     return value
 
 
-
 def write_rows(path: str | os.PathLike, rows: list[Mapping[str, Any]]) -> None:
     """Write dict rows as a CSV table; columns are the union of the rows' keys in first-seen
     order (a missing value is empty), text escaped by :func:`csv_safe`. Written to a temporary
@@ -253,20 +252,24 @@ def write_rows(path: str | os.PathLike, rows: list[Mapping[str, Any]]) -> None:
     os.replace(tmp, path)
 
 
-@cache
-def _file_sha256(path: str, mtime_ns: int, size: int) -> str:
+def file_sha256(path: str | os.PathLike) -> str:
+    """Hex sha256 of a file's contents, read on every call (never memoised by path, size or
+    modification time: a file overwritten in place gets its new identity)."""
     digest = hashlib.sha256()
-    with open(path, "rb") as fh:
+    with open(Path(path).expanduser(), "rb") as fh:
         for chunk in iter(lambda: fh.read(1 << 20), b""):
             digest.update(chunk)
     return digest.hexdigest()
 
 
-def file_sha256(path: str | os.PathLike) -> str:
-    """Hex sha256 of a file's contents (computed once per path, size and modification time)."""
-    p = Path(path).expanduser().resolve()
-    st = p.stat()
-    return _file_sha256(str(p), st.st_mtime_ns, st.st_size)
+def array_sha256(arrays: Iterable[np.ndarray]) -> str:
+    """Hex sha256 of arrays' dtypes, shapes and bytes, in order (a cache key from content)."""
+    digest = hashlib.sha256()
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        digest.update(f"{a.dtype.str}{a.shape}|".encode())
+        digest.update(a.tobytes())
+    return digest.hexdigest()
 
 
 def _code_digest(code: types.CodeType, digest: Any) -> None:

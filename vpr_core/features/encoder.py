@@ -197,6 +197,7 @@ class LandmarkEncoder:
         if isinstance(self.model, ModuleBackbone):
             config["module"] = self.model.qualname
             config["architecture_sha256"] = self.model.architecture_sha256
+            config["probe_sha256"] = self.model.probe_sha256
         return config
 
     # ------------------------------------------------------------------ description

@@ -20,7 +20,7 @@ from ..paper import (
     NMS_IOU,
     SCALE_PRIORITY_ORDER,
 )
-from ..utils import code_sha256
+from ..utils import code_version
 from .dense import dense_sampling
 from .edge_boxes import edge_boxes
 from .selection import reduce_overlap, select_min_scale, select_scale_priority
@@ -38,6 +38,7 @@ __all__ = [
     "check_scheme",
     "option_text",
     "scheme_identity",
+    "scheme_version",
 ]
 
 
@@ -305,17 +306,33 @@ def check_scheme(scheme: Any) -> Any:
     return scheme
 
 
+def scheme_version(scheme: Any) -> str | None:
+    """The version a scheme's stored boxes are keyed by, or None: not stored.
+
+    The package's schemes: the landmark code's version
+    (:func:`~vpr_core.utils.code_version`). A user's scheme class: its declared ``version``
+    (a class attribute ``version: ClassVar[str] = "1"``, the user's promise that the same
+    version and fields give the same boxes); without one its boxes are recomputed on every run
+    (they are cheap; features stay cached by box content), since code the package does not own
+    may read globals or helpers that changed.
+    """
+    cls = type(check_scheme(scheme))
+    if cls.__module__.startswith("vpr_core."):
+        return code_version("landmarks")
+    version = getattr(scheme, "version", None)
+    return None if version is None else f"user {version}"
+
+
 def scheme_identity(scheme: Any) -> dict[str, Any]:
-    """What a scheme's boxes are computed from: class, field values and (user classes) code.
+    """What a scheme's stored boxes are keyed by: class, field values and version.
 
     Returns:
         ``{"scheme": "<module>.<qualified name>", "params": dataclasses.asdict(scheme),
-        "code": <hash or "">}`` (JSON-able; cache keys hash it).
+        "version": scheme_version(scheme)}`` (JSON-able; ``version`` None: not stored).
     """
     cls = type(check_scheme(scheme))
-    own = cls.__module__.startswith("vpr_core.")
     return {
         "scheme": f"{cls.__module__}.{cls.__qualname__}",
         "params": dataclasses.asdict(scheme),
-        "code": "" if own else code_sha256(cls.__mro__)[:12],
+        "version": scheme_version(scheme),
     }

@@ -13,7 +13,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..backbones import weights_stamp
+from ..backbones import weights_sha256
 from ..engine import extract_features_distributed
 from ..features import LandmarkEncoder
 from ..paper import PROJECTION_DIM
@@ -32,8 +32,9 @@ def get_encoder(
     device: str = "cpu",
     input_size: int | None = None,
 ) -> LandmarkEncoder:
-    """A :class:`~vpr_core.features.LandmarkEncoder`, shared between calls with the same arguments
-    and the same weights file (path, size, mtime); a module backbone gets a fresh encoder.
+    """A :class:`~vpr_core.features.LandmarkEncoder`, shared between calls with the same
+    arguments while the weights file's sha256 (read on every call) is the same; a module
+    backbone gets a fresh encoder (its identity is measured when it is built).
 
     Args:
         backbone: a backbone name or spec, or a ``torch.nn.Module`` (then ``input_size`` is
@@ -44,10 +45,10 @@ def get_encoder(
             backbone, dim, seed, device, pooling, weights=weights, input_size=input_size
         )
     w = None if weights is None else str(weights)
-    stamp = weights_stamp(str(backbone), w)
+    sha = weights_sha256(str(backbone), w)
     size = None if input_size is None else int(input_size)
     return _cached_encoder(
-        str(backbone), int(dim), int(seed), w, str(pooling), str(device), size, stamp
+        str(backbone), int(dim), int(seed), w, str(pooling), str(device), size, sha
     )
 
 
@@ -60,7 +61,7 @@ def _cached_encoder(
     pooling: str,
     device: str,
     input_size: int | None,
-    stamp: tuple[str, ...],
+    sha256: str,
 ) -> LandmarkEncoder:
     return LandmarkEncoder(
         backbone, dim, seed, device, pooling, weights=weights, input_size=input_size

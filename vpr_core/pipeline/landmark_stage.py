@@ -32,7 +32,7 @@ def _cached_boxes(
 ) -> tuple[np.ndarray, float]:
     """``(boxes (K, 4), seconds)`` of one image from ``landmarks/<stage slug>/``, or computed
     by ``compute(image) -> boxes`` (timed) and stored."""
-    slug = config_slug(stage, {**params, "code": code_version("landmarks")})
+    slug = config_slug(stage, params)
     key = dataset.image_key(side, i)
     path = cache_dir("landmarks", slug) / f"{key}.npz"
     identity = f"{stage} {slug} {key}"
@@ -68,7 +68,11 @@ def edge_box_candidates(
         ``(boxes (K, 4), seconds)``: proposals in proposal order (descending score) and the
         seconds the extraction took when it was computed.
     """
-    params = {"n_candidates": int(n_candidates), "edge_model": edge_model or edge_model_id()}
+    params = {
+        "n_candidates": int(n_candidates),
+        "edge_model": edge_model or edge_model_id(),
+        "code": code_version("landmarks"),
+    }
 
     def compute(image: np.ndarray) -> np.ndarray:
         res = lm.edge_boxes(image, max_boxes=n_candidates)
@@ -89,7 +93,9 @@ def landmarks_for_image(
 
     Edge Box schemes (:class:`~vpr_core.landmarks.schemes.CandidateScheme`) select from the
     image's cached candidates; size-only schemes are computed from the image size; any other
-    scheme's ``boxes(image)`` is cached under its class, field values and code. A scheme that
+    scheme's ``boxes(image)`` is cached under its class, field values and version
+    (:func:`~vpr_core.landmarks.schemes.scheme_version`), or computed on every call when its
+    class declares no version (a user's code may read globals that changed). A scheme that
     yields fewer than its ``n`` landmarks logs a warning naming the image. ``fresh=True``
     computes the boxes again (and rewrites their cache entry), so the seconds are measured now.
 
@@ -110,6 +116,10 @@ def landmarks_for_image(
         def compute(image: np.ndarray) -> np.ndarray:
             return _user_boxes(scheme, image, dataset, side, i)
 
+        if ident["version"] is None:
+            image = dataset.load_image(side, i)
+            t0 = time.perf_counter()
+            return compute(image), time.perf_counter() - t0
         return _cached_boxes(ident["scheme"], ident, dataset, side, i, compute, fresh)
     cands, seconds = edge_box_candidates(
         dataset, side, i, scheme.n_candidates, overwrite=fresh, edge_model=edge_model

@@ -4,6 +4,7 @@ ranking (its pairs are NaN), never scored as zeros."""
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import time
 import warnings
@@ -27,10 +28,10 @@ from ..evaluation.bootstrap import N_BOOTSTRAP
 from ..landmarks.edge_boxes import edge_model_id
 from ..landmarks.schemes import CandidateScheme, LandmarkScheme
 from ..matching import similarity_matrix
-from ..methods import Method, as_method, method_identity, method_label
+from ..methods import Method, as_method, method_label
 from ..notices import VPRWarning, notice
 from ..paper import PROJECTION_DIM, SOFT_NMS_SIGMA
-from ..utils import STAGE_SOURCES, cache_dir, code_version, config_slug, logger
+from ..utils import array_sha256, cache_dir, code_version, config_slug, logger
 from .cache import SIDES, atomic_savez, dataset_fingerprint, load_npz, n_images
 from .feature_stage import extract_features, get_encoder
 from .landmark_stage import extract_landmarks
@@ -258,16 +259,18 @@ def run_method(
     try:
         boxes = extract_landmarks(conf.landmarks, dataset)
         feats, glob = _features(boxes, dataset, encoder, k, client)
+        # keyed by what goes in: the boxes and descriptors (content), the Matching value
+        inputs = [
+            a for side in SIDES for pair in zip(boxes[side], feats[side], strict=True) for a in pair
+        ]
+        if glob is not None:
+            inputs += [glob[side] for side in SIDES]
         key = {
-            "dataset": fingerprint,
-            **method_identity(conf),
-            "encoder": dict(encoder.config),
-            "weights_sha256": weights_sha256,
-            "edge_model": edge_model,
-            "code": {stage: code_version(stage) for stage in STAGE_SOURCES},
+            "inputs": array_sha256(inputs),
+            "matching": dataclasses.asdict(conf.matching),
+            "shortlist": k,
+            "code": code_version("matching"),
         }
-        if k is not None:
-            key["shortlist"] = k
         folder = cache_dir("results", f"{dataset.name}-{fingerprint}")
         path = folder / f"{config_slug(conf.name, key)}.npz"
         identity = f"results {path.parent.name} {path.stem}"
