@@ -210,7 +210,7 @@ def plot_pr_curves(
         title="AUC with 95% CI; curves start at their\nlast point at recall 0 (area = AUC)",
         title_fontsize=8,
     )
-    legend._legend_box.align = "left"
+    legend._legend_box.align = "left"  # type: ignore[attr-defined]
     ax.set_title(heading, fontsize=9, loc="left")
     # the axes keep PR_AXES (inches); a legend taller than them makes the figure taller
     fig.draw_without_rendering()
