@@ -32,12 +32,7 @@ def load_freiburg_across_seasons(
         <root>/winter2012/*.jpg
         <root>/ground_truth.csv          # rows "query,reference" (file names or 0-based indices)
 
-    Args:
-        root: Dataset folder.
-        query: Query traverse folder (default ``summer2015``).
-        reference: Reference traverse folder (default ``winter2012``).
-        ground_truth: Correspondence file (``.csv`` or ``.npy``), relative to root or absolute.
-        tolerance: Frames by which listed matches are widened along the reference sequence.
+    ``tolerance`` widens the listed matches along the reference sequence (frames).
     """
     tolerance = check_tolerance(tolerance)
     root = check_root(root, "freiburg_across_seasons", FREIBURG_LAYOUT)

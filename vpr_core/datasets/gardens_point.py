@@ -39,15 +39,6 @@ def load_gardens_point(
     ``|q - r| <= tolerance``, paired by the frame number in the file names (a frame missing on
     one side is named in an error). Tolerances in use differ (0, +-2 in VPR-Bench, +-3 in IROS-2015
     reproductions): always report the tolerance beside a number.
-
-    Args:
-        root: Dataset folder.
-        query: Query traverse (``day_left``, ``day_right`` or ``night_right``).
-        reference: Reference traverse.
-        tolerance: Frames of slack in the frame-aligned ground truth.
-
-    Returns:
-        PlaceDataset with ``Nq = Nr = 200`` on the full dataset.
     """
     tolerance = check_tolerance(tolerance)
     root = check_root(root, "gardens_point", GARDENS_POINT_LAYOUT)
@@ -61,13 +52,10 @@ def load_gardens_point(
     if not (root / query).is_dir() and (root / "GardensPointWalking" / query).is_dir():
         base = root / "GardensPointWalking"
         log.info("gardens_point: using %s (the archive's top folder)", base)
-    qp = list_images(
-        traverse_dir(base, query, "gardens_point", GARDENS_POINT_LAYOUT),
-        f"gardens_point {query} folder",
-    )
-    rp = list_images(
-        traverse_dir(base, reference, "gardens_point", GARDENS_POINT_LAYOUT),
-        f"gardens_point {reference} folder",
+    where = "gardens_point"
+    qp, rp = (
+        list_images(traverse_dir(base, t, where, GARDENS_POINT_LAYOUT), f"{where} {t} folder")
+        for t in (query, reference)
     )
     check_frame_pairs(qp, rp, f"gardens_point {query} vs {reference}")
     gt = frame_aligned(len(qp), len(rp), tolerance)

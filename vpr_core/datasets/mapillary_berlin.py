@@ -36,15 +36,7 @@ def load_mapillary_berlin(
 
     With ``sequence="Kudamm"`` the same layout is read from ``<root>/Kudamm/``. To use the raw
     traverses directly, pass ``query="Kudamm_1", reference="Kudamm_2"`` (folder names).
-
-    Args:
-        root: Dataset folder.
-        sequence: Optional sub-folder holding one sequence in the layout above.
-        query: Query folder name (under the base folder).
-        reference: Reference folder name.
-        ground_truth: Correspondence file (``.csv`` or ``.npy``), relative to the base folder
-            or absolute.
-        tolerance: Frames by which listed matches are widened along the reference sequence.
+    ``tolerance`` widens the listed matches along the reference sequence (frames).
     """
     tolerance = check_tolerance(tolerance)
     root = check_root(root, "mapillary_berlin", MAPILLARY_BERLIN_LAYOUT)
