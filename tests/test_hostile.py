@@ -205,3 +205,67 @@ def test_dense_edge_maps_are_bounded_and_said(tmp_path, gardens_point_mini_root)
         np.testing.assert_array_equal(edge_boxes(noise, max_boxes=200, model=model).boxes, first)
         photo = np.asarray(Image.open(gardens_point_mini_root / "query" / "0.jpg").convert("RGB"))
         edge_boxes(photo, max_boxes=50, model="gradient")
+
+
+# ------------------------------------------------------------------------------------------
+# 32.3 the unpickler checks sizes before anything is constructed
+# ------------------------------------------------------------------------------------------
+
+
+def _allocating_pickles() -> dict[str, bytes]:
+    """Short pickles asking an allowed callable for a 30M-element array (240 MB)."""
+    import pickle
+
+    n = 30_000_000
+    proto = b"\x80\x02"
+    ndarray = b"cnumpy\nndarray\n"
+    shape = b"J" + n.to_bytes(4, "little") + b"\x85"  # BININT n, TUPLE1
+    reconstruct = b"cnumpy.core.multiarray\n_reconstruct\n"
+    dtype_o = b"cnumpy\ndtype\nX\x02\x00\x00\x00O8\x89\x88\x87R"  # dtype('O8', False, True)
+    state = b"(K\x01" + shape + dtype_o + b"\x89]tb"  # (1, shape, dtype, False, [])
+    return {
+        "ndarray((n,), object)": proto + ndarray + b"(" + shape + b"X\x01\x00\x00\x00OtR.",
+        "ndarray((n,), float)": proto + ndarray + shape + b"\x85R.",
+        "_reconstruct(ndarray, (n,), b)": proto + reconstruct + ndarray + shape + b"C\x01b\x87R.",
+        "__setstate__ to (n,) objects": proto
+        + reconstruct
+        + ndarray
+        + b"K\x00\x85C\x01b\x87R"
+        + state
+        + b".",
+        "plain check": pickle.dumps([1, 2], protocol=2),
+    }
+
+
+@pytest.mark.parametrize("case", list(_allocating_pickles())[:-1])
+def test_pickle_asking_for_a_huge_array_is_refused_before_allocating(tmp_path, case):
+    import tracemalloc
+
+    from vpr_core.datasets.safe_pickle import read_npy, restricted_loads
+
+    data = _allocating_pickles()[case]
+    assert len(data) < 120
+    path = tmp_path / "bomb.npy"
+    path.write_bytes(data)
+    tracemalloc.start()
+    try:
+        with pytest.raises(ValueError, match=r"bomb\.npy .*30,000,000"):
+            read_npy(path, "x")
+        with pytest.raises(ValueError, match=r"mem .*30,000,000"):
+            restricted_loads(data, "mem")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 20_000_000, f"{peak:,} bytes allocated before the refusal"
+
+
+def test_array_state_that_does_not_fill_its_shape_is_refused():
+    """numpy's ``__setstate__`` reads past an object list shorter than the shape (SIGSEGV)."""
+    from vpr_core.datasets.safe_pickle import restricted_loads
+
+    data = (
+        b"\x80\x02cnumpy.core.multiarray\n_reconstruct\ncnumpy\nndarray\nK\x00\x85C\x01b\x87R"
+        b"(K\x01M\xe8\x03\x85cnumpy\ndtype\nX\x02\x00\x00\x00O8\x89\x88\x87R\x89]K\x07atb."
+    )  # an object array of shape (1000,) whose state lists one item
+    with pytest.raises(ValueError, match=r"mem holds an array of shape \(1000,\) whose data"):
+        restricted_loads(data, "mem")

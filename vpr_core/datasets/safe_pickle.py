@@ -7,6 +7,7 @@ from __future__ import annotations
 import io
 import os
 import pickle
+import struct
 from pathlib import Path
 from typing import Any
 
@@ -52,21 +53,95 @@ class UnsafePickleError(ValueError):
     """A pickle asked to run something other than rebuilding arrays, numbers and strings."""
 
 
-class RestrictedUnpickler(pickle.Unpickler):
-    """``pickle.Unpickler`` that resolves only :data:`ALLOWED_GLOBALS`.
+def _element_budget(n_bytes: int) -> int:
+    """Elements a pickle of ``n_bytes`` may hold (see :data:`_ELEMENTS_PER_BYTE`)."""
+    return _ELEMENTS_PER_BYTE * n_bytes + _ELEMENTS_FLOOR
+
+
+def _too_large(source: str, what: str, n_bytes: int) -> ValueError:
+    return ValueError(
+        f"{source} asks for {what} from a {n_bytes:,}-byte pickle (more than "
+        f"{_element_budget(n_bytes):,} elements); it was not loaded, nothing was allocated "
+        "(damaged or hostile file): use the file from its original source."
+    )
+
+
+class RestrictedUnpickler(pickle._Unpickler):  # the Python unpickler: BUILD can be checked
+    """An unpickler that resolves only :data:`ALLOWED_GLOBALS` and checks every array's size
+    against the file's before numpy allocates it.
 
     Args:
         file: Binary file positioned at the pickle.
         source: What to name in the error (the input file).
         encoding: How Python-2 ``str`` objects are decoded (``"latin1"`` for VPR-Bench's files).
+        n_bytes: The pickle's size in bytes (bounds every array to :func:`_element_budget`).
     """
 
-    def __init__(self, file: Any, source: str, encoding: str = "latin1") -> None:
+    def __init__(self, file: Any, source: str, encoding: str = "latin1", n_bytes: int = 0) -> None:
         super().__init__(file, encoding=encoding)
         self.source = source
+        self.n_bytes = n_bytes
+
+    def _check_shape(self, shape: Any, dtype: Any) -> None:
+        """Refuse an array of ``shape`` and ``dtype`` larger than the pickle allows."""
+        dims = shape if isinstance(shape, (tuple, list)) else (shape,)
+        if not all(isinstance(d, int) and d >= 0 for d in dims):
+            raise UnsafePickleError(f"{self.source} asks for an array of shape {shape!r}.")
+        size = int(np.prod(dims, dtype=object))
+        itemsize = np.dtype(dtype).itemsize if dtype is not None else 8
+        if size > _element_budget(self.n_bytes) or size * itemsize > 8 * _element_budget(
+            self.n_bytes
+        ):
+            shown = ", ".join(f"{d:,}" for d in dims)
+            raise _too_large(self.source, f"an array of shape ({shown})", self.n_bytes)
+
+    def _ndarray(self, shape: Any = (), dtype: Any = float, *args: Any, **kwargs: Any) -> Any:
+        self._check_shape(shape, dtype)
+        return np.ndarray(shape, dtype, *args, **kwargs)
+
+    def _reconstruct(self, subtype: Any, shape: Any, dtype: Any) -> Any:
+        if subtype != self._ndarray:  # the pickle's numpy.ndarray, resolved by find_class
+            raise UnsafePickleError(f"{self.source} asks to rebuild a {subtype!r}.")
+        self._check_shape(shape, None)
+        return np.ndarray(shape, "b")
+
+    def _load_build(self) -> None:
+        """BUILD: an array's ``__setstate__`` only with a shape the pickle allows and data that
+        fills it exactly (numpy reads past a short object list)."""
+        stack = self.stack  # type: ignore[attr-defined]  # the Python unpickler's stack
+        state = stack[-1]
+        if isinstance(stack[-2], np.ndarray):
+            if not isinstance(state, tuple) or len(state) not in (4, 5):
+                raise UnsafePickleError(f"{self.source} holds a malformed array state.")
+            shape, dtype, data = state[-4], state[-3], state[-1]
+            self._check_shape(shape, dtype)
+            size = int(np.prod(shape, dtype=object))
+            want = size if np.dtype(dtype).hasobject else size * np.dtype(dtype).itemsize
+            if not isinstance(data, (list, bytes, bytearray, str)) or len(data) != want:
+                raise ValueError(
+                    f"{self.source} holds an array of shape {tuple(shape)} whose data does not "
+                    "fill it; it was not loaded (damaged or hostile file): use the file from "
+                    "its original source."
+                )
+        pickle._Unpickler.load_build(self)  # type: ignore[attr-defined]
+
+    def load(self) -> Any:
+        """The pickled object (the Python unpickler's KeyError and struct.error for unknown
+        opcodes, memo keys and short data become :class:`pickle.UnpicklingError`)."""
+        try:
+            return super().load()
+        except (KeyError, IndexError, struct.error) as exc:
+            raise pickle.UnpicklingError(f"invalid or truncated pickle data ({exc})") from None
+
+    dispatch = dict(pickle._Unpickler.dispatch)
+    dispatch[pickle.BUILD[0]] = _load_build  # type: ignore[assignment]
 
     def find_class(self, module: str, name: str) -> Any:
         if (module, name) in ALLOWED_GLOBALS:
+            if name == "ndarray":
+                return self._ndarray
+            if name == "_reconstruct":
+                return self._reconstruct
             return super().find_class(module, name)
         raise UnsafePickleError(
             f"{self.source} is a pickle that asks to run {module}.{name}; it was not loaded. Only "
@@ -89,7 +164,7 @@ def _check_bounded(obj: Any, source: str, n_bytes: int) -> Any:
     Raises:
         ValueError: a bound is exceeded (names ``source``).
     """
-    budget = _ELEMENTS_PER_BYTE * n_bytes + _ELEMENTS_FLOOR
+    budget = _element_budget(n_bytes)
     count = 0
     stack: list[tuple[Any, int]] = [(obj, 0)]
     while stack:
@@ -125,7 +200,7 @@ def _check_bounded(obj: Any, source: str, n_bytes: int) -> Any:
 def restricted_loads(data: bytes, source: str, encoding: str = "latin1") -> Any:
     """Unpickle ``data`` with :class:`RestrictedUnpickler`, size-bounded (``source`` is named in
     errors)."""
-    obj = RestrictedUnpickler(io.BytesIO(data), source, encoding).load()
+    obj = RestrictedUnpickler(io.BytesIO(data), source, encoding, len(data)).load()
     return _check_bounded(obj, source, len(data))
 
 
@@ -175,7 +250,7 @@ def read_npy(
             if head != _NPY_MAGIC:
                 if not allow_pickle:
                     raise ValueError("it has no .npy header")
-                obj = RestrictedUnpickler(f, str(path), encoding).load()
+                obj = RestrictedUnpickler(io.BytesIO(f.read()), str(path), encoding, n_bytes).load()
                 return _check_bounded(obj, str(path), n_bytes)
             version = npy_format.read_magic(f)
             if version not in _HEADERS:
@@ -187,7 +262,7 @@ def read_npy(
                 return np.load(f, allow_pickle=False)
             if not allow_pickle:
                 raise ValueError("it holds Python objects (an object array), not numbers")
-            obj = RestrictedUnpickler(f, str(path), encoding).load()
+            obj = RestrictedUnpickler(io.BytesIO(f.read()), str(path), encoding, n_bytes).load()
             return _check_bounded(obj, str(path), n_bytes)
         except UnsafePickleError:
             raise
