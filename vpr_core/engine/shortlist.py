@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..datasets.base import SIDES
 from ..matching import check_pairs
 from ..matching.sides import rescale_rows
 
@@ -18,7 +19,6 @@ __all__ = [
     "with_whole_image_boxes",
 ]
 
-SIDES = ("query", "reference")
 
 #: Queries per chunk of the global cosine matrix (bounds the temporary memory to
 #: ``CHUNK_QUERIES * Nr`` float64 values per step).

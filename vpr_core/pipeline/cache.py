@@ -14,11 +14,11 @@ from typing import Any
 
 import numpy as np
 
+from ..datasets.base import SIDES
 from ..utils import logger, short_hash
 
 __all__ = ["ForeignEntryError", "atomic_savez", "dataset_fingerprint", "load_npz", "n_images"]
 
-SIDES = ("query", "reference")
 _REPORTED: set[str] = set()
 _UNREADABLE = (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError)
 
