@@ -16,18 +16,10 @@ from .exact import LabelUnavailableError, check_matches, is_ground_truth, map_bo
 
 @dataclass
 class PairGeometry:
-    """Two-view geometry of one image pair from SIFT + ratio test + RANSAC.
-
-    Attributes:
-        kind: ``"homography"``, ``"fundamental"`` (point rule) or ``"none"`` (unlabelled).
-        homography: ``(3, 3)`` query -> reference pixel map, or None.
-        fundamental: ``(3, 3)`` fundamental matrix, or None.
-        points_q: ``(N, 2)`` query positions of the chosen model's inliers.
-        points_r: ``(N, 2)`` the matching reference positions.
-        n_putative: correspondences that passed the ratio test.
-        n_inliers_h: homography inliers. n_inliers_f: fundamental-matrix inliers.
-        image_size_q: ``(H, W)``. image_size_r: ``(H, W)``.
-    """
+    """Two-view geometry of one image pair from SIFT + ratio test + RANSAC: ``kind`` is
+    ``"homography"`` (``(3, 3)`` query -> reference pixel map), ``"fundamental"`` (point rule) or
+    ``"none"`` (unlabelled); ``points_q`` / ``points_r`` ``(N, 2)`` the chosen model's inliers;
+    ``n_putative`` the correspondences that passed the ratio test."""
 
     kind: str
     homography: np.ndarray | None
@@ -85,12 +77,8 @@ def _ratio_test_points(
     denoise: float,
     upscale: float,
 ) -> tuple[np.ndarray, np.ndarray] | None:
-    """SIFT correspondences that pass Lowe's ratio test, in original pixel coordinates.
-
-    Returns:
-        ``(points_q (N, 2), points_r (N, 2))`` float64, or None when an image has fewer than
-        two keypoints.
-    """
+    """``(points_q (N, 2), points_r (N, 2))``: SIFT correspondences that pass Lowe's ratio test,
+    in original pixels; None when an image has fewer than two keypoints."""
     sift = cv2.SIFT_create(  # type: ignore[attr-defined]
         nfeatures=int(max_features), contrastThreshold=float(contrast_threshold)
     )
@@ -112,11 +100,8 @@ def _ratio_test_points(
 def _fit_models(
     pq: np.ndarray, pr: np.ndarray, robust: str, h_threshold: float, f_threshold: float, seed: int
 ) -> tuple[Any, np.ndarray, Any, np.ndarray]:
-    """RANSAC (or MAGSAC) homography and fundamental matrix of ``(N, 2)`` correspondences.
-
-    Returns:
-        ``(H or None, inliers_h (N,) bool, F or None, inliers_f (N,) bool)``.
-    """
+    """``(H or None, inliers_h (N,), F or None, inliers_f (N,))``: RANSAC (or MAGSAC)
+    homography and fundamental matrix of ``(N, 2)`` correspondences."""
     n_put = len(pq)
     h_method = cv2.RANSAC if robust == "ransac" else cv2.USAC_MAGSAC
     f_method = cv2.FM_RANSAC if robust == "ransac" else cv2.USAC_MAGSAC
@@ -155,21 +140,10 @@ def estimate_pair_geometry(
 ) -> PairGeometry:
     """SIFT, Lowe ratio test, RANSAC homography and fundamental matrix for one pair.
 
-    The model choice and the defaults (set from the chance level) are in docs/DEFINITIONS.md.
-
-    Args:
-        img_q: ``(Hq, Wq, 3)`` uint8 RGB (or ``(Hq, Wq)`` gray) query image.
-        img_r: ``(Hr, Wr, 3)`` uint8 RGB reference image.
-        ratio: Lowe ratio-test threshold.
-        max_features: SIFT keypoints per image.
-        equalize: CLAHE before SIFT.
-        h_threshold: homography RANSAC threshold (px). f_threshold: the fundamental matrix's.
-        min_inliers: homography inliers needed. min_inlier_ratio: as a share of the matches.
-        min_inliers_f: fundamental inliers needed. min_inlier_ratio_f: as a share.
-        h_share: ``n_inliers_h / n_inliers_f`` needed to keep the homography.
-        contrast_threshold: SIFT contrast threshold. denoise: Gaussian sigma before SIFT.
-        upscale: resize factor before SIFT. robust: ``"ransac"`` or ``"magsac"``.
-        seed: OpenCV RNG seed.
+    The model choice and the defaults (set from the chance level) are in docs/DEFINITIONS.md:
+    thresholds in pixels, ``min_inlier_ratio*`` as shares of the ratio-test matches, ``h_share``
+    the ``n_inliers_h / n_inliers_f`` needed to keep the homography; ``equalize``: CLAHE,
+    ``denoise``: Gaussian sigma, ``upscale``: resize factor, all before SIFT.
     """
     check_choice(robust, "robust estimator", ("ransac", "magsac"))
     size_q = (int(img_q.shape[0]), int(img_q.shape[1]))
@@ -224,20 +198,8 @@ def label_matches_geometric(
     min_points: int = 2,
     point_iou: float = 0.4,
 ) -> np.ndarray:
-    """Geometric-verification labels from a :class:`PairGeometry` (docs/DEFINITIONS.md).
-
-    Args:
-        boxes_q: ``(Kq, 4)`` query boxes. boxes_r: ``(Kr, 4)`` reference boxes.
-        matches: ``(P, 2)`` (query box index, reference box index).
-        geometry: the pair's geometry (:func:`estimate_pair_geometry`).
-        iou_threshold: IoU threshold of the homography rule.
-        model: ``"auto"``, ``"homography"`` or ``"points"`` (force one rule).
-        min_points: point rule: inliers inside both boxes needed.
-        point_iou: point rule: point-set IoU needed.
-
-    Returns:
-        ``(P,)`` bool labels.
-    """
+    """``(P,)`` geometric-verification labels of ``(P, 2)`` matches from a :class:`PairGeometry`
+    (docs/DEFINITIONS.md); ``model`` forces the ``"homography"`` or the ``"points"`` rule."""
     bq, br = check_boxes(boxes_q, "boxes_q"), check_boxes(boxes_r, "boxes_r")
     m = check_matches(matches, len(bq), len(br))
     check_choice(model, "model", ("auto", "homography", "points"))
