@@ -269,3 +269,91 @@ def test_array_state_that_does_not_fill_its_shape_is_refused():
     )  # an object array of shape (1000,) whose state lists one item
     with pytest.raises(ValueError, match=r"mem holds an array of shape \(1000,\) whose data"):
         restricted_loads(data, "mem")
+
+
+# ------------------------------------------------------------------------------------------
+# 32.4 downloads: an archive is done only when it opens and its members read
+# ------------------------------------------------------------------------------------------
+
+
+@pytest.fixture()
+def archive_server():
+    """A server on 127.0.0.1: ``/trunc.zip`` sends the first 50 bytes of ``state["zip"]``
+    without a Content-Length and closes; ``/<name>`` sends ``state[name]`` in full."""
+    import http.server
+    import threading
+
+    state: dict = {}
+
+    class Handler(http.server.BaseHTTPRequestHandler):
+        def log_message(self, *args):
+            pass
+
+        def do_GET(self):
+            self.send_response(200)
+            name = self.path.strip("/").split("?")[0]
+            if name == "trunc.zip":
+                self.end_headers()  # HTTP/1.0: the body ends when the connection closes
+                self.wfile.write(state["zip"][:50])
+            else:
+                self.send_header("Content-Length", str(len(state[name])))
+                self.end_headers()
+                self.wfile.write(state[name])
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+    server.daemon_threads = True
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        yield f"http://127.0.0.1:{server.server_address[1]}", state
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+def _zip_bytes() -> bytes:
+    import io
+    import zipfile
+
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as zf:
+        zf.writestr("site/query/0.txt", b"0123456789" * 10)
+    return buf.getvalue()
+
+
+def test_truncated_archive_without_length_is_not_marked_done(archive_server, tmp_path):
+    from vpr_core.datasets.download import download_dataset
+
+    base, state = archive_server
+    state["zip"] = _zip_bytes()
+    assert len(state["zip"]) > 200
+    dest = tmp_path / "data"
+    for _ in range(2):  # the second call tries again: nothing was recorded as done
+        with pytest.raises(ValueError, match=r"trunc\.zip is not a complete zip archive"):
+            download_dataset("x", dest, url=f"{base}/trunc.zip")
+        assert list(dest.iterdir()) == []
+
+
+def test_archive_whose_member_does_not_read_is_removed(archive_server, tmp_path):
+    from vpr_core.datasets.download import download_dataset
+
+    base, state = archive_server
+    good = _zip_bytes()
+    k = good.index(b"0123456789")
+    state["bad.zip"] = good[:k] + b"X" + good[k + 1 :]  # CRC mismatch in the member
+    dest = tmp_path / "data"
+    with pytest.raises(ValueError, match=r"bad\.zip could not be extracted .*site/query/0\.txt"):
+        download_dataset("x", dest, url=f"{base}/bad.zip")
+    assert list(dest.iterdir()) == []
+    state["good.zip"] = good
+    assert download_dataset("x", dest, url=f"{base}/good.zip") == dest / "site"
+
+
+def test_url_ending_in_dot_dot_is_a_clear_error(archive_server, tmp_path):
+    from vpr_core.datasets.download import download_dataset
+
+    base, state = archive_server
+    state["%2e%2e"] = b"data"
+    dest = tmp_path / "data"
+    with pytest.raises(ValueError, match=r"file name '\.\.'.*not a file name"):
+        download_dataset("x", dest, url=f"{base}/%2e%2e")
+    assert list(dest.iterdir()) == []

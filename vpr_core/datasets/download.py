@@ -11,6 +11,7 @@ import tempfile
 import time
 import urllib.request
 import zipfile
+import zlib
 from pathlib import Path
 
 from tqdm.auto import tqdm
@@ -77,8 +78,10 @@ def download_dataset(
     computed hash is logged so it can be pinned), extracts a ``.zip`` into ``root`` and removes
     the archive. The body must have the announced ``Content-Length`` and arrive within
     ``deadline_s``; the archive is extracted into a temporary folder first and moved into place
-    only when complete. A marker file, written last, records a finished download; a second call
-    returns at once unless ``overwrite``. Whatever fails leaves no partial file behind.
+    only when complete; a zip (by name or content) counts as complete only when it opens and
+    every member reads (otherwise it is removed). A marker file, written last, records a
+    finished download; a second call returns at once unless ``overwrite``. Whatever fails
+    leaves no partial file behind.
 
     Args:
         name: Dataset name (a :data:`DOWNLOADS` key unless ``url`` is given).
@@ -94,8 +97,9 @@ def download_dataset(
         top-level folder when the archive holds exactly one.
 
     Raises:
-        ValueError: unknown name without ``url``, checksum mismatch (the file is removed), a bad
-            deadline, or a bad or too large archive (nothing is left extracted).
+        ValueError: unknown name without ``url``, a URL not ending in a file name, checksum
+            mismatch (the file is removed), a bad deadline, or a truncated, damaged or too
+            large archive (nothing is left extracted).
         OSError: network or file-system errors, a body shorter or longer than its
             ``Content-Length``, the deadline passed (with the URL in the message).
     """
@@ -120,9 +124,14 @@ def download_dataset(
         if done.is_dir():
             log.info("%s already downloaded into %s (overwrite=True to fetch again)", name, root)
             return done
+    raw_name = urllib.request.url2pathname(url.split("?")[0].rstrip("/").split("/")[-1])
+    fname = Path(raw_name).name or f"{name}.download"
+    if fname in (".", "..") or fname != raw_name.strip("/") or "\0" in fname:
+        raise ValueError(
+            f"the URL {url} ends in the file name {raw_name!r}, which is not a file name of "
+            f"its own; pass a URL whose last part names the file (e.g. .../{name}.zip)."
+        )
     marker.unlink(missing_ok=True)  # from here until the end, nothing is recorded as done
-    fname = Path(urllib.request.url2pathname(url.split("?")[0].rstrip("/").split("/")[-1])).name
-    fname = fname or f"{name}.download"
     part = root / (fname + ".part")
     got = _stream(name, url, part, root, deadline_s)
     if expected is not None and got != expected:
@@ -140,7 +149,17 @@ def download_dataset(
         )
     target = root / fname
     os.replace(part, target)
-    top = _unzip(name, target, root, max_extract_bytes) if zipfile.is_zipfile(target) else ""
+    with open(target, "rb") as f:
+        looks_zip = f.read(4) == b"PK\x03\x04" or target.suffix.lower() == ".zip"
+    if looks_zip and not zipfile.is_zipfile(target):
+        size = target.stat().st_size
+        target.unlink()
+        raise ValueError(
+            f"{target} is not a complete zip archive (truncated or damaged: {size:,} bytes "
+            "received, no end of archive); "
+            f"it was removed and nothing is recorded as done. Download it again from {url}."
+        )
+    top = _unzip(name, target, root, max_extract_bytes) if looks_zip else ""
     tmp_marker = marker.with_name(marker.name + ".tmp")
     tmp_marker.write_text(json.dumps({"name": name, "url": url, "sha256": got, "top": top}))
     os.replace(tmp_marker, marker)
@@ -210,10 +229,11 @@ def _unzip(name: str, target: Path, root: Path, max_bytes: int) -> str:
                 else:
                     dest.unlink()
             os.replace(entry, dest)
-    except (zipfile.BadZipFile, OSError, EOFError) as exc:
+    except (zipfile.BadZipFile, OSError, EOFError, zlib.error, NotImplementedError) as exc:
+        target.unlink(missing_ok=True)  # a member does not read: the archive is damaged
         raise ValueError(
-            f"{target} could not be extracted ({type(exc).__name__}: {exc}); nothing was kept. "
-            "Download it again with overwrite=True."
+            f"{target} could not be extracted ({type(exc).__name__}: {exc}); it was removed and "
+            "nothing was kept. Download it again."
         ) from None
     finally:
         shutil.rmtree(staging, ignore_errors=True)
