@@ -7,8 +7,6 @@ import numpy as np
 
 from .checks import check_boxes
 
-__all__ = ["box_iou", "paired_iou"]
-
 
 def _iou_from_corners(*c: np.ndarray) -> np.ndarray:
     """IoU from ``(ax0, ay0, ax1, ay1, a_area, bx0, by0, bx1, by1, b_area)``, broadcast."""

@@ -15,8 +15,6 @@ from .methods import get_method
 from .paper import PROJECTION_DIM
 from .pipeline import get_encoder, landmarks_for_image
 
-__all__ = ["COST_COLUMNS", "cost_table"]
-
 #: Columns of Table 5 as measured here.
 COST_COLUMNS = (
     "extract landmarks (s/img)",
