@@ -62,26 +62,10 @@ DATASETS: dict[str, Callable[..., PlaceDataset]] = {
 
 
 def load_dataset(name: str, root: str | os.PathLike | None = None, **options: Any) -> PlaceDataset:
-    """Load a dataset by name.
-
-    Args:
-        name: One of :data:`DATASETS` (``synthetic``, ``gardens_point``, ``mapillary_berlin``,
-            ``freiburg_across_seasons``, ``folder``, ``nordland``, ``vpr_bench``, ``utm``).
-        root: Dataset folder (not needed for ``synthetic``); a relative one is read from the
-            cwd, else from the project root (so one spelling works from ``notebooks/`` too,
-            :func:`vpr_core.paths.find_input`).
-        **options: Loader options, e.g. ``tolerance``; ``synthetic`` takes ``n_places``,
-            ``seed``, ``image_size``; ``nordland`` takes ``query``, ``reference``, ``step``;
-            ``utm`` takes ``positive_dist_threshold``, ``soft_dist_threshold`` (metres).
-
-    Returns:
-        A :class:`PlaceDataset`.
-
-    Raises:
-        ValueError: unknown name (the message lists the valid ones) or a bad option value.
-        TypeError: an option the loader does not take (the message lists those it takes).
-        FileNotFoundError: missing root (the message names the resolved paths tried and the
-            working directory) or traverse folders.
+    """Load one of :data:`DATASETS` by name; ``**options`` go to its loader (e.g. ``tolerance``;
+    ``synthetic``: ``n_places``, ``seed``, ``image_size``; ``nordland``: ``query``, ``reference``,
+    ``step``). A relative ``root`` is read from the cwd, else from the project root
+    (:func:`vpr_core.paths.find_input`). Unknown names and options: the error lists valid ones.
     """
     key = str(name).strip().lower().replace("-", "_")
     if key not in DATASETS:
