@@ -357,3 +357,44 @@ def test_url_ending_in_dot_dot_is_a_clear_error(archive_server, tmp_path):
     with pytest.raises(ValueError, match=r"file name '\.\.'.*not a file name"):
         download_dataset("x", dest, url=f"{base}/%2e%2e")
     assert list(dest.iterdir()) == []
+
+
+# ------------------------------------------------------------------------------------------
+# 32.5 soft ground truth: neither right nor wrong wherever a metric is computed
+# ------------------------------------------------------------------------------------------
+
+
+def _utm_soft(root: Path):
+    """4 queries on a line, 8 references: query q's hard positive (<= 5 m) is reference 2q,
+    reference 2q + 1 (12 m away) is only a soft positive (<= 15 m)."""
+    import cv2
+
+    name = "@{:.2f}@4178906.93@10@S@@@@@@@@@@.jpg"
+    for q in range(4):
+        e = 543000.0 + 100 * q
+        for side, k, x in (
+            ("queries", q, e),
+            ("database", 2 * q, e + 1),
+            ("database", 2 * q + 1, e + 12),
+        ):
+            path = root / side / f"{k}" / name.format(x)
+            path.parent.mkdir(parents=True)
+            assert cv2.imwrite(str(path), np.full((24, 32, 3), 10 * k, np.uint8))
+    return load_dataset("utm", root, positive_dist_threshold=5, soft_dist_threshold=15)
+
+
+def test_soft_positives_are_neither_right_nor_wrong_in_every_metric(tmp_path):
+    from vpr_core.evaluation import per_query
+
+    ds = _utm_soft(tmp_path)
+    assert (ds.ground_truth_soft & ~ds.ground_truth).sum() == 4
+    sim = np.full((4, 8), 0.1)
+    for q in range(4):
+        sim[q, 2 * q + 1] = 0.9  # each query's best match: its soft-only reference
+        sim[q, 2 * q] = 0.5  # then its hard positive
+    result = peer_result(peer_from_matrix(sim, "soft"), ds, n_bootstrap=50)
+    assert result.metrics["r@1"] == 1.0  # by the README's rule (utm row), not 0.0
+    assert result.intervals["r@1"][1:] == (1.0, 1.0)
+    table = compare([result], n_bootstrap=50)
+    assert table["R@1"].iloc[0] == 1.0
+    assert per_query(result)["top-1 correct"].all()

@@ -157,7 +157,8 @@ class PlaceDataset:
         if self.ground_truth_soft is None:
             return similarity
         out = np.array(similarity, dtype=np.float64)
-        out[self.ground_truth_soft & ~self.ground_truth] = out.min()
+        if not np.isnan(out).all():  # NaN (unranked) pairs stay NaN
+            out[self.ground_truth_soft & ~self.ground_truth] = np.nanmin(out)
         return out
 
     def subset(self, n: int) -> PlaceDataset:

@@ -163,7 +163,7 @@ def peer_result(
         protocol: the PR protocol of its AUC and R@100P (as :func:`~vpr_core.pipeline.run_method`).
     """
 
-    sim = peer_similarity_for(dataset, peer)
+    sim = dataset.ignore_soft(peer_similarity_for(dataset, peer))  # soft: neither right nor wrong
     gt = np.asarray(dataset.ground_truth, dtype=bool)
     nq, nr = gt.shape
     timings = {

@@ -297,6 +297,7 @@ def run_method(
                 sigma=conf.matching.sigma,
                 spatial=conf.matching.spatial,
                 weighting=conf.matching.weighting,
+    sim = dataset.ignore_soft(sim)  # soft positives: neither right nor wrong, in every metric
                 shortlist=k,
                 global_desc=glob,
                 client=client,
