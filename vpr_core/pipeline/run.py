@@ -297,7 +297,6 @@ def run_method(
                 sigma=conf.matching.sigma,
                 spatial=conf.matching.spatial,
                 weighting=conf.matching.weighting,
-    sim = dataset.ignore_soft(sim)  # soft positives: neither right nor wrong, in every metric
                 shortlist=k,
                 global_desc=glob,
                 client=client,
@@ -315,6 +314,7 @@ def run_method(
         if client is not None:
             client.close()
     sim = _exclude_empty(np.asarray(sim, dtype=np.float64), boxes, dataset)
+    sim = dataset.ignore_soft(sim)  # soft positives: neither right nor wrong, in every metric
     gt = np.asarray(dataset.ground_truth, dtype=bool)
     metrics = evaluate(sim, gt, protocol=protocol)
     intervals = (
