@@ -78,43 +78,29 @@ def _as_real(value: Any) -> np.ndarray:
     return raw.astype(np.float64)
 
 
-def _vector(path: Path, value: Any, k: int, n: int | None, integral: bool) -> np.ndarray:
+def _item(path: Path, items: list, k: int, rows: int | None = None) -> np.ndarray:
+    """Item ``k`` checked: a finite real ``(Nq, Nr)`` matrix (k = 3), a ``(rows,)`` vector
+    (integral for the indices, k < 2) or one number ``>= 0`` (the times, k > 3)."""
+    what = f"item {k} ({_ITEMS[k]})"
     try:
-        arr = _as_real(value).ravel()
+        arr = _as_real(items[k])
     except (TypeError, ValueError):
-        raise _bad(path, f"item {k} ({_ITEMS[k]}) is not numeric") from None
-    if n is not None and arr.size != n:
-        raise _bad(
-            path, f"item {k} ({_ITEMS[k]}) has {arr.size} values, the similarity matrix {n} rows"
-        )
-    if not np.all(np.isfinite(arr)):
-        raise _bad(path, f"item {k} ({_ITEMS[k]}) holds NaN or inf")
-    if integral:
-        if not np.all(arr == np.round(arr)):
-            raise _bad(path, f"item {k} ({_ITEMS[k]}) is not integral")
-        return arr.astype(np.int64)
-    return arr
-
-
-def _seconds(path: Path, value: Any, k: int) -> float:
-    arr = _vector(path, value, k, None, integral=False)
-    if arr.size != 1 or arr[0] < 0:
-        raise _bad(path, f"item {k} ({_ITEMS[k]}) must be one number >= 0, got {value!r}")
-    return float(arr[0])
-
-
-def _matrix(path: Path, value: Any) -> np.ndarray:
-    try:
-        sim = _as_real(value)
-    except (TypeError, ValueError):
-        raise _bad(
-            path, "item 3 (similarity matrix) is not a numeric (Nq, Nr) matrix (ragged rows?)"
-        ) from None
-    if sim.ndim != 2 or 0 in sim.shape:
-        raise _bad(path, f"item 3 (similarity matrix) has shape {sim.shape}, not (Nq, Nr)")
-    if not np.all(np.isfinite(sim)):
-        raise _bad(path, "item 3 (similarity matrix) holds NaN or inf")
-    return sim
+        kind = "(Nq, Nr) matrix (ragged rows?)" if k == 3 else "array"
+        raise _bad(path, f"{what} is not a numeric {kind}") from None
+    flat = arr.ravel()
+    if k == 3 and (arr.ndim != 2 or 0 in arr.shape):
+        wrong = f"has shape {arr.shape}, not (Nq, Nr)"
+    elif k < 3 and flat.size != rows:
+        wrong = f"has {flat.size} values, the similarity matrix {rows} rows"
+    elif k > 3 and (flat.size != 1 or flat[0] < 0):
+        wrong = f"must be one number >= 0, got {items[k]!r}"
+    elif not np.isfinite(flat).all():
+        wrong = "holds NaN or inf"
+    elif k < 2 and (flat != np.round(flat)).any():
+        wrong = "is not integral"
+    else:
+        return arr if k == 3 else flat
+    raise _bad(path, f"{what} {wrong}")
 
 
 def load_vprbench_precomputed(path: str | os.PathLike) -> PeerResult:
@@ -127,11 +113,10 @@ def load_vprbench_precomputed(path: str | os.PathLike) -> PeerResult:
             f"precomputed_matches/<dataset>/<technique>/{PRECOMPUTED_FILE}."
         )
     items = _items(path)
-    sim = _matrix(path, items[3])
+    sim = _item(path, items, 3)
     nq, nr = sim.shape
-    queries = _vector(path, items[0], 0, nq, integral=True)
-    top1 = _vector(path, items[1], 1, nq, integral=True)
-    _vector(path, items[2], 2, nq, integral=False)
+    queries, top1, _ = (_item(path, items, k, nq) for k in (0, 1, 2))
+    queries, top1 = queries.astype(np.int64), top1.astype(np.int64)
     if np.any((top1 < 0) | (top1 >= nr)):
         raise _bad(path, f"item 1 (top-1 reference indices) outside 0..{nr - 1}")
     agree = float(np.mean(np.argmax(sim, axis=1) == top1))
@@ -147,8 +132,8 @@ def load_vprbench_precomputed(path: str | os.PathLike) -> PeerResult:
         name=path.parent.name,
         dataset=path.parent.parent.name,
         similarity=sim,
-        encode_seconds=_seconds(path, items[4], 4),
-        match_seconds=_seconds(path, items[5], 5),
+        encode_seconds=float(_item(path, items, 4)[0]),
+        match_seconds=float(_item(path, items, 5)[0]),
         source=path,
         query_indices=queries,
         top1_reference=top1,
