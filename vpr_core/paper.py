@@ -74,8 +74,6 @@ TABLE4: dict[str, tuple[tuple[float, ...], int]] = {
     "Set 3": ((0.09, 0.20, 0.32, 0.44), 25),
     "Set 4": ((0.20, 0.32, 0.44, 0.54), 25),
 }
-#: The three dense-sampling sweeps by name.
-DENSE_TABLES: dict[str, dict] = {"table2": TABLE2, "table3": TABLE3, "table4": TABLE4}
 
 # ---- Sec. 2.1: the landmark descriptor --------------------------------------------------------
 #: Random-projection output dimension.
