@@ -74,10 +74,10 @@ def test_a_stopped_run_says_what_finished_and_where_the_files_are(tmp_path, monk
     monkeypatch.setenv("VPR_OUTPUT_DIR", str(tmp_path))
     calls = []
 
-    def fake_execute(nb, out, params, kernel):
-        calls.append(nb.stem)
-        if len(calls) == 2:
-            raise KeyboardInterrupt
+    def fake_execute(notebooks, out_dir, params, kernel, finished):
+        calls.extend(nb.stem for nb in notebooks)
+        finished[notebooks[0].stem] = 0.0  # the first finished, then Ctrl-C
+        raise KeyboardInterrupt
 
     monkeypatch.setattr(runner, "_execute", fake_execute)
     with pytest.raises(KeyboardInterrupt):
@@ -177,7 +177,7 @@ def test_kernels_get_their_settings_through_env_not_os_environ(tmp_path, monkeyp
     before = dict(os.environ)
     nb = runner.notebook_paths(["01_pipeline_tour"])[0]
     with runner.paths.using_output_root(tmp_path / "cli"):  # what --out does
-        runner._execute(nb, tmp_path / "out.ipynb", {"dataset": "synthetic"}, "python3")
+        runner._execute([nb], tmp_path, {"dataset": "synthetic"}, "python3", {})
     assert dict(os.environ) == before
     assert seen["env"]["VPR_OUTPUT_DIR"] == str(tmp_path / "cli")
     assert seen["env"]["VPR_CACHE_DIR"] == str(tmp_path / "cli" / ".cache")

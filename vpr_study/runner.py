@@ -1,6 +1,6 @@
-"""Execute the study notebooks headless (papermill) with their ``parameters`` cell overridden,
-into ``<output root>/runs/<label>/``, and check that each wrote the figures :data:`FIGURES` lists;
-also the real datasets of ``make study`` (:func:`study_datasets`) and the quick test settings."""
+"""Execute the study notebooks headless (papermill, one kernel per dataset label), parameters
+overridden, into ``<output root>/runs/<label>/``; check each wrote the figures :data:`FIGURES`
+lists; also the real datasets of ``make study`` and the quick test settings."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import json
 import logging
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -266,56 +267,71 @@ def _print_summary(table: pd.DataFrame, label: str, backbone: str) -> None:
 REAL_DATA_NOTEBOOKS = (_NB3, _NB4, _NB5, _NB6)
 
 
-#: The child process of :func:`_execute`: papermill with the kernel's output streamed to the
-#: child's (inherited) stdout and stderr.
-_PAPERMILL = (
-    "import json, sys; import papermill as pm; "
-    "pm.execute_notebook(**json.loads(sys.argv[1]), stdout_file=sys.stdout, stderr_file=sys.stderr)"
-)
+def _execute(
+    notebooks: Sequence[Path], out_dir: Path, params: dict, kernel: str, finished: dict
+) -> None:
+    """Run papermill on ``notebooks`` in order, all in one kernel (:mod:`vpr_study.session`),
+    in a child process whose environment holds :func:`kernel_settings`; the kernel's output
+    streams here live. ``finished`` gets ``{notebook stem: unix time it started}`` of each
+    notebook that finished, also when the run stops.
 
-
-def _execute(nb: Path, out: Path, params: dict, kernel: str) -> None:
-    """Run papermill on ``nb`` in a child process whose environment holds
-    :func:`kernel_settings`; the kernel's output streams here live."""
+    Raises:
+        RuntimeError: a notebook failed (the message names the first unfinished one).
+    """
     t0 = time.perf_counter()
-    logger.info("executing %s -> %s", nb.name, out)
-    request = {
-        "input_path": str(nb),
-        "output_path": str(out),
-        "parameters": params,
-        "cwd": str(nb.parent),
-        "kernel_name": kernel,
-        "progress_bar": sys.stderr.isatty() and not settings.progress_disabled(),
-    }
-    command = [sys.executable, "-c", _PAPERMILL, json.dumps(request)]
-    done = subprocess.run(command, env=settings.child_environment(kernel_settings()))
+    with tempfile.TemporaryDirectory(prefix="vpr_session_") as tmp:
+        status = Path(tmp) / "status.jsonl"
+        request = {
+            "notebooks": [
+                {"input_path": str(nb), "output_path": str(out_dir / nb.name), "parameters": params}
+                for nb in notebooks
+            ],
+            "cwd": str(notebooks[0].parent),
+            "kernel": kernel,
+            "progress_bar": sys.stderr.isatty() and not settings.progress_disabled(),
+            "status": str(status),
+        }
+        logger.info("executing %s -> %s", ", ".join(nb.name for nb in notebooks), out_dir)
+        command = [sys.executable, "-m", "vpr_study.session", json.dumps(request)]
+        try:
+            done = subprocess.run(command, env=settings.child_environment(kernel_settings()))
+        finally:
+            lines = (
+                [json.loads(x) for x in status.read_text().splitlines()] if status.exists() else []
+            )
+            started = {x["notebook"]: x["started"] for x in lines if "started" in x}
+            finished.update({x["done"]: started[x["done"]] for x in lines if "done" in x})
     if done.returncode != 0:
+        failed = next(nb for nb in notebooks if nb.stem not in finished)
         raise RuntimeError(
-            f"notebook {nb.name} failed (the error is printed above); open {out} to see the "
-            "failing cell"
+            f"notebook {failed.name} failed (the error is printed above); open "
+            f"{out_dir / failed.name} to see the failing cell"
         )
-    logger.info("%s done in %.1f s", nb.name, time.perf_counter() - t0)
+    logger.info("%d notebook(s) done in %.1f s", len(notebooks), time.perf_counter() - t0)
 
 
 def _run_label(label: str, selected: Sequence[Path], params: dict, kernel: str) -> list[str]:
-    """Execute ``selected`` notebooks for one output label; the expected figures not written."""
+    """Execute ``selected`` notebooks for one output label (one kernel); the expected figures
+    not written."""
+    if not selected:
+        return []
     expected = expected_figures()
-    out_dir = paths.runs_dir(label)
+    finished: dict[str, float] = {}
+    try:
+        _execute(selected, paths.runs_dir(label), params, kernel, finished)
+    except BaseException:
+        stopped = next((nb.stem for nb in selected if nb.stem not in finished), "?")
+        print(
+            f"\nstopped in {stopped} ({label}); finished: {', '.join(finished) or 'none'}. "
+            f"Figures so far in {paths.figures_dir(label)}, tables in "
+            f"{paths.results_dir(label)}; cached work is kept, rerun to resume."
+        )
+        raise
     missing: list[str] = []
-    done: list[str] = []
     for nb in selected:
-        started = time.time()
-        try:
-            _execute(nb, out_dir / nb.name, params, kernel)
-        except BaseException:
-            print(
-                f"\nstopped in {nb.stem} ({label}); finished: {', '.join(done) or 'none'}. "
-                f"Figures so far in {paths.figures_dir(label)}, tables in "
-                f"{paths.results_dir(label)}; cached work is kept, rerun to resume."
-            )
-            raise
-        done.append(nb.stem)
-        missing += _unwritten(paths.figures_dir(label), expected.get(nb.stem, []), started)
+        missing += _unwritten(
+            paths.figures_dir(label), expected.get(nb.stem, []), finished[nb.stem]
+        )
     return missing
 
 
