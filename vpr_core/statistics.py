@@ -29,6 +29,7 @@ from .labels import (
 )
 from .landmarks.scales import _box_scale_index
 from .matching import match_landmarks
+from .methods import Matching
 from .paper import N_SCALES, SCALE_RANGE_LABELS
 from .utils import progress
 
@@ -260,23 +261,24 @@ def _query_records(
     dataset: Any,
     q: int,
     size_q: tuple[int, int],
-    bq: np.ndarray,
-    desc_q: np.ndarray,
-    boxes_r: Sequence[np.ndarray],
-    desc_r: Sequence[np.ndarray],
+    query: tuple[np.ndarray, np.ndarray],
+    references: tuple[Sequence[np.ndarray], Sequence[np.ndarray]],
     pairs: list[tuple[int, bool]],
-    match_options: dict,
+    matching: Matching,
     label_options: dict,
 ) -> list[MatchRecord]:
-    """The :class:`MatchRecord` of query ``q`` against each ``(r, is_gt)`` of ``pairs``.
-
-    Boxes are parsed; a ground-truth pair the labeller cannot label is logged and kept unlabelled.
-    """
+    """The :class:`MatchRecord` of query ``q`` (parsed boxes, descriptors) against each
+    ``(r, is_gt)`` of ``pairs``; a ground-truth pair the labeller cannot label stays unlabelled."""
+    bq, desc_q = query
+    boxes_r, desc_r = references
     sc_q = _box_scale_index(bq, size_q)
     records = []
     for r, is_gt in pairs:
         br = boxes_r[r]
-        res = match_landmarks(desc_q, bq, desc_r[r], br, **match_options)
+        m = matching
+        res = match_landmarks(
+            desc_q, bq, desc_r[r], br, soft_nms_iou=m.soft_nms_iou, sigma=m.sigma, spatial=m.spatial
+        )
         mt = np.asarray(res.matches, dtype=np.int64).reshape(-1, 2)
         lab = None
         if is_gt:
@@ -303,8 +305,7 @@ def scale_statistics(
     image_sizes: Sequence[tuple[int, int]] | None = None,
     queries: Sequence[int] | None = None,
     gt_pairs: str = "center",
-    soft_nms_iou: float | None = None,
-    sigma: float = 0.5,
+    matching: Matching | None = None,
     iou_threshold: float = 0.5,
     labels: Any = None,
     **label_options: Any,
@@ -316,7 +317,8 @@ def scale_statistics(
     :func:`label_matches` (``label_method``, ``labels``, ``iou_threshold``, ``**label_options``),
     and with ``n_irrelevant`` query-irrelevant references sampled with ``seed``. Queries without
     ground truth are skipped. Boxes ``(K_i, 4)`` and descriptors ``(K_i, D)`` per image;
-    ``image_sizes`` per query ``(H, W)`` (default: asked from the dataset).
+    ``image_sizes`` per query ``(H, W)`` (default: asked from the dataset); ``matching``: how
+    pairs are scored (default Eq. (1) as in the paper).
     """
     gt = np.asarray(dataset.ground_truth, dtype=bool)
     nq, nr = gt.shape
@@ -340,7 +342,7 @@ def scale_statistics(
     qs = list(range(nq)) if queries is None else sorted(int(x) for x in queries)
     qs = [q for q in qs if gt[q].any()]
     irr = sample_irrelevant_references(gt, n_irrelevant, seed, qs)
-    match_options = {"soft_nms_iou": soft_nms_iou, "sigma": sigma}
+    matching = Matching() if matching is None else matching
     label_options = {
         "method": method,
         "iou_threshold": iou_threshold,
@@ -357,17 +359,17 @@ def scale_statistics(
         )
         pairs = [(r, True) for r in ground_truth_references(gt, q, gt_pairs)]
         pairs += [(r, False) for r in irr[q]]
+        query = (boxes_q[q], desc_q[q])
         records += _query_records(
-            dataset, q, size_q, boxes_q[q], desc_q[q], boxes_r, desc_r, pairs, match_options,
-            label_options,
-        )  # fmt: skip
+            dataset, q, size_q, query, (boxes_r, desc_r), pairs, matching, label_options
+        )
     meta = {
         "dataset": getattr(dataset, "title", getattr(dataset, "name", None)),
         "label_method": method,
         "n_irrelevant": n_irrelevant,
         "seed": seed,
         "gt_pairs": gt_pairs,
-        "soft_nms_iou": soft_nms_iou,
+        "soft_nms_iou": matching.soft_nms_iou,
         "iou_threshold": iou_threshold,
         "tolerance": getattr(dataset, "tolerance", None),
         "ground_truth": ground_truth_text(
