@@ -11,10 +11,6 @@ import sys
 import time
 from pathlib import Path
 
-import papermill as pm
-from jupyter_client.manager import AsyncKernelManager
-from jupyter_core.utils import run_sync
-
 __all__ = ["RESET", "run_session"]
 
 #: Run (unrecorded) before each notebook: a fresh kernel's namespace, counter, figures and
@@ -40,6 +36,10 @@ def run_session(request: dict) -> None:
         RuntimeError: the kernel did not accept the reset (its reply names the error).
         papermill.PapermillExecutionError: a cell failed (the executed copy shows it).
     """
+    import papermill as pm  # optional heavy dependencies: imported where used
+    from jupyter_client.manager import AsyncKernelManager
+    from jupyter_core.utils import run_sync
+
     status = Path(request["status"])
     km = AsyncKernelManager(kernel_name=request["kernel"])
     run_sync(km.start_kernel)(cwd=request["cwd"])
