@@ -398,3 +398,79 @@ def test_soft_positives_are_neither_right_nor_wrong_in_every_metric(tmp_path):
     table = compare([result], n_bootstrap=50)
     assert table["R@1"].iloc[0] == 1.0
     assert per_query(result)["top-1 correct"].all()
+
+
+# ------------------------------------------------------------------------------------------
+# 32.6-32.8 crashes and silent answers that become clear errors
+# ------------------------------------------------------------------------------------------
+
+
+def test_compare_baseline_index_out_of_range_is_a_clear_error(tiny_synthetic):
+    ds = tiny_synthetic
+    sim = np.eye(8) + np.random.default_rng(0).random((8, 8))
+    runs = [peer_result(peer_from_matrix(sim + k, f"m{k}"), ds, n_bootstrap=0) for k in (0, 1)]
+    with pytest.raises(ValueError, match=r"baseline=5 .*2 results.*0 to 1") as info:
+        compare(runs, baseline=5, n_bootstrap=0)
+    assert "\n" not in str(info.value)
+
+
+def _findings_folder(tmp_path: Path, text: bytes | str) -> Path:
+    folder = tmp_path / "results" / "lab"
+    folder.mkdir(parents=True)
+    path = folder / "fig05_selection.csv"
+    path.write_bytes(text if isinstance(text, bytes) else text.encode())
+    return path
+
+
+COMMITTED_FIG05 = (
+    Path(__file__).resolve().parents[1] / "results" / "synthetic" / "fig05_selection.csv"
+)
+
+
+@pytest.mark.parametrize(
+    "case, content, message",
+    [
+        ("no dAUC", "method,run,baseline\nclassical,classical,\n", r"lacks the column.*dAUC"),
+        ("binary", b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR\x00\xff\xfe", r"not a readable CSV"),
+        ("empty", b"", r"is empty"),
+        ("truncated", None, r"is truncated"),
+    ],
+)
+def test_findings_over_a_bad_table_names_the_file(tmp_path, case, content, message):
+    from vpr_study.findings import findings_table
+
+    if content is None:
+        full = COMMITTED_FIG05.read_text()
+        content = full[: len(full) * 2 // 3]
+    path = _findings_folder(tmp_path, content)
+    with pytest.raises(ValueError, match=message) as info:
+        findings_table(["lab"], out=tmp_path)
+    assert str(path) in str(info.value) and "\n" not in str(info.value)
+
+
+def test_findings_for_a_label_without_results_is_refused(tmp_path, capsys):
+    from vpr_study import cli
+    from vpr_study.findings import findings_table
+
+    _findings_folder(tmp_path, COMMITTED_FIG05.read_text())
+    with pytest.raises(
+        ValueError, match=r"no results for label 'nosuch' .*labels with results: lab"
+    ):
+        findings_table(["lab", "nosuch"], out=tmp_path)
+    findings = tmp_path / "results" / "findings.md"
+    findings.write_text("kept\n")
+    rc = cli.main(["findings", "--write", "--labels", "nosuch", "--out", str(tmp_path)])
+    assert rc != 0 and findings.read_text() == "kept\n"
+    assert "nosuch" in capsys.readouterr().err
+
+
+def test_huge_n_bootstrap_is_refused_before_the_work(capsys):
+    import time
+
+    from vpr_study import cli
+
+    start = time.monotonic()
+    rc = cli.main(["eval", "--n-places", "4", "--method", "dense", "--n-bootstrap", "100000000"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--n-bootstrap 100000000" in err and "GB" in err, err
+    assert time.monotonic() - start < 20

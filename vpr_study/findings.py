@@ -4,6 +4,7 @@ its verdict (docs/DEFINITIONS.md, "Verdicts"); ``vpr-study findings`` prints the
 
 from __future__ import annotations
 
+import io
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -93,6 +94,11 @@ CLAIMS: tuple[Claim, ...] = (
           "geometry_dense", ("dense", {"spatial": "consistency"}), _D, "?"),
     Claim("(not in the paper) geometry-aware score: classical with vs without",
           "geometry_classical", ("classical", {"spatial": "consistency"}), _C, "?"),
+    *(
+        Claim(f"(not in the paper) weighting {w}: {m} with vs without", f"weighting_{m}",
+              (m, {"weighting": w}), base, "?")
+        for m, base in (("dense", _D), ("classical", _C)) for w in ("contrast", "idf")
+    ),
 )
 # fmt: on
 
@@ -126,11 +132,18 @@ def _claim_cell(folder: Path, claim: Claim) -> tuple[str, str]:
     csv = folder / f"{claim.figure}.csv"
     if not csv.is_file():
         return "-", "not run"
-    df = pd.read_csv(csv)
+    df = read_table(csv)
     if "run" not in df.columns or "baseline" not in df.columns:
         raise ValueError(
             f"{csv} is not a comparison table (no 'run' / 'baseline' column); "
             "write it with save(compare(runs), figure, label)"
+        )
+    m = claim.metric
+    missing = [c for c in (m, f"{m} lo", f"{m} hi", f"{m} p") if c not in df.columns]
+    if missing:
+        raise ValueError(
+            f"{csv} lacks the column(s) {', '.join(missing)} of a paired comparison; write it "
+            "with save(compare(runs), figure, label) from runs of one dataset"
         )
     method_key, base_key = claim.keys
     base = df[df["run"] == base_key]
@@ -138,12 +151,33 @@ def _claim_cell(folder: Path, claim: Claim) -> tuple[str, str]:
     if base.empty or rows.empty:
         return "-", "not run"
     r = rows.iloc[0]
-    m = claim.metric
     d, lo, hi, p = (float(r[m]), float(r[f"{m} lo"]), float(r[f"{m} hi"]), float(r[f"{m} p"]))
     verdict = _verdict(claim.expect, lo, hi, d)
     if verdict == "inconclusive" and f"{m} needs" in df.columns:
         verdict += f" ({needs_text(float(r[f'{m} needs']))})"
     return f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] p={p:.3f}", verdict
+
+
+def read_table(csv: Path) -> pd.DataFrame:
+    """A saved results table, refused naming the file when it is empty, not a CSV table or
+    truncated (its last line cut off)."""
+    raw = csv.read_bytes()
+    if not raw.strip():
+        raise ValueError(f"{csv} is empty; rerun the notebook or command that writes it")
+    try:
+        df = pd.read_csv(io.BytesIO(raw))
+    except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as exc:
+        why = str(exc).strip().splitlines()[0][:80] if str(exc).strip() else type(exc).__name__
+        raise ValueError(
+            f"{csv} is not a readable CSV table ({why}); rerun the notebook or command that "
+            "writes it"
+        ) from None
+    if not raw.endswith(b"\n") or df.empty:
+        raise ValueError(
+            f"{csv} is truncated (its last line is cut off, or it holds no row); rerun the "
+            "notebook or command that writes it"
+        )
+    return df
 
 
 def cmr_difference(
@@ -183,7 +217,7 @@ def _observation_1(folder: Path) -> tuple[str, str]:
     csv = folder / f"{MATCHES_TABLE}.csv"
     if not csv.is_file():
         return "-", "not run"
-    d, lo, hi = cmr_difference(pd.read_csv(csv))
+    d, lo, hi = cmr_difference(read_table(csv))
     return f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}]", _verdict(">", lo, hi)
 
 
@@ -208,6 +242,13 @@ def findings_table(labels: Sequence[str], out: str | Path | None = None) -> pd.D
     """One row per claim (the index), two columns per result folder label under
     ``<output root>/results/`` (value and verdict)."""
     root = paths.output_root() if out is None else Path(out)
+    for label in labels:
+        if not (root / "results" / label).is_dir():
+            found = result_labels(out=root)
+            raise ValueError(
+                f"no results for label {label!r} under {root / 'results'}; labels with "
+                f"results: {', '.join(found) or 'none'}"
+            )
     rows = []
     for claim in (None, *CLAIMS):
         row = {"claim": OBSERVATION_1 if claim is None else claim.text}

@@ -167,6 +167,11 @@ def compare(
     if baseline is None:
         base = results[0]
     elif isinstance(baseline, int):
+        if not -len(results) <= baseline < len(results):
+            raise ValueError(
+                f"compare(): baseline={baseline} is not one of the {len(results)} results: give "
+                f"an index 0 to {len(results) - 1} or a label ({', '.join(labels)})"
+            )
         base = results[baseline]
     elif baseline in labels:
         base = results[labels.index(baseline)]
