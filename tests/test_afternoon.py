@@ -5,6 +5,7 @@ that read, honest names, progress outside a terminal and honest cost tables."""
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -354,3 +355,137 @@ def test_pr_titles_name_every_non_default_setting_pooling_roi_included():
     fig = plot_pr_curves(runs, title="Fig. 13")
     assert "pooling roi" in fig.axes[0].get_title(loc="left")
     plt.close(fig)
+
+
+def test_eval_outputs_are_named_by_the_settings_that_differ_from_the_defaults(tmp_path):
+    from vpr_study import cli
+
+    def stem(*argv: str) -> str:
+        args = cli.build_parser().parse_args(["eval", "--dataset", "folder", *argv])
+        return cli.eval_stem(args, "corridor")
+
+    methods = ("--method", "dense", "classical")
+    assert stem(*methods) == "eval_corridor_dense+classical"
+    assert stem(*methods, "--pooling", "roi") == "eval_corridor_dense+classical_pooling-roi"
+    assert stem(*methods, "--pooling", "roi", "--shortlist", "25") == (
+        "eval_corridor_dense+classical_pooling-roi_shortlist-25"
+    )
+    assert stem("--root", str(tmp_path)) == "eval_corridor_dense"  # the label names the data
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    a, b = stem("--peer", f"Net={tmp_path / 'a'}"), stem("--peer", f"Net={tmp_path / 'b'}")
+    assert a.startswith("eval_corridor_dense_peer-Net_") and a != b  # a hash only for files
+
+
+# 4. Tables that fit, 10. honest cost tables ---------------------------------------------------
+
+
+def _eval(monkeypatch, capsys, tmp_path, columns: int, *extra: str) -> str:
+    from vpr_study import cli
+
+    monkeypatch.setenv("COLUMNS", str(columns))
+    argv = ["eval", "--dataset", "synthetic", "--n-places", "6", "--backbone", "hog"]
+    argv += ["--method", "dense", "global", "--out", str(tmp_path), *extra]
+    assert cli.main(argv) == 0
+    return capsys.readouterr().out
+
+
+def test_eval_tables_fit_80_and_160_columns_one_row_per_method(tmp_path, monkeypatch, capsys):
+    out = _eval(monkeypatch, capsys, tmp_path, 80)
+    assert max(len(line) for line in out.splitlines()) <= 80, out
+    rows = [ln for ln in out.splitlines() if ln.startswith(("dense ", "global "))]
+    assert len(rows) == 4  # the metrics table and the cost table: one row per method each
+    assert re.search(
+        r"^global +\d\.\d{3} \[.*\] +[-+]\d\.\d{3} \[.*\] (finding|inconclusive)$",
+        out,
+        re.MULTILINE,
+    )  # the difference on the method's row
+    assert "not shown at 80 columns: R@1" in out
+    # the cost table says where its seconds come from: measured now, then read from the cache
+    assert re.search(r"^dense .* this run$", out, re.MULTILINE)
+    stem = "eval_synthetic_dense+global_backbone-hog_n-places-6"
+    table = pd.read_csv(tmp_path / "results" / "synthetic" / f"{stem}.csv")
+    for col in ("R@5 hi", "dR@100P verdict", "dR@1 lo", "queries"):
+        assert col in table.columns  # the CSV keeps everything
+    wide = _eval(monkeypatch, capsys, tmp_path, 160)
+    assert max(len(line) for line in wide.splitlines()) <= 160
+    rows = [ln for ln in wide.splitlines() if ln.startswith(("dense ", "global "))]
+    assert len(rows) == 4 and "R@1" in wide and "dR@1 vs dense" in wide
+    assert re.search(r"^dense .* earlier run$", wide, re.MULTILINE)  # read from the cache
+    everything = _eval(monkeypatch, capsys, tmp_path, 80, "--wide")
+    assert "dR@100P vs dense" in everything and "not shown" not in everything
+
+
+# 7. Insight tools ----------------------------------------------------------------------------
+
+
+def test_chance_prints_rounded_and_keeps_exact_values():
+    import numpy as np
+
+    from vpr_core.evaluation import chance
+
+    level = chance(np.eye(10, dtype=bool))
+    assert level["r@1"] == 1 - 9 / 10 != 0.1  # 0.09999999999999998, exact
+    assert "'r@1': 0.1," in repr(level) and "0.0999" not in repr(level) + str(level)
+    assert dict(level) == level and isinstance(level, dict)
+
+
+def test_per_query_says_when_top1_matches_are_nan():
+    import numpy as np
+
+    from vpr_core.evaluation import per_query
+    from vpr_core.notices import VPRWarning
+
+    gt = np.eye(4, dtype=bool)
+    run = _pr_result("dense", gt + 0.1, gt, boxes=None, descriptors=None)
+    with pytest.warns(VPRWarning, match=r"'top-1 matches' is NaN for dense.*keep_descriptors=True"):
+        table = per_query(run)
+    assert table["top-1 matches"].isna().all()
+
+
+# 11. Figures that say something --------------------------------------------------------------
+
+
+def test_the_coverage_overlay_leaves_the_image_visible():
+    import numpy as np
+
+    from vpr_core.landmarks import dense_sampling
+    from vpr_core.viz import plot_coverage
+
+    rng = np.random.default_rng(0)
+    image = np.kron(rng.integers(0, 256, (12, 16)), np.ones((20, 20))).astype(np.uint8)
+    image = np.repeat(image[:, :, None], 3, axis=2)  # 240 x 320 blocks of grey
+    fig = plot_coverage(image, dense_sampling(image.shape[:2]))
+    fig.canvas.draw()
+    bb = fig.axes[0].get_window_extent()
+    rgba = np.asarray(fig.canvas.buffer_rgba())
+    h = rgba.shape[0]
+    shown = rgba[int(h - bb.y1) + 2 : int(h - bb.y0) - 2, int(bb.x0) + 2 : int(bb.x1) - 2, :3]
+    ys = np.linspace(0, shown.shape[0] - 1, 12 * 4).astype(int)
+    xs = np.linspace(0, shown.shape[1] - 1, 16 * 4).astype(int)
+    seen = shown[np.ix_(ys, xs)].mean(axis=2)
+    truth = image[np.ix_(np.linspace(0, 239, 48).astype(int), np.linspace(0, 319, 64).astype(int))]
+    slope = np.polyfit(truth[:, :, 0].ravel().astype(float), seen.ravel(), 1)[0]
+    assert slope > 0.55  # the image keeps most of its contrast (0.4 under the old alpha 0.6)
+    plt.close(fig)
+
+
+def test_a_shortlist_coverage_figure_says_it_equals_the_exhaustive_one(tiny_synthetic):
+
+    import numpy as np
+
+    from vpr_core.landmarks import dense_sampling
+    from vpr_core.viz import plot_coverage_comparison
+
+    size = tiny_synthetic.image_size("reference", 0)
+    boxes = {"reference": [dense_sampling(size) for _ in range(len(tiny_synthetic))]}
+    gt = np.asarray(tiny_synthetic.ground_truth, dtype=bool)
+
+    def run(shortlist):
+        return _pr_result("dense", gt + 0.1, gt, boxes=boxes, shortlist=shortlist)
+
+    fig, _ = plot_coverage_comparison(tiny_synthetic, [run(25)], index=0)
+    assert "shortlist does not change the landmarks" in fig._suptitle.get_text()
+    fig, _ = plot_coverage_comparison(tiny_synthetic, [run(None)], index=0)
+    assert "shortlist" not in fig._suptitle.get_text()
+    plt.close("all")

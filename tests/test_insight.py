@@ -176,9 +176,11 @@ def test_compact_shows_every_interval_verdict_and_chance_in_100_columns():
     assert view.loc[CHANCE_ROW, "R@1"] == f"{1 / 12:.3f}"
     text = compact_text(table)
     assert max(len(line) for line in text.splitlines()) <= 100
+    every, flat = compact_text(table, wide=True), " ".join(text.split())
     for col in view.columns:
+        assert col in flat  # shown, or named on the last line as not shown: never cut
         for cell in view[col]:
-            assert cell in text  # nothing cut or elided
+            assert cell in every  # nothing cut or elided
     assert "..." not in text and repr(table) == text
     assert "dR@1 vs dense" in table._repr_html_()
     assert isinstance(table, pd.DataFrame) and "AUC lo" in table.columns  # full table for CSV

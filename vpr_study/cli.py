@@ -14,9 +14,13 @@ from __future__ import annotations
 
 import argparse
 import errno
+import itertools
 import os
+import shutil
 import signal
 import sys
+import textwrap
+import time
 from pathlib import Path
 
 import torch
@@ -28,7 +32,7 @@ from vpr_core.datasets import DATASETS, load_dataset
 from vpr_core.datasets.ground_truth import ground_truth_text
 from vpr_core.evaluation import compact_text, compare, compare_pairs, ground_truth_coverage
 from vpr_core.evaluation.curves import PROTOCOLS
-from vpr_core.matching import SPATIAL_OPTIONS
+from vpr_core.matching import SPATIAL_OPTIONS, WEIGHTING_OPTIONS
 from vpr_core.methods import available_methods
 from vpr_core.paper import PROJECTION_DIM
 from vpr_core.pipeline import peer_result, run_method
@@ -39,6 +43,11 @@ from vpr_study.findings import findings_markdown, result_labels
 from vpr_study.runner import run_study, study_datasets
 
 INTERRUPTED = "interrupted; cached work is kept, rerun to resume"
+
+
+def say(text: str, width: int) -> None:
+    """Print prose wrapped to the terminal's ``width`` (tables are sized by compact_text)."""
+    print("\n".join(textwrap.fill(p, width) if p else p for p in text.split("\n")))
 
 
 def _parse_value(text: str):
@@ -181,17 +190,41 @@ def _user_peers(args: argparse.Namespace, dataset) -> list:
     return out
 
 
-def _cost_rows(table) -> list[dict]:
-    """Each run's landmark count and measured costs (this machine's; not in the committed CSV)."""
-    cols = ("landmarks/img", "landmarks s/img", "features s/img", "matching s/pair")
-    return [
-        {"method": label, **{c: f"{r[c]:.4f}" for c in cols if c in table.columns}}
-        for label, r in table.iterrows()
-    ]
+def _cost_rows(table, results: list, wall: dict[str, float]) -> tuple[list[dict], list[dict]]:
+    """``(ours, peers)``: each run's landmark count and costs (not in the committed CSV).
+
+    Ours are the seconds recorded when the stages computed; ``measured`` says whether that was
+    in this run, or ``from cache`` when they exceed the run's wall time here (an earlier run
+    measured them). Peers: VPR-Bench's stored encode and match times, from its machine.
+    """
+    cols = {
+        "landmarks/img": "lm/img",
+        "landmarks s/img": "lm s/img",
+        "features s/img": "feat s/img",
+        "matching s/pair": "match s/pair",
+    }
+    ours, peers = [], []
+    for r in results:
+        row = table.loc[r.label]
+        cells = {
+            short: f"{row[c]:.3g}" for c, short in cols.items() if c in table and row[c] == row[c]
+        }
+        if r.method.startswith("peer:"):
+            peers.append({"peer": r.label, **cells})
+            continue
+        n_img = sum(r.similarity.shape)
+        t = r.timings
+        spent = (t["landmarks_s_per_image"] + t["features_s_per_image"]) * n_img + t[
+            "matching_s_per_pair"
+        ] * t.get("pairs", 0)
+        here = wall[r.label]
+        source = "this run" if spent <= here else "earlier run"
+        ours.append({"method": r.label, **cells, "wall s": f"{here:.1f}", "measured": source})
+    return ours, peers
 
 
 #: ``eval`` arguments that do not change a number (where and how the run is done).
-_NOT_SETTINGS = ("command", "func", "out", "label", "scheduler")
+_NOT_SETTINGS = ("command", "func", "out", "label", "scheduler", "wide")
 
 
 def eval_settings(args: argparse.Namespace) -> dict:
@@ -213,11 +246,40 @@ def eval_settings(args: argparse.Namespace) -> dict:
     return found
 
 
+#: Settings the dataset line of a PR figure already names (:func:`vpr_core.viz.dataset_line`).
+_IN_DATASET_LINE = ("backbone", "pooling", "shortlist", "protocol")
+
+
+def changed_settings(args: argparse.Namespace) -> tuple[dict[str, str], dict[str, object]]:
+    """``({setting: readable value}, {setting: full value})``: the :func:`eval_settings` that
+    differ from ``eval``'s defaults (dataset, root and methods left out: the label and the
+    method list name them); a file argument reads as its name, its full path in the second."""
+    defaults = vars(build_parser().parse_args(["eval"]))
+    readable: dict[str, str] = {}
+    files: dict[str, object] = {}
+    for key, value in eval_settings(args).items():
+        if key in ("dataset", "root", "method") or value == defaults.get(key):
+            continue
+        if key in ("peers", "weights"):
+            readable[key], files[key] = Path(str(value)).name, value
+        elif key == "peer":
+            readable[key] = "+".join(str(v).partition("=")[0] for v in value)
+            files[key] = value
+        else:
+            readable[key] = "+".join(map(str, value)) if isinstance(value, list) else str(value)
+    return readable, files
+
+
 def eval_stem(args: argparse.Namespace, label: str) -> str:
-    """``eval_<label>_<methods>_<backbone>_<hash of eval_settings>``: two runs that can differ
-    in a number never share a file name."""
-    backbone = "".join(c if c.isalnum() or c in "-_." else "_" for c in args.backbone)
-    return f"eval_{label}_{'+'.join(args.method)}_{backbone}_{short_hash(eval_settings(args), 8)}"
+    """``eval_<label>_<methods>[_<setting>-<value>...][_<hash>]``: named by the settings that
+    differ from the defaults (:func:`changed_settings`, e.g. ``_pooling-roi_shortlist-25``); a
+    short hash only of file arguments' full paths, so two files of one name never share one."""
+    readable, files = changed_settings(args)
+    parts = [f"{k.replace('_', '-')}-{v}" for k, v in readable.items()]
+    if files:
+        parts.append(short_hash(files, 8))
+    stem = "_".join([f"eval_{label}", "+".join(args.method), *parts])
+    return "".join(c if c.isalnum() or c in "-_.+=" else "_" for c in stem)
 
 
 #: Bytes the bootstrap keeps per resample: 4 metrics (float64) as values, their concatenation
@@ -250,16 +312,23 @@ def cmd_eval(args: argparse.Namespace) -> int:
         dataset.ground_truth, dataset.tolerance, bool(dataset.meta.get("ground_truth_file"))
     )
     loader = "" if dataset.name == args.dataset else f" (loader {args.dataset})"
-    print(
+    width = shutil.get_terminal_size().columns  # $COLUMNS, the terminal, else 80
+    say(
         f"dataset: {label}{loader}  queries={len(dataset.query_paths)} "
-        f"references={len(dataset.reference_paths)}  {truth}"
+        f"references={len(dataset.reference_paths)}  {truth}",
+        width,
     )
     print(f"queries with ground truth: {n_gt} of {n_q}")
     mode = "exhaustive" if args.shortlist is None else f"shortlist k={args.shortlist}"
     scheduler = args.scheduler or settings.dask_scheduler()
     spatial = [None, *SPATIAL_OPTIONS] if args.spatial == "both" else [args.spatial]
-    results = [
-        run_method(
+    weighting = {"none": [None], "both": [None, *WEIGHTING_OPTIONS]}.get(
+        args.weighting, [args.weighting]
+    )
+    results, wall, run_of = [], {}, {}
+    for m, s, w in itertools.product(args.method, spatial, weighting):
+        t0 = time.perf_counter()
+        r = run_method(
             m,
             dataset,
             backbone=args.backbone,
@@ -273,35 +342,66 @@ def cmd_eval(args: argparse.Namespace) -> int:
             n_bootstrap=args.n_bootstrap,
             protocol=args.protocol,
             spatial=s,
+            weighting=w,
         )
-        for m in args.method
-        for s in spatial
-    ]
+        results.append(r)
+        run_of[m, s, w] = r
+        wall[r.label] = time.perf_counter() - t0
     results += _peer_results(args, dataset) + _user_peers(args, dataset)
-    print(
+    say(
         f"backbone: {results[0].encoder.get('backbone')} "
         f"(weights: {results[0].encoder.get('weights')}, pooling: {args.pooling}, {mode}; "
-        f"95% bootstrap intervals over queries, {args.n_bootstrap} resamples)"
+        f"95% bootstrap intervals over queries, {args.n_bootstrap} resamples)",
+        width,
     )
     if len(results) > 1:
-        print(
+        say(
             f"paired bootstrap (same resampled queries): dAUC and dR@1 = method - "
-            f"{results[0].label}; a finding only where the interval excludes 0"
+            f"{results[0].label}; a finding only where the interval excludes 0",
+            width,
         )
     table = compare(results, n_bootstrap=args.n_bootstrap)
-    print(compact_text(table))
-    print("\ncost measured here:\n" + format_table(_cost_rows(table)))
+    print(compact_text(table, width, wide=args.wide))
+    ours, peers = _cost_rows(table, results, wall)
+    say(
+        "cost (lm: landmarks, feat: features): seconds recorded when computed, in 'this run' or "
+        "an 'earlier run' (read from the cache: more seconds than this run's wall time):",
+        width,
+    )
+    print(format_table(ours))
+    if peers:
+        say("peers' costs as stored with them (VPR-Bench: its machine; not comparable):", width)
+        print(format_table(peers))
     stem = eval_stem(args, label)
-    fig = plot_pr_curves(results, title=f"{label} ({mode}, protocol {args.protocol})")
+    readable, _ = changed_settings(args)
+    shown = [f"{k.replace('_', ' ')} {v}" for k, v in readable.items() if k not in _IN_DATASET_LINE]
+    title = f"vpr-study eval on {label}" + (f" ({', '.join(shown)})" if shown else "")
+    fig = plot_pr_curves(results, title=title)
     items: list = [(stem, table), (stem, fig)]
     if args.spatial == "both":
-        pairs = [results[i : i + 2] for i in range(0, 2 * len(args.method), 2)]
+        pairs = [
+            (run_of[m, None, w], run_of[m, s, w])
+            for m, w in itertools.product(args.method, weighting)
+            for s in SPATIAL_OPTIONS
+        ]
         geometry = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
-        print("\n(not in the paper) geometry-aware score, each method with minus without:")
-        print(compact_text(geometry))
+        say("\n(not in the paper) geometry-aware score, each method with minus without:", width)
+        print(compact_text(geometry, width, wide=args.wide))
         items.append((f"{stem}_geometry", geometry))
+    if args.weighting == "both":
+        pairs = [
+            (run_of[m, s, None], run_of[m, s, w])
+            for m, s in itertools.product(args.method, spatial)
+            for w in WEIGHTING_OPTIONS
+        ]
+        weighted = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
+        say("\n(not in the paper) database weighting, each method with minus without:", width)
+        print(compact_text(weighted, width, wide=args.wide))
+        items.append((f"{stem}_weighting", weighted))
     written = save_all(items, label, out=args.out)
-    print("wrote:\n" + "\n".join(f"  {p}" for p in written))
+    root = paths.figures_root() if args.out is None else Path(args.out).expanduser().resolve()
+    say(f"wrote under {root}:", width)
+    print("\n".join(f"  {p.relative_to(root)}" for p in written))
     return 0
 
 
@@ -406,6 +506,21 @@ def build_parser() -> argparse.ArgumentParser:
         help="(not in the paper) re-score every method's reciprocal matches by the agreement "
         "of their box displacements (docs/DEFINITIONS.md); 'both': every method without and "
         "with it, and each method's paired difference; default off: Eq. (1) as the paper",
+    )
+    e.add_argument(
+        "--weighting",
+        default="none",
+        choices=("none", *WEIGHTING_OPTIONS, "both"),
+        help="(not in the paper) weight every method's match terms by how much better the "
+        "query landmark matches this reference than the others (docs/DEFINITIONS.md); 'both': "
+        "every method without and with each weighting, and the paired differences; default "
+        "none: Eq. (1) as the paper",
+    )
+    e.add_argument(
+        "--wide",
+        action="store_true",
+        help="print every column of the table (default: the columns that fit the terminal; "
+        "the CSV keeps them all)",
     )
     e.add_argument(
         "--scheduler",

@@ -20,6 +20,7 @@ from .curves import (
 
 __all__ = [
     "CHANCE_CHECKED",
+    "ChanceLevels",
     "CHANCE_RANKINGS",
     "SATURATION_SHARE",
     "chance",
@@ -88,7 +89,8 @@ def chance(
     n: int = CHANCE_RANKINGS,
     seed: int = 0,
 ) -> dict[str, float]:
-    """Each table metric under a random ranking of the same ground truth (its chance level).
+    """Each table metric under a random ranking of the same ground truth (its chance level);
+    exact values, printed rounded (:class:`ChanceLevels`).
 
     R@K is exact (docs/DEFINITIONS.md, "Chance level"); so are AUC and R@100P of
     ``multi_match``. AUC and R@100P of the per-query protocols are the mean over ``n`` seeded
@@ -103,7 +105,7 @@ def chance(
         seed: their seed (same seed, same values).
 
     Returns:
-        ``{"auc", "r@100p", "r@K"...}`` (the keys of :func:`evaluate`).
+        ``{"auc", "r@100p", "r@K"...}`` (the keys of :func:`evaluate`), a :class:`ChanceLevels`.
 
     Raises:
         ValueError: no query with ground truth, bad protocol, ``n`` or ``ks``.
@@ -126,10 +128,18 @@ def chance(
             curve = _query_curve(rng.random(p_correct.size), correct, protocol, 0)
             values.append((auc_pr(curve), recall_at_100_precision(curve)))
         auc, r100p = (float(v) for v in np.mean(values, axis=0))
-    out = {"auc": auc, "r@100p": r100p}
+    out = ChanceLevels(auc=auc, **{"r@100p": r100p})
     for k in ks:
         out[f"r@{int(k)}"] = _chance_recall(gt, int(k))
     return out
+
+
+class ChanceLevels(dict):
+    """:func:`chance`'s exact values, printed rounded to 3 decimals (``0.1``, never
+    ``0.09999999999999998``)."""
+
+    def __repr__(self) -> str:
+        return "{" + ", ".join(f"{k!r}: {round(v, 3)!r}" for k, v in self.items()) + "}"
 
 
 def _inside(value: float, interval: Sequence[float]) -> bool:

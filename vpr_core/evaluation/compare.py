@@ -4,6 +4,7 @@ Definitions: docs/DEFINITIONS.md ("Uncertainty", "Chance level")."""
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Sequence
 from importlib.metadata import PackageNotFoundError, version
 from typing import Any
@@ -37,11 +38,11 @@ METRICS = {"AUC": "auc", "R@100P": "r@100p", "R@1": "r@1", "R@5": "r@5"}
 #: The paired differences of :func:`compare` (column prefix -> metric key).
 DIFFERENCES = {"dAUC": "auc", "dR@100P": "r@100p", "dR@1": "r@1"}
 
-#: Terminal width :func:`compact_text` wraps to (blocks of columns, the labels repeated).
+#: Terminal width of :func:`compact_text` when none is given (``print(table)``, notebooks).
 TERMINAL_WIDTH = 100
 
 #: The row label of the chance level in :func:`compact`.
-CHANCE_ROW = "chance (random ranking)"
+CHANCE_ROW = "chance (random)"
 
 
 def _same(a: np.ndarray, b: np.ndarray) -> bool:
@@ -269,21 +270,38 @@ def compact(table: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-def compact_text(table: pd.DataFrame, width: int = TERMINAL_WIDTH) -> str:
-    """:func:`compact` as text for a terminal of ``width`` columns: the columns wrap into
-    blocks (each repeating the labels) so that no interval or verdict is cut."""
+def _by_priority(columns: Sequence[str]) -> list[str]:
+    """The columns in the order a narrow terminal keeps them: AUC and its difference, R@1 and
+    its difference, R@100P and its difference, R@5, then the rest."""
+    ranks = ("AUC", "dAUC", "R@1", "dR@1", "R@100P", "dR@100P", "R@5")
+
+    def rank(col: str) -> int:
+        name = col.split()[0].split("(")[0]  # "AUC(ratio)", "dAUC vs dense"
+        return ranks.index(name) if name in ranks else len(ranks)
+
+    return sorted(columns, key=rank)
+
+
+def compact_text(table: pd.DataFrame, width: int = TERMINAL_WIDTH, wide: bool = False) -> str:
+    """:func:`compact` as text for a terminal of ``width`` columns: one row per run with as many
+    columns as fit, in the order AUC, its paired difference, R@1, its difference, ... (no cell
+    is cut), and a last line naming the columns left out. ``wide=True``: every column, however
+    long the rows. The CSV of the full table keeps everything."""
     view = compact(table)
     label_w = max([len(str(view.index.name or ""))] + [len(str(i)) for i in view.index])
-    blocks: list[list[str]] = [[]]
-    used = label_w
-    for col in view.columns:
+    used, shown, left = label_w, [], []
+    for col in _by_priority(list(view.columns)):
         w = max(len(col), *(len(v) for v in view[col])) + 2
-        if blocks[-1] and used + w > width:
-            blocks.append([])
-            used = label_w
-        blocks[-1].append(col)
-        used += w
-    return "\n\n".join(view[cols].to_string() for cols in blocks)
+        if wide or (not left and used + w <= width):
+            shown.append(col)
+            used += w
+        else:
+            left.append(col)
+    text = view[[c for c in view.columns if c in shown]].to_string()
+    if not left:
+        return text
+    note = f"not shown at {width} columns: {', '.join(left)} (--wide or wide=True: all; the CSV)"
+    return text + "\n" + textwrap.fill(note, width)
 
 
 def compare_pairs(

@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 
 from ..matching import match_landmarks
+from ..notices import notice
 from .compare import _check_same_dataset
 from .curves import _best_two, _query_scores, _ranked, _true_rank
 
@@ -77,7 +78,7 @@ def per_query(results: Any | Sequence[Any]) -> pd.DataFrame:
     Args:
         results: one or more :class:`~vpr_core.pipeline.MethodResult` (or peers) of one dataset.
             The match counts need descriptors: run with ``run_method(...,
-            keep_descriptors=True)``; without them the column is NaN.
+            keep_descriptors=True)``; without them the column is NaN and a warning says so.
 
     Returns:
         One row per (query, run), columns :data:`PER_QUERY_COLUMNS`: ``first correct rank``
@@ -104,4 +105,11 @@ def per_query(results: Any | Sequence[Any]) -> pd.DataFrame:
     table["disagree"] = ~table["query"].map(agree).astype(bool)
     table["_run"] = table["run"].map({label: i for i, label in enumerate(labels)})
     table = table.sort_values(["disagree", "query", "_run"], ascending=[False, True, True])
+    bare = [r.label for r in runs if getattr(r, "descriptors", None) is None]
+    if bare:  # never a silent column of NaN
+        notice(
+            f"per_query: 'top-1 matches' is NaN for {', '.join(bare)}: no descriptors kept (a "
+            "peer has none); run_method(..., keep_descriptors=True) counts the matches",
+            stacklevel=2,
+        )
     return table.drop(columns="_run").reset_index(drop=True)[list(PER_QUERY_COLUMNS)]

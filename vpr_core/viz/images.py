@@ -181,10 +181,11 @@ def plot_coverage(
     boxes: np.ndarray,
     ax: Any = None,
     cmap: str = "viridis",
-    alpha: float = 0.6,
+    alpha: float = 0.35,
     title: str | None = None,
 ) -> Figure:
-    """Fig. 14: how many landmarks cover each pixel, as a heatmap over the (grey) image.
+    """Fig. 14: how many landmarks cover each pixel, as a translucent heatmap over the (grey)
+    image with white outlines at a few coverage levels, so the image stays visible.
 
     The default title gives the share of pixels covered by at least one box.
     """
@@ -196,7 +197,10 @@ def plot_coverage(
         fig = ax.figure
     show_canvas(ax, img, size, gray=True)
     shown = np.ma.masked_where(cov <= 0, cov)  # uncovered pixels show the plain image
-    im = ax.imshow(shown, cmap=cmap, alpha=alpha, vmin=0, vmax=max(1.0, float(cov.max())))
+    top = max(1.0, float(cov.max()))
+    im = ax.imshow(shown, cmap=cmap, alpha=alpha, vmin=0, vmax=top)
+    levels = np.unique(np.linspace(0.5, top - 0.5, 4).round() + 0.5) if top > 1 else [0.5]
+    ax.contour(cov, levels=levels, colors="white", linewidths=0.8, alpha=0.9)
     fig.colorbar(im, ax=ax, fraction=0.046, pad=0.02, label="boxes covering the pixel")
     covered = float((cov > 0).mean())
     ax.set_title(
@@ -234,7 +238,13 @@ def plot_coverage_comparison(
                 "covered share (mean)": float(np.mean(shares)),
             }
         )
-    fig.suptitle(f"landmark coverage of {side} {index}; {dataset_line(results)}", fontsize=9)
+    note = ""
+    shortlists = {getattr(r, "shortlist", None) for r in results}
+    if shortlists != {None}:  # a shortlist re-ranks matches: it never changes the landmarks
+        note = (
+            "\nthe shortlist does not change the landmarks: the exhaustive run's figure is the same"
+        )
+    fig.suptitle(f"landmark coverage of {side} {index}; {dataset_line(results)}{note}", fontsize=9)
     fig.tight_layout()
     return fig, pd.DataFrame(rows).set_index("method")
 
