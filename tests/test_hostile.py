@@ -474,3 +474,19 @@ def test_huge_n_bootstrap_is_refused_before_the_work(capsys):
     err = capsys.readouterr().err
     assert rc == 2 and "--n-bootstrap 100000000" in err and "GB" in err, err
     assert time.monotonic() - start < 20
+
+
+def test_jpeg_with_random_bytes_in_its_scan_data_is_refused(tmp_path, gardens_point_mini_root):
+    """400 random bytes inside the scan data, end marker intact: libjpeg only reports
+    extraneous bytes before the end marker, and the image decodes garbled."""
+    from vpr_core.datasets.images import read_image
+
+    data = (gardens_point_mini_root / "query" / "0.jpg").read_bytes()
+    sos, eoi = data.rfind(b"\xff\xda"), data.rfind(b"\xff\xd9")
+    junk = np.random.default_rng(0).integers(0, 255, 400, dtype=np.uint8).tobytes()  # no 0xFF
+    at = sos + (eoi - sos) // 2
+    bad = tmp_path / "scan.jpg"
+    bad.write_bytes(data[:at] + junk + data[at:])
+    with pytest.raises(ValueError, match=r"scan\.jpg is a damaged JPEG .*extraneous bytes"):
+        read_image(bad)
+    assert read_image(gardens_point_mini_root / "query" / "0.jpg").ndim == 3  # clean: kept

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import re
+import struct
 import sys
 import tempfile
 import threading
@@ -13,6 +14,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from PIL import Image
 
 from ..notices import notice
 
@@ -63,34 +65,22 @@ MAX_IMAGE_PIXELS = 100_000_000
 
 _JPEG_SOI, _JPEG_SOS, _JPEG_EOI = b"\xff\xd8", b"\xff\xda", b"\xff\xd9"
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_PIL_LOCK = threading.Lock()
 
 
-def _jpeg_size(data: bytes) -> tuple[int, int] | None:
-    """``(W, H)`` from a JPEG's start-of-frame header, or None if none precedes the scan."""
-    i = 2
-    while i + 9 <= len(data) and data[i] == 0xFF:
-        marker = data[i + 1]
-        if marker == 0xFF:  # fill byte
-            i += 1
-            continue
-        if marker == 0xDA:
-            return None
-        length = int.from_bytes(data[i + 2 : i + 4], "big")
-        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
-            return int.from_bytes(data[i + 7 : i + 9], "big"), int.from_bytes(
-                data[i + 5 : i + 7], "big"
-            )
-        i += 2 + length
-    return None
-
-
-def _header_size(data: bytes) -> tuple[int, int] | None:
-    """``(W, H)`` a JPEG or PNG header claims, or None (other formats, no header found)."""
-    if data[:2] == _JPEG_SOI:
-        return _jpeg_size(data)
-    if data[:8] == _PNG_SIGNATURE and data[12:16] == b"IHDR":
-        return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
-    return None
+def _header_size(path: Path) -> tuple[int, int] | None:
+    """``(W, H)`` the file's header claims, read by Pillow's lazy open (nothing decoded), or
+    None when Pillow does not know the format. Pillow's own bomb limit is lifted meanwhile (under
+    a lock) so that the size is known and :data:`MAX_IMAGE_PIXELS` decides."""
+    with _PIL_LOCK:
+        limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
+        try:
+            with Image.open(path) as im:
+                return im.size
+        except (OSError, SyntaxError, ValueError, struct.error, IndexError, EOFError):
+            return None  # not a format Pillow reads (or a damaged header): left to OpenCV
+        finally:
+            Image.MAX_IMAGE_PIXELS = limit
 
 
 def check_image_file(path: str | os.PathLike) -> bool:
@@ -99,8 +89,8 @@ def check_image_file(path: str | os.PathLike) -> bool:
     A JPEG must hold a start-of-scan marker and, after the last one, the end-of-image marker
     (inside entropy-coded data ``0xFF`` is always followed by ``0x00`` or a restart marker, so the
     marker cannot appear by chance). A PNG must start with the PNG signature and hold an ``IEND``
-    chunk. The size in a JPEG or PNG header must not exceed :data:`MAX_IMAGE_PIXELS` (checked
-    before anything is allocated). Other formats are left to the decoder.
+    chunk. The size in the file's header (any format Pillow reads, by its lazy open) must not
+    exceed :data:`MAX_IMAGE_PIXELS` (checked before anything is allocated).
 
     Args:
         path: The image file.
@@ -114,7 +104,7 @@ def check_image_file(path: str | os.PathLike) -> bool:
     path = Path(path)
     data = path.read_bytes()
     problem = None
-    size = _header_size(data)
+    size = _header_size(path)
     if size is not None and size[0] * size[1] > MAX_IMAGE_PIXELS:
         raise ValueError(
             f"{path} claims {size[0]} x {size[1]} pixels (W x H) in a {len(data)}-byte file, "
@@ -137,10 +127,13 @@ def check_image_file(path: str | os.PathLike) -> bool:
     return data[:2] == _JPEG_SOI
 
 
-#: libjpeg's warnings that mean lost image data (printed to stderr; the decode still "succeeds").
+#: libjpeg's warnings that mean lost image data (printed to stderr; the decode still "succeeds"):
+#: more than 2 extraneous bytes before the end-of-image marker are scan data the decoder could
+#: not place (random bytes inside the scan); 1-2 are encoder padding, and bytes before other
+#: markers are harmless.
 _JPEG_DAMAGE = re.compile(
     r"Corrupt JPEG data(?!: \d+ extraneous bytes)|Premature end of JPEG|Huffman|Invalid SOS"
-    r"|Inconsistent progression|Bogus"
+    r"|Inconsistent progression|Bogus|(?:[3-9]|\d\d+) extraneous bytes before marker 0xd9"
 )
 _DECODE_LOCK = threading.Lock()
 
