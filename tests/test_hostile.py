@@ -490,3 +490,32 @@ def test_jpeg_with_random_bytes_in_its_scan_data_is_refused(tmp_path, gardens_po
     with pytest.raises(ValueError, match=r"scan\.jpg is a damaged JPEG .*extraneous bytes"):
         read_image(bad)
     assert read_image(gardens_point_mini_root / "query" / "0.jpg").ndim == 3  # clean: kept
+
+
+def test_two_files_with_one_frame_number_are_named(tmp_path):
+    from vpr_core.datasets.ground_truth import check_frame_pairs
+
+    q = [tmp_path / "q" / "Image000_2014.jpg", tmp_path / "q" / "Image2014.jpg"]
+    r = [tmp_path / "r" / "Image000.jpg", tmp_path / "r" / "Image001.jpg"]
+    with pytest.raises(
+        ValueError, match=r"Image000_2014\.jpg and .*Image2014\.jpg both read as frame 2014"
+    ):
+        check_frame_pairs(q, r, "gardens_point")
+
+
+def test_folder_pairing_with_one_number_on_two_files_is_refused(tmp_path, gardens_point_mini_root):
+    """query/1.jpg, 2.jpg vs reference/1.jpg, 1.png: query 2 was paired with 1.png silently."""
+    for side, names in (("query", ("1.jpg", "2.jpg")), ("reference", ("1.jpg", "1.png"))):
+        (tmp_path / side).mkdir()
+        for k, name in enumerate(names):
+            src = gardens_point_mini_root / side / f"{k}.jpg"
+            if name.endswith(".png"):
+                import cv2
+
+                cv2.imwrite(str(tmp_path / side / name), cv2.imread(str(src)))
+            else:
+                shutil.copy(src, tmp_path / side / name)
+    with pytest.raises(
+        ValueError, match=r"1\.jpg and .*1\.png both read as frame 1.*ground-truth file"
+    ):
+        load_dataset("folder", root=tmp_path)

@@ -49,17 +49,31 @@ def check_frame_pairs(
     """
     qn = [frame_number(p) for p in query]
     rn = [frame_number(p) for p in reference]
-    numbered = None not in qn and None not in rn
-    distinct = numbered and len(set(qn)) == len(qn) and len(set(rn)) == len(rn)
-    if not strict and (not distinct or not set(qn) & set(rn)):
-        return
-    if strict and not distinct:
-        bad = [str(p) for p, n in zip([*query, *reference], [*qn, *rn], strict=True) if n is None]
+    fix = " (or give a ground-truth file)." if not strict else "."
+    if None in qn or None in rn:
+        if not strict:
+            return
+        bad = [p for p, n in zip([*query, *reference], [*qn, *rn], strict=True) if n is None]
         raise ValueError(
-            f"{loader}: pairing is by the frame number in the file name, but "
-            + (f"{bad[0]} has none" if bad else "two files carry the same number")
-            + "; restore the dataset's original file names."
+            f"{loader}: pairing is by the frame number in the file name, but {bad[0]} has "
+            "none; restore the dataset's original file names."
         )
+    twins = [
+        (seen[n], p, n)
+        for paths, nums in ((query, qn), (reference, rn))
+        for seen in [{}]
+        for p, n in zip(paths, nums, strict=True)
+        if seen.setdefault(n, p) is not p
+    ]
+    if twins and (strict or set(qn) & set(rn)):
+        a, b, n = twins[0]
+        raise ValueError(
+            f"{loader}: pairing is by the frame number in the file name (its stem's last run of "
+            f"digits), but {a} and {b} both read as frame {n}, so which one pairs with frame "
+            f"{n} of the other side is ambiguous; rename or remove one of them" + fix
+        )
+    if twins or (not strict and not set(qn) & set(rn)):
+        return
     if qn == rn:
         return
     q_nums = [n for n in qn if n is not None]  # all numbered here
@@ -80,7 +94,7 @@ def check_frame_pairs(
         f"{loader}: query i and reference i must be the same frame, but the "
         + "; the ".join(parts)
         + ". Restore the missing images, or remove their counterparts from the other side"
-        + (" (or give a ground-truth file)." if not strict else ".")
+        + fix
     )
 
 
