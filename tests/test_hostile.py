@@ -519,3 +519,35 @@ def test_folder_pairing_with_one_number_on_two_files_is_refused(tmp_path, garden
         ValueError, match=r"1\.jpg and .*1\.png both read as frame 1.*ground-truth file"
     ):
         load_dataset("folder", root=tmp_path)
+
+
+# ------------------------------------------------------------------------------------------
+# 32.8 schedulers: a bad port is a bad port; a cluster without workers says what to check
+# ------------------------------------------------------------------------------------------
+
+
+def test_scheduler_port_out_of_range_is_a_bad_port():
+    from vpr_core.engine.client import get_client
+
+    with pytest.raises(ValueError, match=r"port 99999 .*1 to 65535"):
+        get_client("tcp://127.0.0.1:99999", timeout=1)
+
+
+def test_scheduler_without_workers_says_what_to_check():
+    distributed = pytest.importorskip("distributed")
+    from vpr_core.engine.client import get_client
+
+    with (
+        distributed.LocalCluster(
+            n_workers=0, processes=True, host="127.0.0.1", dashboard_address=None
+        ) as cluster,
+        pytest.raises(ConnectionError, match=r"no workers.*dask worker tcp://127\.0\.0\.1"),
+    ):
+        get_client(cluster.scheduler_address, timeout=1)
+
+
+def test_lost_workers_say_what_to_check():
+    from vpr_core.engine.client import cluster_lost
+
+    text = str(cluster_lost(None, "features (dask)", "no worker left for 15 s"))
+    assert "check that its `dask worker` processes run" in text

@@ -46,11 +46,17 @@ def scheduler_address(scheduler: str | None = None) -> str | None:
     addr = addr.strip()
     if "://" not in addr and re.fullmatch(r"[^:/]+:\d{1,5}", addr):
         addr = "tcp://" + addr  # host:port, as Dask itself accepts it
-    if not _ADDRESS.fullmatch(addr):
+    m = _ADDRESS.fullmatch(addr)
+    if not m:
         raise ValueError(
             f"{addr!r} is not a Dask scheduler address; write it as "
             f"tcp://HOST:PORT (e.g. tcp://127.0.0.1:8786) in --scheduler / "
             f"${SCHEDULER_ENV}, or unset it to run in-process"
+        )
+    if not 1 <= int(m.group(3)) <= 65535:
+        raise ValueError(
+            f"{addr!r} has a bad port: port {int(m.group(3))} is not in 1 to 65535; give the "
+            f"scheduler's port (8786 by default) in --scheduler / ${SCHEDULER_ENV}"
         )
     return addr
 
@@ -141,6 +147,15 @@ def get_client(scheduler: str | None = None, timeout: float | None = None):
             f"one (`dask scheduler`, then `dask worker {addr}` on each machine; see "
             f"docs/DISTRIBUTED.md), or unset --scheduler / ${SCHEDULER_ENV} to run in-process."
         ) from e
+    try:
+        client.wait_for_workers(1, timeout=timeout)
+    except TimeoutError:
+        client.close()
+        raise ConnectionError(
+            f"the Dask scheduler at {addr} has no workers (none joined within {timeout:g} s): "
+            f"start `dask worker {addr}` on each machine and check that they can reach the "
+            f"scheduler (their logs), or unset --scheduler / ${SCHEDULER_ENV} to run in-process."
+        ) from None
     logger.info(
         "Dask: connected to %s (%d workers)", addr, len(client.scheduler_info().get("workers", {}))
     )
@@ -153,7 +168,9 @@ def cluster_lost(client, desc: str, why: object) -> ConnectionError:
     addr = getattr(getattr(client, "scheduler", None), "address", None) or "the scheduler"
     return ConnectionError(
         f"the Dask cluster at {addr} was lost during {desc} ({why}); cached work is kept: "
-        f"restart the scheduler and its workers and rerun to resume, or unset --scheduler / "
+        f"check that its `dask worker` processes run and reach the scheduler (a worker killed "
+        f"again and again is often out of memory: see its log and --memory-limit), restart "
+        f"the scheduler and its workers and rerun to resume, or unset --scheduler / "
         f"${SCHEDULER_ENV} to run in-process"
     )
 
