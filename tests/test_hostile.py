@@ -551,3 +551,15 @@ def test_lost_workers_say_what_to_check():
 
     text = str(cluster_lost(None, "features (dask)", "no worker left for 15 s"))
     assert "check that its `dask worker` processes run" in text
+
+
+def test_distance_peer_spanning_310_decades_keeps_its_ranking():
+    """1e-10 .. 1e300: rescaled by the largest distance, the small ones underflowed into ties."""
+    from vpr_core.evaluation import recall_at_k
+
+    d = np.array([[1e-5, 1e-10, 1e300], [1e-5, 1e300, 1e-10], [1e-10, 1e-5, 1e300]])
+    gt = np.array([[0, 1, 0], [0, 0, 1], [1, 0, 0]], bool)
+    sim = peer_from_matrix(d, "wide", distance=True).similarity
+    assert np.isfinite(sim).all() and (sim > 0).all()
+    assert recall_at_k(sim, gt, 1) == 1.0  # by hand: every query's smallest distance is right
+    np.testing.assert_allclose(np.sort(sim, 1)[:, -2] / sim.max(1), 1e-10 / 1e-5)  # d1 / d2

@@ -181,8 +181,10 @@ _MIN_SCALED_DISTANCE = 1e-300
 
 
 def _distance_similarity(dist: np.ndarray, name: str, where: object) -> np.ndarray:
-    """Similarity ``1 / max(d / max(d), 1e-300)`` of finite distances, so that the ratio test's
-    ``S2 / S1`` is the ``d1 / d2`` of Sunderhauf et al. (docs/DEFINITIONS.md); rankings kept."""
+    """Similarity ``c / d`` of finite distances, so that the ratio test's ``S2 / S1`` is the
+    ``d1 / d2`` of Sunderhauf et al. (docs/DEFINITIONS.md); rankings kept. ``c = max(d)``, or
+    the geometric middle of the positive distances when they span more than 300 decades (both
+    ends stay finite, no tie from underflow); a distance of 0 maps above every other."""
     if (dist < 0).any():
         raise ValueError(
             f"peer {name!r}: the distance matrix in {where} holds {int((dist < 0).sum())} "
@@ -192,7 +194,13 @@ def _distance_similarity(dist: np.ndarray, name: str, where: object) -> np.ndarr
     top = float(dist.max())
     if top == 0.0:
         return np.ones_like(dist)
-    return 1.0 / np.maximum(dist / top, _MIN_SCALED_DISTANCE)
+    low = float(dist[dist > 0].min())
+    if top / low < 1 / _MIN_SCALED_DISTANCE:
+        return 1.0 / np.maximum(dist / top, _MIN_SCALED_DISTANCE)
+    biggest = np.finfo(np.float64).max
+    with np.errstate(over="ignore", divide="ignore"):
+        sim = np.minimum((np.sqrt(top) * np.sqrt(low)) / dist, biggest / 2)
+    return np.where(dist == 0, biggest, sim)
 
 
 def _check_name(name: Any) -> str:
