@@ -563,3 +563,15 @@ def test_distance_peer_spanning_310_decades_keeps_its_ranking():
     assert np.isfinite(sim).all() and (sim > 0).all()
     assert recall_at_k(sim, gt, 1) == 1.0  # by hand: every query's smallest distance is right
     np.testing.assert_allclose(np.sort(sim, 1)[:, -2] / sim.max(1), 1e-10 / 1e-5)  # d1 / d2
+
+
+@pytest.mark.parametrize("limit", [0, -1])
+def test_notebook_limit_below_one_is_refused_like_minus_one(limit):
+    """papermill -p limit 0 ran the whole set (the notebooks test `if limit:`)."""
+    from vpr_study.runner import check_parameters
+
+    match = rf"limit must be None \(all images\) or >= 1, got {limit}$"
+    with pytest.raises(ValueError, match=match):
+        check_parameters(dataset="synthetic", limit=limit)
+    check_parameters(dataset="synthetic", limit=None)
+    check_parameters(dataset="synthetic", limit=3)

@@ -127,7 +127,8 @@ PARAMETER_TYPES: dict[str, tuple[type, ...]] = {
 
 def check_parameters(**params) -> None:
     """Refuse notebook parameters of the wrong type with one TypeError line naming each and the
-    fix (``options must be a dict such as {"tolerance": 0}, got a list``)."""
+    fix (``options must be a dict such as {"tolerance": 0}, got a list``), and a ``limit`` or
+    ``shortlist`` below 1 with a ValueError."""
     bad = []
     for name, value in params.items():
         types = PARAMETER_TYPES.get(name)
@@ -138,6 +139,13 @@ def check_parameters(**params) -> None:
         bad.append(f"{name} must be {want}{example}, got {type(value).__name__} {value!r}")
     if bad:
         raise TypeError("notebook parameters: " + "; ".join(bad))
+    for name in ("limit", "shortlist"):  # `if limit:` in a notebook would run the whole set on 0
+        value = params.get(name)
+        if value is not None and value < 1:
+            what = "all images" if name == "limit" else "exhaustive"
+            raise ValueError(
+                f"notebook parameters: {name} must be None ({what}) or >= 1, got {value}"
+            )
 
 
 def notebook_parameters(
