@@ -1,14 +1,18 @@
 """Benchmark `similarity_matrix` against a bare matmul of the same FLOP count (issue 10 item 4).
 
 Usage: ``.venv/bin/python benchmarks/bench_matching.py [--n 200] [--k 100] [--dim 1024]
-[--repeat 5] [--nms]``
+[--repeat 5] [--nms] [--nordland ROOT]``
 
 Prints, from one run (both timed in this process, interleaved, ``--repeat`` times each):
   similarity_matrix / bare torch matmul ``(n*k, dim) @ (dim, n*k)``, the median of the per-repeat
   ratios (target <= 1.3x), with the median times and the CPU-time ratio (user + sys of the
   process, less sensitive to other processes on a shared machine);
   the largest difference to `image_similarity` (the core's one-pair case, float64) on a few pairs;
-  with ``--nms``: the soft-NMS path (Algorithm 4, t = paper.SOFT_NMS_IOU) per image pair.
+  with ``--nms``: the soft-NMS path (Algorithm 4, t = paper.SOFT_NMS_IOU) per image pair;
+  with ``--nordland ROOT``: on the Nordland study (every 50th place, tolerance 0, roi, dense),
+  the block engine (``similarity_matrix``) against Eq. (1) pair by pair (``image_similarity``),
+  and each ``weighting`` against none (issue 31 item 4: a faster engine only where it buys
+  more than 1.5x; issue 34: the weighting at most 20% more matching time).
 """
 
 from __future__ import annotations
@@ -34,6 +38,56 @@ def _timed(fn) -> tuple[float, float]:
     return time.perf_counter() - t, time.process_time() - c
 
 
+def nordland_study(root: str, repeat: int) -> None:
+    """Block engine vs pair by pair, and the weightings, on the study's Nordland descriptors."""
+    from vpr_core.datasets import load_dataset
+    from vpr_core.matching import WEIGHTING_OPTIONS
+    from vpr_core.pipeline import run_method
+
+    ds = load_dataset("nordland", root=root, step=50, tolerance=0)
+    r = run_method("dense", ds, pooling="roi", keep_descriptors=True, n_bootstrap=0)
+    args = (
+        r.descriptors["query"],
+        r.boxes["query"],
+        r.descriptors["reference"],
+        r.boxes["reference"],
+    )
+    nq, nr = len(args[0]), len(args[2])
+
+    def pairwise():
+        return np.array(
+            [
+                [
+                    image_similarity(args[0][i], args[1][i], args[2][j], args[3][j])
+                    for j in range(nr)
+                ]
+                for i in range(nq)
+            ]
+        )
+
+    t_pair, _ = _timed(pairwise)
+    t_block = statistics.median(
+        _timed(lambda: similarity_matrix(*args, show_progress=False))[0] for _ in range(repeat)
+    )
+    print(
+        f"Nordland study ({nq} x {nr} places, dense, roi): Eq. (1) pair by pair "
+        f"(image_similarity) {t_pair:.2f} s, block engine (similarity_matrix) {t_block:.3f} s: "
+        f"{t_pair / t_block:.1f}x"
+    )
+    times: dict = {w: [] for w in (None, *WEIGHTING_OPTIONS)}
+    for _ in range(repeat):
+        for w in times:
+            times[w].append(
+                _timed(lambda w=w: similarity_matrix(*args, weighting=w, show_progress=False))[0]
+            )
+    base = statistics.median(times[None])
+    for w in WEIGHTING_OPTIONS:
+        print(
+            f"weighting={w}: median {statistics.median(times[w]):.3f} s vs {base:.3f} s without: "
+            f"{statistics.median(times[w]) / base:.2f}x (target <= 1.2x), {repeat} interleaved runs"
+        )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=200, help="query and reference images")
@@ -43,8 +97,12 @@ def main() -> None:
     ap.add_argument("--check-pairs", type=int, default=20, help="pairs checked vs image_similarity")
     ap.add_argument("--nms", action="store_true", help="also time the soft-NMS path")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--nordland", help="nordland_64x32 folder: time the Nordland study instead")
     args = ap.parse_args()
     os.environ.setdefault("TQDM_DISABLE", "1")
+    if args.nordland:
+        nordland_study(args.nordland, args.repeat)
+        return
     n, k, dim = args.n, args.k, args.dim
 
     rng = np.random.default_rng(args.seed)

@@ -342,42 +342,48 @@ def score_block(
         ``((nq, nr) float64 similarities, BlockPairs or None)``.
     """
     nq, nr = selection_size(qsel), selection_size(rsel)
+    g, rr, i = m.recip.nonzero(as_tuple=True)  # reciprocal (i, j) of image pair (g, rr)
+    j = m.nn[g, rr, i]
+    cos = m.best[g, rr, i].clamp(-1.0, 1.0)  # d = 1 - cos
+    wq = q.wh[selection_index(qsel, g), i]  # (P, 2) box sizes
+    wr = r.wh[selection_index(rsel, rr), j]
+    shp = shape_terms(wq[:, 0], wr[:, 0], wq[:, 1], wr[:, 1])  # Eq. (2): s
+    raw = 1.0 - (1.0 - cos) * shp  # 1 - d * s
+    # (not in the paper) weights of the terms: geometry, database
+    ones = torch.ones_like(raw)
+    ws = ones if spatial is None else spatial_weights(q, r, qsel, rsel, m.nn, m.recip)[g, rr, i]
+    wd = ones if weight is None else weight[g, rr, i]
+    w = None if spatial is None and weight is None else ws * wd if weight is not None else ws
+    score = raw if w is None else raw * w
     norm = torch.sqrt(q.count[qsel][:, None] * r.count[rsel][None, :])  # sqrt(n_a * n_b)
     norm = torch.where(norm > 0, norm, torch.full_like(norm, math.inf))  # no landmark: 0
-    wsp = None if spatial is None else spatial_weights(q, r, qsel, rsel, m.nn, m.recip)
     if nms is None:
-        # only the reciprocal pairs (a fraction of all query landmarks)
-        g, rr, i = m.recip.nonzero(as_tuple=True)  # sorted: pair (g, rr), then landmark i
-        j = m.nn[g, rr, i]
-        cos = m.best[g, rr, i].clamp(-1.0, 1.0)
-        wq = q.wh[selection_index(qsel, g), i]  # (P, 2)
-        wr = r.wh[selection_index(rsel, rr), j]
-        shp = shape_terms(wq[:, 0], wr[:, 0], wq[:, 1], wr[:, 1])  # Eq. (2)
-        raw = 1.0 - (1.0 - cos) * shp  # 1 - d * s
-        score = raw
-        ws = torch.ones_like(raw) if wsp is None else wsp[g, rr, i]
-        wd = torch.ones_like(raw) if weight is None else weight[g, rr, i]
-        if wsp is not None:
-            score = score * ws
-        if weight is not None:
-            score = score * wd
         total = torch.zeros(nq * nr, dtype=torch.float64, device=norm.device)
-        total.index_add_(0, g * nr + rr, score)
+        total.index_add_(0, g * nr + rr, score)  # the sum over each image pair's matches
         sim = total.view(nq, nr) / norm  # Eq. (1)
-        pairs = BlockPairs(g, rr, i, j, cos, shp, raw, score, ws, wd) if keep_pairs else None
-        return sim, pairs
-    cos_p = m.best.clamp(-1.0, 1.0)  # (nq, nr, Kq)
-    wh_q = q.wh[qsel].unsqueeze(1)  # (nq, 1, Kq, 2)
-    wh_r = r.wh[rsel].unsqueeze(0).expand(nq, -1, -1, -1)  # (nq, nr, Kr, 2)
-    wh_r = wh_r.gather(2, m.nn.unsqueeze(3).expand(-1, -1, -1, 2))  # (nq, nr, Kq, 2)
-    shp_p = shape_terms(wh_q[..., 0], wh_r[..., 0], wh_q[..., 1], wh_r[..., 1])  # Eq. (2)
-    raw_p = 1.0 - (1.0 - cos_p) * shp_p  # 1 - d * s
-    wt = wsp if weight is None else weight if wsp is None else wsp * weight
+    else:  # Algorithm 4 rescales the terms of each image pair before the sum
+        score, sim = _soft_nms_sum(m, q, r, qsel, rsel, nms, (g, rr, i), score, shp, w, norm)
+    pairs = BlockPairs(g, rr, i, j, cos, shp, raw, score, ws, wd) if keep_pairs else None
+    return sim, pairs
+
+
+def _soft_nms_sum(m, q, r, qsel, rsel, nms, at, score, shp, w, norm):
+    """Algorithm 4 on the terms of each image pair of the block, then the Eq. (1) sum.
+
+    Returns:
+        ``((P,) rescaled terms, (nq, nr) similarities)``.
+    """
     iou_q, iou_r, t, sigma = nms
+
+    def dense(v: torch.Tensor) -> torch.Tensor:  # (P,) -> (nq, nr, Kq), 0 off the matches
+        out = torch.zeros(m.recip.shape, dtype=v.dtype, device=v.device)
+        out[at] = v
+        return out
+
     assert m.cos64 is not None
-    score_p = _nms_block(  # Algorithm 4
-        raw_p if wt is None else raw_p * wt,
-        shp_p,
+    score_p = _nms_block(
+        dense(score),
+        dense(shp),
         m.recip,
         m.nn,
         m.cos64,
@@ -385,27 +391,10 @@ def score_block(
         iou_r[rsel],
         t,
         sigma,
-        wt,
+        None if w is None else dense(w),
     )
     sim = torch.where(m.recip, score_p, torch.zeros_like(score_p)).sum(2) / norm  # Eq. (1)
-    pairs = None
-    if keep_pairs:
-        g, rr, i = m.recip.nonzero(as_tuple=True)
-        at = (g, rr, i)
-        ones = torch.ones_like(raw_p[at])
-        pairs = BlockPairs(
-            g,
-            rr,
-            i,
-            m.nn[at],
-            cos_p[at],
-            shp_p[at],
-            raw_p[at],
-            score_p[at],
-            ones if wsp is None else wsp[at],
-            ones if weight is None else weight[at],
-        )
-    return sim, pairs
+    return score_p[at], sim
 
 
 # ---- one call: both sides prepared, blocks scored ----------------------------------------
