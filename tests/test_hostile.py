@@ -575,3 +575,14 @@ def test_notebook_limit_below_one_is_refused_like_minus_one(limit):
         check_parameters(dataset="synthetic", limit=limit)
     check_parameters(dataset="synthetic", limit=None)
     check_parameters(dataset="synthetic", limit=3)
+
+
+def test_plot_disagreements_refuses_a_dataset_the_runs_were_not_computed_on():
+    from vpr_core.pipeline import run_method
+    from vpr_core.viz import plot_disagreements
+
+    ds = load_dataset("synthetic", n_places=4)
+    other = load_dataset("synthetic", n_places=4, seed=1)
+    runs = [run_method(m, ds, n_bootstrap=0, keep_descriptors=True) for m in ("dense", "classical")]
+    with pytest.raises(ValueError, match=r"plot_disagreements: .*dense.* another dataset"):
+        plot_disagreements(other, *runs, n=2)

@@ -13,6 +13,7 @@ import pandas as pd
 from ..datasets.ground_truth import ground_truth_references
 from ..evaluation import per_query
 from ..labels import pair_matches
+from ..pipeline.cache import dataset_fingerprint
 from .curves import dataset_line
 from .matches import plot_labelled_matches
 
@@ -87,6 +88,11 @@ def plot_disagreements(
             raise ValueError(
                 f"plot_disagreements needs the descriptors of {run.label!r}: run it with "
                 "run_method(..., keep_descriptors=True)"
+            )
+        if getattr(run, "dataset_fingerprint", None) not in (None, dataset_fingerprint(ds)):
+            raise ValueError(
+                f"plot_disagreements: {run.label!r} was run on another dataset than {ds.name!r} "
+                "(their fingerprints differ); pass the dataset the runs were computed on"
             )
     full = per_query([run_a, run_b])
     shown = list(dict.fromkeys(full["query"]))[: int(n)]
