@@ -586,3 +586,11 @@ def test_plot_disagreements_refuses_a_dataset_the_runs_were_not_computed_on():
     runs = [run_method(m, ds, n_bootstrap=0, keep_descriptors=True) for m in ("dense", "classical")]
     with pytest.raises(ValueError, match=r"plot_disagreements: .*dense.* another dataset"):
         plot_disagreements(other, *runs, n=2)
+
+
+def test_a_300_character_label_is_blamed_on_the_label():
+    from vpr_core.paths import check_label
+
+    with pytest.raises(ValueError, match=r"label 'aaaa.*' is 300 bytes long; .* at most 100"):
+        check_label("a" * 300)
+    assert check_label("a" * 100) == "a" * 100

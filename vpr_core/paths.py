@@ -168,6 +168,10 @@ def make_dir(path: Path, setting: str) -> Path:
 _OUT_SETTING = "--out / VPR_OUTPUT_DIR (default: the project checkout, else the current folder)"
 
 
+#: Longest label, in UTF-8 bytes: file names under it add a stem to it (255 bytes at most).
+MAX_LABEL_BYTES = 100
+
+
 def check_label(label: object) -> str:
     """``label`` if it names one output subfolder (one path component, not ``.``/``..``).
 
@@ -188,6 +192,12 @@ def check_label(label: object) -> str:
         raise ValueError(
             f"label {label!r} must be one folder name (no '/', '..' or absolute path), "
             "e.g. 'gardens_point'; it names figures/<label>/ and results/<label>/"
+        )
+    if len(label.encode()) > MAX_LABEL_BYTES:
+        raise ValueError(
+            f"label {label[:20] + '...'!r} is {len(label.encode())} bytes long; give a label of "
+            f"at most {MAX_LABEL_BYTES} (it names folders and the files in them, whose names "
+            "the file system limits to 255 bytes)"
         )
     return label
 
