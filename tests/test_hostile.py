@@ -594,3 +594,17 @@ def test_a_300_character_label_is_blamed_on_the_label():
     with pytest.raises(ValueError, match=r"label 'aaaa.*' is 300 bytes long; .* at most 100"):
         check_label("a" * 300)
     assert check_label("a" * 100) == "a" * 100
+
+
+def test_a_nul_in_a_paths_list_names_the_file_and_line(tmp_path):
+    import cv2
+
+    for side in ("database", "queries"):
+        path = tmp_path / side / "@543000.00@4178906.93@10@S@@.jpg"
+        path.parent.mkdir(parents=True)
+        assert cv2.imwrite(str(path), np.full((32, 32, 3), 9, np.uint8))
+    listing = tmp_path / "queries_images_paths.txt"
+    listing.write_text("@543000.00@4178906.93@10@S@@.jpg\nx\0y.jpg\n")
+    with pytest.raises(ValueError, match=r"queries_images_paths\.txt line 2 .*NUL") as info:
+        load_dataset("utm", tmp_path)
+    assert "\n" not in str(info.value)

@@ -76,6 +76,11 @@ def listed_paths(listing: Path, folder: Path, name: str) -> list[Path]:
     for n, line in enumerate(lines, 1):
         if not line:
             continue
+        if "\0" in line:
+            raise ValueError(
+                f"{name}: {listing} line {n} holds a NUL character, which no file name can "
+                "contain; the list is damaged or not a text file. Fix the line."
+            )
         path = folder / line
         if Path(line).is_absolute() or not path.resolve().is_relative_to(inside):
             raise ValueError(
