@@ -608,3 +608,16 @@ def test_a_nul_in_a_paths_list_names_the_file_and_line(tmp_path):
     with pytest.raises(ValueError, match=r"queries_images_paths\.txt line 2 .*NUL") as info:
         load_dataset("utm", tmp_path)
     assert "\n" not in str(info.value)
+
+
+def test_a_model_archive_that_unpacks_beyond_the_bound_is_refused(tmp_path, monkeypatch):
+    import gzip
+    import importlib
+
+    eb = importlib.import_module("vpr_core.landmarks.edge_boxes")
+    monkeypatch.setattr(eb, "MAX_MODEL_BYTES", 1_000_000)  # the default bound is 1 GiB
+    model = tmp_path / "bomb.yml.gz"
+    model.write_bytes(gzip.compress(b"%YAML:1.0\n" + b" " * 5_000_000))  # 5 kB packed
+    image = np.zeros((40, 40, 3), np.uint8)
+    with pytest.raises(ValueError, match=r"bomb\.yml\.gz .*unpacks to more than 1,000,000 bytes"):
+        eb.edge_boxes(image, model=model)

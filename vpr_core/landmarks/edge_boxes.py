@@ -4,10 +4,10 @@ edge map; boxes in proposal order (descending objectness score)."""
 
 from __future__ import annotations
 
-import gzip
 import logging
 import os
 import re
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -155,11 +155,28 @@ def _model_options(fs: Any, path: Path) -> dict[str, int]:
     return opt
 
 
-def _model_trees(path: Path, fs: Any) -> dict[str, list[np.ndarray]]:
-    """Each tree field of the model file as one array per tree, read from the YAML text and
-    checked against what OpenCV's FileStorage reads (tree counts, tree sizes, end values)."""
+#: Largest model text accepted, in bytes (opencv_extra's model.yml.gz unpacks to about 20 MB).
+MAX_MODEL_BYTES = 1 << 30
+
+
+def _model_text(path: Path) -> str:
+    """The model file's text, unpacked when gzip'd, refused beyond :data:`MAX_MODEL_BYTES` (a
+    small archive that unpacks to gigabytes) before OpenCV reads it."""
     raw = path.read_bytes()
-    text = (gzip.decompress(raw) if raw[:2] == b"\x1f\x8b" else raw).decode("utf-8", "replace")
+    if raw[:2] == b"\x1f\x8b":
+        unpack = zlib.decompressobj(16 + zlib.MAX_WBITS)
+        try:
+            raw = unpack.decompress(raw, MAX_MODEL_BYTES + 1)
+        except zlib.error as exc:
+            raise _bad_model(path, f"a damaged gzip file: {exc}") from None
+        if len(raw) > MAX_MODEL_BYTES:
+            raise _bad_model(path, f"it unpacks to more than {MAX_MODEL_BYTES:,} bytes")
+    return raw.decode("utf-8", "replace")
+
+
+def _model_trees(path: Path, fs: Any, text: str) -> dict[str, list[np.ndarray]]:
+    """Each tree field of the model file as one array per tree, read from its YAML ``text`` and
+    checked against what OpenCV's FileStorage reads (tree counts, tree sizes, end values)."""
     trees: dict[str, list[np.ndarray]] = {}
     for key in _SED_TREES:
         blocks = re.findall(rf"(?ms)^{key}:[ \t]*\n(.*?)(?=^\S|\Z)", text)
@@ -193,6 +210,7 @@ def _model_trees(path: Path, fs: Any) -> dict[str, list[np.ndarray]]:
 def _check_model(path: Path) -> None:
     """Refuse a structured-edge model file OpenCV would crash or loop on (it indexes its trees
     unchecked): readable FileStorage, bounded options, every index within the model's sizes."""
+    text = _model_text(path)
     try:
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     except (cv2.error, SystemError) as exc:  # the binding wraps a parse error in SystemError
@@ -202,7 +220,7 @@ def _check_model(path: Path) -> None:
         if not fs.isOpened():
             raise _bad_model(path, "not a readable OpenCV FileStorage")
         opt = _model_options(fs, path)
-        trees = _model_trees(path, fs)
+        trees = _model_trees(path, fs, text)
     finally:
         fs.release()
     n_trees = opt["numberOfTrees"]
