@@ -58,13 +58,13 @@ def check_frame_pairs(
             f"{loader}: pairing is by the frame number in the file name, but {bad[0]} has "
             "none; restore the dataset's original file names."
         )
-    twins = [
-        (seen[n], p, n)
-        for paths, nums in ((query, qn), (reference, rn))
-        for seen in [{}]
-        for p, n in zip(paths, nums, strict=True)
-        if seen.setdefault(n, p) is not p
-    ]
+    twins: list[tuple[Path, Path, int | None]] = []  # (first file, second file, their number)
+    for paths, nums in ((query, qn), (reference, rn)):
+        seen: dict[int | None, Path] = {}
+        for p, n in zip(paths, nums, strict=True):
+            if n in seen:
+                twins.append((seen[n], p, n))
+            seen.setdefault(n, p)
     if twins and (strict or set(qn) & set(rn)):
         a, b, n = twins[0]
         raise ValueError(
