@@ -302,7 +302,6 @@ def _check_bootstrap_memory(n: int) -> None:
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
-
     _check_bootstrap_memory(args.n_bootstrap)
     tune_allocator()  # process-wide, here at the boundary: crop features ~1.7x faster
     dataset = load_dataset(args.dataset, root=args.root, **_dataset_options(args))
@@ -406,7 +405,6 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-
     run_study(
         dataset=args.dataset,
         root=args.root,
@@ -423,7 +421,6 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_findings(args: argparse.Namespace) -> int:
-
     labels = args.labels or result_labels(["synthetic", *study_datasets()])
     text = findings_markdown(labels)
     print(text)
@@ -435,7 +432,6 @@ def cmd_findings(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-
     p = argparse.ArgumentParser(
         prog="vpr-study", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -457,6 +453,16 @@ def build_parser() -> argparse.ArgumentParser:
             help="output root: figures/, results/, runs/ (and .cache/ unless "
             "VPR_CACHE_DIR is set) go under it; default $VPR_OUTPUT_DIR, else the "
             "project checkout holding the current folder, else the current folder",
+        )
+        sp.add_argument("--step", type=int, default=None, help="nordland: keep every step-th place")
+        sp.add_argument(
+            "--tolerance", type=int, default=None, help="ground-truth tolerance (frames)"
+        )
+        sp.add_argument(
+            "--opt",
+            action="append",
+            metavar="KEY=VALUE",
+            help="any other loader option, e.g. --opt query=winter (repeatable)",
         )
 
     e = sub.add_parser("eval", help="evaluate one or more methods on a dataset")
@@ -578,14 +584,6 @@ def build_parser() -> argparse.ArgumentParser:
         choices=("cosine", "l2"),
         help="metric of --peer descriptor folders (default cosine)",
     )
-    e.add_argument("--step", type=int, default=None, help="nordland: keep every step-th place")
-    e.add_argument(
-        "--opt",
-        action="append",
-        metavar="KEY=VALUE",
-        help="any other loader option, e.g. --opt query=winter (repeatable)",
-    )
-    e.add_argument("--tolerance", type=int, default=None, help="ground-truth tolerance (frames)")
     e.add_argument("--n-places", type=int, default=None, help="synthetic: number of places")
     e.set_defaults(func=cmd_eval)
 
@@ -621,14 +619,6 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="K",
         help="re-rank each query's top-K references (global cosine) by Eq. (1)",
-    )
-    r.add_argument("--step", type=int, default=None, help="nordland: keep every step-th place")
-    r.add_argument("--tolerance", type=int, default=None, help="ground-truth tolerance (frames)")
-    r.add_argument(
-        "--opt",
-        action="append",
-        metavar="KEY=VALUE",
-        help="any other loader option, e.g. --opt query=winter (repeatable)",
     )
     r.set_defaults(func=cmd_run)
 
