@@ -212,10 +212,32 @@ def test_per_query_hand_example():
     assert pd.isna(first.loc[(2, "b"), "top-1"]) and not first.loc[(2, "b"), "top-1 correct"]
     assert pd.isna(first.loc[(2, "b"), "first correct rank"])  # nothing ranked: not retrieved
     assert t["top-1 matches"].isna().all()  # no descriptors kept
+    # (not in the paper) frames from a wrong top-1 to the nearest correct reference
+    assert first.loc[(1, "a"), "wrong top-1 distance"] == 1  # top-1 2, correct 1
+    assert first.loc[(0, "b"), "wrong top-1 distance"] == 1  # top-1 1, correct 0
+    assert pd.isna(first.loc[(0, "a"), "wrong top-1 distance"])  # correct
+    assert pd.isna(first.loc[(2, "b"), "wrong top-1 distance"])  # nothing retrieved
+    assert "contrast zero share" not in t.columns  # only on request
     same = per_query([a, _result(sa, gt, "a2", n=0)])
     assert not same["disagree"].any()
     with pytest.raises(ValueError, match="unique"):
         per_query([a, a])
+
+
+def test_per_query_wrong_top1_distance_is_the_nearest_correct_frame():
+    n = 12
+    gt = _frames(n, 1)
+    sim = np.eye(n)
+    sim[0] = 0
+    sim[0, 9] = 1  # far along the route: aliasing
+    sim[5] = 0
+    sim[5, 7] = 1  # a neighbour of the correct 4..6
+    t = per_query(_result(sim, gt, "a", n=0)).set_index("query")
+    assert t.loc[0, "wrong top-1 distance"] == 8 and t.loc[5, "wrong top-1 distance"] == 1
+    assert t["wrong top-1 distance"].notna().sum() == 2
+    r = _result(sim, gt, "b", n=0)
+    r.ground_truth_from_file = True  # no frame order: no distance
+    assert per_query(r)["wrong top-1 distance"].isna().all()
 
 
 @pytest.fixture(scope="module")
@@ -241,6 +263,31 @@ def test_per_query_counts_the_top1_matches(kept):
     flips = t.groupby("query")["top-1 correct"].nunique() > 1
     assert list(t["disagree"]) == list(t["query"].map(flips))
     assert t["disagree"].is_monotonic_decreasing  # disagreements first
+
+
+def test_per_query_contrast_zero_share(kept):
+    from vpr_core.matching import weighted_matches
+
+    t = per_query(kept, contrast=True)
+    share = t["contrast zero share"]
+    assert share.notna().all() and share.between(0, 1).all() and share.max() > 0
+    dense = kept[0]
+    row = t[t["run"] == dense.label].iloc[0]
+    q, r = int(row["query"]), int(row["top-1"])
+    d, b = dense.descriptors, dense.boxes
+    m = weighted_matches(
+        d["query"], b["query"], d["reference"], b["reference"], [[q, r]], "contrast"
+    )[0]
+    assert row["contrast zero share"] == pytest.approx(np.mean(m.weights == 0))
+    # the same statistics as the weighted run: its top-1 score is that pair's similarity
+    w = run_method("dense", dense_set(kept), weighting="contrast", n_bootstrap=0).similarity
+    assert m.similarity == pytest.approx(w[q, r], abs=1e-9)
+
+
+def dense_set(kept):
+    from vpr_core.datasets import load_dataset
+
+    return load_dataset("synthetic", n_places=len(kept[0].ground_truth))
 
 
 def test_plot_disagreements(tiny_synthetic, kept):

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import oracle_pairwise as oracle
+import pandas as pd
 import pytest
 import torch
 from test_matching import _random_sets
@@ -203,3 +204,43 @@ def test_run_method_passes_the_weighting_to_the_matcher():
     full = run_method("dense", ds, per_scale=4, weighting="contrast", **kw).similarity
     kept = ~np.isnan(r.similarity)
     np.testing.assert_allclose(r.similarity[kept], full[kept], atol=1e-7, rtol=0)
+
+
+def test_cli_eval_weighting_both_pairs_each_method_with_itself(tmp_path, capsys):
+    from vpr_study import cli
+
+    args = ["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "dense", "global"]
+    rc = cli.main([*args, "--weighting", "both", "--spatial", "both", "--out", str(tmp_path)])
+    assert rc == 0
+    out = capsys.readouterr().out
+    assert "database weighting, each method with minus without" in out
+    assert "dense (weighting: contrast)" in out and "global (geometry: consistency" in out
+    folder = tmp_path / "results" / "synthetic"
+    (table,) = folder.glob("eval_*_weighting.csv")
+    got = dict(pd.read_csv(table)[["run", "baseline"]].itertuples(index=False))
+    assert got["dense(weighting=contrast)"] == "dense"
+    assert got["global(spatial=consistency, weighting=idf)"] == "global (geometry: consistency)"
+    assert len(got) == 2 * 2 * 2  # methods x spatial x weightings
+    (geometry,) = folder.glob("eval_*_geometry.csv")
+    assert len(pd.read_csv(geometry)) == 2 * 3  # methods x weightings
+
+
+def test_plot_weighted_matches_colours_the_fixed_queries():
+    import matplotlib
+
+    from vpr_core.datasets import load_dataset
+    from vpr_core.pipeline import run_method
+    from vpr_core.viz.weighting import plot_weighted_matches
+
+    ds = load_dataset("synthetic", n_places=6, image_size=(64, 112), repetition=0.9)
+    kw = {"dim": 64, "n_bootstrap": 0, "keep_descriptors": True, "per_scale": 4}
+    plain = run_method("dense", ds, **kw)
+    weighted = run_method("dense", ds, weighting="contrast", **kw)
+    fig, table = plot_weighted_matches(ds, plain, weighted, n=2)
+    assert isinstance(fig, matplotlib.figure.Figure)
+    fixed = table.pivot(index="query", columns="run", values="top-1 correct")
+    assert (~fixed[plain.label] & fixed[weighted.label]).all()  # only queries the weighting fixed
+    assert "contrast weight" in fig.axes[-1].get_ylabel() or not len(table)
+    with pytest.raises(ValueError, match="has no weighting"):
+        plot_weighted_matches(ds, plain, plain)
+    matplotlib.pyplot.close("all")

@@ -71,6 +71,8 @@ FIGURES: tuple[FigureSpec, ...] = (
     FigureSpec("geometry_dense", _NB6, "not in the paper: geometry-aware score"),
     FigureSpec("geometry_classical", _NB6, "not in the paper: geometry-aware score"),
     FigureSpec("fig14_coverage_comparison", _NB6, "Fig. 14"),
+    FigureSpec("weighting_dense", _NB6, "not in the paper: database weighting"),
+    FigureSpec("weighting_classical", _NB6, "not in the paper: database weighting"),
 )
 
 

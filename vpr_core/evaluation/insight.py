@@ -9,12 +9,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..matching import match_landmarks
+from ..matching import match_landmarks, weighted_matches
 from ..notices import notice
 from .compare import _check_same_dataset
 from .curves import _best_two, _query_scores, _ranked, _true_rank
 
-__all__ = ["PER_QUERY_COLUMNS", "per_query"]
+__all__ = ["CONTRAST_COLUMN", "PER_QUERY_COLUMNS", "per_query"]
 
 #: The columns of :func:`per_query`, in order.
 PER_QUERY_COLUMNS = (
@@ -25,8 +25,11 @@ PER_QUERY_COLUMNS = (
     "top-1 correct",
     "ratio",
     "top-1 matches",
+    "wrong top-1 distance",
     "disagree",
 )
+#: (Not in the paper) the column :func:`per_query` adds with ``contrast=True``.
+CONTRAST_COLUMN = "contrast zero share"
 
 
 def _top1_matches(result: Any, queries: np.ndarray, top1: np.ndarray) -> np.ndarray:
@@ -46,7 +49,42 @@ def _top1_matches(result: Any, queries: np.ndarray, top1: np.ndarray) -> np.ndar
     return out
 
 
-def _one_run(result: Any, gt: np.ndarray, queries: np.ndarray) -> pd.DataFrame:
+def _sequence(result: Any) -> bool:
+    """Frame-aligned ground truth (``|q - r| <= tolerance``), not read from a file."""
+    return result.tolerance is not None and not getattr(result, "ground_truth_from_file", False)
+
+
+def _wrong_distance(gt: np.ndarray, top1: np.ndarray, correct: np.ndarray) -> np.ndarray:
+    """``(n,)`` reference indices from each wrong top-1 to the nearest correct reference (NaN
+    where the top-1 is correct, nothing was retrieved or the query has no correct reference)."""
+    out = np.full(len(top1), np.nan)
+    cols = np.arange(gt.shape[1])
+    for i in np.flatnonzero(~correct & (top1 >= 0) & gt.any(axis=1)):
+        out[i] = np.abs(cols[gt[i]] - top1[i]).min()
+    return out
+
+
+def _contrast_zero_share(result: Any, queries: np.ndarray, top1: np.ndarray) -> np.ndarray:
+    """``(n,)`` share of the top-1 pair's reciprocal matches whose ``contrast`` weight is 0 (NaN
+    without descriptors, without a top-1 or without a match); statistics as the run's matching
+    would compute them (all references, or the shortlist's sample)."""
+    out = np.full(len(queries), np.nan)
+    desc = getattr(result, "descriptors", None)
+    keep = top1 >= 0
+    if desc is None or not keep.any():
+        return out
+    d, b = desc, result.boxes
+    nr = len(d["reference"])
+    sample = None if getattr(result, "shortlist", None) else np.arange(nr)
+    pairs = np.stack([queries[keep], top1[keep]], axis=1)
+    ms = weighted_matches(
+        d["query"], b["query"], d["reference"], b["reference"], pairs, "contrast", sample=sample
+    )
+    out[keep] = [np.mean(m.weights == 0) if len(m.matches) else np.nan for m in ms]
+    return out
+
+
+def _one_run(result: Any, gt: np.ndarray, queries: np.ndarray, contrast: bool) -> pd.DataFrame:
     """The rows of one run on ``queries`` (indices of queries with ground truth)."""
     s = np.asarray(result.similarity, dtype=np.float64)[queries]
     g = gt[queries]
@@ -59,7 +97,8 @@ def _one_run(result: Any, gt: np.ndarray, queries: np.ndarray) -> pd.DataFrame:
         top1[ranked] = _best_two(s[ranked])[0]
         ratio[ranked] = _query_scores(s[ranked], g[ranked], "ratio")[0]
     correct = ranked & g[np.arange(len(queries)), np.maximum(top1, 0)]
-    return pd.DataFrame(
+    far = _wrong_distance(g, top1, correct) if _sequence(result) else np.full(len(queries), np.nan)
+    table = pd.DataFrame(
         {
             "query": queries,
             "run": result.label,
@@ -68,24 +107,35 @@ def _one_run(result: Any, gt: np.ndarray, queries: np.ndarray) -> pd.DataFrame:
             "top-1 correct": correct,
             "ratio": ratio,
             "top-1 matches": _top1_matches(result, queries, top1),
+            "wrong top-1 distance": far,
         }
     )
+    if contrast:
+        table[CONTRAST_COLUMN] = _contrast_zero_share(result, queries, top1)
+    return table
 
 
-def per_query(results: Any | Sequence[Any]) -> pd.DataFrame:
+def per_query(results: Any | Sequence[Any], contrast: bool = False) -> pd.DataFrame:
     """For every query with ground truth and every run: how the run ranked it.
 
     Args:
         results: one or more :class:`~vpr_core.pipeline.MethodResult` (or peers) of one dataset.
             The match counts need descriptors: run with ``run_method(...,
             keep_descriptors=True)``; without them the column is NaN and a warning says so.
+        contrast: (not in the paper) add the column ``contrast zero share``: of the reciprocal
+            matches of each query's top-1 pair, the share whose ``weighting="contrast"`` weight
+            is 0 (docs/DEFINITIONS.md; needs descriptors, NaN without; it computes each
+            query's statistics, so it takes about as long as the weighted matching).
 
     Returns:
         One row per (query, run), columns :data:`PER_QUERY_COLUMNS`: ``first correct rank``
         (1 = top-1; NA when no correct reference is ranked), ``top-1`` (reference index, NA when
         the query retrieved nothing: an image without landmarks), ``top-1 correct``, ``ratio``
         (the ratio protocol's score ``S2 / S1``: lower = more confident), ``top-1 matches``
-        (reciprocal landmark matches of the top-1 pair), ``disagree`` (the runs' top-1
+        (reciprocal landmark matches of the top-1 pair), ``wrong top-1 distance`` (on
+        frame-aligned data: reference indices from a wrong top-1 to the nearest correct
+        reference, small = imprecise localisation, large = perceptual aliasing; NaN for a
+        correct top-1 or ground truth from a file), ``disagree`` (the runs' top-1
         correctness differs for this query). Queries where the runs disagree come first, then
         by query index, runs in the given order.
 
@@ -100,11 +150,12 @@ def per_query(results: Any | Sequence[Any]) -> pd.DataFrame:
         raise ValueError(f"per_query(): labels must be unique, got {labels}")
     gt = _check_same_dataset(runs, runs[0])
     queries = np.flatnonzero(gt.any(axis=1))
-    table = pd.concat([_one_run(r, gt, queries) for r in runs], ignore_index=True)
+    table = pd.concat([_one_run(r, gt, queries, contrast) for r in runs], ignore_index=True)
     agree = table.groupby("query")["top-1 correct"].nunique() == 1
     table["disagree"] = ~table["query"].map(agree).astype(bool)
     table["_run"] = table["run"].map({label: i for i, label in enumerate(labels)})
     table = table.sort_values(["disagree", "query", "_run"], ascending=[False, True, True])
+    columns = [*PER_QUERY_COLUMNS, *([CONTRAST_COLUMN] if contrast else [])]
     bare = [r.label for r in runs if getattr(r, "descriptors", None) is None]
     if bare:  # never a silent column of NaN
         notice(
@@ -112,4 +163,4 @@ def per_query(results: Any | Sequence[Any]) -> pd.DataFrame:
             "peer has none); run_method(..., keep_descriptors=True) counts the matches",
             stacklevel=2,
         )
-    return table.drop(columns="_run").reset_index(drop=True)[list(PER_QUERY_COLUMNS)]
+    return table.drop(columns="_run").reset_index(drop=True)[columns]

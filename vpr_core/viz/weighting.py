@@ -1,0 +1,144 @@
+"""(Not in the paper) Which landmarks carry a weighted score: queries the plain Eq. (1) gets wrong
+and a database weighting gets right, each match drawn in the colour of its weight."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+
+from ..datasets.ground_truth import ground_truth_references
+from ..evaluation import per_query
+from ..matching import weighted_matches
+from .curves import dataset_line
+
+
+def _matches(run: Any, pairs: list[tuple[int, int]], weighting: str) -> list:
+    """Each pair's matches with the weights the weighted run used."""
+    d, b = run.descriptors, run.boxes
+    sample = None if run.shortlist else np.arange(len(d["reference"]))
+    m = run.config.matching
+    return weighted_matches(
+        d["query"],
+        b["query"],
+        d["reference"],
+        b["reference"],
+        pairs,
+        weighting,
+        soft_nms_iou=m.soft_nms_iou,
+        sigma=m.sigma,
+        spatial=m.spatial,
+        sample=sample,
+    )
+
+
+def _pair_panel(ax, img_q, img_r, bq, br, match, cmap, norm, title: str) -> None:
+    """Query and reference side by side, each reciprocal match's boxes in its weight's colour
+    (zero weights thin and grey)."""
+    h = max(img_q.shape[0], img_r.shape[0])
+    pad = [np.pad(im, ((0, h - im.shape[0]), (0, 0), (0, 0))) for im in (img_q, img_r)]
+    ax.imshow(np.concatenate(pad, axis=1))
+    off = img_q.shape[1]
+    order = np.argsort(match.weights)  # the heaviest drawn last, on top
+    for k in order:
+        i, j = match.matches[k]
+        w = match.weights[k]
+        color = cmap(norm(w)) if w > 0 else (0.6, 0.6, 0.6, 0.7)
+        lw = 1.6 if w > 0 else 0.5
+        for (x, y, bw, bh), dx in ((bq[i], 0), (br[j], off)):
+            ax.add_patch(
+                matplotlib.patches.Rectangle((x + dx, y), bw, bh, fill=False, ec=color, lw=lw)
+            )
+    ax.set_axis_off()
+    ax.set_title(title, fontsize=8)
+
+
+def plot_weighted_matches(
+    ds: Any, plain: Any, weighted: Any, n: int = 3
+) -> tuple[matplotlib.figure.Figure, pd.DataFrame]:
+    """Queries where ``plain`` (the paper's Eq. (1)) fails and ``weighted`` (the same method with
+    ``weighting=...``) succeeds: per query, its matches with the correct reference and with the
+    plain run's wrong top-1, each box coloured by its weight (grey: weight 0).
+
+    Args:
+        ds: the runs' dataset; plain, weighted: results of ``ds`` with ``keep_descriptors=True``,
+            the second with a ``weighting`` (its statistics are recomputed as it matched).
+        n: queries shown (rows), in query order.
+
+    Returns:
+        ``(figure, table)``: :func:`~vpr_core.evaluation.per_query` rows of the queries shown.
+
+    Raises:
+        ValueError: ``n < 1``, no weighting on ``weighted``, or runs without descriptors.
+    """
+    if int(n) < 1:
+        raise ValueError(f"n (queries shown) must be >= 1, got {n}")
+    weighting = getattr(weighted.config, "matching", None) and weighted.config.matching.weighting
+    if not weighting:
+        raise ValueError(f"{weighted.label!r} has no weighting: run it with weighting='contrast'")
+    if getattr(weighted, "descriptors", None) is None:
+        raise ValueError(
+            f"plot_weighted_matches needs the descriptors of {weighted.label!r}: run it with "
+            "run_method(..., keep_descriptors=True)"
+        )
+    table = per_query([plain, weighted])
+    ok = table.pivot(index="query", columns="run", values="top-1 correct")
+    fixed = ok.index[~ok[plain.label].astype(bool) & ok[weighted.label].astype(bool)]
+    shown = [int(q) for q in fixed[: int(n)]]
+    table = table[table["query"].isin(shown)].reset_index(drop=True)
+    gt = np.asarray(ds.ground_truth, dtype=bool)
+    fig, axes = plt.subplots(
+        max(1, len(shown)), 2, figsize=(13.0, 2.6 * max(1, len(shown)) + 0.9), squeeze=False
+    )
+    head = (
+        f"(not in the paper) {plain.label} wrong, {weighted.label} right: {len(fixed)} of "
+        f"{len(ok)} queries{f' ({len(shown)} shown)' if len(fixed) > len(shown) else ''}\n"
+        f"{dataset_line([plain])}; boxes: each reciprocal match coloured by its {weighting} "
+        "weight, grey = 0"
+    )
+    if not shown:
+        for ax in axes[0]:
+            ax.set_axis_off()
+        fig.suptitle(head, fontsize=9, x=0.01, ha="left")
+        return fig, table
+    sim_p = np.asarray(plain.similarity)
+    sim_w = np.asarray(weighted.similarity)
+    pairs = []
+    for q in shown:
+        wrong = int(np.nanargmax(np.where(np.isnan(sim_p[q]), -np.inf, sim_p[q])))
+        pairs += [(q, ground_truth_references(gt, q)[0]), (q, wrong)]
+    ms = _matches(weighted, pairs, weighting)
+    top = max([float(m.weights.max()) for m in ms if len(m.weights)] + [1e-9])
+    norm = matplotlib.colors.Normalize(0.0, top)
+    cmap = plt.get_cmap("viridis")
+    b = weighted.boxes
+    for k, q in enumerate(shown):
+        img_q = ds.load_image("query", q)
+        for c, ((_, r), m) in enumerate(
+            zip(pairs[2 * k : 2 * k + 2], ms[2 * k : 2 * k + 2], strict=True)
+        ):
+            what = "correct reference" if c == 0 else f"{plain.label}'s wrong top-1"
+            carried = np.count_nonzero(m.weights > 0)
+            _pair_panel(
+                axes[k, c],
+                img_q,
+                ds.load_image("reference", r),
+                b["query"][q],
+                b["reference"][r],
+                m,
+                cmap,
+                norm,
+                f"query {q} vs {what} r{r}: S {sim_p[q, r]:.3f} plain, {sim_w[q, r]:.3f} "
+                f"weighted\n{len(m.matches)} matches, {carried} with weight > 0",
+            )
+    fig.suptitle(head, fontsize=9, x=0.01, y=0.995, ha="left", va="top")
+    fig.colorbar(
+        matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap),
+        ax=axes.ravel().tolist(),
+        fraction=0.02,
+        label=f"{weighting} weight",
+    )
+    return fig, table
