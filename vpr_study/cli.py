@@ -321,9 +321,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
     mode = "exhaustive" if args.shortlist is None else f"shortlist k={args.shortlist}"
     scheduler = args.scheduler or settings.dask_scheduler()
     spatial = [None, *SPATIAL_OPTIONS] if args.spatial == "both" else [args.spatial]
-    weighting = {"none": [None], "both": [None, *WEIGHTING_OPTIONS]}.get(
-        args.weighting, [args.weighting]
-    )
+    choices: dict[str, list[str | None]] = {"none": [None], "both": [None, *WEIGHTING_OPTIONS]}
+    weighting = choices.get(args.weighting, [args.weighting])
     results, wall, run_of = [], {}, {}
     for m, s, w in itertools.product(args.method, spatial, weighting):
         t0 = time.perf_counter()

@@ -289,7 +289,7 @@ def compact_text(table: pd.DataFrame, width: int = TERMINAL_WIDTH, wide: bool = 
     long the rows. The CSV of the full table keeps everything."""
     view = compact(table)
     label_w = max([len(str(view.index.name or ""))] + [len(str(i)) for i in view.index])
-    used, shown, left = label_w, [], []
+    used, shown, left = label_w, [], list[str]()
     for col in _by_priority(list(view.columns)):
         w = max(len(col), *(len(v) for v in view[col])) + 2
         if wide or (not left and used + w <= width):
