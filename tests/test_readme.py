@@ -141,3 +141,18 @@ def test_backbone_choice_prose_is_the_lite2_benchmark():
         assert f"{r['dAUC']:+.3f} {r['dAUC 95%']}" in text, method
     choice = pd.read_csv(RESULTS / "benchmarks" / "descriptor_choice.csv").set_index("option")
     assert f"costs {choice.loc['lite2 s5 260', 's/img']:.2f} s per" in text
+
+
+def test_weighting_numbers_are_the_benchmark_table():
+    """(Not in the paper) every row of results/benchmarks/weighting.csv is quoted in the README's
+    weighting section: AUC and R@1 with intervals, and each weighting's paired differences."""
+    table = pd.read_csv(RESULTS / "benchmarks" / "weighting.csv")
+    text = _unwrapped(_section("### Does a database weighting help?"))
+    for _, r in table.iterrows():
+        for col in ("AUC", "R@1"):
+            quoted = _iv(r[col], r[f"{col} lo"], r[f"{col} hi"], signed=False)
+            assert quoted in text, (r["set"], r["method"], r["weighting"], col, quoted)
+        if r["weighting"] != "none":
+            for col in ("dAUC", "dR@1"):
+                quoted = f"{_iv(r[col], r[f'{col} lo'], r[f'{col} hi'])} {r[f'{col} verdict']}"
+                assert quoted in text, (r["set"], r["method"], r["weighting"], col, quoted)
