@@ -23,7 +23,7 @@ from vpr_core.backbones.efficientnet_lite import (
     efficientnet_lite_classifier,
     load_state_dict,
 )
-from vpr_core.features import LandmarkEncoder
+from vpr_core.features import Encoder, LandmarkEncoder
 
 torch.set_num_threads(min(2, torch.get_num_threads()))
 
@@ -111,7 +111,7 @@ def test_spec_errors_name_the_valid_choices():
     with pytest.raises(ValueError, match=">= 16"):
         parse_backbone("efficientnet_lite0:input_size=8")
     with pytest.raises(ValueError, match="conflicts"):
-        build_backbone("efficientnet_lite0:input_size=96", input_size=128)
+        Encoder("efficientnet_lite0:input_size=96", input_size=128)
 
 
 @pytest.mark.parametrize(

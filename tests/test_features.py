@@ -655,3 +655,47 @@ def test_user_module_through_get_encoder_and_shards():
     got, _ = extract_features_distributed(None, ds, "query", encoder_kwargs(enc), boxes=boxes)
     for i in range(2):
         assert np.array_equal(got[i], enc.encode(ds.load_image("query", i), boxes[i]))
+
+
+class _Faulty(nn.Module):
+    """A user backbone with one fault (``kind``), else ``(B, 3, S, S) -> (B, 3)`` means."""
+
+    def __init__(self, kind: str) -> None:
+        super().__init__()
+        self.kind, self.calls = kind, 0
+        self.w = nn.Parameter(torch.full((3,), float("nan") if kind == "nan_weights" else 1.0))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        self.calls += 1
+        out = x.mean((2, 3)) * self.w
+        if self.kind == "fewer_rows":
+            return out[:1]
+        if self.kind == "wider_later" and self.calls > 1:
+            return torch.cat([out, out], 1)
+        if self.kind == "zeros":
+            return out * 0
+        return out * float("nan") if self.kind == "nan_output" else out
+
+
+@pytest.mark.parametrize(
+    ("kind", "match"),
+    [
+        ("fewer_rows", r"_Faulty returned \(1, 3\) for 50 crops; expected \(50, 3\)"),
+        ("wider_later", r"_Faulty returned \(50, 6\) for 50 crops; .*same shape on every call"),
+        ("zeros", "_Faulty returns all zeros on a random"),
+        ("nan_output", "_Faulty returns NaN or inf on a random"),
+        ("nan_weights", r"_Faulty: its weights hold NaN or inf \(w\)"),
+    ],
+)
+def test_a_faulty_module_backbone_is_refused_naming_it(image, kind, match):
+    boxes = np.array([[0, 0, 50, 40], [10, 20, 100, 90]], dtype=float)
+    with pytest.raises(ValueError, match=match):
+        LandmarkEncoder(_Faulty(kind), dim=None, input_size=16).encode(image, boxes)
+
+
+def test_a_weights_file_holding_nan_is_refused_naming_it(tmp_path):
+    state = dict(load_state_dict(variant="lite0"))
+    state["_conv_stem.weight"] = state["_conv_stem.weight"] * float("nan")
+    torch.save(state, tmp_path / "nan.pth")
+    with pytest.raises(ValueError, match=r"nan.pth holds NaN or inf in _conv_stem.weight"):
+        LandmarkEncoder(weights=str(tmp_path / "nan.pth"))

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+import torch
 
 from vpr_core import pipeline
 from vpr_core.datasets import load_dataset
@@ -215,3 +216,67 @@ def test_the_papers_path_never_touches_the_engine():
         .splitlines()[-1]
     )
     assert out == "[]", out
+
+
+# ----------------------------------------------------------------------------- values flow down
+@pytest.fixture(scope="module")
+def four():
+    return load_dataset("synthetic", n_places=4, image_size=(64, 112))
+
+
+def test_run_method_takes_its_three_values_or_their_fields_as_keywords(four, isolated_cache):
+    from vpr_core.evaluation import Evaluation
+    from vpr_core.features import Encoder
+
+    grid = {"scales": (0.25,), "per_scale": 4}
+    a = run_method(
+        "dense",
+        four,
+        encoder=Encoder("hog", dim=32),
+        evaluation=Evaluation("best_match", 0),
+        **grid,
+    )
+    b = run_method(
+        "dense", four, backbone="hog", dim=32, protocol="best_match", n_bootstrap=0, **grid
+    )
+    c = run_method(
+        "dense", four, encoder=Encoder("hog"), dim=32, protocol="best_match", n_bootstrap=0, **grid
+    )
+    np.testing.assert_array_equal(a.similarity, b.similarity)
+    assert a.encoder == b.encoder == c.encoder and a.encoder["dim"] == 32
+    assert a.protocol == b.protocol == "best_match" and a.metrics == b.metrics == c.metrics
+
+
+class _Net(torch.nn.Module):
+    def forward(self, x):
+        return x.mean((2, 3))
+
+
+@pytest.mark.parametrize(
+    ("options", "match"),
+    [
+        ({"protocol": "multi_match"}, "'multi_match' has no bootstrap intervals.*n_bootstrap=0"),
+        ({"n_bootstrap": 2.5}, "n_bootstrap .*must be a non-negative integer, got 2.5"),
+        ({"protocol": "ratios"}, "unknown protocol 'ratios'; valid: ratio"),
+        ({"input_size": -32}, r"input_size \(crop side\) must be an integer >= 16, got -32"),
+        ({"backbone": _Net(), "input_size": -32}, "input_size .*positive integer, got -32"),
+        ({"pooling": "max"}, "unknown pooling 'max'; valid: crop, roi"),
+        ({"dim": 0}, "dim .*must be a positive integer, got 0"),
+    ],
+    ids=["multi_match", "n_bootstrap", "protocol", "input_size", "module_size", "pooling", "dim"],
+)
+def test_bad_options_are_refused_before_any_work(four, monkeypatch, options, match):
+    from vpr_core.pipeline import run as run_module
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("the run started before its options were checked")
+
+    monkeypatch.setattr(run_module, "extract_landmarks", no_work)
+    monkeypatch.setattr(run_module, "get_encoder", no_work)
+    with pytest.raises(ValueError, match=match):
+        run_method("dense", four, **options)
+
+
+def test_multi_match_runs_end_to_end_without_intervals(four, isolated_cache):
+    r = run_method("dense", four, backbone="hog", protocol="multi_match", n_bootstrap=0)
+    assert r.protocol == "multi_match" and 0 <= r.metrics["auc"] <= 1 and r.intervals == {}

@@ -243,6 +243,43 @@ def test_a_user_scheme_returning_bad_boxes_names_itself_and_the_image(small):
         run_method(Broken(), small, backbone="hog", n_bootstrap=0)
 
 
+@pytest.mark.parametrize(
+    ("box", "problem"),
+    [
+        ([10, 10, 0, 20], "positive width and height; bad rows: \\[0\\]"),
+        ([10, np.nan, 20, 20], "NaN or inf"),
+        ([500, 10, 20, 20], "outside the 128 x 96 image, bad rows: \\[0\\]"),
+        ([-40, 10, 20, 20], "outside the 128 x 96 image"),
+    ],
+    ids=["zero_width", "nan", "right_of_the_image", "left_of_the_image"],
+)
+def test_a_user_schemes_bad_box_is_refused_at_the_landmark_stage(small, box, problem):
+    @dataclasses.dataclass(frozen=True)
+    class BadBox:
+        def boxes(self, image):
+            return np.array([box, [0, 0, 20, 20]], dtype=float)
+
+    where = r"BadBox.boxes\(\) on query image 0 \(.*\.png\): .*"
+    with pytest.raises(ValueError, match=where + problem):
+        pipeline.extract_landmarks(BadBox(), small)
+
+
+def test_a_scheme_field_must_be_a_plain_value():
+    @dataclasses.dataclass(frozen=True)
+    class Weighted:
+        w: object = (1.0, 2.0)
+
+        def boxes(self, image):
+            return np.zeros((1, 4))
+
+    check_scheme(Weighted())
+    with pytest.raises(TypeError, match="Weighted: field w holds a ndarray; .*a tuple instead"):
+        check_scheme(Weighted(np.ones(3)))
+    Weighted.version = 2  # type: ignore[attr-defined]
+    with pytest.raises(TypeError, match="Weighted.version must be a non-empty string, got 2"):
+        check_scheme(Weighted())
+
+
 def test_a_bare_paper_scheme_is_named_after_its_preset(small):
     r = run_method(Dense(scales=(0.25,), per_scale=4), small, backbone="hog", n_bootstrap=0)
     s = run_method("dense", small, backbone="hog", n_bootstrap=0, scales=(0.25,), per_scale=4)

@@ -89,7 +89,7 @@ def cost_table(
         raise ValueError(
             f"cost_table needs n_images >= 1 and repeats >= 1, got {n_images} and {repeats}."
         )
-    encoder = get_encoder(backbone, PROJECTION_DIM, seed, pooling=pooling)
+    encoder = get_encoder(backbone, dim=PROJECTION_DIM, seed=seed, pooling=pooling)
     n = min(n_images, len(dataset.query_paths))
     rows = [{"method": m, **_time_method(m, dataset, encoder, n, repeats)} for m in methods]
     return pd.DataFrame(rows).set_index("method")

@@ -8,7 +8,7 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from torch import nn
 
@@ -172,36 +172,19 @@ def build_backbone(
 ) -> nn.Module:
     """Instantiate a backbone from its name or spec, or wrap a user module (eval mode).
 
+    The arguments are trusted: :class:`~vpr_core.features.Encoder` checks them once.
+
     Args:
         name: one of :func:`available_backbones`, optionally with options (see module doc), or
-            an ``nn.Module`` (see :class:`ModuleBackbone`; then ``input_size`` is required).
+            an ``nn.Module`` (see :class:`ModuleBackbone`; then ``input_size`` is its crop side).
         input_size: crop side; None -> the spec's ``input_size`` or the backbone's default.
         weights: backbone-specific weights (path, ``"random"`` for AlexNet, None = default).
         seed: seed for backbones with a random initialisation (``alexnet_conv3``, ``"random"``).
-
-    Raises:
-        ValueError: unknown name or option (the message lists the valid ones), conflicting
-            sizes, a module without ``input_size`` or with ``weights``.
     """
     if isinstance(name, nn.Module):
-        if input_size is None or int(input_size) < 1:
-            raise ValueError(
-                f"backbone={type(name).__name__}(...) needs its crop size: pass input_size=S "
-                "(the side of the square (B, 3, S, S) crops it takes)"
-            )
-        if weights is not None:
-            raise ValueError("a backbone module carries its own weights; pass weights=None")
-        return ModuleBackbone(name, int(input_size))
+        return ModuleBackbone(name, int(cast(int, input_size)))
     base, options = parse_backbone(name)
     if input_size is not None:
-        explicit = ":" in name and "input_size" in name.partition(":")[2]
-        if explicit and int(input_size) != options["input_size"]:
-            raise ValueError(
-                f"input_size={input_size} conflicts with the backbone spec {name!r}; "
-                "give the crop size once"
-            )
-        if int(input_size) < 16:
-            raise ValueError(f"input_size must be >= 16, got {input_size}")
         options["input_size"] = int(input_size)
     size = options.pop("input_size")
     model: Any = _REGISTRY[base].factory(size, weights, seed, **options)

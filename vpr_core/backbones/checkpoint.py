@@ -47,7 +47,8 @@ def load_checkpoint(path: str | os.PathLike, expected: str) -> dict[str, torch.T
         expected: what the file should hold, for the message.
 
     Raises:
-        WeightsFileError: not a torch checkpoint (truncated, other format) or not a dict of tensors.
+        WeightsFileError: not a torch checkpoint (truncated, other format), not a dict of
+            tensors, or NaN / inf in a tensor.
     """
     p = Path(path)
     try:
@@ -68,4 +69,7 @@ def load_checkpoint(path: str | os.PathLike, expected: str) -> dict[str, torch.T
             f"weights file {p} holds a {type(state).__name__}, not a state dict of tensors; "
             f"expected {expected}."
         )
+    bad = [k for k, t in state.items() if t.is_floating_point() and not t.isfinite().all()]
+    if bad:
+        raise WeightsFileError(f"weights file {p} holds NaN or inf in {', '.join(bad[:3])}")
     return state

@@ -57,7 +57,13 @@ class ModuleBackbone(nn.Module):
         cls = type(module)
         self.label = cls.__name__
         self.qualname = f"{cls.__module__}.{cls.__qualname__}"
-        self.weights_sha256 = state_dict_sha256(module.state_dict())
+        state = module.state_dict()
+        bad = [k for k, t in state.items() if t.is_floating_point() and not t.isfinite().all()]
+        if bad:
+            raise ValueError(
+                f"backbone module {self.label}: its weights hold NaN or inf ({', '.join(bad[:3])})"
+            )
+        self.weights_sha256 = state_dict_sha256(state)
         self.weights_source = user_weights_label(self.weights_sha256)
         self.architecture_sha256 = architecture_sha256(module)
         param = next(module.parameters(), None)
@@ -69,6 +75,13 @@ class ModuleBackbone(nn.Module):
             raise ValueError(
                 f"backbone module {self.label} returned {got} for a (1, 3, {self.input_size}, "
                 f"{self.input_size}) crop; it must return (B, C, h, w) or (B, C) features"
+            )
+        if not out.isfinite().all() or not out.any():
+            raise ValueError(
+                f"backbone module {self.label} returns "
+                f"{'all zeros' if out.isfinite().all() else 'NaN or inf'} on a random (1, 3, "
+                f"{self.input_size}, {self.input_size}) input (backbones.module.probe_input): "
+                "its descriptors could not tell landmarks apart"
             )
         self.probe_sha256 = array_sha256([out.detach().float().cpu().numpy()])
         self.feature_shape = tuple(int(n) for n in out.shape[1:])
@@ -89,4 +102,17 @@ class ModuleBackbone(nn.Module):
         return self.module(batch).float()
 
     def forward(self, batch: torch.Tensor) -> torch.Tensor:
-        return self.module(batch).float().flatten(1)
+        """``(B, 3, S, S)`` crops -> ``(B, raw_dim)``; the module's output checked (user code)."""
+        out = self.module(batch)
+        n = batch.shape[0]
+        if tuple(out.shape) != (n, *self.feature_shape):
+            raise ValueError(
+                f"backbone module {self.label} returned {tuple(out.shape)} for {n} crops; "
+                f"expected {(n, *self.feature_shape)}: one row per crop, the same shape on every "
+                "call"
+            )
+        if not out.isfinite().all():
+            raise ValueError(
+                f"backbone module {self.label} returned NaN or inf for finite crops (its forward)"
+            )
+        return out.float().flatten(1)

@@ -13,6 +13,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from ..backbones import weights_sha256
 from ..backbones.checkpoint import state_dict_sha256
 from ..backbones.module import architecture_sha256
 from ..features import LandmarkEncoder
@@ -45,6 +46,7 @@ def _encoder_key(encoder_kwargs: dict[str, Any]) -> tuple[str, nn.Module | None]
             f"{state_dict_sha256(module.state_dict())} {architecture_sha256(module)}"
         )
         return json.dumps(kwargs, sort_keys=True, default=str), module
+    kwargs["weights_sha256"] = weights_sha256(kwargs["backbone"], kwargs["weights"])  # content
     return json.dumps(kwargs, sort_keys=True, default=str), None
 
 
@@ -56,6 +58,7 @@ def _encoder(key: str, module: nn.Module | None = None) -> LandmarkEncoder:
     """The encoder of ``key`` (built on first use; ``module`` replaces a module's key)."""
     if key not in _ENCODERS:
         kwargs = json.loads(key)
+        kwargs.pop("weights_sha256", None)
         if module is not None:
             kwargs["backbone"] = module
         while len(_ENCODERS) >= 4:

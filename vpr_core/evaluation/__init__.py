@@ -29,12 +29,14 @@ from .curves import (
     recall_rate_at_n,
 )
 from .insight import per_query
+from .spec import Evaluation
 
 __all__ = [
     "N_BOOTSTRAP",
     "PROTOCOLS",
     "ComparisonTable",
     "Difference",
+    "Evaluation",
     "PRCurve",
     "auc_pr",
     "bootstrap_columns",

@@ -24,6 +24,7 @@ from .curves import (
 )
 
 __all__ = [
+    "BOOTSTRAP_PROTOCOLS",
     "N_BOOTSTRAP",
     "Difference",
     "bootstrap_columns",
@@ -36,6 +37,9 @@ __all__ = [
 
 #: Bootstrap resamples of every interval and paired difference (the one home of this count).
 N_BOOTSTRAP = 1000
+
+#: The protocols with per-query decisions, so with bootstrap intervals.
+BOOTSTRAP_PROTOCOLS = ("ratio", "best_match", "vpr_bench")
 
 #: ``queries_needed`` beyond this: "not decidable on any realistic set" (:func:`needs_text`).
 REALISTIC_QUERIES = 100_000
@@ -92,7 +96,7 @@ class _PerQuery:
 def _check_args(n: int, protocol: str, ks: Sequence[int]) -> tuple[int, ...]:
     if int(n) < 0:
         raise ValueError(f"n (number of resamples) must be >= 0 (0: no intervals), got {n}")
-    if protocol not in ("ratio", "best_match", "vpr_bench"):
+    if protocol not in BOOTSTRAP_PROTOCOLS:
         raise ValueError(
             f"bootstrap supports protocol 'ratio', 'best_match' or 'vpr_bench' "
             f"(per-query decisions), got {protocol!r}; valid protocols: "

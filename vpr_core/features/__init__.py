@@ -3,11 +3,13 @@
 backbones in :mod:`vpr_core.backbones`."""
 
 from ..backbones import available_backbones
-from .encoder import LandmarkEncoder
+from .encoder import Encoder, LandmarkEncoder, as_encoder
 from .projection import random_projection
 
 __all__ = [
+    "Encoder",
     "LandmarkEncoder",
+    "as_encoder",
     "available_backbones",
     "random_projection",
 ]

@@ -1,11 +1,11 @@
-"""``LandmarkEncoder``: an image and its landmark boxes -> one descriptor per box (Sec. 2.1):
-per-box crops (``crop``, the paper's) or RoIAlign on one feature map per image (``roi``), then a
-Gaussian random projection (:mod:`~vpr_core.features.projection`); see docs/DEFINITIONS.md."""
+"""``Encoder`` (a value) and ``LandmarkEncoder`` (built from it): image + landmark boxes -> one
+descriptor per box (Sec. 2.1): per-box crops (``crop``, the paper's) or RoIAlign on one feature
+map per image (``roi``), then a Gaussian random projection; see docs/DEFINITIONS.md."""
 
 from __future__ import annotations
 
+import dataclasses
 import logging
-import os
 from typing import Any, cast
 
 import numpy as np
@@ -13,13 +13,12 @@ import torch
 from torch import nn
 
 from ..backbones import (
-    DEFAULT_INPUT_SIZE,
     ModuleBackbone,
-    available_backbones,
     build_backbone,
     canonical_backbone,
+    parse_backbone,
 )
-from ..checks import check_boxes, check_image
+from ..checks import check_boxes, check_choice, check_image, check_int
 from ..paper import PROJECTION_DIM
 from .crops import crop_boxes, pyramid_levels
 from .projection import random_projection
@@ -27,12 +26,93 @@ from .roi import DEFAULT_ROI_SAMPLING, ROI_VERSION, default_working_size, roi_po
 
 logger = logging.getLogger("vpr_core")
 
-__all__ = ["DESCRIPTOR_VERSION", "POOLING_MODES", "LandmarkEncoder", "default_input_size"]
+__all__ = [
+    "DESCRIPTOR_VERSION",
+    "POOLING_MODES",
+    "Encoder",
+    "LandmarkEncoder",
+    "as_encoder",
+]
 
 #: Bumped when the descriptor computation changes in a way that invalidates caches.
 DESCRIPTOR_VERSION = 2  # 2: fixed batch shape (grouping-invariant descriptors)
 #: Accepted ``pooling`` values.
 POOLING_MODES = ("crop", "roi")
+
+
+@dataclasses.dataclass(frozen=True)
+class Encoder:
+    """How landmarks are described (a value; :class:`LandmarkEncoder` builds it): the backbone
+    (a name or spec, or a ``torch.nn.Module`` with its ``input_size``), its ``weights`` (a path,
+    ``"random"`` for AlexNet, None: the default lookup), ``pooling`` (``"crop"``, the paper's, or
+    ``"roi"``), the square crop side ``input_size`` (None: the backbone's), the torch ``device``,
+    and the Gaussian random projection to ``dim`` (None: raw features) from ``seed``; then
+    ``crop``/``roi`` details (``batch_size``, ``antialias``, ``working_size``, ``roi_sampling``;
+    see :class:`LandmarkEncoder`). Checked once, here."""
+
+    backbone: str | nn.Module = "efficientnet_lite0"
+    weights: str | None = None
+    pooling: str = "crop"
+    input_size: int | None = None
+    device: str = "cpu"
+    dim: int | None = PROJECTION_DIM
+    seed: int = 0
+    batch_size: int = 50
+    antialias: bool = True
+    working_size: int | None = None
+    roi_sampling: int = DEFAULT_ROI_SAMPLING
+
+    def __post_init__(self) -> None:
+        module = isinstance(self.backbone, nn.Module)
+        if not isinstance(self.backbone, nn.Module):
+            given = parse_backbone(self.backbone)[1]["input_size"]  # a name, or a clear error
+            explicit = "input_size" in self.backbone.partition(":")[2]
+            if explicit and self.input_size not in (None, given):
+                raise ValueError(
+                    f"input_size={self.input_size} conflicts with the backbone spec "
+                    f"{self.backbone!r}; give the crop size once"
+                )
+        if self.weights is not None:
+            if module:
+                raise ValueError("a backbone module carries its own weights; pass weights=None")
+            _set(self, "weights", str(self.weights))
+        check_choice(self.pooling, "pooling", POOLING_MODES)
+        if self.input_size is not None:
+            least = 1 if module else 16
+            _set(self, "input_size", check_int(self.input_size, "input_size (crop side)", least))
+        elif module:
+            raise ValueError(
+                f"backbone={type(self.backbone).__name__}(...) needs its crop size: pass "
+                "input_size=S (the side of the square (B, 3, S, S) crops it takes)"
+            )
+        _set(self, "device", str(self.device))
+        if self.dim is not None:
+            _set(self, "dim", check_int(self.dim, "dim (None: raw features)", 1))
+        _set(self, "seed", check_int(self.seed, "seed", 0))
+        _set(self, "batch_size", check_int(self.batch_size, "batch_size", 1))
+        _set(self, "antialias", bool(self.antialias))
+        if self.working_size is not None:
+            _set(self, "working_size", check_int(self.working_size, "working_size", 32))
+        _set(self, "roi_sampling", check_int(self.roi_sampling, "roi_sampling", 1))
+
+
+def as_encoder(encoder: Encoder | str | nn.Module | None = None, **options: Any) -> Encoder:
+    """An :class:`Encoder` from a value, or a backbone (name, spec or module) with options."""
+    if isinstance(encoder, Encoder):
+        return dataclasses.replace(encoder, **options) if options else encoder
+    if encoder is not None:
+        if "backbone" in options:
+            raise ValueError("the backbone is given twice (positional and backbone=)")
+        options["backbone"] = encoder
+    unknown = set(options) - {f.name for f in dataclasses.fields(Encoder)}
+    if unknown:
+        valid = ", ".join(f.name for f in dataclasses.fields(Encoder))
+        raise TypeError(f"unknown encoder option(s) {sorted(unknown)}; valid: {valid}")
+    return Encoder(**options)
+
+
+def _set(obj: object, key: str, value: Any) -> None:
+    object.__setattr__(obj, key, value)  # frozen dataclass: store the parsed value
 
 
 class LandmarkEncoder:
@@ -45,33 +125,27 @@ class LandmarkEncoder:
     from ``numpy.random.default_rng(seed)``; descriptors are float32, not normalised.
 
     Args:
-        backbone: name in :func:`available_backbones`, optionally with options
-            (``"efficientnet_lite0:stage=4,input_size=96"``, see :mod:`vpr_core.backbones`), or
-            a ``torch.nn.Module`` mapping ``(B, 3, S, S)`` ImageNet-normalised crops to
-            ``(B, C, h, w)`` or ``(B, C)`` (needs ``input_size=S``).
-        dim: output dimension of the random projection (``paper.PROJECTION_DIM``); None or
-            ``>= raw_dim``: no projection, raw features.
-        seed: seed of the projection matrix (and of ``weights="random"`` initialisations).
-        device: torch device for the backbone and projection (``"cuda"`` when torch sees a GPU).
-        pooling: ``"crop"`` (per-box crops, the paper's) or ``"roi"`` (one pass per image).
-        weights: backbone weights: a path to a state dict, ``"random"`` (AlexNet only, flagged),
-            or None for the backbone's default lookup (see :mod:`vpr_core.backbones`).
-        input_size: square crop side; None -> the spec's or backbone's default
-            (``efficientnet_lite0``: 128, ``alexnet_conv3``: 227, ``hog``: 64). In ``roi`` mode
-            it fixes the pooled grid ``n = ceil(input_size / stride)`` and the sample geometry.
-        batch_size: crops per forward pass, and rows per projection matmul (fixed shape).
-        antialias: crop large boxes from an average-pooled image pyramid (``crop`` mode).
-        working_size: ``roi`` mode: long side of the image fed to the backbone, pixels; None ->
-            4 x ``input_size`` (:func:`~vpr_core.features.roi.default_working_size`).
-        roi_sampling: ``roi`` mode: bilinear samples per pooled cell and axis.
+        encoder: an :class:`Encoder`, or its backbone (a name in :func:`available_backbones`,
+            optionally with options, ``"efficientnet_lite0:stage=4,input_size=96"``, see
+            :mod:`vpr_core.backbones`; or a ``torch.nn.Module`` mapping ``(B, 3, S, S)``
+            ImageNet-normalised crops to ``(B, C, h, w)`` or ``(B, C)``, with ``input_size=S``).
+        **options: the other :class:`Encoder` fields (``dim``: None or ``>= raw_dim`` gives raw
+            features; ``seed`` also seeds ``weights="random"``; ``input_size`` None: the spec's
+            or backbone's default, ``efficientnet_lite0`` 128, ``alexnet_conv3`` 227, ``hog`` 64;
+            in ``roi`` mode it fixes the pooled grid ``n = ceil(input_size / stride)``;
+            ``batch_size``: crops per forward pass and rows per projection matmul;
+            ``antialias``: crop large boxes from an average-pooled pyramid; ``working_size``:
+            ``roi`` mode's long image side, None: 4 x ``input_size``; ``roi_sampling``: ``roi``
+            mode's bilinear samples per cell and axis).
 
     Attributes:
+        spec: the :class:`Encoder` value.
         raw_dim: backbone feature length before projection.
         dim: descriptor length actually produced.
         config: dict describing everything that determines the descriptors (cache key),
             including ``pooling`` and ``weights_sha256`` (the weights' identity by content:
             file sha256, ``"random"``, ``"none"``, or a module's state-dict sha256).
-        kwargs: the constructor arguments (rebuild the encoder, e.g. on a Dask worker).
+        kwargs: the :class:`Encoder` fields (rebuild the encoder, e.g. on a Dask worker).
 
     Raises:
         ValueError: unknown backbone (lists valid names), unknown pooling, bad arguments,
@@ -80,82 +154,52 @@ class LandmarkEncoder:
         WeightsFileError: a weights file cannot be read or does not fit the backbone.
     """
 
-    def __init__(
-        self,
-        backbone: str | nn.Module = "efficientnet_lite0",
-        dim: int | None = PROJECTION_DIM,
-        seed: int = 0,
-        device: str | torch.device = "cpu",
-        pooling: str = "crop",
-        weights: str | os.PathLike | None = None,
-        input_size: int | None = None,
-        batch_size: int = 50,
-        antialias: bool = True,
-        working_size: int | None = None,
-        roi_sampling: int = DEFAULT_ROI_SAMPLING,
-    ) -> None:
+    def __init__(self, encoder: Encoder | str | nn.Module | None = None, **options: Any) -> None:
+        spec = as_encoder(encoder, **options)
+        self.spec = spec
         self.kwargs: dict[str, Any] = {
-            "backbone": backbone,
-            "dim": dim,
-            "seed": seed,
-            "device": str(device),
-            "pooling": pooling,
-            "weights": None if weights is None else str(weights),
-            "input_size": input_size,
-            "batch_size": batch_size,
-            "antialias": antialias,
-            "working_size": working_size,
-            "roi_sampling": roi_sampling,
+            f.name: getattr(spec, f.name) for f in dataclasses.fields(spec)
         }
-        is_module = isinstance(backbone, nn.Module)
-        spec = (
-            type(backbone).__name__
-            if isinstance(backbone, nn.Module)
-            else canonical_backbone(backbone)  # validates name and options first
+        is_module = isinstance(spec.backbone, nn.Module)
+        name = (
+            type(spec.backbone).__name__
+            if isinstance(spec.backbone, nn.Module)
+            else canonical_backbone(spec.backbone)
         )
-        if pooling not in POOLING_MODES:
-            raise ValueError(f"unknown pooling {pooling!r}; valid: {', '.join(POOLING_MODES)}")
-        if dim is not None and int(dim) < 1:
-            raise ValueError(f"dim must be a positive integer or None, got {dim}")
-        if int(batch_size) < 1:
-            raise ValueError(f"batch_size must be >= 1, got {batch_size}")
-        if (working_size is not None and int(working_size) < 32) or int(roi_sampling) < 1:
-            raise ValueError(
-                f"working_size must be >= 32 and roi_sampling >= 1, got "
-                f"{working_size}, {roi_sampling}"
-            )
-        self.device = torch.device(device)
+        self.device = torch.device(spec.device)
         if self.device.type == "cuda" and not torch.cuda.is_available():
-            raise ValueError(f"device={device!r} but torch sees no CUDA GPU; use device='cpu'")
-        self.backbone_name = spec
-        self.seed = int(seed)
-        self.pooling = pooling
-        self.batch_size = int(batch_size)
-        self.antialias = bool(antialias)
-        self.roi_sampling = int(roi_sampling)
+            raise ValueError(f"device={spec.device!r} but torch sees no CUDA GPU; use device='cpu'")
+        self.backbone_name = name
+        self.seed = spec.seed
+        self.pooling = spec.pooling
+        self.batch_size = spec.batch_size
+        self.antialias = spec.antialias
+        self.roi_sampling = spec.roi_sampling
         self.model: Any = cast(
             Any,
             build_backbone(
-                backbone if is_module else spec,
-                input_size=input_size,
-                weights=weights,
+                spec.backbone if is_module else name,
+                input_size=spec.input_size,
+                weights=spec.weights,
                 seed=self.seed,
             ).to(self.device),
         )
-        if pooling == "roi" and getattr(self.model, "stride", None) is None:
+        if self.pooling == "roi" and getattr(self.model, "stride", None) is None:
             raise ValueError(
                 f"pooling='roi' needs a backbone with a spatial feature map of known stride; "
-                f"{spec!r} has none: use pooling='crop' (a module may set a `stride` attribute)"
+                f"{name!r} has none: use pooling='crop' (a module may set a `stride` attribute)"
             )
         self.input_size = int(self.model.input_size)
         self.working_size = (
-            default_working_size(self.input_size) if working_size is None else int(working_size)
+            default_working_size(self.input_size)
+            if spec.working_size is None
+            else spec.working_size
         )
         self.raw_dim = int(self.model.raw_dim)
         self.weights_source = str(self.model.weights_source)
         self._mean = torch.tensor(self.model.mean, dtype=torch.float32, device=self.device)
         self._std = torch.tensor(self.model.std, dtype=torch.float32, device=self.device)
-        self.dim_requested = None if dim is None else int(dim)
+        self.dim_requested = spec.dim
         if self.dim_requested is None or self.dim_requested >= self.raw_dim:
             self.projection: torch.Tensor | None = None
             self.dim = self.raw_dim
@@ -260,7 +304,15 @@ class LandmarkEncoder:
         if len(boxes) == 0:
             return np.zeros((0, self.dim), dtype=np.float32)
         if self.pooling == "crop":
-            return self.encode_crops(self.crops(image, boxes))
+            return self.encode_crops(
+                crop_boxes(
+                    self._image_tensor(image),
+                    boxes,
+                    self.input_size,
+                    self.batch_size,
+                    self.antialias,
+                )
+            )
         with torch.inference_mode():
             raw = self._roi_raw(image, boxes)
             outs = [
@@ -301,8 +353,7 @@ class LandmarkEncoder:
         Same backbone, pooling mode and projection as the landmark descriptors (the ``global``
         method). Args: ``image`` ``(H, W, 3)`` uint8 RGB. Returns: ``(dim,)`` float32.
         """
-        image = check_image(image)
-        h, w = image.shape[:2]
+        h, w = check_image(image).shape[:2]
         return self.encode(image, np.array([[0.0, 0.0, w, h]]))[0]
 
     def _roi_raw(self, image: np.ndarray, boxes: np.ndarray) -> torch.Tensor:
@@ -358,12 +409,3 @@ class LandmarkEncoder:
                 for i in range(0, len(boxes), self.batch_size)
             ]
         return torch.cat(feats).numpy()
-
-
-def default_input_size(backbone: str) -> int:
-    """Default crop side of ``backbone``."""
-    if backbone not in DEFAULT_INPUT_SIZE:
-        raise ValueError(
-            f"unknown backbone {backbone!r}; valid names: {', '.join(available_backbones())}"
-        )
-    return DEFAULT_INPUT_SIZE[backbone]

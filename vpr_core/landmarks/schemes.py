@@ -290,7 +290,8 @@ def check_scheme(scheme: Any) -> Any:
     """Return ``scheme`` if it is a frozen dataclass with a ``boxes(image)`` method.
 
     Raises:
-        TypeError: anything else (the message says what a scheme is).
+        TypeError: anything else (the message says what a scheme is), a field that is not a
+            plain value, a ``version`` that is not a non-empty string.
     """
     params = getattr(type(scheme), "__dataclass_params__", None)
     if (
@@ -303,7 +304,26 @@ def check_scheme(scheme: Any) -> Any:
             f"a landmark scheme must be a frozen dataclass (@dataclass(frozen=True)) with a "
             f"method boxes(self, image) -> (K, 4) array; got {scheme!r}"
         )
+    for f in dataclasses.fields(scheme):
+        if not _plain(getattr(scheme, f.name)):
+            raise TypeError(
+                f"{type(scheme).__name__}: field {f.name} holds a "
+                f"{type(getattr(scheme, f.name)).__name__}; a scheme's fields must be plain "
+                "values (numbers, strings, None, tuples of them: they name the run and key its "
+                "caches), e.g. a tuple instead of an array"
+            )
+    version = getattr(scheme, "version", None)
+    if version is not None and not (isinstance(version, str) and version):
+        raise TypeError(
+            f"{type(scheme).__name__}.version must be a non-empty string, got {version!r}"
+        )
     return scheme
+
+
+def _plain(value: Any) -> bool:
+    if isinstance(value, tuple):
+        return all(map(_plain, value))
+    return value is None or isinstance(value, (str, bool, numbers.Number))
 
 
 def scheme_version(scheme: Any) -> str | None:

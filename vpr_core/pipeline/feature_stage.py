@@ -4,7 +4,6 @@ config (weights by content); new boxes are computed and appended, known ones rea
 
 from __future__ import annotations
 
-import os
 import time
 from functools import lru_cache
 from typing import Any, cast
@@ -15,8 +14,7 @@ from torch import nn
 
 from ..backbones import weights_sha256
 from ..engine import extract_features_distributed
-from ..features import LandmarkEncoder
-from ..paper import PROJECTION_DIM
+from ..features import Encoder, LandmarkEncoder, as_encoder
 from ..utils import cache_dir, code_version, config_slug, progress
 from .cache import SIDES, atomic_savez, load_npz, n_images
 
@@ -24,48 +22,21 @@ __all__ = ["encoder_kwargs", "extract_features", "features_for_image", "get_enco
 
 
 def get_encoder(
-    backbone: str | nn.Module = "efficientnet_lite0",
-    dim: int = PROJECTION_DIM,
-    seed: int = 0,
-    weights: str | os.PathLike | None = None,
-    pooling: str = "crop",
-    device: str = "cpu",
-    input_size: int | None = None,
+    encoder: Encoder | str | nn.Module | None = None, **options: Any
 ) -> LandmarkEncoder:
-    """A :class:`~vpr_core.features.LandmarkEncoder`, shared between calls with the same
-    arguments while the weights file's sha256 (read on every call) is the same; a module
-    backbone gets a fresh encoder (its identity is measured when it is built).
-
-    Args:
-        backbone: a backbone name or spec, or a ``torch.nn.Module`` (then ``input_size`` is
-            required); the rest as :class:`~vpr_core.features.LandmarkEncoder`.
-    """
-    if isinstance(backbone, nn.Module):
-        return LandmarkEncoder(
-            backbone, dim, seed, device, pooling, weights=weights, input_size=input_size
-        )
-    w = None if weights is None else str(weights)
-    sha = weights_sha256(str(backbone), w)
-    size = None if input_size is None else int(input_size)
-    return _cached_encoder(
-        str(backbone), int(dim), int(seed), w, str(pooling), str(device), size, sha
-    )
+    """A :class:`~vpr_core.features.LandmarkEncoder` for an :class:`~vpr_core.features.Encoder`
+    (or a backbone with the other fields as ``**options``), shared between calls with the same
+    value while the weights file's sha256 (read on every call) is the same; a module backbone
+    gets a fresh encoder (its identity is measured when it is built)."""
+    spec = as_encoder(encoder, **options)
+    if isinstance(spec.backbone, nn.Module):
+        return LandmarkEncoder(spec)
+    return _cached_encoder(spec, weights_sha256(spec.backbone, spec.weights))
 
 
 @lru_cache(maxsize=4)
-def _cached_encoder(
-    backbone: str,
-    dim: int,
-    seed: int,
-    weights: str | None,
-    pooling: str,
-    device: str,
-    input_size: int | None,
-    sha256: str,
-) -> LandmarkEncoder:
-    return LandmarkEncoder(
-        backbone, dim, seed, device, pooling, weights=weights, input_size=input_size
-    )
+def _cached_encoder(spec: Encoder, sha256: str) -> LandmarkEncoder:
+    return LandmarkEncoder(spec)
 
 
 get_encoder.cache_clear = _cached_encoder.cache_clear  # type: ignore[attr-defined]

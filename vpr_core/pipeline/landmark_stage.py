@@ -141,13 +141,22 @@ def landmarks_for_image(
 
 
 def _user_boxes(scheme: Any, image: np.ndarray, dataset, side: str, i: int) -> np.ndarray:
-    """A user scheme's boxes of one image, checked once (the message names scheme and image)."""
+    """A user scheme's boxes of one image, checked once: finite ``(K, 4)``, positive width and
+    height, each overlapping the image (the message names the scheme class and the image)."""
+    where = f"{type(scheme).__qualname__}.boxes() on {_image_name(dataset, side, i)}"
     try:
-        return check_boxes(scheme.boxes(image))
-    except ValueError as exc:
+        boxes = check_boxes(scheme.boxes(image), positive=True)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{where}: {exc}") from None
+    h, w = image.shape[:2]
+    x, y, bw, bh = boxes.T
+    outside = np.flatnonzero((x >= w) | (y >= h) | (x + bw <= 0) | (y + bh <= 0))
+    if outside.size:
         raise ValueError(
-            f"{type(scheme).__qualname__}.boxes() on {_image_name(dataset, side, i)}: {exc}"
-        ) from None
+            f"{where}: boxes outside the {w} x {h} image, bad rows: {outside[:10]} (boxes are "
+            "(x, y, w, h) in pixels)"
+        )
+    return boxes
 
 
 def extract_landmarks(scheme: Any, dataset) -> dict[str, Any]:

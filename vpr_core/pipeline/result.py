@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -11,13 +12,13 @@ import numpy as np
 from ..baselines import peer_similarity_for
 from ..datasets.ground_truth import ground_truth_text
 from ..evaluation import (
+    Evaluation,
     bootstrap_metrics,
     evaluate,
     format_interval,
     ground_truth_coverage,
     pr_curve,
 )
-from ..evaluation.bootstrap import N_BOOTSTRAP
 from ..methods import Method, run_key
 from .cache import dataset_fingerprint
 
@@ -146,7 +147,7 @@ class MethodResult:
 
 
 def peer_result(
-    peer, dataset, n_bootstrap: int = N_BOOTSTRAP, label: str | None = None, protocol: str = "ratio"
+    peer, dataset, evaluation: Evaluation | None = None, label: str | None = None, **overrides: Any
 ) -> MethodResult:
     """A VPR-Bench peer (:class:`~vpr_core.baselines.PeerResult`) as a result beside ours.
 
@@ -158,10 +159,12 @@ def peer_result(
     Args:
         peer: a loaded peer (:func:`~vpr_core.baselines.load_vprbench_precomputed`).
         dataset: the :class:`~vpr_core.datasets.PlaceDataset` it was computed on.
-        n_bootstrap: resamples of the metric intervals.
+        evaluation: protocol and bootstrap resamples (as :func:`~vpr_core.pipeline.run_method`;
+            ``protocol=`` and ``n_bootstrap=`` given as keywords change it).
         label: its name in tables and legends (default ``"<name> (VPR-Bench)"``).
-        protocol: the PR protocol of its AUC and R@100P (as :func:`~vpr_core.pipeline.run_method`).
     """
+    evaluation = dataclasses.replace(evaluation or Evaluation(), **overrides)
+    protocol, n_bootstrap = evaluation.protocol, evaluation.n_bootstrap
 
     sim = dataset.ignore_soft(peer_similarity_for(dataset, peer))  # soft: neither right nor wrong
     gt = np.asarray(dataset.ground_truth, dtype=bool)

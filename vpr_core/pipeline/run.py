@@ -12,25 +12,23 @@ from collections.abc import Callable
 from typing import Any, ParamSpec
 
 import numpy as np
-from torch import nn
 
 from ..engine.blocks import similarity_blocks_distributed, similarity_pairs_distributed
 from ..engine.client import get_client
 from ..engine.shortlist import rerank, shortlist_pairs, split_whole_image, with_whole_image_boxes
 from ..evaluation import (
-    PROTOCOLS,
+    Evaluation,
     bootstrap_metrics,
     evaluate,
     ground_truth_coverage,
     saturation_notice,
 )
-from ..evaluation.bootstrap import N_BOOTSTRAP
+from ..features import Encoder
 from ..landmarks.edge_boxes import edge_model_id
 from ..landmarks.schemes import CandidateScheme, LandmarkScheme
 from ..matching import similarity_matrix
-from ..methods import Method, as_method, method_label
+from ..methods import Matching, Method, as_method, method_label
 from ..notices import VPRWarning, notice
-from ..paper import PROJECTION_DIM, SOFT_NMS_SIGMA
 from ..utils import array_sha256, cache_dir, code_version, config_slug, logger
 from .cache import SIDES, atomic_savez, dataset_fingerprint, load_npz, n_images
 from .feature_stage import extract_features, get_encoder
@@ -92,10 +90,7 @@ def _features(boxes: dict, dataset, encoder, shortlist: int | None, client):
 def match(
     boxes: dict[str, Any],
     feats: dict[str, Any],
-    soft_nms_iou: float | None = None,
-    sigma: float = SOFT_NMS_SIGMA,
-    spatial: str | None = None,
-    weighting: str | None = None,
+    matching: Matching | None = None,
     shortlist: int | None = None,
     global_desc: dict[str, np.ndarray] | None = None,
     client=None,
@@ -107,11 +102,8 @@ def match(
     Args:
         boxes: ``{"query": [(K_i, 4)], "reference": [...]}`` landmarks.
         feats: ``{"query": [(K_i, D)], "reference": [...]}`` descriptors.
-        soft_nms_iou, sigma: Algorithm 4 settings.
-        spatial: None (Eq. (1) as the paper) or a geometry-aware re-scoring
-            (:data:`~vpr_core.matching.SPATIAL_OPTIONS`; not in the paper).
-        weighting: None (Eq. (1) as the paper) or a database weighting of its terms
-            (:data:`~vpr_core.matching.WEIGHTING_OPTIONS`; not in the paper).
+        matching: the :class:`~vpr_core.methods.Matching` settings (Algorithm 4, geometry and
+            weighting options); None: Eq. (1) as the paper.
         shortlist: None (exhaustive) or k: Eq. (1) only on each query's top-k references by
             the cosine of ``global_desc``.
         global_desc: ``{"query": (Nq, D'), "reference": (Nr, D')}`` whole-image descriptors
@@ -123,23 +115,16 @@ def match(
         ``pairs`` (image pairs scored by Eq. (1)), ``shortlist_s`` (global ranking seconds) and
         ``matching_s`` (Eq. (1) seconds).
     """
+    matching = matching or Matching()
+    opts = {f.name: getattr(matching, f.name) for f in dataclasses.fields(matching)}
     args = (feats["query"], boxes["query"], feats["reference"], boxes["reference"])
     nq, nr = len(feats["query"]), len(feats["reference"])
     t0 = time.perf_counter()
     if shortlist is None:
         if client is None:
-            sim = similarity_matrix(
-                *args, soft_nms_iou=soft_nms_iou, sigma=sigma, spatial=spatial, weighting=weighting
-            )
+            sim = similarity_matrix(*args, **opts)
         else:
-            sim = similarity_blocks_distributed(
-                client,
-                *args,
-                soft_nms_iou=soft_nms_iou,
-                sigma=sigma,
-                spatial=spatial,
-                weighting=weighting,
-            )
+            sim = similarity_blocks_distributed(client, *args, **opts)
         return sim, {
             "pairs": float(nq * nr),
             "shortlist_s": 0.0,
@@ -150,15 +135,7 @@ def match(
 
     pairs, _ = shortlist_pairs(global_desc["query"], global_desc["reference"], shortlist)
     t1 = time.perf_counter()
-    vals = similarity_pairs_distributed(
-        client,
-        *args,
-        pairs,
-        soft_nms_iou=soft_nms_iou,
-        sigma=sigma,
-        spatial=spatial,
-        weighting=weighting,
-    )  # client None: one similarity_pairs call
+    vals = similarity_pairs_distributed(client, *args, pairs, **opts)  # None: in-process
     sim = rerank(vals, pairs, nq, nr)
     t2 = time.perf_counter()
     logger.info(
@@ -191,38 +168,53 @@ def _records_warnings(run: Callable[P, MethodResult]) -> Callable[P, MethodResul
     return wrapper
 
 
+def _values(
+    method: Any, encoder: Encoder | None, evaluation: Evaluation | None, overrides: dict
+) -> tuple[Method, Encoder, Evaluation]:
+    """``run_method``'s arguments parsed once into its three values: the keyword overrides
+    that are :class:`~vpr_core.features.Encoder` or :class:`~vpr_core.evaluation.Evaluation`
+    fields change those values (given or default); the rest are the method's options."""
+    parts: dict[type, dict[str, Any]] = {Encoder: {}, Evaluation: {}}
+    for cls, found in parts.items():
+        names = {f.name for f in dataclasses.fields(cls)}
+        found.update({k: overrides.pop(k) for k in list(overrides) if k in names})
+    return (
+        as_method(method, **overrides),
+        dataclasses.replace(encoder or Encoder(), **parts[Encoder]),
+        dataclasses.replace(evaluation or Evaluation(), **parts[Evaluation]),
+    )
+
+
 @_records_warnings
 def run_method(
     method: str | Method | LandmarkScheme,
     dataset,
-    backbone: str | nn.Module = "efficientnet_lite0",
-    dim: int = PROJECTION_DIM,
-    seed: int = 0,
-    weights: str | None = None,
-    keep_descriptors: bool = False,
-    label: str | None = None,
-    pooling: str = "crop",
-    device: str = "cpu",
+    *,
+    encoder: Encoder | None = None,
+    evaluation: Evaluation | None = None,
     shortlist: int | None = None,
     scheduler: str | None = None,
-    n_bootstrap: int = N_BOOTSTRAP,
-    protocol: str = "ratio",
-    input_size: int | None = None,
+    label: str | None = None,
+    keep_descriptors: bool = False,
     **overrides: Any,
 ) -> MethodResult:
     """Run a method on a dataset: landmarks -> features -> Eq. (1) matrix -> metrics, cached.
 
+    A run is three values, parsed and checked here before any work: the
+    :class:`~vpr_core.methods.Method`, the :class:`~vpr_core.features.Encoder` and the
+    :class:`~vpr_core.evaluation.Evaluation`; the stages receive them.
+
     Args:
-        method: a preset name (``classical``, ``dense``, ``global``, ...) with its options as
-            ``**overrides``, a :class:`~vpr_core.methods.Method`, or a bare landmark scheme (any
-            frozen dataclass with ``boxes(image)``; see :func:`~vpr_core.methods.as_method`).
+        method: a preset name (``classical``, ``dense``, ``global``, ...), a
+            :class:`~vpr_core.methods.Method`, or a bare landmark scheme (any frozen dataclass
+            with ``boxes(image)``; see :func:`~vpr_core.methods.as_method`).
         dataset: a :class:`~vpr_core.datasets.PlaceDataset`.
-        backbone, dim, seed, weights, pooling, device, input_size: the landmark encoder
-            (:func:`~vpr_core.pipeline.get_encoder`; ``backbone`` may be a ``torch.nn.Module``,
-            then with its ``input_size``; ``pooling="crop"`` is the paper's per-landmark crops,
-            ``"roi"`` one backbone pass).
-        keep_descriptors: also return the descriptors (needed by the scale statistics).
-        label: display label; default from the config.
+        encoder: the landmark encoder (default ``Encoder()``: ``efficientnet_lite0``, ``crop``
+            pooling, the paper's projection); ``backbone=``, ``weights=``, ``pooling=``,
+            ``input_size=``, ``device=``, ``dim=``, ``seed=`` given as keywords change it.
+        evaluation: the PR protocol and bootstrap resamples (default ``Evaluation()``: the
+            paper's ``ratio`` protocol, ``N_BOOTSTRAP`` resamples); ``protocol=`` and
+            ``n_bootstrap=`` given as keywords change it. R@K is protocol-free.
         shortlist: None (exhaustive, the paper's) or k: each query's top-k references by the
             cosine of whole-image descriptors (same backbone and pooling) are re-ranked by
             Eq. (1); all other pairs are NaN ("not ranked"; the ratio protocol's S2 is the
@@ -230,35 +222,29 @@ def run_method(
         scheduler: a Dask scheduler address: features and matching run as tasks on that
             cluster; None: in-process, always (the environment is not read here: the CLI reads
             ``$VPR_DASK_SCHEDULER`` through :func:`vpr_core.settings.dask_scheduler`).
-        n_bootstrap: resamples of the metric intervals.
-        protocol: the PR protocol of AUC and R@100P (:data:`vpr_core.evaluation.PROTOCOLS`:
-            ``ratio``, the paper's, ``best_match`` as VPR_Tutorial, ``vpr_bench`` as VPR-Bench,
-            ``multi_match``); R@K is protocol-free.
-        **overrides: the method's own options, e.g. ``iou_threshold=0.4``; an option the
-            method does not take is an error.
+        label: display label; default from the config.
+        keep_descriptors: also return the descriptors (needed by the scale statistics).
+        **overrides: the encoder and evaluation fields above, and the method's own options,
+            e.g. ``iou_threshold=0.4``; an option the method does not take is an error.
 
     Returns:
         A :class:`MethodResult`; ``.warnings`` lists every warning of the run that changes what
         its numbers mean (each also raised as a :class:`~vpr_core.notices.VPRWarning`).
     """
-    if protocol not in PROTOCOLS:
-        raise ValueError(f"unknown protocol {protocol!r}; valid: {', '.join(PROTOCOLS)}")
-
-    conf = as_method(method, **overrides)
+    conf, spec, evaluation = _values(method, encoder, evaluation, overrides)
+    protocol = evaluation.protocol
     nq, nr = n_images(dataset, "query"), n_images(dataset, "reference")
     k = _check_shortlist(shortlist, nr)
-    encoder = get_encoder(
-        backbone, dim, seed, weights, pooling=pooling, device=device, input_size=input_size
-    )
+    landmark_encoder = get_encoder(spec)
     fingerprint = dataset_fingerprint(dataset)
-    weights_sha256 = str(encoder.config.get("weights_sha256", ""))
+    weights_sha256 = str(landmark_encoder.config.get("weights_sha256", ""))
     edge_model = edge_model_id() if isinstance(conf.landmarks, CandidateScheme) else "none"
     client = None
     if scheduler is not None:
         client = get_client(scheduler)
     try:
         boxes = extract_landmarks(conf.landmarks, dataset)
-        feats, glob = _features(boxes, dataset, encoder, k, client)
+        feats, glob = _features(boxes, dataset, landmark_encoder, k, client)
         # keyed by what goes in: the boxes and descriptors (content), the Matching value
         inputs = [
             a for side in SIDES for pair in zip(boxes[side], feats[side], strict=True) for a in pair
@@ -293,10 +279,7 @@ def run_method(
             sim, info = match(
                 boxes,
                 feats,
-                soft_nms_iou=conf.matching.soft_nms_iou,
-                sigma=conf.matching.sigma,
-                spatial=conf.matching.spatial,
-                weighting=conf.matching.weighting,
+                conf.matching,
                 shortlist=k,
                 global_desc=glob,
                 client=client,
@@ -317,9 +300,8 @@ def run_method(
     sim = dataset.ignore_soft(sim)  # soft positives: neither right nor wrong, in every metric
     gt = np.asarray(dataset.ground_truth, dtype=bool)
     metrics = evaluate(sim, gt, protocol=protocol)
-    intervals = (
-        bootstrap_metrics(sim, gt, n=n_bootstrap, seed=0, protocol=protocol) if n_bootstrap else {}
-    )
+    n_boot = evaluation.n_bootstrap
+    intervals = bootstrap_metrics(sim, gt, n=n_boot, seed=0, protocol=protocol) if n_boot else {}
     saturation_notice(gt, intervals)
     n_img = nq + nr
     timings = {
@@ -349,7 +331,7 @@ def run_method(
         label=label or method_label(conf),
         dataset=dataset.name,
         config=conf,
-        encoder=dict(encoder.config),
+        encoder=dict(landmark_encoder.config),
         similarity=sim,
         ground_truth=gt,
         boxes={s: boxes[s] for s in SIDES},
