@@ -489,3 +489,31 @@ def test_a_shortlist_coverage_figure_says_it_equals_the_exhaustive_one(tiny_synt
     fig, _ = plot_coverage_comparison(tiny_synthetic, [run(None)], index=0)
     assert "shortlist" not in fig._suptitle.get_text()
     plt.close("all")
+
+
+# 6. The disagreements figure -----------------------------------------------------------------
+
+
+def test_disagreements_draw_the_deciding_matches_and_label_rows_and_columns(tiny_synthetic):
+    from matplotlib.patches import Rectangle
+
+    from vpr_core.pipeline import run_method
+    from vpr_core.viz import plot_disagreements
+    from vpr_core.viz.disagreements import TOP_TERMS
+
+    runs = [run_method(m, tiny_synthetic, keep_descriptors=True) for m in ("dense", "classical")]
+    fig, table = plot_disagreements(tiny_synthetic, *runs, n=3)
+    assert "ratio (lower = more confident)" in table.columns
+    titles = [ax.get_title() for ax in fig.axes]
+    assert titles[0].startswith("[dense] query | its top-1 reference")
+    assert titles[1].startswith("[classical] query | its top-1 reference")
+    assert titles[2].startswith("[correct] reference") and "QUERY" in titles[2]
+    assert all("QUERY" in t for t in titles[2::3])  # every row names its query
+    wrong = [t for t in titles if ": wrong: reference " in t]
+    assert wrong and all(re.search(r"wrong: reference \d+, \d+ frames? away", t) for t in wrong)
+    assert "all wrong (another place)" not in " ".join(t.split("\n")[0] for t in titles)
+    for ax in [a for i, a in enumerate(fig.axes) if i % 3 != 2]:
+        boxes = [p for p in ax.patches if isinstance(p, Rectangle)]
+        assert len(boxes) <= 2 * TOP_TERMS  # the few largest terms, not 50-100 boxes
+        assert f"the {min(TOP_TERMS, len(boxes) // 2)} largest terms drawn" in ax.get_title()
+    plt.close("all")

@@ -3,6 +3,7 @@ and the correct reference (the figure of :func:`~vpr_core.evaluation.per_query`)
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import matplotlib
@@ -13,6 +14,7 @@ import pandas as pd
 from ..datasets.ground_truth import ground_truth_references
 from ..evaluation import per_query
 from ..labels import pair_matches
+from ..matching import match_landmarks
 from ..pipeline.cache import dataset_fingerprint
 from .curves import dataset_line
 from .matches import plot_labelled_matches
@@ -20,23 +22,40 @@ from .matches import plot_labelled_matches
 __all__ = ["plot_disagreements"]
 
 
-def _panel_title(row: pd.Series, pm: Any) -> str:
-    """``"dense: top-1 r4 wrong, first correct rank 4, ratio 0.96"`` and a line on the matches."""
+#: Matches drawn per pair: the largest Eq. (1) terms, the ones that decided the score.
+TOP_TERMS = 5
+
+
+def _verdict(row: pd.Series, refs: list[int], frames: bool) -> str:
+    """``"correct: reference 4"`` or ``"wrong: reference 17, 3 frames away"`` (frame-aligned
+    data; else the correct references)."""
+    r = int(row["top-1"])
+    if row["top-1 correct"]:
+        return f"correct: reference {r}"
+    if frames and refs:
+        away = min(abs(r - c) for c in refs)
+        return f"wrong: reference {r}, {away} frame{'s' if away != 1 else ''} away"
+    return f"wrong: reference {r} (correct: {', '.join(map(str, refs[:3]))})"
+
+
+def _panel_title(row: pd.Series, pm: Any, top: np.ndarray, verdict: str) -> str:
+    """Three lines: the verdict, the rank and ratio, the matches drawn."""
     rank = row["first correct rank"]
-    verdict = "correct" if row["top-1 correct"] else "wrong"
     head = (
-        f"{row['run']}: top-1 r{row['top-1']} {verdict}, first correct rank "
-        f"{'-' if pd.isna(rank) else rank}, ratio {row['ratio']:.2f}"
+        f"{row['run']}: {verdict}\nfirst correct rank {'-' if pd.isna(rank) else rank}, "
+        f"ratio {row['ratio']:.2f} (lower = more confident)"
     )
+    drawn = f"{len(pm.matches)} matches, the {len(top)} largest terms drawn"
     if pm.labels is None:
-        return f"{head}\n{len(pm.matches)} matches (unlabelled: no verified pair geometry)"
+        return f"{head}\n{drawn} (unlabelled: no verified pair geometry)"
     if not pm.ground_truth:
-        return f"{head}\n{len(pm.matches)} matches, all wrong (another place)"
-    return f"{head}\n{len(pm.matches)} matches: {int(pm.labels.sum())} correct (green)"
+        return f"{head}\n{drawn}: all wrong (another place)"
+    return f"{head}\n{drawn}: {int(pm.labels[top].sum())} correct (green)"
 
 
-def _run_panel(ax, ds, run: Any, row: pd.Series, img_q: np.ndarray) -> None:
-    """One run's top-1 pair of query ``row["query"]`` with its labelled matches."""
+def _run_panel(ax, ds, run: Any, row: pd.Series, img_q: np.ndarray, frames: bool) -> None:
+    """One run's top-1 pair of query ``row["query"]`` (query left, reference right) with the
+    :data:`TOP_TERMS` matches of largest Eq. (1) term, labelled."""
     q = int(row["query"])
     if pd.isna(row["top-1"]):
         ax.imshow(img_q)
@@ -45,16 +64,20 @@ def _run_panel(ax, ds, run: Any, row: pd.Series, img_q: np.ndarray) -> None:
         return
     r = int(row["top-1"])
     pm = pair_matches(ds, run, q, r)
+    d, b = run.descriptors, run.boxes
+    terms = match_landmarks(d["query"][q], b["query"][q], d["reference"][r], b["reference"][r])
+    top = np.argsort(-terms.scores, kind="stable")[:TOP_TERMS]
+    refs = ground_truth_references(np.asarray(ds.ground_truth, dtype=bool), q)
     plot_labelled_matches(
         img_q,
         ds.load_image("reference", r),
-        run.boxes["query"][q],
-        run.boxes["reference"][r],
-        pm.matches,
-        pm.labels,
+        b["query"][q],
+        b["reference"][r],
+        pm.matches[top],
+        None if pm.labels is None else pm.labels[top],
         ax=ax,
-        lw=0.6,
-        title=_panel_title(row, pm),
+        lw=1.2,
+        title=_panel_title(row, pm, top, _verdict(row, refs, frames)),
     )
     ax.title.set_fontsize(8)
     ax.title.set_color("darkgreen" if row["top-1 correct"] else "firebrick")
@@ -63,9 +86,11 @@ def _run_panel(ax, ds, run: Any, row: pd.Series, img_q: np.ndarray) -> None:
 def plot_disagreements(
     ds: Any, run_a: Any, run_b: Any, n: int = 6
 ) -> tuple[matplotlib.figure.Figure, pd.DataFrame]:
-    """Queries where two runs decide differently: the query and each run's top-1 side by side
-    with the matched landmarks (green correct, red wrong, yellow unlabelled; labels from
-    :func:`~vpr_core.labels.label_matches`, method ``auto``), and the correct reference.
+    """Queries where two runs decide differently: per row (a query, named in the last column),
+    the query and each run's top-1 side by side with the :data:`TOP_TERMS` matches of largest
+    Eq. (1) term, the ones that decided the score (green correct, red wrong, yellow unlabelled;
+    labels from :func:`~vpr_core.labels.label_matches`, method ``auto``), and the correct
+    reference; a wrong top-1 says which reference it matched and how many frames away.
 
     Args:
         ds: the runs' :class:`~vpr_core.datasets.PlaceDataset`.
@@ -76,7 +101,7 @@ def plot_disagreements(
 
     Returns:
         ``(figure, table)``: ``table`` is :func:`~vpr_core.evaluation.per_query` of the two runs
-        on the queries shown.
+        on the queries shown (its ``ratio`` column named ``ratio (lower = more confident)``).
 
     Raises:
         ValueError: ``n < 1``, runs without descriptors, or runs of another dataset.
@@ -99,8 +124,11 @@ def plot_disagreements(
     table = full[full["query"].isin(shown)].reset_index(drop=True)
     n_disagree = full.loc[full["disagree"], "query"].nunique()
     gt = np.asarray(ds.ground_truth, dtype=bool)
+    frames = run_a.tolerance is not None and not getattr(run_a, "ground_truth_from_file", False)
+    columns = [f"[{r.label}] query | its top-1 reference" for r in (run_a, run_b)]
+    columns.append("[correct] reference")
     h, w = ds.load_image("query", shown[0]).shape[:2]
-    row_h = 5.2 * h / (2 * w) + 0.55  # a pair panel is 2/5 of 14 in wide, plus its 2-line title
+    row_h = 5.2 * h / (2 * w) + 1.0  # a pair panel is 2/5 of 14 in wide, plus its 3-line title
     fig, axes = plt.subplots(
         len(shown),
         3,
@@ -112,17 +140,23 @@ def plot_disagreements(
         img_q = ds.load_image("query", q)
         rows = table[table["query"] == q]
         for ax, run, (_, row) in zip(axrow[:2], (run_a, run_b), rows.iterrows(), strict=True):
-            _run_panel(ax, ds, run, row, img_q)
+            _run_panel(ax, ds, run, row, img_q, frames)
         ref = ground_truth_references(gt, q)[0]
         axrow[2].imshow(ds.load_image("reference", ref))
         axrow[2].set_axis_off()
-        agree = "" if rows["disagree"].iloc[0] else " (the runs agree)"
-        axrow[2].set_title(f"query {q}{agree}: correct reference r{ref}", fontsize=8)
+        agree = "the runs agree" if not rows["disagree"].iloc[0] else "the runs disagree"
+        name = Path(str(ds.query_paths[q])).name if len(ds.query_paths) > q else ""
+        axrow[2].set_title(
+            f"QUERY {q}{f' ({name})' if name else ''}\n{agree}\ncorrect reference {ref}",
+            fontsize=8,
+        )
+    for ax, head in zip(axes[0], columns, strict=True):  # column headers over the first row
+        ax.set_title(f"{head}\n{ax.get_title()}", fontsize=8, color=ax.title.get_color())
     fig.suptitle(
         f"Where {run_a.label} wins and where it loses against {run_b.label}: {n_disagree} of "
         f"{full['query'].nunique()} queries disagree (top-1 correct in one run only; "
-        f"{len(shown)} shown, disagreements first)\n{dataset_line([run_a])}; matches: green "
-        "correct, red wrong, yellow unlabelled",
+        f"{len(shown)} shown, disagreements first)\n{dataset_line([run_a])}; the {TOP_TERMS} "
+        "matches with the largest Eq. (1) terms: green correct, red wrong, yellow unlabelled",
         fontsize=9,
         x=0.01,
         y=0.995,
@@ -130,4 +164,4 @@ def plot_disagreements(
         va="top",
     )
     fig.tight_layout(rect=(0, 0, 1, 1 - 0.4 / fig.get_figheight()), h_pad=1.0)
-    return fig, table
+    return fig, table.rename(columns={"ratio": "ratio (lower = more confident)"})
