@@ -13,7 +13,7 @@ import pytest
 from vpr_core.baselines import PRECOMPUTED_FILE, find_vprbench_peers, peer_from_matrix
 from vpr_core.datasets import load_dataset
 from vpr_core.evaluation import compare
-from vpr_core.pipeline import peer_result
+from vpr_core.pipeline import peer_result, run_method
 from vpr_core.utils import csv_safe, read_rows, write_rows
 from vpr_core.viz.base import save_all
 
@@ -400,6 +400,26 @@ def test_soft_positives_are_neither_right_nor_wrong_in_every_metric(tmp_path):
     assert per_query(result)["top-1 correct"].all()
 
 
+def test_chance_levels_leave_soft_only_references_out(tmp_path):
+    """A random ranking draws each query's top-1 from the 7 references that are not soft-only
+    (the evaluation ranks its soft-only one last): R@1 1/7, not 1/8; R@5 5/7, not 5/8."""
+    from vpr_core.evaluation import chance
+    from vpr_core.evaluation.compare import CHANCE_ROW, compact
+
+    ds = _utm_soft(tmp_path)
+    gt, soft = ds.ground_truth, ds.ground_truth_soft
+    assert chance(gt)["r@1"] == pytest.approx(1 / 8)  # without soft ground truth: unchanged
+    level = chance(gt, soft=soft)
+    assert level["r@1"] == pytest.approx(1 / 7) and level["r@5"] == pytest.approx(5 / 7)
+    result = peer_result(peer_from_matrix(np.eye(4, 8), "soft"), ds, n_bootstrap=0)
+    assert result.soft_only.sum() == 4
+    table = compare([result], n_bootstrap=0)
+    assert table["R@1 chance"].iloc[0] == pytest.approx(1 / 7)
+    assert table["R@5 chance"].iloc[0] == pytest.approx(5 / 7)
+    row = compact(table).loc[CHANCE_ROW]
+    assert row["R@1"] == "0.143" and row["R@5"] == "0.714"  # the CLI's chance row
+
+
 # ------------------------------------------------------------------------------------------
 # 32.6-32.8 crashes and silent answers that become clear errors
 # ------------------------------------------------------------------------------------------
@@ -474,6 +494,27 @@ def test_huge_n_bootstrap_is_refused_before_the_work(capsys):
     err = capsys.readouterr().err
     assert rc == 2 and "--n-bootstrap 100000000" in err and "GB" in err, err
     assert time.monotonic() - start < 20
+
+
+def test_huge_n_bootstrap_is_refused_by_the_library_before_the_work(tiny_synthetic, monkeypatch):
+    """The same estimate as the CLI's (one home: evaluation.spec), at run_method's top: 96 bytes
+    per resample, 9.6 GB for 1e8, over half of 8 GB free (pinned: the machine's may differ)."""
+    import os
+    import time
+
+    from vpr_core.evaluation import Evaluation
+
+    page = os.sysconf("SC_PAGE_SIZE")
+    free = {"SC_AVPHYS_PAGES": 8_000_000_000 // page, "SC_PAGE_SIZE": page}
+    monkeypatch.setattr(os, "sysconf", lambda name: free[name])
+    most = f"{int(free['SC_AVPHYS_PAGES'] * page / 2 / 96):,}"
+    start = time.monotonic()
+    with pytest.raises(ValueError, match=rf"n_bootstrap 100000000: .*9\.6 GB .*use at most {most}"):
+        run_method("dense", tiny_synthetic, backbone="hog", n_bootstrap=100_000_000)
+    with pytest.raises(ValueError, match=r"n_bootstrap 100000000: .*9\.6 GB"):
+        Evaluation(n_bootstrap=100_000_000)
+    assert Evaluation(n_bootstrap=1000).n_bootstrap == 1000
+    assert time.monotonic() - start < 3
 
 
 def test_jpeg_with_random_bytes_in_its_scan_data_is_refused(tmp_path, gardens_point_mini_root):

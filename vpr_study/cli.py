@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import errno
 import itertools
-import os
 import shutil
 import signal
 import sys
@@ -32,6 +31,7 @@ from vpr_core.datasets import DATASETS, load_dataset
 from vpr_core.datasets.ground_truth import ground_truth_text
 from vpr_core.evaluation import compact_text, compare, compare_pairs, ground_truth_coverage
 from vpr_core.evaluation.curves import PROTOCOLS
+from vpr_core.evaluation.spec import check_bootstrap_memory
 from vpr_core.matching import SPATIAL_OPTIONS, WEIGHTING_OPTIONS
 from vpr_core.methods import available_methods
 from vpr_core.paper import PROJECTION_DIM
@@ -282,27 +282,8 @@ def eval_stem(args: argparse.Namespace, label: str) -> str:
     return "".join(c if c.isalnum() or c in "-_.+=" else "_" for c in stem)
 
 
-#: Bytes the bootstrap keeps per resample: 4 metrics (float64) as values, their concatenation
-#: and the percentile's copy (evaluation.bootstrap).
-BOOTSTRAP_BYTES_PER_RESAMPLE = 4 * 8 * 3
-
-
-def _check_bootstrap_memory(n: int) -> None:
-    """Refuse ``--n-bootstrap`` whose resamples would not fit in half the available memory
-    (estimated before any work; numpy failed after minutes)."""
-    need = n * BOOTSTRAP_BYTES_PER_RESAMPLE
-    avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    if need > avail / 2:
-        most = int(avail / 2 / BOOTSTRAP_BYTES_PER_RESAMPLE)
-        raise ValueError(
-            f"--n-bootstrap {n}: the resampled metrics need about {need / 1e9:.1f} GB of memory, "
-            f"more than half of the {avail / 1e9:.1f} GB available; use at most {most:,} "
-            "(1000, the default, gives 95% intervals to about +-0.01)"
-        )
-
-
 def cmd_eval(args: argparse.Namespace) -> int:
-    _check_bootstrap_memory(args.n_bootstrap)
+    check_bootstrap_memory(args.n_bootstrap, "--n-bootstrap")
     tune_allocator()  # process-wide, here at the boundary: crop features ~1.7x faster
     dataset = load_dataset(args.dataset, root=args.root, **_dataset_options(args))
     label = paths.check_label(args.label or dataset.name)

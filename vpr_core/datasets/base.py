@@ -147,6 +147,14 @@ class PlaceDataset:
             self._keys[key] = file_fingerprint(path)
         return self._keys[key]
 
+    @property
+    def soft_only(self) -> np.ndarray | None:
+        """``(Nq, Nr)`` bool: the pairs in ``ground_truth_soft`` but not in ``ground_truth``
+        (neither right nor wrong); None without soft ground truth."""
+        if self.ground_truth_soft is None:
+            return None
+        return self.ground_truth_soft & ~self.ground_truth
+
     def ignore_soft(self, similarity: np.ndarray) -> np.ndarray:
         """``similarity (Nq, Nr)`` with soft-only pairs set to its minimum (VPR_Tutorial's rule).
 
@@ -158,7 +166,7 @@ class PlaceDataset:
             return similarity
         out = np.array(similarity, dtype=np.float64)
         if not np.isnan(out).all():  # NaN (unranked) pairs stay NaN
-            out[self.ground_truth_soft & ~self.ground_truth] = np.nanmin(out)
+            out[self.soft_only] = np.nanmin(out)
         return out
 
     def subset(self, n: int) -> PlaceDataset:

@@ -39,41 +39,64 @@ CHANCE_RANKINGS = 1000
 CHANCE_CHECKED = ("auc", "r@1")
 
 
-def _chance_recall(gt: np.ndarray, k: int) -> float:
+def _soft_only(gt: np.ndarray, soft: np.ndarray | None) -> np.ndarray:
+    """The pairs of ``soft`` (soft ground truth) outside ``gt``: neither right nor wrong."""
+    return np.zeros(gt.shape, bool) if soft is None else np.asarray(soft, dtype=bool) & ~gt
+
+
+def _chance_recall(gt: np.ndarray, k: int, soft: np.ndarray | None = None) -> float:
     """Exact R@k of a random ranking: mean of ``1 - C(Nr - c, k) / C(Nr, k)`` over queries with
-    ground truth (``c`` correct references each)."""
-    nr = gt.shape[1]
-    k = min(k, nr)  # a list longer than the references holds them all
+    ground truth (``c`` correct references each; ``Nr`` without the query's soft-only ones,
+    which the evaluation ranks last)."""
+    nr = gt.shape[1] - _soft_only(gt, soft).sum(axis=1)
     counts = gt.sum(axis=1)
-    counts = counts[counts > 0]
-    miss = {c: math.comb(nr - c, k) / math.comb(nr, k) for c in np.unique(counts).tolist()}
-    return float(np.mean([1.0 - miss[c] for c in counts.tolist()]))
+    kept = counts > 0
+    pairs = list(zip(nr[kept].tolist(), counts[kept].tolist(), strict=True))
+
+    def miss(n: int, c: int) -> float:
+        kk = min(k, n)  # a list longer than the references holds them all
+        return math.comb(n - c, kk) / math.comb(n, kk)
+
+    table = {pair: miss(*pair) for pair in set(pairs)}
+    return float(np.mean([1.0 - table[pair] for pair in pairs]))
 
 
-def chance_precision(ground_truth: np.ndarray, protocol: str = "ratio") -> float:
+def _p_correct(gt: np.ndarray, soft_only: np.ndarray, protocol: str) -> np.ndarray:
+    """Each counted query's chance ``c / Nr`` that a random top-1 is correct (``Nr`` without
+    its soft-only references; ``vpr_bench``: every query, else those with ground truth)."""
+    rows = np.ones(gt.shape[0], bool) if protocol == "vpr_bench" else gt.any(axis=1)
+    nr = gt.shape[1] - soft_only[rows].sum(axis=1)
+    return gt[rows].sum(axis=1) / np.maximum(nr, 1)
+
+
+def chance_precision(
+    ground_truth: np.ndarray, protocol: str = "ratio", soft: np.ndarray | None = None
+) -> float:
     """The precision a random ranking keeps at every recall (the flat PR curve of chance).
 
     The share of decisions that are correct: ``c / Nr`` averaged over the counted queries
     (``vpr_bench``: every query; ``ratio`` / ``best_match``: those with ground truth), the share
-    of ground-truth pairs for ``multi_match``.
+    of ground-truth pairs for ``multi_match``. ``soft``: the soft ground truth, whose pairs
+    outside ``ground_truth`` are neither right nor wrong (left out of ``Nr``).
     """
     gt = np.asarray(ground_truth, dtype=bool)
+    soft_only = _soft_only(gt, soft)
     if protocol == "multi_match":
-        return float(gt.mean())
-    rows = gt if protocol == "vpr_bench" else gt[gt.any(axis=1)]
-    return float(rows.mean(axis=1).mean()) if rows.size else float("nan")
+        return float(gt.sum() / max(gt.size - soft_only.sum(), 1))
+    p = _p_correct(gt, soft_only, protocol)
+    return float(p.mean()) if p.size else float("nan")
 
 
-def _chance_multi_match(gt: np.ndarray) -> tuple[float, float]:
+def _chance_multi_match(gt: np.ndarray, n: int) -> tuple[float, float]:
     """Exact expected ``(AUC, R@100P)`` of ``multi_match`` when the pairs come in random order.
 
     ``P`` ground-truth pairs of ``N``: the ``k``-th positive at 1-based position ``X_k`` adds a
     trapezoid of width ``1/P`` between precisions ``(k - 1) / (X_k - 1)`` (1 for ``X_1 = 1``)
     and ``k / X_k``; summing the expectations over positions gives
     ``(P + H_N + (P - 1)(N - H_N) / (N - 1)) / (2N)``. R@100P: ``E = (1/P) sum_k P(first k
-    pairs all positive)``.
+    pairs all positive)``. ``n``: the pairs counted (soft-only ones left out).
     """
-    n, pos = gt.size, int(gt.sum())
+    pos = int(gt.sum())
     harmonic = float(np.sum(1.0 / np.arange(1, n + 1)))
     rest = (pos - 1) * (n - harmonic) / (n - 1) if n > 1 else 0.0
     auc = (pos + harmonic + rest) / (2 * n)
@@ -88,6 +111,7 @@ def chance(
     ks: Sequence[int] = (1, 5),
     n: int = CHANCE_RANKINGS,
     seed: int = 0,
+    soft: np.ndarray | None = None,
 ) -> dict[str, float]:
     """Each table metric under a random ranking of the same ground truth (its chance level);
     exact values, printed rounded (:class:`ChanceLevels`).
@@ -103,6 +127,10 @@ def chance(
         ks: the K of R@K.
         n: random rankings of the per-query protocols (>= 1).
         seed: their seed (same seed, same values).
+        soft: optional ``(Nq, Nr)`` bool soft ground truth (the dataset's
+            ``ground_truth_soft``): its pairs outside ``ground_truth`` are neither right nor
+            wrong, so a random ranking draws from the other references (the evaluation ranks
+            them last).
 
     Returns:
         ``{"auc", "r@100p", "r@K"...}`` (the keys of :func:`evaluate`), a :class:`ChanceLevels`.
@@ -116,11 +144,16 @@ def chance(
         raise ValueError(f"n (random rankings) and every k must be >= 1, got n={n}, ks={ks}")
     gt = _check(np.zeros(np.shape(ground_truth)), ground_truth)[1]
     _kept_queries(np.zeros(gt.shape), gt, warn=False)  # raises without ground truth
+    if soft is not None and np.shape(soft) != gt.shape:
+        raise ValueError(
+            f"soft must be a bool matrix of shape {gt.shape} like the ground truth, got "
+            f"{np.shape(soft)}; pass the dataset's ground_truth_soft"
+        )
+    soft_only = _soft_only(gt, soft)
     if protocol == "multi_match":
-        auc, r100p = _chance_multi_match(gt)
+        auc, r100p = _chance_multi_match(gt, int(gt.size - soft_only.sum()))
     else:
-        rows = np.ones(gt.shape[0], bool) if protocol == "vpr_bench" else gt.any(axis=1)
-        p_correct = gt[rows].mean(axis=1)
+        p_correct = _p_correct(gt, soft_only, protocol)
         rng = np.random.default_rng(seed)
         values = []
         for _ in range(int(n)):
@@ -130,7 +163,7 @@ def chance(
         auc, r100p = (float(v) for v in np.mean(values, axis=0))
     out = ChanceLevels(auc=auc, **{"r@100p": r100p})
     for k in ks:
-        out[f"r@{int(k)}"] = _chance_recall(gt, int(k))
+        out[f"r@{int(k)}"] = _chance_recall(gt, int(k), soft_only)
     return out
 
 
@@ -150,6 +183,7 @@ def saturation_notice(
     ground_truth: np.ndarray,
     intervals: Mapping | Sequence[Mapping] | None = None,
     protocol: str = "ratio",
+    soft: np.ndarray | None = None,
 ) -> str | None:
     """Warn (:func:`~vpr_core.notices.notice`) when the ground truth makes the metrics meaningless.
 
@@ -164,6 +198,7 @@ def saturation_notice(
         intervals: one run's ``{"auc": (value, lo, hi), ...}`` (:func:`bootstrap_metrics`), or a
             sequence of them (the runs being compared).
         protocol: the protocol of the intervals' AUC.
+        soft: optional soft ground truth (as :func:`chance`).
 
     Returns:
         The message, or None when the metrics are not saturated.
@@ -171,7 +206,7 @@ def saturation_notice(
     gt = np.asarray(ground_truth, dtype=bool)
     if not gt.any():
         return None
-    share = _chance_recall(gt, 1)
+    share = _chance_recall(gt, 1, soft)
     if share >= SATURATION_SHARE:
         return notice(
             f"saturated ground truth: on average {share:.0%} of the {gt.shape[1]} "
@@ -190,7 +225,7 @@ def saturation_notice(
         )
     if isinstance(intervals, Mapping) or not runs:
         return None
-    level = chance(gt, protocol, ks=(1,))
+    level = chance(gt, protocol, ks=(1,), soft=soft)
     at_chance = [
         key
         for key in CHANCE_CHECKED

@@ -186,8 +186,9 @@ def compare(
             " run them all with the same protocol=..."
         )
     protocol = protocols[0]
-    level = chance(gt, protocol, ks=(1, 5))
-    saturation_notice(gt, [r.intervals for r in results if r.intervals], protocol)
+    soft = getattr(base, "soft_only", None)  # soft-only pairs: neither right nor wrong
+    level = chance(gt, protocol, ks=(1, 5), soft=soft)
+    saturation_notice(gt, [r.intervals for r in results if r.intervals], protocol, soft)
     twins = identical_to(results)
     rows = []
     for r, twin in zip(results, twins, strict=False):

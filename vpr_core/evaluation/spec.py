@@ -4,12 +4,33 @@ checked once when it is made, so a run that cannot be evaluated is refused befor
 from __future__ import annotations
 
 import dataclasses
+import os
 
 from ..checks import check_choice, check_int
 from .bootstrap import BOOTSTRAP_PROTOCOLS, N_BOOTSTRAP
 from .curves import PROTOCOLS
 
-__all__ = ["Evaluation"]
+__all__ = ["BOOTSTRAP_BYTES_PER_RESAMPLE", "Evaluation", "check_bootstrap_memory"]
+
+#: Bytes the bootstrap keeps per resample: 4 metrics (float64) as values, their concatenation
+#: and the percentile's copy (:mod:`~vpr_core.evaluation.bootstrap`; queries go in chunks).
+BOOTSTRAP_BYTES_PER_RESAMPLE = 4 * 8 * 3
+
+
+def check_bootstrap_memory(n: int, name: str = "n_bootstrap") -> None:
+    """Refuse ``n`` resamples whose metrics would not fit in half the available memory
+    (estimated before any work; numpy failed after minutes). ``name``: the option in the
+    message (the CLI's ``--n-bootstrap``)."""
+    need = n * BOOTSTRAP_BYTES_PER_RESAMPLE
+    avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    if need > avail / 2:
+        most = int(avail / 2 / BOOTSTRAP_BYTES_PER_RESAMPLE)
+        raise ValueError(
+            f"{name} {n}: the resampled metrics need about {need / 1e9:.1f} GB of memory "
+            f"({BOOTSTRAP_BYTES_PER_RESAMPLE} bytes per resample), more than half of the "
+            f"{avail / 1e9:.1f} GB available; use at most {most:,} (1000, the default, gives "
+            "95% intervals to about +-0.01)"
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -25,6 +46,7 @@ class Evaluation:
         check_choice(self.protocol, "protocol", PROTOCOLS)
         n = check_int(self.n_bootstrap, "n_bootstrap (resamples; 0: no intervals)", 0)
         object.__setattr__(self, "n_bootstrap", n)
+        check_bootstrap_memory(n)
         if n and self.protocol not in BOOTSTRAP_PROTOCOLS:
             raise ValueError(
                 f"protocol {self.protocol!r} has no bootstrap intervals (it decides per pair, not "

@@ -74,6 +74,9 @@ class MethodResult:
         weights_sha256: sha256 of the backbone weights' contents ("" when it has none).
         edge_model: the edge map of Edge Box schemes (``"gradient"`` or ``"sha256:..."``,
             :func:`~vpr_core.landmarks.edge_boxes.edge_model_id`), ``"none"`` for other schemes.
+        soft_only: the dataset's soft-only pairs (:attr:`PlaceDataset.soft_only
+            <vpr_core.datasets.PlaceDataset.soft_only>`: neither right nor wrong, so left out of
+            the chance levels), None without soft ground truth.
     """
 
     method: str
@@ -99,6 +102,7 @@ class MethodResult:
     dataset_fingerprint: str = ""
     weights_sha256: str = ""
     edge_model: str = "none"
+    soft_only: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def run(self) -> str:
@@ -185,6 +189,7 @@ def peer_result(
         encoder={},
         similarity=sim,
         ground_truth=gt,
+        soft_only=dataset.soft_only,
         boxes={"query": [], "reference": []},
         metrics=evaluate(sim, gt, protocol=protocol),
         timings=timings,

@@ -302,7 +302,7 @@ def run_method(
     metrics = evaluate(sim, gt, protocol=protocol)
     n_boot = evaluation.n_bootstrap
     intervals = bootstrap_metrics(sim, gt, n=n_boot, seed=0, protocol=protocol) if n_boot else {}
-    saturation_notice(gt, intervals)
+    saturation_notice(gt, intervals, soft=dataset.soft_only)
     n_img = nq + nr
     timings = {
         "landmarks_s_per_image": float(sum(map(sum, boxes["seconds"].values())) / n_img),
@@ -334,6 +334,7 @@ def run_method(
         encoder=dict(landmark_encoder.config),
         similarity=sim,
         ground_truth=gt,
+        soft_only=dataset.soft_only,
         boxes={s: boxes[s] for s in SIDES},
         metrics=metrics,
         timings=timings,
