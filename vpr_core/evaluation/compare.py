@@ -20,6 +20,7 @@ from .bootstrap import (
     paired_bootstrap,
 )
 from .chance import chance, saturation_notice
+from .spec import check_bootstrap_memory
 
 __all__ = [
     "DIFFERENCES",
@@ -155,6 +156,7 @@ def compare(
         ValueError: no results, duplicate labels, an unknown baseline, or results on different
             datasets (fingerprints or ground truths differ; both are named).
     """
+    check_bootstrap_memory(n_bootstrap)
     results = list(results)
     if not results:
         raise ValueError("compare() needs at least one result")

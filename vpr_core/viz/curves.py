@@ -188,7 +188,9 @@ def plot_pr_curves(
             label=_wrap(f"{r.label} ({auc}{note})"),
         )
     protocol = getattr(results[0], "protocol", "ratio")
-    level = chance_precision(results[0].ground_truth, protocol)
+    level = chance_precision(
+        results[0].ground_truth, protocol, soft=getattr(results[0], "soft_only", None)
+    )
     chance_auc = chance(results[0].ground_truth, protocol, ks=(1,))["auc"]
     ax.axhline(
         level,
