@@ -4,6 +4,7 @@ return arrays (the client alone touches the cache) equal to the in-process ones 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from collections.abc import Sequence
@@ -17,6 +18,7 @@ from ..backbones import weights_sha256
 from ..backbones.checkpoint import state_dict_sha256
 from ..backbones.module import architecture_sha256
 from ..features import LandmarkEncoder
+from ..features.encoder import as_encoder
 from ..utils import progress
 from .blocks import similarity_blocks_distributed, similarity_pairs_distributed
 from .client import SCHEDULER_ENV, gather_in_order, get_client, scheduler_address
@@ -37,8 +39,9 @@ __all__ = [
 def _encoder_key(encoder_kwargs: dict[str, Any]) -> tuple[str, nn.Module | None]:
     """JSON key of an encoder's arguments, and its backbone module if it has one (a module
     travels to the workers as an object; the key names it by class and content)."""
-    kwargs = dict(encoder_kwargs)
-    module = kwargs.get("backbone")
+    spec = as_encoder(**encoder_kwargs)  # the defaults filled in, checked once
+    kwargs = {f.name: getattr(spec, f.name) for f in dataclasses.fields(spec)}
+    module = kwargs["backbone"]
     if isinstance(module, nn.Module):
         cls = type(module)
         kwargs["backbone"] = (
