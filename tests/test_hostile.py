@@ -41,6 +41,25 @@ def test_csv_safe_escapes_text_and_keeps_numbers():
     assert csv_safe(csv_safe("=x")) == "'=x"  # idempotent: a table read and written again
 
 
+def test_escaped_tables_keep_their_index_rule(tmp_path):
+    """Escaping must not turn a RangeIndex into a written index column (a committed table would
+    gain an unnamed first column), and a named index is still written, escaped."""
+    import pandas as pd
+
+    plain = pd.DataFrame({"name": ["=x", "y"], "v": [1.5, -2.0]})
+    scaled = pd.DataFrame({"v": [1.0, 2.0]}, index=pd.RangeIndex(1, 3, name="scale"))
+    keyed = pd.DataFrame({"v": [1.0]}, index=pd.Index(["@k"], name="run"))
+    save_all([("plain", plain), ("scaled", scaled), ("keyed", keyed)], "t", out=tmp_path)
+    results = tmp_path / "results" / "t"
+    assert (results / "plain.csv").read_text().splitlines() == [
+        "name,v",
+        "'=x,1.500000",
+        "y,-2.000000",
+    ]
+    assert (results / "scaled.csv").read_text().splitlines()[0] == "v"
+    assert (results / "keyed.csv").read_text().splitlines() == ["run,v", "'@k,1.000000"]
+
+
 def test_write_rows_escapes_text_cells(tmp_path):
     path = tmp_path / "t.csv"
     write_rows(path, [{"name": "=1+1", "value": -0.5, "neg": "-3"}])

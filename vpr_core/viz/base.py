@@ -249,11 +249,12 @@ def split_timings(table: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame | Non
 
 
 def _write_csv(table: pd.DataFrame, tmp: Path) -> None:
-    table = table.rename(columns=csv_safe, index=csv_safe)
+    with_index = not isinstance(table.index, pd.RangeIndex)  # decided before renaming
+    table = table.rename(columns=csv_safe, index=csv_safe if with_index else None)
     for i, dtype in enumerate(table.dtypes):
         if not pd.api.types.is_numeric_dtype(dtype):  # text cells; numbers stay numbers
             table.isetitem(i, table.iloc[:, i].map(csv_safe))
-    table.to_csv(tmp, float_format="%.6f", index=not isinstance(table.index, pd.RangeIndex))
+    table.to_csv(tmp, float_format="%.6f", index=with_index)
 
 
 def save_all(
