@@ -149,8 +149,16 @@ def test_options_derive_from_the_fields():
     [
         ("edgebox", {}, "Unknown method 'edgebox'. Valid methods: classical, dense"),
         ("overlap_scheme1", {"threshold": 0.4}, "Unknown option 'threshold'"),
-        ("dense", {"iou_threshold": 0.1}, "Options of 'dense': scales, per_scale, spatial, weighting\\."),
-        ("classical", {"min_index": 7}, "Options of 'classical': n, n_candidates, spatial, weighting\\."),
+        (
+            "dense",
+            {"iou_threshold": 0.1},
+            "Options of 'dense': scales, per_scale, spatial, weighting\\.",
+        ),
+        (
+            "classical",
+            {"min_index": 7},
+            "Options of 'classical': n, n_candidates, spatial, weighting\\.",
+        ),
         ("classical", {"soft_nms_iou": 0.3}, "'soft_nms_iou' for method 'classical'"),
         ("global", {"n": 5}, "Options of 'global': spatial, weighting\\."),
         ("dense", {"scales": 0.25}, "method 'dense': Dense: option scales=0.25"),
