@@ -98,6 +98,11 @@ def test_every_committed_run_key_is_reproduced():
     made |= {run_key(get_method("overlap_scheme2", soft_nms_iou=t)) for t in (0.3, 0.4, 0.6)}
     made |= {run_key(get_method("overlap_scheme2", soft_nms_iou=0.7))}
     made |= {run_key(get_method(m, spatial="consistency")) for m in ("dense", "classical")}
+    made |= {
+        run_key(get_method(m, weighting=w))
+        for m in ("dense", "classical")
+        for w in ("contrast", "idf")
+    }
     made.add("CentreGrid")  # the scheme class written in notebook 05's "try your own" cell
     results = Path(__file__).resolve().parents[1] / "results"
     committed = {

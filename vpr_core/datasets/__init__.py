@@ -65,7 +65,8 @@ def load_dataset(name: str, root: str | os.PathLike | None = None, **options: An
     """Load one of :data:`DATASETS` by name; ``**options`` go to its loader (e.g. ``tolerance``;
     ``synthetic``: ``n_places``, ``seed``, ``image_size``; ``nordland``: ``query``, ``reference``,
     ``step``). A relative ``root`` is read from the cwd, else from the project root
-    (:func:`vpr_core.paths.find_input`). Unknown names and options: the error lists valid ones.
+    (:func:`vpr_core.paths.find_input`); ``synthetic`` generates its set into ``root``.
+    Unknown names and options: the error lists valid ones.
     """
     key = str(name).strip().lower().replace("-", "_")
     if key not in DATASETS:
@@ -81,7 +82,8 @@ def load_dataset(name: str, root: str | os.PathLike | None = None, **options: An
             f"dataset {key!r} does not take option(s) {', '.join(bad)}; valid options: "
             f"{', '.join(valid)}."
         )
-    if isinstance(root, (str, os.PathLike)) and str(root).strip():
+    # the synthetic set is generated into its root, so a root that does not exist yet is fine
+    if isinstance(root, (str, os.PathLike)) and str(root).strip() and key != "synthetic":
         try:
             root = find_input(root)
         except FileNotFoundError as exc:
