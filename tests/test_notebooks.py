@@ -122,7 +122,9 @@ def test_quick_study_runs_headless_and_writes_every_figure(tmp_path, monkeypatch
     assert os.environ["VPR_OUTPUT_DIR"] == str(out)  # the runner restored the environment
     # executed again (features now cached): byte-identical figures
     before = {p.name: p.read_bytes() for p in figures.glob("fig0[56]*.png")}
-    runner.run_study(dataset="synthetic", quick=True, notebooks=["03_landmark_selection"])
+    runner.run_study(
+        dataset="synthetic", quick=True, notebooks=["03_landmark_selection"], force=True
+    )
     after = {p.name: p.read_bytes() for p in figures.glob("fig0[56]*.png")}
     assert before and before == after
 

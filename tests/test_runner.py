@@ -76,7 +76,7 @@ def test_a_stopped_run_says_what_finished_and_where_the_files_are(tmp_path, monk
 
     def fake_execute(notebooks, out_dir, params, kernel, finished):
         calls.extend(nb.stem for nb in notebooks)
-        finished[notebooks[0].stem] = 0.0  # the first finished, then Ctrl-C
+        finished[notebooks[0].stem] = (0.0, 0.0)  # the first finished, then Ctrl-C
         raise KeyboardInterrupt
 
     monkeypatch.setattr(runner, "_execute", fake_execute)

@@ -396,6 +396,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         options=_dataset_options(args),
         pooling=args.pooling,
         shortlist=args.shortlist,
+        force=args.force,
     )
     return 0
 
@@ -571,6 +572,12 @@ def build_parser() -> argparse.ArgumentParser:
     common(r)
     r.add_argument("--quick", action="store_true", help="small synthetic set (used by tests)")
     r.add_argument("--notebooks", nargs="*", help="subset of notebooks (file stems)")
+    r.add_argument(
+        "--force",
+        action="store_true",
+        help="execute every notebook, also those whose inputs and outputs are unchanged since "
+        "their last execution (skipped by default)",
+    )
     r.add_argument(
         "--real-data",
         dest="real_data",

@@ -18,6 +18,7 @@ import pandas as pd
 
 from vpr_core import paths, settings
 from vpr_core.datasets import load_dataset
+from vpr_study import memo
 from vpr_study.findings import findings_markdown, result_labels
 
 logger = logging.getLogger("vpr_core")
@@ -282,8 +283,8 @@ def _execute(
 ) -> None:
     """Run papermill on ``notebooks`` in order, all in one kernel (:mod:`vpr_study.session`),
     in a child process whose environment holds :func:`kernel_settings`; the kernel's output
-    streams here live. ``finished`` gets ``{notebook stem: unix time it started}`` of each
-    notebook that finished, also when the run stops.
+    streams here live. ``finished`` gets ``{notebook stem: (unix time it started, ended)}`` of
+    each notebook that finished, also when the run stops.
 
     Raises:
         RuntimeError: a notebook failed (the message names the first unfinished one).
@@ -310,7 +311,9 @@ def _execute(
                 [json.loads(x) for x in status.read_text().splitlines()] if status.exists() else []
             )
             started = {x["notebook"]: x["started"] for x in lines if "started" in x}
-            finished.update({x["done"]: started[x["done"]] for x in lines if "done" in x})
+            finished.update(
+                {x["done"]: (started[x["done"]], x["ended"]) for x in lines if "done" in x}
+            )
     if done.returncode != 0:
         failed = next(nb for nb in notebooks if nb.stem not in finished)
         raise RuntimeError(
@@ -320,17 +323,31 @@ def _execute(
     logger.info("%d notebook(s) done in %.1f s", len(notebooks), time.perf_counter() - t0)
 
 
-def _run_label(label: str, selected: Sequence[Path], params: dict, kernel: str) -> list[str]:
-    """Execute ``selected`` notebooks for one output label (one kernel); the expected figures
-    not written."""
-    if not selected:
+def _run_label(
+    label: str, selected: Sequence[Path], params: dict, kernel: str, force: bool = False
+) -> list[str]:
+    """Execute ``selected`` notebooks for one output label (one kernel), skipping those whose
+    inputs and recorded outputs are unchanged (:mod:`vpr_study.memo`) unless ``force``; the
+    expected figures not written."""
+    inputs = memo.inputs_key(params)
+    keys = {nb.stem: memo.notebook_key(nb, inputs) for nb in selected}
+    todo = [
+        nb for nb in selected if force or memo.up_to_date(label, nb.stem, keys[nb.stem]) is None
+    ]
+    for nb in selected:
+        if nb not in todo:
+            print(
+                f"{nb.stem} ({label}): inputs and outputs unchanged since its last execution, "
+                "not executed again (vpr-study run --force executes it)"
+            )
+    if not todo:
         return []
     expected = expected_figures()
-    finished: dict[str, float] = {}
+    finished: dict[str, tuple[float, float]] = {}
     try:
-        _execute(selected, paths.runs_dir(label), params, kernel, finished)
+        _execute(todo, paths.runs_dir(label), params, kernel, finished)
     except BaseException:
-        stopped = next((nb.stem for nb in selected if nb.stem not in finished), "?")
+        stopped = next((nb.stem for nb in todo if nb.stem not in finished), "?")
         print(
             f"\nstopped in {stopped} ({label}); finished: {', '.join(finished) or 'none'}. "
             f"Figures so far in {paths.figures_dir(label)}, tables in "
@@ -338,10 +355,16 @@ def _run_label(label: str, selected: Sequence[Path], params: dict, kernel: str) 
         )
         raise
     missing: list[str] = []
-    for nb in selected:
-        missing += _unwritten(
-            paths.figures_dir(label), expected.get(nb.stem, []), finished[nb.stem]
-        )
+    folders = [paths.figures_dir(label), paths.results_dir(label), paths.runs_dir(label)]
+    for nb in todo:
+        started, ended = finished[nb.stem]
+        lost = _unwritten(paths.figures_dir(label), expected.get(nb.stem, []), started)
+        missing += lost
+        if not lost:
+            outputs = [
+                p for p in memo.written_since(folders, started) if p.stat().st_mtime <= ended + 2.0
+            ]
+            memo.record(label, nb.stem, keys[nb.stem], outputs, ended - started)
     return missing
 
 
@@ -366,6 +389,7 @@ def run_study(
     options: dict | None = None,
     pooling: str = "crop",
     shortlist: int | None = None,
+    force: bool = False,
 ) -> pd.DataFrame:
     """Execute the notebooks (all, or the stems in ``notebooks``) with papermill, verify their
     figures and return the summary metrics table of ``dataset`` (also printed).
@@ -373,7 +397,9 @@ def run_study(
     ``real_data``: also run :data:`REAL_DATA_NOTEBOOKS` on every dataset of :func:`study_datasets`
     (default: on for the full ``synthetic`` study). ``label``: the output subfolder (default the
     dataset's name; ``_quick`` appended in quick mode). ``options``: loader options; ``pooling``
-    and ``shortlist`` go to every ``run_method`` of the notebooks. RuntimeError names a failed
+    and ``shortlist`` go to every ``run_method`` of the notebooks. A notebook whose inputs and
+    recorded outputs are unchanged is not executed again unless ``force``
+    (:mod:`vpr_study.memo`). RuntimeError names a failed
     notebook (and the executed copy to open) or the missing figures.
     """
     if isinstance(root, Path):
@@ -408,7 +434,7 @@ def run_study(
     selected = notebook_paths(notebooks)
     extra = study_datasets() if real_data else {}
     logger.info("study outputs under %s", paths.output_root())
-    missing = _run_label(label, selected, params, kernel)
+    missing = _run_label(label, selected, params, kernel, force)
     real_selected = [nb for nb in selected if nb.stem in REAL_DATA_NOTEBOOKS]
     for name, spec in extra.items():
         sub = output_label(name, quick)
@@ -426,6 +452,7 @@ def run_study(
                 pooling=spec.get("pooling", "crop"),
             ),
             kernel,
+            force,
         )
     if missing:
         raise RuntimeError("expected figures were not written: " + ", ".join(missing))
