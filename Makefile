@@ -21,14 +21,15 @@ $(LAB_STAMP): $(STAMP) pyproject.toml
 	touch $(LAB_STAMP)
 
 # nbstripout as this clone's git filter (.git/config; .gitattributes names the notebooks): the
-# outputs, execution counts and kernel language_info that JupyterLab saves into a notebook never
-# reach git; cell ids are kept. Outside a git clone it does nothing.
-STRIP := "$(abspath $(PY))" -m nbstripout --keep-id --extra-keys metadata.language_info
+# outputs, execution counts and run metadata that JupyterLab saves into a notebook never reach
+# git; cell ids are kept (vpr_study.lab: the same stripping as `make lab`'s save hook). Outside a
+# git clone it does nothing.
+STRIP := "$(abspath $(PY))" -m vpr_study.lab
 git-filter: $(STAMP)
 	@if git rev-parse --git-dir >/dev/null 2>&1; then \
 		$(PY) -m nbstripout --install --attributes .gitattributes && \
 		git config --local filter.nbstripout.clean '$(STRIP)' && \
-		git config --local diff.ipynb.textconv '$(STRIP) -t'; fi
+		git config --local diff.ipynb.textconv '$(STRIP)'; fi
 
 study: $(STAMP)
 	MPLBACKEND=Agg $(VENV)/bin/vpr-study run --dataset synthetic
@@ -52,6 +53,7 @@ test: $(STAMP)
 # ipywidgets) is installed once ($(LAB_STAMP)), again only when pyproject.toml changes.
 lab: $(LAB_STAMP) git-filter
 	$(VENV)/bin/jupyter lab --ip=127.0.0.1 --ServerApp.root_dir="$(CURDIR)" \
+		--ContentsManager.pre_save_hook=vpr_study.lab.strip_outputs \
 		--LabApp.default_url=/lab/tree/notebooks $(if $(filter 0,$(shell id -u)),--allow-root)
 
 bench: $(STAMP)

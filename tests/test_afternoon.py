@@ -125,10 +125,14 @@ def test_a_user_kernel_in_notebooks_does_not_modify_a_tracked_file(tmp_path):
 # 3. A clean tree after a Lab session ---------------------------------------------------------
 
 
-def _lab_save(nb_path: Path) -> None:
+def _lab_save(nb_path: Path, hook: bool = False) -> None:
     """What JupyterLab's autosave writes after running every cell: outputs, execution counts,
-    the kernel's language_info, widget state, cell timing metadata; jupytext rewrites the twin."""
+    the kernel's language_info, widget state, cell timing metadata; jupytext rewrites the twin.
+    ``hook``: through ``make lab``'s save hook, written as jupyter_server's file manager does."""
     import jupytext
+    import nbformat
+
+    from vpr_study.lab import strip_outputs
 
     nb = json.loads(nb_path.read_text())
     nb["metadata"]["language_info"] = {"name": "python", "version": "3.11.9"}
@@ -138,7 +142,12 @@ def _lab_save(nb_path: Path) -> None:
             cell["execution_count"] = i + 1
             cell["outputs"] = [{"output_type": "stream", "name": "stdout", "text": ["ran\n"]}]
             cell["metadata"]["execution"] = {"iopub.status.idle": "2026-01-01T00:00:00Z"}
-    nb_path.write_text(json.dumps(nb, indent=1))
+    if hook:
+        model = {"type": "notebook", "content": nb}
+        strip_outputs(model, f"notebooks/{nb_path.name}", None)
+        nbformat.write(nbformat.from_dict(model["content"]), nb_path, version=nbformat.NO_CONVERT)
+    else:
+        nb_path.write_text(json.dumps(nb, indent=1))
     jupytext.write(jupytext.read(nb_path), nb_path.with_suffix(".py"), fmt="py:percent")
 
 
@@ -186,11 +195,18 @@ def test_make_lab_installs_the_output_filter_so_a_lab_session_leaves_git_status_
     clone, venv = _lab_clone(tmp_path, "clone")
     make = ["make", "-s", "git-filter", f"VENV={venv}", f"PY={sys.executable}"]
     subprocess.run(make, cwd=clone, check=True)
-    assert "nbstripout" in _git(clone, "config", "--local", "filter.nbstripout.clean")
+    assert "vpr_study.lab" in _git(clone, "config", "--local", "filter.nbstripout.clean")
     _lab_save(clone / "notebooks" / "01_pipeline_tour.ipynb")
     assert _git(clone, "diff") == ""  # the .py twin rewritten by jupytext: unchanged too
     _git(clone, "add", "-u")  # git status lists a resized file until its stat is refreshed
     assert _git(clone, "status", "--porcelain") == ""
+    # with make lab's save hook too: the saved file is the committed one, git status clean as is
+    hooked, venv = _lab_clone(tmp_path, "hooked")
+    subprocess.run([*make[:3], f"VENV={venv}", make[4]], cwd=hooked, check=True)
+    _lab_save(hooked / "notebooks" / "01_pipeline_tour.ipynb", hook=True)
+    assert _git(hooked, "status", "--porcelain") == ""
+    saved = (hooked / "notebooks" / "01_pipeline_tour.ipynb").read_bytes()
+    assert saved == (REPO / "notebooks" / "01_pipeline_tour.ipynb").read_bytes()
     assert (clone / ".gitattributes").read_text() == (REPO / ".gitattributes").read_text()
 
 
@@ -202,6 +218,7 @@ def test_make_lab_installs_the_lab_extra_once(tmp_path):
         ["make", "-n", "lab", f"VENV={venv}"], cwd=clone, capture_output=True, text=True, check=True
     ).stdout
     assert "pip install" not in dry and "nbstripout --install" in dry and "jupyter lab" in dry
+    assert "--ContentsManager.pre_save_hook=vpr_study.lab.strip_outputs" in dry
     (venv / ".lab-installed").unlink()  # a fresh clone: installed once
     dry = subprocess.run(
         ["make", "-n", "lab", f"VENV={venv}"], cwd=clone, capture_output=True, text=True, check=True
@@ -517,3 +534,22 @@ def test_disagreements_draw_the_deciding_matches_and_label_rows_and_columns(tiny
         assert len(boxes) <= 2 * TOP_TERMS  # the few largest terms, not 50-100 boxes
         assert f"the {min(TOP_TERMS, len(boxes) // 2)} largest terms drawn" in ax.get_title()
     plt.close("all")
+
+
+def test_the_save_hook_strips_only_the_study_notebooks():
+    from vpr_study.lab import strip_outputs
+
+    def saved(path: str) -> dict:
+        cell = {"cell_type": "code", "execution_count": 3, "id": "a", "metadata": {}}
+        cell |= {"outputs": [{"output_type": "stream", "name": "stdout", "text": "x"}]}
+        cell["source"] = "1"
+        nb = {"cells": [cell], "metadata": {"language_info": {"name": "python"}}}
+        model = {"type": "notebook", "content": {**nb, "nbformat": 4, "nbformat_minor": 5}}
+        strip_outputs(model, path)
+        return dict(model["content"])
+
+    study = saved("notebooks/03_landmark_selection.ipynb")
+    assert study["cells"][0]["outputs"] == [] and study["cells"][0]["execution_count"] is None
+    assert "language_info" not in study["metadata"]
+    mine = saved("notebooks/my_scheme.ipynb")  # a user's own notebook keeps what it showed
+    assert mine["cells"][0]["outputs"] and mine["cells"][0]["execution_count"] == 3
