@@ -592,3 +592,30 @@ def test_landmark_plots(synthetic_image, tmp_path):
     with pytest.raises(ValueError):
         viz.plot_scale_distribution({"q": np.ones(5)})
     plt.close("all")
+
+
+def test_gradient_edge_map_is_the_same_bits_on_every_simd_path():
+    """OpenCV's float filters differ in the last bit between its SIMD paths, and that moved Edge
+    Boxes proposals from one CPU to another; the gradient map is filtered in float64 by numpy, so
+    turning OpenCV's optimised paths off changes no bit. Same operator as cv2's, to float32."""
+    import importlib
+
+    import cv2
+
+    eb = importlib.import_module("vpr_core.landmarks.edge_boxes")
+    rng = np.random.default_rng(3)
+    img = cv2.GaussianBlur(rng.integers(0, 256, (90, 160, 3), dtype=np.uint8), (0, 0), 3)
+    base = eb.edge_boxes(img).boxes, *eb._gradient_edges(img, nms=False)
+    cv2.setUseOptimized(False)
+    try:
+        plain = eb.edge_boxes(img).boxes, *eb._gradient_edges(img, nms=False)
+    finally:
+        cv2.setUseOptimized(True)
+    for a, b in zip(base, plain, strict=True):
+        np.testing.assert_array_equal(a, b)
+    g = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY).astype(np.float64) / 255.0
+    ours = eb._correlate(eb._correlate(g, eb._gaussian_taps(2.0), 1), eb._gaussian_taps(2.0), 0)
+    theirs = cv2.GaussianBlur(g, (0, 0), 2.0)
+    np.testing.assert_allclose(ours, theirs, atol=1e-9)
+    dx = eb._correlate(eb._correlate(ours, eb.SCHARR_DIFF, 1), eb.SCHARR_SMOOTH, 0)
+    np.testing.assert_allclose(dx, cv2.Scharr(theirs, cv2.CV_64F, 1, 0), atol=1e-8)

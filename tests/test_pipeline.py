@@ -157,8 +157,8 @@ def test_end_to_end_metrics_are_pinned(tiny_synthetic):
     quick study reproduces (a change anywhere in the pipeline that moves them shows here)."""
     classical = run_method("classical", tiny_synthetic)
     dense = run_method("dense", tiny_synthetic)
-    assert round(classical.metrics["auc"], 4) == 0.3752
-    assert round(classical.metrics["r@1"], 4) == 0.375
+    assert round(classical.metrics["auc"], 4) == 0.3544
+    assert round(classical.metrics["r@1"], 4) == 0.25
     assert round(dense.metrics["auc"], 4) == 0.9643
     assert round(dense.metrics["r@1"], 4) == 0.75
 

@@ -5,9 +5,11 @@ edge map; boxes in proposal order (descending objectness score)."""
 from __future__ import annotations
 
 import logging
+import math
 import os
 import re
 import zlib
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -297,26 +299,60 @@ def _edge_nms(mag: np.ndarray, orient: np.ndarray) -> np.ndarray:
     return np.where(keep, mag, 0.0)
 
 
+#: Scharr's derivative and smoothing taps (``cv2.Scharr``'s kernel, separated).
+SCHARR_DIFF = (-1.0, 0.0, 1.0)
+SCHARR_SMOOTH = (3.0, 10.0, 3.0)
+
+
+def _gaussian_taps(sigma: float) -> tuple[float, ...]:
+    """Normalised Gaussian taps, ``cv2.GaussianBlur``'s size for float images (8 sigma + 1,
+    odd), from scalar ``math.exp`` (no SIMD variant)."""
+    half = int(round(sigma * 4 * 2 + 1)) // 2
+    w = [math.exp(-0.5 * (i / sigma) ** 2) for i in range(-half, half + 1)]
+    total = math.fsum(w)
+    return tuple(x / total for x in w)
+
+
+def _correlate(a: np.ndarray, taps: Sequence[float], axis: int) -> np.ndarray:
+    """``a`` (float64) correlated with ``taps`` along ``axis``, OpenCV's default border
+    (reflect-101), summed tap by tap in a fixed order: the same bits on every CPU, where
+    OpenCV's float filters differ in the last bit between its SIMD paths (and so did the
+    Edge Boxes proposals from one machine to another)."""
+    half = len(taps) // 2
+    widths = [(0, 0), (0, 0)]
+    widths[axis] = (half, half)
+    pad = np.pad(a, widths, mode="reflect")
+    n = a.shape[axis]
+    out = np.zeros_like(a)
+    for k, w in enumerate(taps):
+        if w:
+            out += w * (pad[k : k + n] if axis == 0 else pad[:, k : k + n])
+    return out
+
+
 def _gradient_edges(
     image: np.ndarray, blur_sigma: float = 2.0, nms: bool = True
 ) -> tuple[np.ndarray, np.ndarray]:
     """Gradient edge map in ``[0, 1]`` and edge orientation map, both ``(H, W)`` float32.
 
-    Scharr gradient magnitude of the lightly blurred float32 grayscale image, divided by a robust
+    Scharr gradient magnitude of the lightly blurred grayscale image (float64, filtered by
+    :func:`_correlate`: identical on every CPU), divided by a robust
     maximum (99th percentile of the non-flat pixels) and clipped to ``[0, 1]``; optionally thinned
     by non-maximum suppression across the edge. The orientation is the gradient (edge-normal)
     direction modulo pi, the convention of ``StructuredEdgeDetection.computeOrientation``.
     """
     gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
-    g: np.ndarray = gray.astype(np.float32) / 255.0
+    g: np.ndarray = gray.astype(np.float64) / 255.0
     if blur_sigma and blur_sigma > 0:
-        g = cv2.GaussianBlur(g, (0, 0), float(blur_sigma))
-    gx = cv2.Scharr(g, cv2.CV_32F, 1, 0)
-    gy = cv2.Scharr(g, cv2.CV_32F, 0, 1)
+        taps = _gaussian_taps(float(blur_sigma))
+        g = _correlate(_correlate(g, taps, 1), taps, 0)
+    gx = _correlate(_correlate(g, SCHARR_DIFF, 1), SCHARR_SMOOTH, 0)
+    gy = _correlate(_correlate(g, SCHARR_SMOOTH, 1), SCHARR_DIFF, 0)
     mag = np.sqrt(gx * gx + gy * gy)
     peak = float(mag.max())
     if peak <= 0:
-        return np.zeros_like(mag), np.zeros_like(mag)
+        flat = np.zeros(mag.shape, dtype=np.float32)
+        return flat, flat.copy()
     active = mag[mag > 0.01 * peak]
     scale = float(np.percentile(active, 99)) if active.size else peak
     mag = np.clip(mag / max(scale, 1e-12), 0.0, 1.0)
