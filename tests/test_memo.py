@@ -90,4 +90,8 @@ def test_inputs_key_follows_data_settings_and_notebook_content(tmp_path, monkeyp
     nb.write_text("{}")
     first = memo.notebook_key(nb, key)
     nb.write_text('{"cells": []}')
-    assert memo.notebook_key(nb, key) != first
+    second = memo.notebook_key(nb, key)
+    (tmp_path / "my_scheme.py").write_text("K = 8\n")  # a module a cell imports from beside it
+    third = memo.notebook_key(nb, key)
+    (tmp_path / "my_scheme.py").write_text("K = 6\n")
+    assert len({first, second, third, memo.notebook_key(nb, key)}) == 4

@@ -77,8 +77,10 @@ def inputs_key(params: dict) -> str:
 
 
 def notebook_key(notebook: Path, inputs: str) -> str:
-    """The content key of one execution: the notebook's text and :func:`inputs_key`."""
-    return hashlib.sha256(f"{file_sha256(notebook)}|{inputs}".encode()).hexdigest()
+    """The content key of one execution: the notebook's text, the Python files beside it (a
+    module a cell imports from its folder) and :func:`inputs_key`."""
+    helpers = _tree_digest(notebook.parent.glob("*.py"), notebook.parent)
+    return hashlib.sha256(f"{file_sha256(notebook)}|{helpers}|{inputs}".encode()).hexdigest()
 
 
 def _record_path(label: str, stem: str) -> Path:
