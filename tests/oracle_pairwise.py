@@ -11,8 +11,9 @@ import math
 import numpy as np
 
 from vpr_core.boxes import box_iou
-from vpr_core.matching.core import CONTRAST_SIGMA_MIN, NMS_TIE_TOL, SPATIAL_TAU
+from vpr_core.matching.core import NMS_TIE_TOL, SPATIAL_TAU
 from vpr_core.matching.reciprocal import TIE_TOL
+from vpr_core.matching.weighting import CONTRAST_SIGMA_MIN
 from vpr_core.paper import SOFT_NMS_SIGMA
 
 

@@ -598,17 +598,16 @@ def test_gradient_edge_map_is_the_same_bits_on_every_simd_path():
     """OpenCV's float filters differ in the last bit between its SIMD paths, and that moved Edge
     Boxes proposals from one CPU to another; the gradient map is filtered in float64 by numpy, so
     turning OpenCV's optimised paths off changes no bit. Same operator as cv2's, to float32."""
-    import importlib
-
     import cv2
 
-    eb = importlib.import_module("vpr_core.landmarks.edge_boxes")
+    from vpr_core.landmarks import edge_map as eb
+
     rng = np.random.default_rng(3)
     img = cv2.GaussianBlur(rng.integers(0, 256, (90, 160, 3), dtype=np.uint8), (0, 0), 3)
-    base = eb.edge_boxes(img).boxes, *eb._gradient_edges(img, nms=False)
+    base = L.edge_boxes(img).boxes, *eb.gradient_edges(img, nms=False)
     cv2.setUseOptimized(False)
     try:
-        plain = eb.edge_boxes(img).boxes, *eb._gradient_edges(img, nms=False)
+        plain = L.edge_boxes(img).boxes, *eb.gradient_edges(img, nms=False)
     finally:
         cv2.setUseOptimized(True)
     for a, b in zip(base, plain, strict=True):

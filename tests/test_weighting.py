@@ -18,7 +18,7 @@ from vpr_core.matching import (
     similarity_pairs,
     weighted_matches,
 )
-from vpr_core.matching.core import WEIGHTING_SAMPLE, weighting_sample
+from vpr_core.matching.weighting import WEIGHTING_SAMPLE, weighting_sample
 from vpr_core.methods import Matching, as_method, get_method, method_label, run_key
 
 BOX = [0.0, 0.0, 10.0, 10.0]

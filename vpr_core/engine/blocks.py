@@ -9,7 +9,8 @@ from typing import Any
 import numpy as np
 
 from ..matching import check_pairs, similarity_matrix, similarity_pairs
-from ..matching.core import check_spatial, check_weighting, weighting_sample
+from ..matching.core import check_spatial
+from ..matching.weighting import check_weighting, weighting_sample
 from ..paper import SOFT_NMS_SIGMA
 from .client import gather_in_order
 
@@ -209,7 +210,7 @@ def similarity_pairs_distributed(
         block_references: references per scattered block.
         spatial: geometry-aware re-scoring (not in the paper), as in ``similarity_matrix``.
         weighting: database weighting (not in the paper), as in ``similarity_pairs``: the
-            references of its statistics (:func:`~vpr_core.matching.core.weighting_sample`)
+            references of its statistics (:func:`~vpr_core.matching.weighting.weighting_sample`)
             are scattered once to every worker.
 
     Returns:

@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from .core import SPATIAL_OPTIONS, WEIGHTING_OPTIONS
+from .core import SPATIAL_OPTIONS
 from .similarity import (
     MatchResult,
     check_pairs,
@@ -16,6 +16,7 @@ from .similarity import (
     similarity_pairs,
     weighted_matches,
 )
+from .weighting import WEIGHTING_OPTIONS
 
 __all__ = [
     "SPATIAL_OPTIONS",

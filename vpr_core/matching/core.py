@@ -9,7 +9,6 @@ import threading
 from dataclasses import dataclass
 from typing import NamedTuple
 
-import numpy as np
 import torch
 
 from ..checks import check_choice, check_range
@@ -23,27 +22,21 @@ from .sides import (
     selection_index,
     selection_size,
 )
+from .weighting import check_weighting, database_weights, weighting_stats
 
 __all__ = [
     "BLOCK_BYTES",
-    "CONTRAST_SIGMA_MIN",
     "NMS_TIE_TOL",
     "SPATIAL_OPTIONS",
     "SPATIAL_TAU",
-    "WEIGHTING_OPTIONS",
-    "WEIGHTING_SAMPLE",
     "BlockPairs",
     "Matches",
     "Problem",
     "check_spatial",
-    "check_weighting",
-    "database_weights",
     "score_block",
     "shape_terms",
     "soft_nms",
     "spatial_weights",
-    "weighting_sample",
-    "weighting_stats",
 ]
 
 #: Soft-NMS: current pair scores closer than this to the best are ties (lowest pair index wins).
@@ -57,15 +50,6 @@ SPATIAL_OPTIONS = ("consistency",)
 #: (Not in the paper.) Width of the ``spatial="consistency"`` Gaussian, in units of the image's
 #: landmark extent (0.1: a match displaced a tenth of the image from the consensus keeps 61%).
 SPATIAL_TAU = 0.1
-#: (Not in the paper.) Names of the database weightings of the Eq. (1) terms (``weighting=``;
-#: docs/DEFINITIONS.md, "(not in the paper) database weighting").
-WEIGHTING_OPTIONS = ("contrast", "idf")
-#: (Not in the paper.) References (a seed-0 sample) whose cosines give the weighting statistics
-#: of a shortlist run; every reference when there are at most this many.
-WEIGHTING_SAMPLE = 256
-#: (Not in the paper.) A contrast standard deviation at or below this counts as 0 (the float32
-#: cosines cannot tell the references apart): the landmark's weight is 0.
-CONTRAST_SIGMA_MIN = 1e-6
 
 
 # ---- Eq. (2) and Algorithm 4 -------------------------------------------------------------
@@ -218,65 +202,6 @@ def spatial_weights(
     return torch.where(recip, w, torch.ones_like(w))
 
 
-# ---- (not in the paper) database weighting ------------------------------------------------
-def weighting_sample(n_references: int) -> np.ndarray:
-    """Sorted indices of the references whose cosines give a shortlist's weighting statistics.
-
-    Every reference when there are at most :data:`WEIGHTING_SAMPLE`, else that many drawn
-    without replacement by ``np.random.default_rng(0)`` (docs/DEFINITIONS.md).
-    """
-    if n_references <= WEIGHTING_SAMPLE:
-        return np.arange(n_references, dtype=np.int64)
-    pick = np.random.default_rng(0).choice(n_references, WEIGHTING_SAMPLE, replace=False)
-    return np.sort(pick).astype(np.int64)
-
-
-def weighting_stats(
-    weighting: str, m: Matches, has: torch.Tensor
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Per query landmark ``(nq, Kq)`` statistics over the references of ``m`` with landmarks.
-
-    Args:
-        weighting: a name in :data:`WEIGHTING_OPTIONS`.
-        m: matches of ``nq`` query images x the references that define the statistics.
-        has: ``(nr,)`` bool: the reference has at least one landmark (only those count).
-
-    Returns:
-        ``contrast``: ``(mu, sigma)`` of the best cosines ``b_i(r)`` (population std);
-        ``idf``: ``(log((N + 1) / (n_i + 1)), N)``, ``n_i`` the references that landmark ``i``
-        reciprocally matches, ``N`` the references (as a ``(1,)`` tensor).
-    """
-    if weighting == "contrast":
-        b = m.best[:, has].clamp(-1.0, 1.0)  # (nq, N, Kq)
-        mu = b.mean(1)
-        sd = ((b - mu.unsqueeze(1)) ** 2).mean(1).sqrt()
-        return mu, sd
-    n = m.recip[:, has].sum(1).to(torch.float64)
-    total = has.sum().to(torch.float64)
-    return torch.log((total + 1.0) / (n + 1.0)), total.reshape(1)
-
-
-def database_weights(
-    weighting: str, best: torch.Tensor, stats: tuple[torch.Tensor, torch.Tensor]
-) -> torch.Tensor:
-    """``(nq, nr, Kq)`` weight of each query landmark's term (docs/DEFINITIONS.md).
-
-    ``contrast``: ``max(0, (c - mu_i) / sigma_i)`` with ``c`` the landmark's cosine to its match
-    (its best cosine ``b_i(r)`` in that reference), 0 where ``sigma_i <= CONTRAST_SIGMA_MIN``;
-    ``idf``: the landmark's ``log((N + 1) / (n_i + 1))``.
-
-    Args:
-        weighting: a name in :data:`WEIGHTING_OPTIONS`; best: ``(nq, nr, Kq)`` ``b_i(r)``;
-            stats: from :func:`weighting_stats`.
-    """
-    a, b = stats
-    if weighting == "idf":
-        return a.unsqueeze(1).expand_as(best)
-    ok = (b > CONTRAST_SIGMA_MIN).unsqueeze(1)
-    z = (best.clamp(-1.0, 1.0) - a.unsqueeze(1)) / torch.where(ok, b.unsqueeze(1), 1.0)
-    return torch.where(ok, z.clamp(min=0.0), 0.0)
-
-
 # ---- Eq. (1) for one block of image pairs ------------------------------------------------
 class Matches(NamedTuple):
     """Reciprocal nearest neighbours of ``nq x nr`` image pairs, ``(nq, nr, Kq)`` per query
@@ -406,16 +331,6 @@ def check_spatial(spatial: str | None) -> str | None:
             f"valid: None, {', '.join(repr(n) for n in SPATIAL_OPTIONS)}"
         )
     return spatial
-
-
-def check_weighting(weighting: str | None) -> str | None:
-    """``weighting`` if it is None or a name in :data:`WEIGHTING_OPTIONS`; else a clear error."""
-    if weighting is not None and weighting not in WEIGHTING_OPTIONS:
-        raise ValueError(
-            f"unknown weighting {weighting!r} (database weighting, not in the paper); "
-            f"valid: None, {', '.join(repr(n) for n in WEIGHTING_OPTIONS)}"
-        )
-    return weighting
 
 
 _LOCAL = threading.local()

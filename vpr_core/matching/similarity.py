@@ -14,8 +14,9 @@ import torch
 from ..checks import check_boxes
 from ..paper import SOFT_NMS_SIGMA
 from ..utils import progress
-from .core import BLOCK_BYTES, Problem, shape_terms, weighting_sample
+from .core import BLOCK_BYTES, Problem, shape_terms
 from .sides import LandmarkSets, rescale_rows, unit_rows
+from .weighting import weighting_sample
 
 __all__ = [
     "MatchResult",
@@ -150,7 +151,7 @@ def similarity_pairs(
         matmul_dtype: ``"float32"`` (fast) or ``"float64"``.
         show_progress: progress bar over queries (``TQDM_DISABLE=1`` silences it).
         sample: indices of the references whose cosines give the weighting statistics
-            (default: :func:`~.core.weighting_sample`, all of them up to 256).
+            (default: :func:`~.weighting.weighting_sample`, all of them up to 256).
 
     Returns:
         ``(P,)`` float64 similarities, in the order of ``pairs``.

@@ -1,0 +1,101 @@
+"""(Not in the paper.) Database weighting of the Eq. (1) terms, ``weighting=``: each query
+landmark's statistics over the references and the weight of its term (docs/DEFINITIONS.md,
+"(not in the paper) database weighting"); applied inside :func:`.core.score_block`."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import torch
+
+if TYPE_CHECKING:
+    from .core import Matches
+
+__all__ = [
+    "CONTRAST_SIGMA_MIN",
+    "WEIGHTING_OPTIONS",
+    "WEIGHTING_SAMPLE",
+    "check_weighting",
+    "database_weights",
+    "weighting_sample",
+    "weighting_stats",
+]
+
+#: (Not in the paper.) Names of the database weightings of the Eq. (1) terms (``weighting=``;
+#: docs/DEFINITIONS.md, "(not in the paper) database weighting").
+WEIGHTING_OPTIONS = ("contrast", "idf")
+#: (Not in the paper.) References (a seed-0 sample) whose cosines give the weighting statistics
+#: of a shortlist run; every reference when there are at most this many.
+WEIGHTING_SAMPLE = 256
+#: (Not in the paper.) A contrast standard deviation at or below this counts as 0 (the float32
+#: cosines cannot tell the references apart): the landmark's weight is 0.
+CONTRAST_SIGMA_MIN = 1e-6
+
+
+def check_weighting(weighting: str | None) -> str | None:
+    """``weighting`` if it is None or a name in :data:`WEIGHTING_OPTIONS`; else a clear error."""
+    if weighting is not None and weighting not in WEIGHTING_OPTIONS:
+        raise ValueError(
+            f"unknown weighting {weighting!r} (database weighting, not in the paper); "
+            f"valid: None, {', '.join(repr(n) for n in WEIGHTING_OPTIONS)}"
+        )
+    return weighting
+
+
+def weighting_sample(n_references: int) -> np.ndarray:
+    """Sorted indices of the references whose cosines give a shortlist's weighting statistics.
+
+    Every reference when there are at most :data:`WEIGHTING_SAMPLE`, else that many drawn
+    without replacement by ``np.random.default_rng(0)`` (docs/DEFINITIONS.md).
+    """
+    if n_references <= WEIGHTING_SAMPLE:
+        return np.arange(n_references, dtype=np.int64)
+    pick = np.random.default_rng(0).choice(n_references, WEIGHTING_SAMPLE, replace=False)
+    return np.sort(pick).astype(np.int64)
+
+
+def weighting_stats(
+    weighting: str, m: Matches, has: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Per query landmark ``(nq, Kq)`` statistics over the references of ``m`` with landmarks.
+
+    Args:
+        weighting: a name in :data:`WEIGHTING_OPTIONS`.
+        m: matches of ``nq`` query images x the references that define the statistics.
+        has: ``(nr,)`` bool: the reference has at least one landmark (only those count).
+
+    Returns:
+        ``contrast``: ``(mu, sigma)`` of the best cosines ``b_i(r)`` (population std);
+        ``idf``: ``(log((N + 1) / (n_i + 1)), N)``, ``n_i`` the references that landmark ``i``
+        reciprocally matches, ``N`` the references (as a ``(1,)`` tensor).
+    """
+    if weighting == "contrast":
+        b = m.best[:, has].clamp(-1.0, 1.0)  # (nq, N, Kq)
+        mu = b.mean(1)
+        sd = ((b - mu.unsqueeze(1)) ** 2).mean(1).sqrt()
+        return mu, sd
+    n = m.recip[:, has].sum(1).to(torch.float64)
+    total = has.sum().to(torch.float64)
+    return torch.log((total + 1.0) / (n + 1.0)), total.reshape(1)
+
+
+def database_weights(
+    weighting: str, best: torch.Tensor, stats: tuple[torch.Tensor, torch.Tensor]
+) -> torch.Tensor:
+    """``(nq, nr, Kq)`` weight of each query landmark's term (docs/DEFINITIONS.md).
+
+    ``contrast``: ``max(0, (c - mu_i) / sigma_i)`` with ``c`` the landmark's cosine to its match
+    (its best cosine ``b_i(r)`` in that reference), 0 where ``sigma_i <= CONTRAST_SIGMA_MIN``;
+    ``idf``: the landmark's ``log((N + 1) / (n_i + 1))``.
+
+    Args:
+        weighting: a name in :data:`WEIGHTING_OPTIONS`; best: ``(nq, nr, Kq)`` ``b_i(r)``;
+            stats: from :func:`weighting_stats`.
+    """
+    a, b = stats
+    if weighting == "idf":
+        return a.unsqueeze(1).expand_as(best)
+    ok = (b > CONTRAST_SIGMA_MIN).unsqueeze(1)
+    z = (best.clamp(-1.0, 1.0) - a.unsqueeze(1)) / torch.where(ok, b.unsqueeze(1), 1.0)
+    return torch.where(ok, z.clamp(min=0.0), 0.0)
