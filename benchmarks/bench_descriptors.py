@@ -112,7 +112,7 @@ def similarity(
             method, dataset, backbone=spec, pooling=pooling, spatial=spatial, n_bootstrap=0
         )
         return r.similarity, r.ground_truth
-    from vpr_core.matching import similarity_matrix
+    from vpr_core.matching import Matching, similarity_matrix
     from vpr_core.methods import get_method
 
     conf = get_method(method)
@@ -123,9 +123,9 @@ def similarity(
         boxes["query"],
         feats["reference"],
         boxes["reference"],
-        soft_nms_iou=conf.matching.soft_nms_iou,
-        sigma=conf.matching.sigma,
-        spatial=spatial,
+        matching=Matching(
+            soft_nms_iou=conf.matching.soft_nms_iou, sigma=conf.matching.sigma, spatial=spatial
+        ),
     )
     return np.asarray(sim, dtype=np.float64), np.asarray(dataset.ground_truth, dtype=bool)
 

@@ -25,7 +25,7 @@ import time
 import numpy as np
 import torch
 
-from vpr_core.matching import image_similarity, similarity_matrix
+from vpr_core.matching import Compute, Matching, image_similarity, similarity_matrix
 from vpr_core.paper import SOFT_NMS_IOU
 
 TARGET = 1.3
@@ -67,7 +67,8 @@ def nordland_study(root: str, repeat: int) -> None:
 
     t_pair, _ = _timed(pairwise)
     t_block = statistics.median(
-        _timed(lambda: similarity_matrix(*args, show_progress=False))[0] for _ in range(repeat)
+        _timed(lambda: similarity_matrix(*args, compute=Compute(show_progress=False)))[0]
+        for _ in range(repeat)
     )
     print(
         f"Nordland study ({nq} x {nr} places, dense, roi): Eq. (1) pair by pair "
@@ -78,7 +79,13 @@ def nordland_study(root: str, repeat: int) -> None:
     for _ in range(repeat):
         for w in times:
             times[w].append(
-                _timed(lambda w=w: similarity_matrix(*args, weighting=w, show_progress=False))[0]
+                _timed(
+                    lambda w=w: similarity_matrix(
+                        *args,
+                        matching=Matching(weighting=w),
+                        compute=Compute(show_progress=False),
+                    )
+                )[0]
             )
     base = statistics.median(times[None])
     for w in WEIGHTING_OPTIONS:
@@ -123,7 +130,7 @@ def main() -> None:
 
     def run():
         nonlocal sim
-        sim = similarity_matrix(qd, qb, rd, rb, show_progress=False)
+        sim = similarity_matrix(qd, qb, rd, rb, compute=Compute(show_progress=False))
 
     run()  # warm-up (thread pools, allocator)
     mm, sm, ratios, cpu_ratios = [], [], [], []
@@ -159,7 +166,7 @@ def main() -> None:
         def run_nms():
             nonlocal sim_nms
             sim_nms = similarity_matrix(
-                qd, qb, rd, rb, soft_nms_iou=SOFT_NMS_IOU, show_progress=False
+                qd, qb, rd, rb, soft_nms_iou=SOFT_NMS_IOU, compute=Compute(show_progress=False)
             )
 
         t_nms, _ = _timed(run_nms)

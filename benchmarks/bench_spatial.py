@@ -21,7 +21,7 @@ from vpr_core.evaluation import (
     needs_text,
     paired_bootstrap,
 )
-from vpr_core.matching import SPATIAL_OPTIONS, similarity_matrix
+from vpr_core.matching import SPATIAL_OPTIONS, Compute, Matching, similarity_matrix
 from vpr_core.pipeline import run_method
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
@@ -47,10 +47,8 @@ def _matrix(res, spatial: str | None) -> np.ndarray:
         b["query"],
         d["reference"],
         b["reference"],
-        soft_nms_iou=m.soft_nms_iou,
-        sigma=m.sigma,
-        spatial=spatial,
-        show_progress=False,
+        matching=Matching(soft_nms_iou=m.soft_nms_iou, sigma=m.sigma, spatial=spatial),
+        compute=Compute(show_progress=False),
     )
 
 

@@ -20,7 +20,7 @@ import pandas as pd
 
 from vpr_core.datasets import load_dataset
 from vpr_core.evaluation import compare_pairs
-from vpr_core.matching import WEIGHTING_OPTIONS, similarity_matrix
+from vpr_core.matching import WEIGHTING_OPTIONS, Compute, Matching, similarity_matrix
 from vpr_core.pipeline import run_method
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -62,8 +62,8 @@ def _study_cost(runs: dict, repeat: int) -> dict:
                 b["query"],
                 d["reference"],
                 b["reference"],
-                weighting=w,
-                show_progress=False,
+                matching=Matching(weighting=w),
+                compute=Compute(show_progress=False),
             )
             times[w].append(time.perf_counter() - t0)
     base = statistics.median(times[None])

@@ -23,7 +23,7 @@ from vpr_core.engine import (
 )
 from vpr_core.features import LandmarkEncoder
 from vpr_core.landmarks import dense_sampling
-from vpr_core.matching import similarity_matrix, similarity_pairs
+from vpr_core.matching import Compute, Matching, similarity_matrix, similarity_pairs
 
 distributed = pytest.importorskip("distributed")
 
@@ -107,14 +107,16 @@ def test_similarity_and_shortlist_of_real_features_equal_in_process(client, smal
             client, small_set, side, ENCODER_ROI, boxes=boxes[side]
         )
     args = (feats["query"], boxes["query"], feats["reference"], boxes["reference"])
-    want = similarity_matrix(*args, show_progress=False)
+    want = similarity_matrix(*args, compute=Compute(show_progress=False))
     got = similarity_blocks_distributed(client, *args, block_queries=3)
     assert np.array_equal(got, want)
     gq = np.stack([d.mean(0) for d in feats["query"]])
     gr = np.stack([d.mean(0) for d in feats["reference"]])
     pairs, _ = shortlist_pairs(gq, gr, 2)
     vals = similarity_pairs_distributed(client, *args, pairs, block_queries=3, block_references=2)
-    assert np.array_equal(vals, similarity_pairs(*args, pairs, show_progress=False))
+    assert np.array_equal(
+        vals, similarity_pairs(*args, pairs, compute=Compute(show_progress=False))
+    )
     sim = rerank(vals, pairs, n, n)
     assert np.isnan(sim).sum() == n * (n - 2)
 
@@ -127,16 +129,33 @@ def test_similarity_blocks_unequal_landmark_counts_equal_in_process(client, soft
     qd, qb = _random_sets(rng, 11)
     rd, rb = _random_sets(rng, 13)
     want = similarity_matrix(
-        qd, qb, rd, rb, soft_nms_iou=soft_nms_iou, spatial=spatial, show_progress=False
+        qd,
+        qb,
+        rd,
+        rb,
+        matching=Matching(soft_nms_iou=soft_nms_iou, spatial=spatial),
+        compute=Compute(show_progress=False),
     )
     got = similarity_blocks_distributed(
-        client, qd, qb, rd, rb, soft_nms_iou=soft_nms_iou, spatial=spatial, block_queries=4
+        client,
+        qd,
+        qb,
+        rd,
+        rb,
+        block_queries=4,
+        matching=Matching(soft_nms_iou=soft_nms_iou, spatial=spatial),
     )
     assert np.array_equal(got, want)
     # a shuffled shortlist with repeats, spread over several query and reference blocks
     pairs = np.stack([rng.integers(0, 11, 60), rng.integers(0, 13, 60)], axis=1)
     want_p = similarity_pairs(
-        qd, qb, rd, rb, pairs, soft_nms_iou=soft_nms_iou, spatial=spatial, show_progress=False
+        qd,
+        qb,
+        rd,
+        rb,
+        pairs,
+        matching=Matching(soft_nms_iou=soft_nms_iou, spatial=spatial),
+        compute=Compute(show_progress=False),
     )
     got_p = similarity_pairs_distributed(
         client,
@@ -145,10 +164,9 @@ def test_similarity_blocks_unequal_landmark_counts_equal_in_process(client, soft
         rd,
         rb,
         pairs,
-        soft_nms_iou=soft_nms_iou,
-        spatial=spatial,
         block_queries=3,
         block_references=4,
+        matching=Matching(soft_nms_iou=soft_nms_iou, spatial=spatial),
     )
     assert np.array_equal(got_p, want_p)
     # the pairs path agrees with the matrix path (bit for bit without soft-NMS; with it the
@@ -168,7 +186,7 @@ def test_in_process_fallback_equals_direct_call():
     rng = np.random.default_rng(8)
     qd, qb = _random_sets(rng, 3)
     rd, rb = _random_sets(rng, 4)
-    want = similarity_matrix(qd, qb, rd, rb, show_progress=False)
+    want = similarity_matrix(qd, qb, rd, rb, compute=Compute(show_progress=False))
     assert np.array_equal(similarity_blocks_distributed(None, qd, qb, rd, rb), want)
 
 
@@ -285,13 +303,15 @@ def test_weighting_on_cluster_equals_in_process(client, weighting, nr):
     rng = np.random.default_rng(9)
     qd, qb = _random_sets(rng, 11, dim=16, kmin=1, kmax=6)
     rd, rb = _random_sets(rng, nr, dim=16, kmin=1, kmax=6)
-    kw = {"soft_nms_iou": None, "weighting": weighting}
-    want = similarity_matrix(qd, qb, rd, rb, show_progress=False, **kw)
+    kw = {"matching": Matching(weighting=weighting)}
+    want = similarity_matrix(qd, qb, rd, rb, **kw, compute=Compute(show_progress=False))
     got = similarity_blocks_distributed(client, qd, qb, rd, rb, block_queries=4, **kw)
     assert np.array_equal(got, want)
-    assert not np.array_equal(got, similarity_matrix(qd, qb, rd, rb, show_progress=False))
+    assert not np.array_equal(
+        got, similarity_matrix(qd, qb, rd, rb, compute=Compute(show_progress=False))
+    )
     pairs = np.stack([rng.integers(0, 11, 60), rng.integers(0, nr, 60)], axis=1)
-    want_p = similarity_pairs(qd, qb, rd, rb, pairs, show_progress=False, **kw)
+    want_p = similarity_pairs(qd, qb, rd, rb, pairs, **kw, compute=Compute(show_progress=False))
     got_p = similarity_pairs_distributed(
         client, qd, qb, rd, rb, pairs, block_queries=3, block_references=4, **kw
     )

@@ -23,7 +23,7 @@ from vpr_core.evaluation import (
 )
 from vpr_core.evaluation.chance import chance_precision
 from vpr_core.evaluation.compare import CHANCE_ROW
-from vpr_core.matching import match_landmarks
+from vpr_core.matching import Matching, match_landmarks
 from vpr_core.notices import VPRWarning
 from vpr_core.pipeline import MethodResult, run_method
 from vpr_core.viz import plot_disagreements, plot_pr_curves
@@ -276,7 +276,12 @@ def test_per_query_contrast_zero_share(kept):
     q, r = int(row["query"]), int(row["top-1"])
     d, b = dense.descriptors, dense.boxes
     m = weighted_matches(
-        d["query"], b["query"], d["reference"], b["reference"], [[q, r]], "contrast"
+        d["query"],
+        b["query"],
+        d["reference"],
+        b["reference"],
+        [[q, r]],
+        Matching(weighting="contrast"),
     )[0]
     assert row["contrast zero share"] == pytest.approx(np.mean(m.weights == 0))
     # the same statistics as the weighted run: its top-1 score is that pair's similarity

@@ -11,6 +11,8 @@ import pytest
 import torch
 
 from vpr_core.matching import (
+    Compute,
+    Matching,
     MatchResult,
     cosine_distance,
     image_similarity,
@@ -182,7 +184,7 @@ def test_soft_nms_image_similarity_hand_example():
     o = oracle.match_overlaps(ba, bb, [[0, 0], [1, 1], [2, 2]])
     np.testing.assert_allclose(o[0, 1], 2 / 3)
     assert o[0, 2] == 0
-    r = match_landmarks(a, ba, b, bb, soft_nms_iou=0.5)
+    r = match_landmarks(a, ba, b, bb, matching=Matching(soft_nms_iou=0.5))
     want = [0.9, 0.8 * math.exp(-(4 / 9) / 0.5), 0.7]
     np.testing.assert_array_equal(r.matches, [[0, 0], [1, 1], [2, 2]])
     np.testing.assert_allclose(r.raw_scores, c)
@@ -212,7 +214,7 @@ def test_match_landmarks_equals_oracle_pair_by_pair(t):
     rd[3], rb[3] = qd[2].copy(), qb[2].copy()  # all landmarks match, many overlaps
     for i in range(8):
         for j in range(8):
-            got = match_landmarks(qd[i], qb[i], rd[j], rb[j], soft_nms_iou=t)
+            got = match_landmarks(qd[i], qb[i], rd[j], rb[j], matching=Matching(soft_nms_iou=t))
             want = oracle.match_landmarks(qd[i], qb[i], rd[j], rb[j], soft_nms_iou=t)
             np.testing.assert_array_equal(got.matches, want["matches"])
             np.testing.assert_array_equal(reciprocal_matches(qd[i], rd[j]), want["matches"])
@@ -235,7 +237,14 @@ def test_similarity_matrix_equals_pairwise_unequal_counts_and_ties(t):
     # a reference equal to a query (all landmarks match, many overlaps) and an empty query
     rd[2], rb[2] = qd[3].copy(), qb[3].copy()
     qd[5], qb[5] = np.zeros((0, 48), np.float32), np.zeros((0, 4))
-    got = similarity_matrix(qd, qb, rd, rb, soft_nms_iou=t, batch_size=4, ref_batch_size=3)
+    got = similarity_matrix(
+        qd,
+        qb,
+        rd,
+        rb,
+        soft_nms_iou=t,
+        compute=Compute(batch_size=4, ref_batch_size=3),
+    )
     want = _pairwise(qd, qb, rd, rb, soft_nms_iou=t)
     assert got.shape == (6, 7) and got.dtype == np.float64
     np.testing.assert_allclose(got, want, atol=1e-5, rtol=0)
@@ -252,7 +261,7 @@ def test_similarity_matrix_stacked_input_and_float64_matmul():
     rb = np.concatenate([rng.uniform(0, 50, (4, 20, 2)), rng.uniform(10, 60, (4, 20, 2))], 2)
     want = _pairwise(qd, qb, rd, rb)
     np.testing.assert_allclose(similarity_matrix(qd, qb, rd, rb), want, atol=1e-5, rtol=0)
-    got64 = similarity_matrix(qd, qb, rd, rb, matmul_dtype="float64")
+    got64 = similarity_matrix(qd, qb, rd, rb, compute=Compute(matmul_dtype="float64"))
     np.testing.assert_allclose(got64, want, atol=1e-12, rtol=0)
     want_nms = _pairwise(qd, qb, rd, rb, soft_nms_iou=0.3)
     got_nms = similarity_matrix(list(qd), list(qb), list(rd), list(rb), soft_nms_iou=0.3)
@@ -311,16 +320,18 @@ def test_descriptor_magnitude_does_not_change_similarity(dtype, scale):
     rng = np.random.default_rng(31)
     qd, qb = _random_sets(rng, 3, 2, 12, 16)
     rd, rb = _random_sets(rng, 4, 2, 12, 16)
-    want = similarity_matrix(qd, qb, rd, rb, matmul_dtype="float64")
+    want = similarity_matrix(qd, qb, rd, rb, compute=Compute(matmul_dtype="float64"))
     assert np.all(want[want != 0] != 0) and np.count_nonzero(want) > 0
     big_q = [(d.astype(np.float64) * scale).astype(dtype) for d in qd]
     big_r = [(d.astype(np.float64) * scale).astype(dtype) for d in rd]
     for t in (None, 0.3):
-        ref = similarity_matrix(qd, qb, rd, rb, soft_nms_iou=t, matmul_dtype="float64")
+        ref = similarity_matrix(
+            qd, qb, rd, rb, soft_nms_iou=t, compute=Compute(matmul_dtype="float64")
+        )
         got = similarity_matrix(big_q, qb, big_r, rb, soft_nms_iou=t)
         np.testing.assert_allclose(got, ref, atol=1e-5, rtol=0)
         pairs = np.array([[0, 1], [2, 3]])
-        got_p = similarity_pairs(big_q, qb, big_r, rb, pairs, soft_nms_iou=t)
+        got_p = similarity_pairs(big_q, qb, big_r, rb, pairs, matching=Matching(soft_nms_iou=t))
         np.testing.assert_allclose(got_p, ref[pairs[:, 0], pairs[:, 1]], atol=1e-5, rtol=0)
         s = image_similarity(big_q[0], qb[0], big_r[1], rb[1], soft_nms_iou=t)
         assert s == pytest.approx(ref[0, 1], abs=1e-9)
@@ -343,13 +354,35 @@ _D, _B = [np.ones((3, 8))], [np.ones((3, 4))]
         (([np.ones((3, 8)), np.ones((3, 7))], _B + _B, _D, _B), {}, "mixes"),
         ((_D, _B, _D, _B), {"soft_nms_iou": 1.5}, "soft_nms_iou"),
         ((_D, _B, _D, _B), {"soft_nms_iou": 0.5, "sigma": 0}, "sigma"),
-        ((_D, _B, _D, _B), {"matmul_dtype": "float16"}, "matmul_dtype"),
         (([], [], _D, _B), {}, "query_desc is empty"),
     ],
 )
 def test_similarity_matrix_bad_inputs(args, kwargs, message):
     with pytest.raises(ValueError, match=message):
         similarity_matrix(*args, **kwargs)
+
+
+@pytest.mark.parametrize(
+    ("build", "message"),
+    [
+        (lambda: Compute(matmul_dtype="float16"), "unknown matmul_dtype 'float16'"),
+        (lambda: Compute(batch_size=0), "batch_size must be a positive integer"),
+        (lambda: Matching(soft_nms_iou=True), "soft_nms_iou=True is not valid"),
+        (lambda: Matching(spatial="ransac"), "spatial='ransac' is not valid"),
+        (
+            lambda: similarity_matrix(_D, _B, _D, _B, 0.5, matching=Matching(0.5)),
+            "soft-NMS is given twice",
+        ),
+        (
+            lambda: match_landmarks(_D[0], _B[0], _D[0], _B[0], Matching(weighting="idf")),
+            "use weighted_matches",
+        ),
+    ],
+)
+def test_matching_values_refuse_bad_fields(build, message):
+    """Matching and Compute check their fields once, when made; a call refuses two sources."""
+    with pytest.raises(ValueError, match=message):
+        build()
 
 
 @pytest.mark.parametrize(
@@ -389,10 +422,22 @@ def test_similarity_matrix_same_bits_for_any_thread_count():
     threads = torch.get_num_threads()
     try:
         torch.set_num_threads(1)
-        one = similarity_matrix(qd, qb, rd, rb, batch_size=3, show_progress=False)
+        one = similarity_matrix(
+            qd,
+            qb,
+            rd,
+            rb,
+            compute=Compute(batch_size=3, show_progress=False),
+        )
         assert torch.get_num_threads() == 1
         torch.set_num_threads(2)
-        two = similarity_matrix(qd, qb, rd, rb, batch_size=3, show_progress=False)
+        two = similarity_matrix(
+            qd,
+            qb,
+            rd,
+            rb,
+            compute=Compute(batch_size=3, show_progress=False),
+        )
         assert torch.get_num_threads() == 2  # the workers' thread setting does not leak
     finally:
         torch.set_num_threads(threads)
@@ -401,15 +446,16 @@ def test_similarity_matrix_same_bits_for_any_thread_count():
 
 
 def test_soft_nms_sigma_default_is_the_papers():
-    for fn in (image_similarity, match_landmarks, similarity_matrix, similarity_pairs):
+    for fn in (image_similarity, similarity_matrix):
         assert inspect.signature(fn).parameters["sigma"].default == SOFT_NMS_SIGMA
+    assert Matching().sigma == SOFT_NMS_SIGMA
 
 
 @pytest.mark.skipif(torch.cuda.is_available(), reason="checks the no-GPU message")
 def test_cuda_without_gpu_is_a_clear_error():
     d, bx = [np.ones((3, 8))], [np.ones((3, 4))]
     with pytest.raises(ValueError, match="no CUDA GPU"):
-        similarity_matrix(d, bx, d, bx, device="cuda")
+        similarity_matrix(d, bx, d, bx, compute=Compute(device="cuda"))
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
@@ -420,10 +466,25 @@ def test_cuda_equals_pairwise(t, spatial):
     qd, qb = _random_sets(rng, 6, 1, 20, 48)
     rd, rb = _random_sets(rng, 7, 1, 20, 48)
     want = _pairwise(qd, qb, rd, rb, soft_nms_iou=t, spatial=spatial)
-    got = similarity_matrix(qd, qb, rd, rb, soft_nms_iou=t, spatial=spatial, device="cuda")
+    got = similarity_matrix(
+        qd,
+        qb,
+        rd,
+        rb,
+        matching=Matching(soft_nms_iou=t, spatial=spatial),
+        compute=Compute(device="cuda"),
+    )
     np.testing.assert_allclose(got, want, atol=1e-5, rtol=0)
     pairs = np.array([[0, 1], [5, 6], [2, 2]])
-    got_p = similarity_pairs(qd, qb, rd, rb, pairs, soft_nms_iou=t, spatial=spatial, device="cuda")
+    got_p = similarity_pairs(
+        qd,
+        qb,
+        rd,
+        rb,
+        pairs,
+        matching=Matching(soft_nms_iou=t, spatial=spatial),
+        compute=Compute(device="cuda"),
+    )
     np.testing.assert_allclose(got_p, want[pairs[:, 0], pairs[:, 1]], atol=1e-5, rtol=0)
 
 
@@ -445,11 +506,17 @@ def test_similarity_pairs_equals_pairwise(t):
         [[3, 1], [0, 4], [2, 4], [0, 0], [3, 8], [2, 4], [6, 1], [0, 7], [0, 2], [5, 5]]
     )
     got = similarity_pairs(
-        qd, qb, rd, rb, pairs, soft_nms_iou=t, ref_batch_size=2, show_progress=False
+        qd,
+        qb,
+        rd,
+        rb,
+        pairs,
+        matching=Matching(soft_nms_iou=t),
+        compute=Compute(ref_batch_size=2, show_progress=False),
     )
     assert got.shape == (10,) and got.dtype == np.float64
     np.testing.assert_allclose(got, want[pairs[:, 0], pairs[:, 1]], atol=1e-5, rtol=0)
-    full = similarity_matrix(qd, qb, rd, rb, soft_nms_iou=t, show_progress=False)
+    full = similarity_matrix(qd, qb, rd, rb, soft_nms_iou=t, compute=Compute(show_progress=False))
     np.testing.assert_allclose(got, full[pairs[:, 0], pairs[:, 1]], atol=1e-6, rtol=0)
     assert got[6] == 0.0
 
@@ -462,8 +529,8 @@ def test_similarity_pairs_shortlist_of_every_query():
     rb = np.concatenate([rng.uniform(0, 50, (15, 30, 2)), rng.uniform(10, 60, (15, 30, 2))], 2)
     top = np.argsort(-rng.random((12, 15)), axis=1)[:, :4]
     pairs = np.stack([np.repeat(np.arange(12), 4), top.ravel()], axis=1)
-    full = similarity_matrix(qd, qb, rd, rb, show_progress=False)
-    got = similarity_pairs(qd, qb, rd, rb, pairs, show_progress=False)
+    full = similarity_matrix(qd, qb, rd, rb, compute=Compute(show_progress=False))
+    got = similarity_pairs(qd, qb, rd, rb, pairs, compute=Compute(show_progress=False))
     np.testing.assert_allclose(got, full[pairs[:, 0], pairs[:, 1]], atol=1e-6, rtol=0)
 
 
@@ -495,7 +562,13 @@ def test_spatial_match_landmarks_equals_oracle(t):
     n_matches = []
     for i in range(6):
         for j in range(6):
-            got = match_landmarks(qd[i], qb[i], rd[j], rb[j], soft_nms_iou=t, spatial="consistency")
+            got = match_landmarks(
+                qd[i],
+                qb[i],
+                rd[j],
+                rb[j],
+                matching=Matching(soft_nms_iou=t, spatial="consistency"),
+            )
             want = oracle.match_landmarks(
                 qd[i], qb[i], rd[j], rb[j], soft_nms_iou=t, spatial="consistency"
             )
@@ -518,13 +591,24 @@ def test_spatial_similarity_matrix_and_pairs_equal_oracle(t):
     qd[6], qb[6] = np.zeros((0, 40), np.float32), np.zeros((0, 4))
     want = _pairwise(qd, qb, rd, rb, soft_nms_iou=t, spatial="consistency")
     got = similarity_matrix(
-        qd, qb, rd, rb, soft_nms_iou=t, spatial="consistency", batch_size=3, ref_batch_size=4
+        qd,
+        qb,
+        rd,
+        rb,
+        matching=Matching(soft_nms_iou=t, spatial="consistency"),
+        compute=Compute(batch_size=3, ref_batch_size=4),
     )
     np.testing.assert_allclose(got, want, atol=1e-5, rtol=0)
     assert not np.allclose(want, _pairwise(qd, qb, rd, rb, soft_nms_iou=t), atol=1e-3)
     pairs = np.array([[3, 1], [0, 4], [2, 4], [6, 1], [0, 8], [5, 5], [2, 4]])
     got_p = similarity_pairs(
-        qd, qb, rd, rb, pairs, soft_nms_iou=t, spatial="consistency", ref_batch_size=2
+        qd,
+        qb,
+        rd,
+        rb,
+        pairs,
+        matching=Matching(soft_nms_iou=t, spatial="consistency"),
+        compute=Compute(ref_batch_size=2),
     )
     np.testing.assert_allclose(got_p, want[pairs[:, 0], pairs[:, 1]], atol=1e-5, rtol=0)
 
@@ -553,8 +637,14 @@ def _shifted_pair(move: tuple[float, float] | None = None):
 @pytest.mark.parametrize("t", [None, 0.3])
 def test_spatial_one_shared_displacement_changes_nothing(t):
     a, ba, b, bb = _shifted_pair()
-    plain = match_landmarks(a, ba, b, bb, soft_nms_iou=t)
-    geo = match_landmarks(a, ba, b, bb, soft_nms_iou=t, spatial="consistency")
+    plain = match_landmarks(a, ba, b, bb, matching=Matching(soft_nms_iou=t))
+    geo = match_landmarks(
+        a,
+        ba,
+        b,
+        bb,
+        matching=Matching(soft_nms_iou=t, spatial="consistency"),
+    )
     np.testing.assert_array_equal(geo.matches, [[0, 0], [1, 1], [2, 2], [3, 3]])
     np.testing.assert_array_equal(geo.spatial_weights, np.ones(4))
     np.testing.assert_array_equal(geo.scores, plain.scores)
@@ -564,17 +654,35 @@ def test_spatial_one_shared_displacement_changes_nothing(t):
         oracle.extent_centres(ba)[:4] - oracle.extent_centres(bb)[:4], -0.125
     )
     for spatial in (None, "consistency"):
-        s = similarity_matrix([a], [ba], [b], [bb], soft_nms_iou=t, spatial=spatial)
+        s = similarity_matrix(
+            [a],
+            [ba],
+            [b],
+            [bb],
+            matching=Matching(soft_nms_iou=t, spatial=spatial),
+        )
         assert s[0, 0] == pytest.approx(plain.similarity, abs=1e-6)
 
 
 @pytest.mark.parametrize("t", [None, 0.3])
 def test_spatial_one_displaced_match_lowers_only_its_term(t):
     a, ba, b, bb = _shifted_pair()
-    before = match_landmarks(a, ba, b, bb, soft_nms_iou=t, spatial="consistency")
+    before = match_landmarks(
+        a,
+        ba,
+        b,
+        bb,
+        matching=Matching(soft_nms_iou=t, spatial="consistency"),
+    )
     a, ba, b, bb = _shifted_pair(move=(8.0, 40.0))  # same size: Eq. (2) does not change
-    after = match_landmarks(a, ba, b, bb, soft_nms_iou=t, spatial="consistency")
-    plain = match_landmarks(a, ba, b, bb, soft_nms_iou=t)
+    after = match_landmarks(
+        a,
+        ba,
+        b,
+        bb,
+        matching=Matching(soft_nms_iou=t, spatial="consistency"),
+    )
+    plain = match_landmarks(a, ba, b, bb, matching=Matching(soft_nms_iou=t))
     np.testing.assert_array_equal(after.matches, before.matches)
     np.testing.assert_array_equal(after.raw_scores, plain.raw_scores)
     # match 2: query centre (72, 24) / (128, 64), reference centre now (16, 48) / (128, 64):
@@ -585,15 +693,19 @@ def test_spatial_one_displaced_match_lowers_only_its_term(t):
     np.testing.assert_array_equal(np.delete(after.scores, 2), np.delete(before.scores, 2))
     assert after.similarity < before.similarity
     assert plain.similarity == pytest.approx(before.similarity, abs=1e-12)
-    got = similarity_matrix([a], [ba], [b], [bb], soft_nms_iou=t, spatial="consistency")
+    got = similarity_matrix(
+        [a],
+        [ba],
+        [b],
+        [bb],
+        matching=Matching(soft_nms_iou=t, spatial="consistency"),
+    )
     assert got[0, 0] == pytest.approx(after.similarity, abs=1e-6)
 
 
 def test_spatial_default_off_and_unknown_name_lists_valid_ones():
-    for fn in (image_similarity, match_landmarks, similarity_matrix, similarity_pairs):
-        assert inspect.signature(fn).parameters["spatial"].default is None
-    d, bx = [np.ones((3, 8))], [np.ones((3, 4))]
-    with pytest.raises(ValueError, match=r"unknown spatial 'ransac'.*valid: None, 'consistency'"):
-        similarity_matrix(d, bx, d, bx, spatial="ransac")
-    with pytest.raises(ValueError, match="valid: None, 'consistency'"):
-        image_similarity(d[0], bx[0], d[0], bx[0], spatial="Consistency")
+    assert Matching().spatial is None
+    with pytest.raises(ValueError, match="spatial='ransac' is not valid"):
+        Matching(spatial="ransac")
+    with pytest.raises(ValueError, match="expected None or one of 'consistency'"):
+        Matching(spatial="Consistency")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from vpr_core.engine import global_cosine, rerank, shortlist_pairs, topk_lowest_index
-from vpr_core.matching import similarity_matrix, similarity_pairs
+from vpr_core.matching import Compute, similarity_matrix, similarity_pairs
 
 
 def _landmark_sets(rng, n, dim=32, kmin=5, kmax=12):
@@ -90,11 +90,11 @@ def test_rerank_with_all_references_equals_exhaustive():
     rng = np.random.default_rng(1)
     qd, qb = _landmark_sets(rng, 6)
     rd, rb = _landmark_sets(rng, 9)
-    full = similarity_matrix(qd, qb, rd, rb, show_progress=False)
+    full = similarity_matrix(qd, qb, rd, rb, compute=Compute(show_progress=False))
     gq = np.stack([d.mean(0) for d in qd])
     gr = np.stack([d.mean(0) for d in rd])
     pairs, _ = shortlist_pairs(gq, gr, 9)
-    vals = similarity_pairs(qd, qb, rd, rb, pairs, show_progress=False)
+    vals = similarity_pairs(qd, qb, rd, rb, pairs, compute=Compute(show_progress=False))
     np.testing.assert_array_equal(rerank(vals, pairs, 6, 9), full)
 
 
@@ -102,11 +102,11 @@ def test_rerank_small_k_nan_off_shortlist_and_top1_inside_unchanged():
     rng = np.random.default_rng(2)
     qd, qb = _landmark_sets(rng, 10)
     rd, rb = _landmark_sets(rng, 14)
-    full = similarity_matrix(qd, qb, rd, rb, show_progress=False)
+    full = similarity_matrix(qd, qb, rd, rb, compute=Compute(show_progress=False))
     gq = rng.standard_normal((10, 8))
     gr = rng.standard_normal((14, 8))
     pairs, _ = shortlist_pairs(gq, gr, 4)
-    vals = similarity_pairs(qd, qb, rd, rb, pairs, show_progress=False)
+    vals = similarity_pairs(qd, qb, rd, rb, pairs, compute=Compute(show_progress=False))
     sim = rerank(vals, pairs, 10, 14)
     listed = np.zeros((10, 14), dtype=bool)
     listed[pairs[:, 0], pairs[:, 1]] = True
@@ -140,7 +140,9 @@ def test_match_stage_exhaustive_and_full_shortlist_agree():
     rd, rb = _landmark_sets(rng, 7)
     boxes, feats = {"query": qb, "reference": rb}, {"query": qd, "reference": rd}
     full, info = match(boxes, feats)
-    np.testing.assert_array_equal(full, similarity_matrix(qd, qb, rd, rb, show_progress=False))
+    np.testing.assert_array_equal(
+        full, similarity_matrix(qd, qb, rd, rb, compute=Compute(show_progress=False))
+    )
     assert info["pairs"] == 35
     glob = {"query": rng.standard_normal((5, 6)), "reference": rng.standard_normal((7, 6))}
     sim, info = match(boxes, feats, shortlist=7, global_desc=glob)

@@ -14,6 +14,7 @@ from test_matching import _random_sets
 
 from vpr_core.matching import (
     WEIGHTING_OPTIONS,
+    Compute,
     similarity_matrix,
     similarity_pairs,
     weighted_matches,
@@ -40,22 +41,25 @@ def test_similarity_matrix_equals_oracle(weighting, t, spatial):
     want = oracle.similarity_matrix(
         qd, qb, rd, rb, weighting=weighting, soft_nms_iou=t, spatial=spatial
     )
-    kw = {"soft_nms_iou": t, "spatial": spatial, "weighting": weighting, "show_progress": False}
-    got = similarity_matrix(qd, qb, rd, rb, batch_size=4, ref_batch_size=3, **kw)
+    kw = {"matching": Matching(t, spatial=spatial, weighting=weighting)}
+    got = similarity_matrix(qd, qb, rd, rb, **kw, compute=Compute(batch_size=4, ref_batch_size=3))
     np.testing.assert_allclose(got, want, atol=1e-6, rtol=0)
     np.testing.assert_allclose(
-        similarity_matrix(qd, qb, rd, rb, matmul_dtype="float64", **kw), want, atol=1e-12, rtol=0
+        similarity_matrix(qd, qb, rd, rb, **kw, compute=Compute(matmul_dtype="float64")),
+        want,
+        atol=1e-12,
+        rtol=0,
     )
     plain = oracle.similarity_matrix(qd, qb, rd, rb, soft_nms_iou=t, spatial=spatial)
     assert np.abs(want - plain).max() > 0.1  # the weighting changes the scores
     assert np.all(got[-1] == 0)  # a query without landmarks
     # the listed pairs give the same values (statistics over all 7 references, <= 256)
     pairs = np.array([[0, 1], [3, 2], [4, 6], [3, 2], [5, 0], [1, 1]])
-    got_p = similarity_pairs(qd, qb, rd, rb, pairs, ref_batch_size=2, **kw)
+    got_p = similarity_pairs(qd, qb, rd, rb, pairs, **kw, compute=Compute(ref_batch_size=2))
     np.testing.assert_allclose(got_p, got[pairs[:, 0], pairs[:, 1]], atol=1e-7, rtol=0)
     # and weighted_matches gives each pair's terms with their weights
     for (i, j), res in zip(
-        pairs, weighted_matches(qd, qb, rd, rb, pairs, weighting, t, 0.5, spatial), strict=True
+        pairs, weighted_matches(qd, qb, rd, rb, pairs, kw["matching"]), strict=True
     ):
         o = oracle.match_landmarks(
             qd[i], qb[i], rd[j], rb[j], t, 0.5, spatial, oracle.term_weights(weighting, qd[i], rd)
@@ -70,13 +74,17 @@ def test_shortlist_statistics_come_from_the_sample(weighting):
     qd, qb, rd, rb = _sets(11, nq=4, nr=9)
     sample = np.array([0, 2, 5, 8])
     pairs = np.array([[0, 1], [1, 2], [2, 7], [0, 5]])
-    got = similarity_pairs(qd, qb, rd, rb, pairs, weighting=weighting, sample=sample)
+    got = similarity_pairs(
+        qd, qb, rd, rb, pairs, sample=sample, matching=Matching(weighting=weighting)
+    )
     want = oracle.similarity_matrix(qd, qb, rd, rb, weighting=weighting, sample=sample)
     np.testing.assert_allclose(got, want[pairs[:, 0], pairs[:, 1]], atol=1e-6, rtol=0)
     full = oracle.similarity_matrix(qd, qb, rd, rb, weighting=weighting)
     assert not np.allclose(got, full[pairs[:, 0], pairs[:, 1]], atol=1e-4)
     with pytest.raises(ValueError, match="outside 0..8"):
-        similarity_pairs(qd, qb, rd, rb, pairs, weighting=weighting, sample=[0, 9])
+        similarity_pairs(
+            qd, qb, rd, rb, pairs, sample=[0, 9], matching=Matching(weighting=weighting)
+        )
 
 
 def test_weighting_sample_is_fixed_and_all_references_up_to_256():
@@ -104,34 +112,55 @@ def _contrast_case():
 
 def test_contrast_by_hand_a_landmark_matching_every_place_carries_nothing():
     qd, qb, rd, rb = _contrast_case()
-    plain = similarity_matrix(qd, qb, rd, rb, matmul_dtype="float64")
+    plain = similarity_matrix(qd, qb, rd, rb, compute=Compute(matmul_dtype="float64"))
     # cosines: wall 0.8 everywhere; rare 0.9, 0.1, 0.1 -> plain Eq. (1) (0.8 + 0.9) / 2 for r0
     np.testing.assert_allclose(plain[0], [0.85, 0.45, 0.45], atol=1e-12)
-    got = similarity_matrix(qd, qb, rd, rb, weighting="contrast", matmul_dtype="float64")
+    got = similarity_matrix(
+        qd,
+        qb,
+        rd,
+        rb,
+        matching=Matching(weighting="contrast"),
+        compute=Compute(matmul_dtype="float64"),
+    )
     # wall: sigma 0 -> weight 0. rare: mu 1.1/3, sigma sqrt(((0.9 - mu)^2 + 2 (0.1 - mu)^2) / 3)
     mu = 1.1 / 3
     sd = math.sqrt(((0.9 - mu) ** 2 + 2 * (0.1 - mu) ** 2) / 3)
     w0 = (0.9 - mu) / sd  # = sqrt(2): above the mean by sqrt(2) standard deviations
     assert w0 == pytest.approx(math.sqrt(2))
     np.testing.assert_allclose(got[0], [0.9 * w0 / 2, 0, 0], atol=1e-12)
-    res = weighted_matches(qd, qb, rd, rb, [[0, 0], [0, 1]], "contrast")
+    res = weighted_matches(qd, qb, rd, rb, [[0, 0], [0, 1]], Matching(weighting="contrast"))
     np.testing.assert_allclose(res[0].weights, [0.0, w0], atol=1e-6)
     np.testing.assert_allclose(res[1].weights, [0.0, 0.0], atol=1e-6)  # 0.1 < mu: clipped to 0
     # one reference: sigma 0 for every landmark, every weight 0
-    one = similarity_matrix(qd, qb, rd[:1], rb[:1], weighting="contrast")
+    one = similarity_matrix(qd, qb, rd[:1], rb[:1], matching=Matching(weighting="contrast"))
     assert one[0, 0] == 0.0
 
 
 def test_idf_by_hand():
     qd, qb, rd, rb = _contrast_case()
-    got = similarity_matrix(qd, qb, rd, rb, weighting="idf", matmul_dtype="float64")
+    got = similarity_matrix(
+        qd,
+        qb,
+        rd,
+        rb,
+        matching=Matching(weighting="idf"),
+        compute=Compute(matmul_dtype="float64"),
+    )
     # the wall matches all 3 references: log(4 / 4) = 0; the rare landmark is reciprocal in all
     # three too (each reference's landmark 1 is nearest to it), so every term weighs 0 ...
     np.testing.assert_allclose(got, 0.0, atol=1e-12)
     # ... until a reference offers the rare landmark nothing nearer than the wall
     rd2 = [rd[0], rd[1][:1], rd[2][:1]]
     rb2 = [rb[0], rb[1][:1], rb[2][:1]]
-    got = similarity_matrix(qd, qb, rd2, rb2, weighting="idf", matmul_dtype="float64")
+    got = similarity_matrix(
+        qd,
+        qb,
+        rd2,
+        rb2,
+        matching=Matching(weighting="idf"),
+        compute=Compute(matmul_dtype="float64"),
+    )
     assert got[0, 0] == pytest.approx(0.9 * math.log(4 / 2) / 2, abs=1e-12)
     np.testing.assert_allclose(got[0, 1:], 0.0, atol=1e-12)
 
@@ -143,18 +172,24 @@ def test_weighted_same_bits_for_any_thread_count():
         out = []
         for n in (1, 2):
             torch.set_num_threads(n)
-            out.append(similarity_matrix(qd, qb, rd, rb, weighting="contrast", batch_size=3))
+            out.append(
+                similarity_matrix(
+                    qd,
+                    qb,
+                    rd,
+                    rb,
+                    matching=Matching(weighting="contrast"),
+                    compute=Compute(batch_size=3),
+                )
+            )
     finally:
         torch.set_num_threads(threads)
     np.testing.assert_array_equal(out[0], out[1])
 
 
 def test_unknown_weighting_lists_the_valid_ones():
-    d, bx = [np.ones((3, 8))], [np.ones((3, 4))]
-    with pytest.raises(ValueError, match=r"unknown weighting 'tfidf'.*valid: None, 'contrast'"):
-        similarity_matrix(d, bx, d, bx, weighting="tfidf")
-    with pytest.raises(ValueError, match="valid: None, 'contrast', 'idf'"):
-        similarity_pairs(d, bx, d, bx, [[0, 0]], weighting="Contrast")
+    with pytest.raises(ValueError, match="expected None or one of 'contrast', 'idf'"):
+        Matching(weighting="Contrast")
     with pytest.raises(ValueError, match="weighting='tfidf' is not valid"):
         Matching(weighting="tfidf")
 
@@ -194,7 +229,11 @@ def test_run_method_passes_the_weighting_to_the_matcher():
         )
         d, b = r.descriptors, r.boxes
         want = similarity_matrix(
-            d["query"], b["query"], d["reference"], b["reference"], weighting=weighting
+            d["query"],
+            b["query"],
+            d["reference"],
+            b["reference"],
+            matching=Matching(weighting=weighting),
         )
         np.testing.assert_array_equal(r.similarity, want)
         assert not np.allclose(r.similarity, plain.similarity)

@@ -39,14 +39,7 @@ def _time_method(method: str, dataset, encoder, n: int, repeats: int) -> dict[st
             t_lm += seconds
             boxes.append(np.asarray(b))
         t0 = time.perf_counter()
-        similarity_matrix(
-            descs,
-            boxes,
-            descs,
-            boxes,
-            soft_nms_iou=conf.matching.soft_nms_iou,
-            sigma=conf.matching.sigma,
-        )
+        similarity_matrix(descs, boxes, descs, boxes, matching=conf.matching)
         t_match += time.perf_counter() - t0
     per_img_lm, per_img_ft = t_lm / (repeats * n), t_ft / (repeats * n)
     per_pair = t_match / (repeats * n * n)

@@ -4,8 +4,6 @@ and the run keys, labels and cache keys derived from a method's value (docs/DEFI
 from __future__ import annotations
 
 import dataclasses
-import math
-import numbers
 from typing import Any
 
 from .landmarks.schemes import (
@@ -18,8 +16,8 @@ from .landmarks.schemes import (
     check_scheme,
     option_text,
 )
-from .matching import SPATIAL_OPTIONS, WEIGHTING_OPTIONS
-from .paper import SOFT_NMS_IOU, SOFT_NMS_SIGMA
+from .matching import Matching
+from .paper import SOFT_NMS_IOU
 
 __all__ = [
     "METHODS",
@@ -32,70 +30,6 @@ __all__ = [
     "method_options",
     "run_key",
 ]
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
-
-
-def _bad(obj: object, key: str, expected: str) -> ValueError:
-    return ValueError(
-        f"{type(obj).__name__}: option {key}={getattr(obj, key)!r} is not valid; "
-        f"expected {expected}"
-    )
-
-
-@dataclasses.dataclass(frozen=True)
-class Matching:
-    """How two images' landmarks are scored: Eq. (1), with Algorithm 4 (soft-NMS on the match
-    scores) at IoU ``soft_nms_iou`` and Gaussian ``sigma`` when ``soft_nms_iou`` is set, and
-    (not in the paper) a geometry-aware re-scoring of the matches when ``spatial`` is set
-    (:data:`~vpr_core.matching.SPATIAL_OPTIONS`) and a database weighting of the terms when
-    ``weighting`` is set (:data:`~vpr_core.matching.WEIGHTING_OPTIONS`; docs/DEFINITIONS.md)."""
-
-    soft_nms_iou: float | None = None
-    sigma: float = SOFT_NMS_SIGMA
-    spatial: str | None = None
-    weighting: str | None = None
-
-    def __post_init__(self) -> None:
-        iou, sigma = self.soft_nms_iou, self.sigma
-        if iou is not None:
-            if not (_is_number(iou) and 0 <= iou <= 1):
-                raise _bad(self, "soft_nms_iou", "a number in [0, 1] or None (off)")
-            object.__setattr__(self, "soft_nms_iou", float(iou))
-        if not (_is_number(sigma) and sigma > 0):
-            raise _bad(self, "sigma", "a positive number")
-        object.__setattr__(self, "sigma", float(sigma))
-        if self.spatial is not None and self.spatial not in SPATIAL_OPTIONS:
-            raise _bad(
-                self,
-                "spatial",
-                f"None or one of {', '.join(map(repr, SPATIAL_OPTIONS))} (geometry-aware "
-                "score, not in the paper)",
-            )
-        if self.weighting is not None and self.weighting not in WEIGHTING_OPTIONS:
-            raise _bad(
-                self,
-                "weighting",
-                f"None or one of {', '.join(map(repr, WEIGHTING_OPTIONS))} (database "
-                "weighting, not in the paper)",
-            )
-
-    def options(self) -> tuple[str, ...]:
-        """The options that change a result: ``spatial`` and ``weighting`` always, the soft-NMS
-        pair with it on."""
-        nms = ("soft_nms_iou", "sigma") if self.soft_nms_iou is not None else ()
-        return (*nms, "spatial", "weighting")
-
-    def note(self) -> str:
-        """Its legend text: soft-NMS IoU, geometry and weighting; empty at the paper's Eq. (1)."""
-        parts = [] if self.soft_nms_iou is None else [f"IoU {self.soft_nms_iou:g}"]
-        if self.spatial is not None:
-            parts.append(f"geometry: {self.spatial}")
-        if self.weighting is not None:
-            parts.append(f"weighting: {self.weighting}")
-        return ", ".join(parts)
 
 
 @dataclasses.dataclass(frozen=True)

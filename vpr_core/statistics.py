@@ -275,10 +275,7 @@ def _query_records(
     records = []
     for r, is_gt in pairs:
         br = boxes_r[r]
-        m = matching
-        res = match_landmarks(
-            desc_q, bq, desc_r[r], br, soft_nms_iou=m.soft_nms_iou, sigma=m.sigma, spatial=m.spatial
-        )
+        res = match_landmarks(desc_q, bq, desc_r[r], br, matching)
         mt = np.asarray(res.matches, dtype=np.int64).reshape(-1, 2)
         lab = None
         if is_gt:

@@ -8,10 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from ..matching import check_pairs, similarity_matrix, similarity_pairs
-from ..matching.core import check_spatial
-from ..matching.weighting import check_weighting, weighting_sample
-from ..paper import SOFT_NMS_SIGMA
+from ..matching import Compute, Matching, check_pairs, similarity_matrix, similarity_pairs
+from ..matching.weighting import weighting_sample
 from .client import gather_in_order
 
 __all__ = ["similarity_blocks_distributed", "similarity_pairs_distributed"]
@@ -56,19 +54,11 @@ def _query_part(qd: list, qb: list, q0: int, q1: int, wide: int) -> _Part:
     return _Part(qd[q0:q1] + [qd[wide]], qb[q0:q1] + [qb[wide]])
 
 
-def _matrix_task(qpart: _Part, refs: _Part, soft_nms_iou, sigma, spatial, weighting) -> np.ndarray:
+def _matrix_task(qpart: _Part, refs: _Part, matching: Matching) -> np.ndarray:
     """Task: Eq. (1) of a query block x all references; ``(bq, Nr)`` (extra row dropped)."""
+    compute = Compute(batch_size=QUERY_BATCH, show_progress=False)
     out = similarity_matrix(
-        qpart.desc,
-        qpart.boxes,
-        refs.desc,
-        refs.boxes,
-        soft_nms_iou=soft_nms_iou,
-        sigma=sigma,
-        spatial=spatial,
-        weighting=weighting,
-        batch_size=QUERY_BATCH,
-        show_progress=False,
+        qpart.desc, qpart.boxes, refs.desc, refs.boxes, matching=matching, compute=compute
     )
     return out[:-1]
 
@@ -79,11 +69,8 @@ def similarity_blocks_distributed(
     query_boxes,
     reference_desc,
     reference_boxes,
-    soft_nms_iou: float | None = None,
-    sigma: float = SOFT_NMS_SIGMA,
+    matching: Matching = Matching(),
     block_queries: int = 128,
-    spatial: str | None = None,
-    weighting: str | None = None,
 ) -> np.ndarray:
     """Exhaustive Eq. (1) matrix as Dask tasks over query blocks.
 
@@ -95,11 +82,9 @@ def similarity_blocks_distributed(
         query_desc, query_boxes, reference_desc, reference_boxes: sequences of ``(K_i, D)`` /
             ``(K_i, 4)`` arrays (or stacked ``(N, K, D)`` / ``(N, K, 4)``), as
             :func:`~vpr_core.matching.similarity_matrix`.
-        soft_nms_iou, sigma: Algorithm 4 settings.
+        matching: the :class:`~vpr_core.matching.Matching`; with a weighting each task holds
+            every reference, so its statistics are the in-process ones.
         block_queries: queries per task (rounded up to a multiple of 8).
-        spatial: geometry-aware re-scoring (not in the paper), as in ``similarity_matrix``.
-        weighting: database weighting (not in the paper), as in ``similarity_matrix``; each
-            task holds every reference, so its statistics are the in-process ones.
 
     Returns:
         ``(Nq, Nr)`` float64, equal to the in-process ``similarity_matrix`` exactly.
@@ -107,17 +92,8 @@ def similarity_blocks_distributed(
     bq = _block_size(block_queries, "block_queries")
     if client is None:
         return similarity_matrix(
-            query_desc,
-            query_boxes,
-            reference_desc,
-            reference_boxes,
-            soft_nms_iou=soft_nms_iou,
-            sigma=sigma,
-            spatial=spatial,
-            weighting=weighting,
+            query_desc, query_boxes, reference_desc, reference_boxes, matching=matching
         )
-    check_spatial(spatial)
-    check_weighting(weighting)
     qd, qb = _check_lists(query_desc, query_boxes, "query")
     rd, rb = _check_lists(reference_desc, reference_boxes, "reference")
     wide = _widest(qd)
@@ -126,11 +102,7 @@ def similarity_blocks_distributed(
     futures = []
     for q0 in starts:
         part = client.scatter(_query_part(qd, qb, q0, q0 + bq, wide), hash=False)
-        futures.append(
-            client.submit(
-                _matrix_task, part, refs, soft_nms_iou, sigma, spatial, weighting, pure=False
-            )
-        )
+        futures.append(client.submit(_matrix_task, part, refs, matching, pure=False))
     out = np.empty((len(qd), len(rd)), dtype=np.float64)
     for q0, block in zip(
         starts, gather_in_order(client, futures, "similarity (dask)"), strict=False
@@ -146,10 +118,7 @@ def _pairs_task(
     ref_ids: np.ndarray,
     wide_ref: _Part,
     local_pairs: np.ndarray,
-    soft_nms_iou,
-    sigma,
-    spatial,
-    weighting=None,
+    matching: Matching,
     sample: _Part | None = None,
 ) -> np.ndarray:
     """Task: Eq. (1) of listed pairs; ``local_pairs`` index ``qpart`` and ``ref_ids``.
@@ -171,12 +140,9 @@ def _pairs_task(
         rd + wide_ref.desc,
         rb + wide_ref.boxes,
         local_pairs,
-        soft_nms_iou=soft_nms_iou,
-        sigma=sigma,
-        spatial=spatial,
-        weighting=weighting,
-        show_progress=False,
-        sample=local_sample,
+        matching,
+        Compute(show_progress=False),
+        local_sample,
     )
 
 
@@ -187,12 +153,9 @@ def similarity_pairs_distributed(
     reference_desc,
     reference_boxes,
     pairs: np.ndarray,
-    soft_nms_iou: float | None = None,
-    sigma: float = SOFT_NMS_SIGMA,
+    matching: Matching = Matching(),
     block_queries: int = 128,
     block_references: int = 512,
-    spatial: str | None = None,
-    weighting: str | None = None,
 ) -> np.ndarray:
     """Eq. (1) of listed pairs (a shortlist) as Dask tasks over query blocks.
 
@@ -205,13 +168,11 @@ def similarity_pairs_distributed(
         query_desc, query_boxes, reference_desc, reference_boxes: as
             :func:`similarity_blocks_distributed`.
         pairs: ``(P, 2)`` int ``(query, reference)`` indices, any order, repeats allowed.
-        soft_nms_iou, sigma: Algorithm 4 settings.
+        matching: the :class:`~vpr_core.matching.Matching`; with a weighting the references of
+            its statistics (:func:`~vpr_core.matching.weighting.weighting_sample`) are scattered
+            once to every worker.
         block_queries: queries per task (rounded up to a multiple of 8).
         block_references: references per scattered block.
-        spatial: geometry-aware re-scoring (not in the paper), as in ``similarity_matrix``.
-        weighting: database weighting (not in the paper), as in ``similarity_pairs``: the
-            references of its statistics (:func:`~vpr_core.matching.weighting.weighting_sample`)
-            are scattered once to every worker.
 
     Returns:
         ``(P,)`` float64 in the order of ``pairs``, equal to the in-process result exactly.
@@ -220,18 +181,8 @@ def similarity_pairs_distributed(
     br = _block_size(block_references, "block_references")
     if client is None:
         return similarity_pairs(
-            query_desc,
-            query_boxes,
-            reference_desc,
-            reference_boxes,
-            pairs,
-            soft_nms_iou=soft_nms_iou,
-            sigma=sigma,
-            spatial=spatial,
-            weighting=weighting,
+            query_desc, query_boxes, reference_desc, reference_boxes, pairs, matching
         )
-    check_spatial(spatial)
-    check_weighting(weighting)
     qd, qb = _check_lists(query_desc, query_boxes, "query")
     rd, rb = _check_lists(reference_desc, reference_boxes, "reference")
     pr = check_pairs(pairs, len(qd), len(rd))
@@ -242,7 +193,7 @@ def similarity_pairs_distributed(
     rstarts = list(range(0, len(rd), br))
     rfut = [client.scatter(_Part(rd[s : s + br], rb[s : s + br]), hash=False) for s in rstarts]
     sample = None
-    if weighting is not None:
+    if matching.weighting is not None:
         ids = weighting_sample(len(rd)).tolist()
         part = _Part([rd[j] for j in ids], [rb[j] for j in ids])
         sample = client.scatter(part, broadcast=True, hash=False)
@@ -264,10 +215,7 @@ def similarity_pairs_distributed(
                 ref_ids,
                 wide_ref,
                 local,
-                soft_nms_iou,
-                sigma,
-                spatial,
-                weighting,
+                matching,
                 sample,
                 pure=False,
             )

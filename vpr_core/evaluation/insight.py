@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..matching import match_landmarks, weighted_matches
+from ..matching import Matching, match_landmarks, weighted_matches
 from ..notices import notice
 from .compare import _check_same_dataset
 from .curves import _best_two, _query_scores, _ranked, _true_rank
@@ -78,7 +78,13 @@ def _contrast_zero_share(result: Any, queries: np.ndarray, top1: np.ndarray) -> 
     sample = None if getattr(result, "shortlist", None) else np.arange(nr)
     pairs = np.stack([queries[keep], top1[keep]], axis=1)
     ms = weighted_matches(
-        d["query"], b["query"], d["reference"], b["reference"], pairs, "contrast", sample=sample
+        d["query"],
+        b["query"],
+        d["reference"],
+        b["reference"],
+        pairs,
+        Matching(weighting="contrast"),
+        sample,
     )
     out[keep] = [np.mean(m.weights == 0) if len(m.matches) else np.nan for m in ms]
     return out

@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-from .core import SPATIAL_OPTIONS
 from .similarity import (
     MatchResult,
     check_pairs,
@@ -16,12 +15,14 @@ from .similarity import (
     similarity_pairs,
     weighted_matches,
 )
-from .weighting import WEIGHTING_OPTIONS
+from .spec import SPATIAL_OPTIONS, WEIGHTING_OPTIONS, Compute, Matching
 
 __all__ = [
     "SPATIAL_OPTIONS",
     "WEIGHTING_OPTIONS",
+    "Compute",
     "MatchResult",
+    "Matching",
     "check_pairs",
     "cosine_distance",
     "image_similarity",

@@ -11,7 +11,6 @@ from typing import NamedTuple
 
 import torch
 
-from ..checks import check_choice, check_range
 from .reciprocal import TIE_TOL, reciprocal
 from .sides import (
     LandmarkSets,
@@ -22,17 +21,16 @@ from .sides import (
     selection_index,
     selection_size,
 )
-from .weighting import check_weighting, database_weights, weighting_stats
+from .spec import Compute, Matching
+from .weighting import database_weights, weighting_stats
 
 __all__ = [
     "BLOCK_BYTES",
     "NMS_TIE_TOL",
-    "SPATIAL_OPTIONS",
     "SPATIAL_TAU",
     "BlockPairs",
     "Matches",
     "Problem",
-    "check_spatial",
     "score_block",
     "shape_terms",
     "soft_nms",
@@ -44,9 +42,6 @@ NMS_TIE_TOL = 1e-9
 #: Bytes of matmul output per block: big enough for an efficient matmul, small enough that the
 #: reductions that follow read it from the L2/L3 cache.
 BLOCK_BYTES = 8 << 20
-#: (Not in the paper.) Names of the geometry-aware re-scorings of ``spatial=``
-#: (docs/DEFINITIONS.md, "(not in the paper) geometry-aware score").
-SPATIAL_OPTIONS = ("consistency",)
 #: (Not in the paper.) Width of the ``spatial="consistency"`` Gaussian, in units of the image's
 #: landmark extent (0.1: a match displaced a tenth of the image from the consensus keeps 61%).
 SPATIAL_TAU = 0.1
@@ -106,16 +101,22 @@ def soft_nms(
     return out
 
 
+class SoftNMS(NamedTuple):
+    """Algorithm 4's settings and every image's box IoUs ``(N, K, K)`` per side."""
+
+    iou_q: torch.Tensor
+    iou_r: torch.Tensor
+    t: float
+    sigma: float
+
+
 def _nms_block(
     score: torch.Tensor,
     shp: torch.Tensor,
-    recip: torch.Tensor,
-    ri_p: torch.Tensor,
-    cos64: torch.Tensor,
+    m: Matches,
     iou_q: torch.Tensor,
     iou_r: torch.Tensor,
-    t: float,
-    sigma: float,
+    nms: SoftNMS,
     weight: torch.Tensor | None = None,
     group: int = 1024,
 ) -> torch.Tensor:
@@ -124,15 +125,16 @@ def _nms_block(
     Args:
         score: ``(nq, nr, Kq)`` pair scores per query landmark (times ``weight`` when given);
             shp: their Eq. (2) penalties.
-        recip: ``(nq, nr, Kq)`` bool reciprocal; ri_p: ``(nq, nr, Kq)`` matched reference landmark.
-        cos64: ``(nq, nr, Kq)`` float64 cosine of each query landmark and its match.
-        iou_q: ``(nq, Kq, Kq)``; iou_r: ``(nr, Kr, Kr)`` per-image box IoUs.
-        t, sigma: soft-NMS parameters.
+        m: the block's matches (with their float64 cosines ``cos64``).
+        iou_q: ``(nq, Kq, Kq)``; iou_r: ``(nr, Kr, Kr)`` the block's box IoUs.
+        nms: Algorithm 4's ``t`` and ``sigma``.
         weight: ``(nq, nr, Kq)`` weights of the terms (spatial, database) or None.
 
     Returns:
         ``(nq, nr, Kq)`` rescaled scores (unchanged where not matched).
     """
+    recip, ri_p, cos64 = m.recip, m.nn, m.cos64
+    assert cos64 is not None
     npair = recip.sum(2)
     qi, rj = (npair > 1).nonzero(as_tuple=True)  # soft-NMS is the identity below 2 matches
     if qi.numel() == 0:
@@ -156,7 +158,7 @@ def _nms_block(
             sc[alive] *= weight[gq, gr].gather(1, order)[alive]
         oq = iou_q[gq[:, None, None], ii[:, :, None], ii[:, None, :]]
         orf = iou_r[gr[:, None, None], jj[:, :, None], jj[:, None, :]]
-        new = soft_nms(sc, alive, oq, orf, t, sigma)
+        new = soft_nms(sc, alive, oq, orf, nms.t, nms.sigma)
         rows = score[gq, gr]
         rows.scatter_(1, order, torch.where(alive, new, sc))
         score[gq, gr] = rows
@@ -241,31 +243,29 @@ class BlockPairs(NamedTuple):
 
 
 def score_block(
+    prob: Problem,
     m: Matches,
-    q: Side,
-    r: Side,
     qsel: Selection,
     rsel: Selection,
-    nms: tuple | None,
     keep_pairs: bool = False,
-    spatial: str | None = None,
     weight: torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, BlockPairs | None]:
     """Eq. (1) of a block of image pairs from their reciprocal matches:
     ``S = sum over reciprocal (i, j) of (1 - d_ij * s_ij) / sqrt(n_a * n_b)``.
 
     Args:
+        prob: both sides and the :class:`~.spec.Matching` (Algorithm 4 when ``prob.nms``; with
+            ``spatial`` set each term is multiplied by its :func:`spatial_weights`, not in the
+            paper).
         m: the matches of the images ``qsel`` x ``rsel`` (:meth:`Problem.matches`).
-        q, r: prepared sides; nms: ``(iou_q, iou_r, t, sigma)`` (Algorithm 4) or None.
         keep_pairs: also return the reciprocal pairs and their terms.
-        spatial: None (the paper) or a name in :data:`SPATIAL_OPTIONS`: each term is multiplied
-            by its :func:`spatial_weights` before soft-NMS and the sum (not in the paper).
         weight: ``(nq, nr, Kq)`` database weights (:func:`database_weights`) or None (not in
             the paper); they multiply the terms likewise.
 
     Returns:
         ``((nq, nr) float64 similarities, BlockPairs or None)``.
     """
+    q, r, spatial = prob.q, prob.r, prob.matching.spatial
     nq, nr = selection_size(qsel), selection_size(rsel)
     g, rr, i = m.recip.nonzero(as_tuple=True)  # reciprocal (i, j) of image pair (g, rr)
     j = m.nn[g, rr, i]
@@ -282,57 +282,34 @@ def score_block(
     score = raw if w is None else raw * w
     norm = torch.sqrt(q.count[qsel][:, None] * r.count[rsel][None, :])  # sqrt(n_a * n_b)
     norm = torch.where(norm > 0, norm, torch.full_like(norm, math.inf))  # no landmark: 0
-    if nms is None:
+    if prob.nms is None:
         total = torch.zeros(nq * nr, dtype=torch.float64, device=norm.device)
         total.index_add_(0, g * nr + rr, score)  # the sum over each image pair's matches
         sim = total.view(nq, nr) / norm  # Eq. (1)
     else:  # Algorithm 4 rescales the terms of each image pair before the sum
-        score, sim = _soft_nms_sum(m, q, r, qsel, rsel, nms, (g, rr, i), score, shp, w, norm)
+
+        def dense(v: torch.Tensor) -> torch.Tensor:  # (P,) -> (nq, nr, Kq), 0 off the matches
+            out = torch.zeros(m.recip.shape, dtype=v.dtype, device=v.device)
+            out[g, rr, i] = v
+            return out
+
+        nms = prob.nms
+        rescaled = _nms_block(
+            dense(score),
+            dense(shp),
+            m,
+            nms.iou_q[qsel],
+            nms.iou_r[rsel],
+            nms,
+            None if w is None else dense(w),
+        )
+        sim = torch.where(m.recip, rescaled, torch.zeros_like(rescaled)).sum(2) / norm  # Eq. (1)
+        score = rescaled[g, rr, i]
     pairs = BlockPairs(g, rr, i, j, cos, shp, raw, score, ws, wd) if keep_pairs else None
     return sim, pairs
 
 
-def _soft_nms_sum(m, q, r, qsel, rsel, nms, at, score, shp, w, norm):
-    """Algorithm 4 on the terms of each image pair of the block, then the Eq. (1) sum.
-
-    Returns:
-        ``((P,) rescaled terms, (nq, nr) similarities)``.
-    """
-    iou_q, iou_r, t, sigma = nms
-
-    def dense(v: torch.Tensor) -> torch.Tensor:  # (P,) -> (nq, nr, Kq), 0 off the matches
-        out = torch.zeros(m.recip.shape, dtype=v.dtype, device=v.device)
-        out[at] = v
-        return out
-
-    assert m.cos64 is not None
-    score_p = _nms_block(
-        dense(score),
-        dense(shp),
-        m.recip,
-        m.nn,
-        m.cos64,
-        iou_q[qsel],
-        iou_r[rsel],
-        t,
-        sigma,
-        None if w is None else dense(w),
-    )
-    sim = torch.where(m.recip, score_p, torch.zeros_like(score_p)).sum(2) / norm  # Eq. (1)
-    return score_p[at], sim
-
-
 # ---- one call: both sides prepared, blocks scored ----------------------------------------
-def check_spatial(spatial: str | None) -> str | None:
-    """``spatial`` if it is None or a name in :data:`SPATIAL_OPTIONS`; else a clear error."""
-    if spatial is not None and spatial not in SPATIAL_OPTIONS:
-        raise ValueError(
-            f"unknown spatial {spatial!r} (geometry-aware score, not in the paper); "
-            f"valid: None, {', '.join(repr(n) for n in SPATIAL_OPTIONS)}"
-        )
-    return spatial
-
-
 _LOCAL = threading.local()
 
 
@@ -349,17 +326,17 @@ def _buffers(n: int, n_work: int, dtype: torch.dtype, device: torch.device):
 
 @dataclass
 class Problem:
-    """Both sides of one call, checked and prepared once, and the settings every block shares."""
+    """Both sides of one call, prepared once, and the values every block shares."""
 
     q: Side
     r: Side
+    matching: Matching
+    compute: Compute
     dev: torch.device
     mm_dtype: torch.dtype
     margin: float
-    nms: tuple | None
+    nms: SoftNMS | None
     empty: bool
-    spatial: str | None = None
-    weighting: str | None = None
 
     @classmethod
     def build(
@@ -368,29 +345,19 @@ class Problem:
         query_boxes: LandmarkSets | None,
         reference_desc: LandmarkSets,
         reference_boxes: LandmarkSets | None,
-        soft_nms_iou: float | None,
-        sigma: float,
-        device: str | torch.device = "cpu",
-        matmul_dtype: str = "float32",
+        matching: Matching,
+        compute: Compute,
         sides: tuple[str, str] = ("query", "reference"),
-        spatial: str | None = None,
-        weighting: str | None = None,
     ) -> Problem:
-        """Check every input once and prepare both sides (arguments: see ``similarity_matrix``).
+        """Check both sides once and prepare them (arguments: see ``similarity_matrix``).
 
         Args:
             sides: names of the two sides in messages (``("a", "b")`` for one image pair).
         """
-        if soft_nms_iou is not None:
-            check_range(soft_nms_iou, "soft_nms_iou (Algorithm 4 threshold, or None)", 0.0, 1.0)
-        check_range(sigma, "sigma (soft-NMS width)", 0.0, low_open=True)
-        check_choice(matmul_dtype, "matmul_dtype", ("float32", "float64"))
-        check_spatial(spatial)
-        check_weighting(weighting)
-        dev = torch.device(device)
+        dev = torch.device(compute.device)
         if dev.type == "cuda" and not torch.cuda.is_available():
-            raise ValueError(f"device={device!r} but torch sees no CUDA GPU; use device='cpu'")
-        mm_dtype = torch.float32 if matmul_dtype == "float32" else torch.float64
+            raise ValueError(f"device={compute.device!r} but torch sees no CUDA GPU; use 'cpu'")
+        mm_dtype = torch.float32 if compute.matmul_dtype == "float32" else torch.float64
         q = prepare_side(query_desc, query_boxes, sides[0], mm_dtype, dev)
         r = prepare_side(reference_desc, reference_boxes, sides[1], mm_dtype, dev)
         if q.dim and r.dim and q.dim != r.dim:
@@ -405,12 +372,14 @@ class Problem:
         margin = 2.5 * dim * unit + 4 * unit + TIE_TOL
         empty = q.dim == 0 or r.dim == 0
         nms = None
-        if soft_nms_iou is not None and not empty:
-            nms = (iou_stack(q, dev), iou_stack(r, dev), float(soft_nms_iou), float(sigma))
+        if matching.soft_nms_iou is not None and not empty:
+            nms = SoftNMS(
+                iou_stack(q, dev), iou_stack(r, dev), matching.soft_nms_iou, matching.sigma
+            )
         if not empty:
             q.build_caches(unit64=nms is not None)
             r.build_caches(unit64=nms is not None)
-        return cls(q, r, dev, mm_dtype, margin, nms, empty, spatial, weighting)
+        return cls(q, r, matching, compute, dev, mm_dtype, margin, nms, empty)
 
     def matches(self, qsel: Selection, rsel: Selection) -> Matches:
         """Reciprocal nearest neighbours of the images ``qsel`` x ``rsel`` (one matmul)."""
@@ -435,8 +404,7 @@ class Problem:
         self, qsel: Selection, rsel: Selection, keep_pairs: bool = False
     ) -> tuple[torch.Tensor, BlockPairs | None]:
         """Eq. (1) of the images ``qsel`` x ``rsel``: ``((nq, nr) float64, pairs or None)``."""
-        m = self.matches(qsel, rsel)
-        return score_block(m, self.q, self.r, qsel, rsel, self.nms, keep_pairs, self.spatial)
+        return score_block(self, self.matches(qsel, rsel), qsel, rsel, keep_pairs)
 
     def chunked(self, qsel: Selection, refs: torch.Tensor | slice, size: int) -> Matches:
         """The matches of ``qsel`` x ``refs`` (a slice or indices), ``size`` references a matmul."""
@@ -462,8 +430,9 @@ class Problem:
             stats_from: the matches of ``qsel`` x the references that define the statistics,
                 and those references.
         """
-        assert self.weighting is not None
+        weighting = self.matching.weighting
+        assert weighting is not None
         ms, ssel = stats_from
-        stats = weighting_stats(self.weighting, ms, self.r.count[ssel] > 0)
-        w = database_weights(self.weighting, m.best, stats)
-        return score_block(m, self.q, self.r, qsel, rsel, self.nms, keep_pairs, self.spatial, w)
+        stats = weighting_stats(weighting, ms, self.r.count[ssel] > 0)
+        w = database_weights(weighting, m.best, stats)
+        return score_block(self, m, qsel, rsel, keep_pairs, w)

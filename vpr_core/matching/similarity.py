@@ -16,6 +16,7 @@ from ..paper import SOFT_NMS_SIGMA
 from ..utils import progress
 from .core import BLOCK_BYTES, Problem, shape_terms
 from .sides import LandmarkSets, rescale_rows, unit_rows
+from .spec import Compute, Matching, as_matching
 from .weighting import weighting_sample
 
 __all__ = [
@@ -39,19 +40,13 @@ def similarity_matrix(
     reference_boxes: LandmarkSets,
     soft_nms_iou: float | None = None,
     sigma: float = SOFT_NMS_SIGMA,
-    spatial: str | None = None,
-    weighting: str | None = None,
-    device: str | torch.device = "cpu",
-    batch_size: int | None = None,
-    ref_batch_size: int | None = None,
-    matmul_dtype: str = "float32",
-    show_progress: bool = True,
+    matching: Matching | None = None,
+    compute: Compute = Compute(),
 ) -> np.ndarray:
     """Eq. (1) similarity of every query x reference image pair (optionally with Algorithm 4).
 
-    One matmul per block of ``batch_size`` queries x ``ref_batch_size`` references, in
-    ``matmul_dtype``; near-ties are re-decided in float64
-    (:func:`~.reciprocal.resolve_ties`), so the
+    One matmul per block of ``compute.batch_size`` queries x ``compute.ref_batch_size``
+    references; near-ties are re-decided in float64 (:func:`~.reciprocal.resolve_ties`), so the
     matches equal the float64 definition exactly and values agree with it to ~1e-6. On the CPU
     the blocks run on ``torch.get_num_threads()`` worker threads (same bits for any count).
 
@@ -60,19 +55,12 @@ def similarity_matrix(
         query_boxes: sequence of ``(K_q, 4)`` ``(x, y, w, h)`` arrays, or ``(Nq, K, 4)``.
         reference_desc: sequence of ``(K_r, D)`` arrays, or ``(Nr, K, D)``.
         reference_boxes: sequence of ``(K_r, 4)`` arrays, or ``(Nr, K, 4)``.
-        soft_nms_iou: Algorithm 4 threshold ``t`` or None.
-        sigma: soft-NMS Gaussian width.
-        spatial: None (the paper) or ``"consistency"`` (not in the paper): geometry-aware
-            re-scoring of the reciprocal matches, docs/DEFINITIONS.md; valid names:
-            :data:`~.core.SPATIAL_OPTIONS`.
-        weighting: None (the paper) or ``"contrast"`` / ``"idf"`` (not in the paper): each
-            term weighted by how much better its query landmark matches this reference than
-            the others, statistics over every reference; docs/DEFINITIONS.md.
-        device: torch device (``"cpu"``, ``"cuda"``).
-        batch_size: queries per block (default: 8).
-        ref_batch_size: references per block (default: a block of ~8 MB of float32 cosines).
-        matmul_dtype: ``"float32"`` (fast) or ``"float64"``.
-        show_progress: progress bar over blocks (``TQDM_DISABLE=1`` silences it).
+        soft_nms_iou, sigma: Algorithm 4 (the paper's shorthand for ``Matching(soft_nms_iou,
+            sigma)``).
+        matching: a :class:`~.spec.Matching` (Algorithm 4 and, not in the paper, ``spatial``
+            and ``weighting``; docs/DEFINITIONS.md) instead of ``soft_nms_iou``/``sigma``. With
+            a weighting each term's statistics cover every reference.
+        compute: device, block sizes, matmul precision and progress bar (:class:`~.spec.Compute`).
 
     Returns:
         ``(Nq, Nr)`` float64 similarities; 0 for a pair where an image has no landmark.
@@ -82,19 +70,15 @@ def similarity_matrix(
         query_boxes,
         reference_desc,
         reference_boxes,
-        soft_nms_iou,
-        sigma,
-        device,
-        matmul_dtype,
-        spatial=spatial,
-        weighting=weighting,
+        as_matching(soft_nms_iou, sigma, matching),
+        compute,
     )
     q, r = prob.q, prob.r
     out = torch.zeros((q.n, r.n), dtype=torch.float64, device=prob.dev)
     if prob.empty:  # no landmark anywhere on one side
         return out.cpu().numpy()
-    bq = max(1, int(batch_size or 8))
-    br = int(ref_batch_size or max(1, BLOCK_BYTES // (4 * bq * q.k * r.k)))
+    bq = compute.batch_size or 8
+    br = compute.ref_batch_size or max(1, BLOCK_BYTES // (4 * bq * q.k * r.k))
     br = max(1, min(br, r.n))
 
     def task(q0: int, r0: int) -> None:
@@ -107,11 +91,11 @@ def similarity_matrix(
         m = prob.chunked(qs, rs, br)
         out[qs] = prob.weighted(qs, rs, m, (m, rs))[0]
 
-    if prob.weighting is None:
+    if prob.matching.weighting is None:
         tasks = [partial(task, q0, r0) for q0 in range(0, q.n, bq) for r0 in range(0, r.n, br)]
     else:
         tasks = [partial(weighted_task, q0) for q0 in range(0, q.n, bq)]
-    _run(prob, tasks, show_progress)
+    _run(prob, tasks)
     return out.cpu().numpy()
 
 
@@ -121,35 +105,21 @@ def similarity_pairs(
     reference_desc: LandmarkSets,
     reference_boxes: LandmarkSets,
     pairs: np.ndarray | Sequence,
-    soft_nms_iou: float | None = None,
-    sigma: float = SOFT_NMS_SIGMA,
-    spatial: str | None = None,
-    weighting: str | None = None,
-    device: str | torch.device = "cpu",
-    ref_batch_size: int | None = None,
-    matmul_dtype: str = "float32",
-    show_progress: bool = True,
+    matching: Matching = Matching(),
+    compute: Compute = Compute(),
     sample: np.ndarray | None = None,
 ) -> np.ndarray:
     """Eq. (1) similarity of the listed (query, reference) image pairs only (e.g. a shortlist).
 
     Pairs are grouped by query; each query is scored against its listed references in chunks of
-    ``ref_batch_size`` by the same core as :func:`similarity_matrix`.
+    ``compute.ref_batch_size`` by the same core as :func:`similarity_matrix`.
 
     Args:
         query_desc, query_boxes, reference_desc, reference_boxes: as :func:`similarity_matrix`.
         pairs: ``(P, 2)`` int ``(query index, reference index)``; any order, repeats allowed.
-        soft_nms_iou: Algorithm 4 threshold ``t`` or None.
-        sigma: soft-NMS Gaussian width.
-        spatial: None (the paper) or ``"consistency"`` (not in the paper): geometry-aware
-            re-scoring of the reciprocal matches, docs/DEFINITIONS.md; valid names:
-            :data:`~.core.SPATIAL_OPTIONS`.
-        weighting: None (the paper) or ``"contrast"`` / ``"idf"`` (not in the paper), with
-            statistics over the references ``sample``; docs/DEFINITIONS.md.
-        device: torch device (``"cpu"``, ``"cuda"``).
-        ref_batch_size: references per matmul (default: a block of ~8 MB of float32 cosines).
-        matmul_dtype: ``"float32"`` (fast) or ``"float64"``.
-        show_progress: progress bar over queries (``TQDM_DISABLE=1`` silences it).
+        matching: the :class:`~.spec.Matching`; a weighting takes its statistics over the
+            references ``sample``.
+        compute: as :func:`similarity_matrix` (``batch_size`` unused: one query at a time).
         sample: indices of the references whose cosines give the weighting statistics
             (default: :func:`~.weighting.weighting_sample`, all of them up to 256).
 
@@ -157,16 +127,7 @@ def similarity_pairs(
         ``(P,)`` float64 similarities, in the order of ``pairs``.
     """
     prob = Problem.build(
-        query_desc,
-        query_boxes,
-        reference_desc,
-        reference_boxes,
-        soft_nms_iou,
-        sigma,
-        device,
-        matmul_dtype,
-        spatial=spatial,
-        weighting=weighting,
+        query_desc, query_boxes, reference_desc, reference_boxes, matching, compute
     )
     q, r = prob.q, prob.r
     pr = check_pairs(pairs, q.n, r.n)
@@ -174,7 +135,7 @@ def similarity_pairs(
     out = np.zeros(pr.shape[0], dtype=np.float64)
     if prob.empty or pr.shape[0] == 0:
         return out
-    br = int(ref_batch_size or max(1, BLOCK_BYTES // (4 * q.k * r.k)))
+    br = compute.ref_batch_size or max(1, BLOCK_BYTES // (4 * q.k * r.k))
     order = np.argsort(pr[:, 0], kind="stable")
     starts = np.flatnonzero(np.r_[True, pr[order[1:], 0] != pr[order[:-1], 0]])
     groups = np.split(order, starts[1:])
@@ -183,7 +144,7 @@ def similarity_pairs(
 
     def task(rows: np.ndarray) -> None:
         qi = int(pr[rows[0], 0])
-        if prob.weighting is not None:  # (not in the paper) statistics over the sample
+        if matching.weighting is not None:  # (not in the paper) statistics over the sample
             qs = slice(qi, qi + 1)
             ridx = torch.from_numpy(pr[rows, 1]).to(prob.dev)
             m = prob.chunked(qs, ridx, br)
@@ -195,7 +156,7 @@ def similarity_pairs(
             ridx = torch.from_numpy(pr[chunk, 1]).to(prob.dev)
             out[chunk] = prob.block(slice(qi, qi + 1), ridx)[0][0].cpu().numpy()
 
-    _run(prob, [partial(task, g) for g in groups], show_progress)
+    _run(prob, [partial(task, g) for g in groups])
     return out
 
 
@@ -231,14 +192,15 @@ def _check_sample(sample: np.ndarray | Sequence, nr: int) -> np.ndarray:
     return arr.astype(np.int64)
 
 
-def _run(prob: Problem, tasks: Sequence[Callable[[], None]], show_progress: bool) -> None:
+def _run(prob: Problem, tasks: Sequence[Callable[[], None]]) -> None:
     """Run independent tasks; on a multi-core CPU, on one worker thread per torch thread.
 
     Each worker sets torch's intra-op threads to 1 for itself, so the small reductions after
     each matmul never wait at an OpenMP barrier; the cores are used by running different blocks
     at once. Blocks write disjoint outputs, so the result is the same for any number of workers.
     """
-    bar = progress(range(len(tasks)), desc="similarity", unit="block") if show_progress else None
+    show = prob.compute.show_progress
+    bar = progress(range(len(tasks)), desc="similarity", unit="block") if show else None
     threads = torch.get_num_threads()
     workers = min(threads, len(tasks)) if prob.dev.type == "cpu" else 1
     try:
@@ -316,10 +278,7 @@ def weighted_matches(
     reference_desc: LandmarkSets,
     reference_boxes: LandmarkSets,
     pairs: np.ndarray | Sequence,
-    weighting: str,
-    soft_nms_iou: float | None = None,
-    sigma: float = SOFT_NMS_SIGMA,
-    spatial: str | None = None,
+    matching: Matching,
     sample: np.ndarray | None = None,
 ) -> list[MatchResult]:
     """The matches of the listed image pairs with their database weights (not in the paper).
@@ -329,24 +288,18 @@ def weighted_matches(
     pass ``sample=np.arange(Nr)`` to see its weights when ``Nr > 256``.
 
     Args:
-        query_desc, query_boxes, reference_desc, reference_boxes, pairs: as
-            :func:`similarity_pairs`; weighting: ``"contrast"`` or ``"idf"``.
-        soft_nms_iou, sigma, spatial, sample: as :func:`similarity_pairs`.
+        query_desc, query_boxes, reference_desc, reference_boxes, pairs, sample: as
+            :func:`similarity_pairs`; matching: a :class:`~.spec.Matching` with a ``weighting``.
 
     Returns:
         One :class:`MatchResult` per row of ``pairs``.
     """
-    if weighting is None:
-        raise ValueError("weighted_matches needs weighting='contrast' or 'idf', got None")
+    if getattr(matching, "weighting", None) is None:
+        raise ValueError(
+            f"weighted_matches needs Matching(weighting='contrast' or 'idf'), got {matching!r}"
+        )
     prob = Problem.build(
-        query_desc,
-        query_boxes,
-        reference_desc,
-        reference_boxes,
-        soft_nms_iou,
-        sigma,
-        spatial=spatial,
-        weighting=weighting,
+        query_desc, query_boxes, reference_desc, reference_boxes, matching, Compute()
     )
     q, r = prob.q, prob.r
     pr = check_pairs(pairs, q.n, r.n)
@@ -368,26 +321,34 @@ def weighted_matches(
     return out
 
 
-def _match_pair(
+def match_landmarks(
     desc_a: np.ndarray | Sequence,
     boxes_a: np.ndarray | Sequence | None,
     desc_b: np.ndarray | Sequence,
     boxes_b: np.ndarray | Sequence | None,
-    soft_nms_iou: float | None,
-    sigma: float,
-    spatial: str | None = None,
+    matching: Matching = Matching(),
 ) -> MatchResult:
-    """One image pair through the core (float64 matmul); boxes None: sizes 0."""
+    """Match the landmarks of two images and score them (Eq. 1-2, optional Algorithm 4), in
+    float64.
+
+    Args:
+        desc_a: ``(Ka, D)`` descriptors of image a (query).
+        boxes_a: ``(Ka, 4)`` ``(x, y, w, h)`` boxes of image a (None: sizes 0).
+        desc_b: ``(Kb, D)`` descriptors of image b (reference).
+        boxes_b: ``(Kb, 4)`` boxes of image b.
+        matching: a :class:`~.spec.Matching` without a weighting (that needs the references:
+            :func:`weighted_matches`).
+    """
+    if matching.weighting is not None:
+        raise ValueError("a weighting needs every reference: use weighted_matches")
     prob = Problem.build(
         [np.asarray(desc_a)],
         None if boxes_a is None else [np.asarray(boxes_a)],
         [np.asarray(desc_b)],
         None if boxes_b is None else [np.asarray(boxes_b)],
-        soft_nms_iou,
-        sigma,
-        matmul_dtype="float64",
+        matching,
+        Compute(matmul_dtype="float64"),
         sides=("a", "b"),
-        spatial=spatial,
     )
     na, nb = int(prob.q.count[0]), int(prob.r.count[0])
     if prob.empty:
@@ -397,31 +358,6 @@ def _match_pair(
     return _result(p, float(sim[0, 0]), na, nb)
 
 
-def match_landmarks(
-    desc_a: np.ndarray | Sequence,
-    boxes_a: np.ndarray | Sequence,
-    desc_b: np.ndarray | Sequence,
-    boxes_b: np.ndarray | Sequence,
-    soft_nms_iou: float | None = None,
-    sigma: float = SOFT_NMS_SIGMA,
-    spatial: str | None = None,
-) -> MatchResult:
-    """Match the landmarks of two images and score them (Eq. 1-2, optional Algorithm 4).
-
-    Args:
-        desc_a: ``(Ka, D)`` descriptors of image a (query).
-        boxes_a: ``(Ka, 4)`` ``(x, y, w, h)`` boxes of image a.
-        desc_b: ``(Kb, D)`` descriptors of image b (reference).
-        boxes_b: ``(Kb, 4)`` boxes of image b.
-        soft_nms_iou: soft-NMS threshold ``t`` (Algorithm 4) or None for plain Eq. (1).
-        sigma: soft-NMS Gaussian width.
-        spatial: None (the paper) or ``"consistency"`` (not in the paper): geometry-aware
-            re-scoring of the reciprocal matches, docs/DEFINITIONS.md; valid names:
-            :data:`~.core.SPATIAL_OPTIONS`.
-    """
-    return _match_pair(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou, sigma, spatial)
-
-
 def image_similarity(
     desc_a: np.ndarray | Sequence,
     boxes_a: np.ndarray | Sequence,
@@ -429,10 +365,12 @@ def image_similarity(
     boxes_b: np.ndarray | Sequence,
     soft_nms_iou: float | None = None,
     sigma: float = SOFT_NMS_SIGMA,
-    spatial: str | None = None,
+    matching: Matching | None = None,
 ) -> float:
-    """Eq. (1) similarity of two images (0 if one has no landmark); arguments as match_landmarks."""
-    return _match_pair(desc_a, boxes_a, desc_b, boxes_b, soft_nms_iou, sigma, spatial).similarity
+    """Eq. (1) similarity of two images (0 if one has no landmark); arguments as
+    :func:`match_landmarks` and :func:`similarity_matrix`."""
+    m = as_matching(soft_nms_iou, sigma, matching)
+    return match_landmarks(desc_a, boxes_a, desc_b, boxes_b, m).similarity
 
 
 def reciprocal_matches(desc_a: np.ndarray | Sequence, desc_b: np.ndarray | Sequence) -> np.ndarray:
@@ -441,7 +379,7 @@ def reciprocal_matches(desc_a: np.ndarray | Sequence, desc_b: np.ndarray | Seque
     Args:
         desc_a: ``(Ka, D)`` descriptors; desc_b: ``(Kb, D)`` descriptors.
     """
-    return _match_pair(desc_a, None, desc_b, None, None, SOFT_NMS_SIGMA).matches
+    return match_landmarks(desc_a, None, desc_b, None).matches
 
 
 def shape_penalty(boxes_a: np.ndarray | Sequence, boxes_b: np.ndarray | Sequence) -> np.ndarray:

@@ -14,33 +14,18 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CONTRAST_SIGMA_MIN",
-    "WEIGHTING_OPTIONS",
     "WEIGHTING_SAMPLE",
-    "check_weighting",
     "database_weights",
     "weighting_sample",
     "weighting_stats",
 ]
 
-#: (Not in the paper.) Names of the database weightings of the Eq. (1) terms (``weighting=``;
-#: docs/DEFINITIONS.md, "(not in the paper) database weighting").
-WEIGHTING_OPTIONS = ("contrast", "idf")
 #: (Not in the paper.) References (a seed-0 sample) whose cosines give the weighting statistics
 #: of a shortlist run; every reference when there are at most this many.
 WEIGHTING_SAMPLE = 256
 #: (Not in the paper.) A contrast standard deviation at or below this counts as 0 (the float32
 #: cosines cannot tell the references apart): the landmark's weight is 0.
 CONTRAST_SIGMA_MIN = 1e-6
-
-
-def check_weighting(weighting: str | None) -> str | None:
-    """``weighting`` if it is None or a name in :data:`WEIGHTING_OPTIONS`; else a clear error."""
-    if weighting is not None and weighting not in WEIGHTING_OPTIONS:
-        raise ValueError(
-            f"unknown weighting {weighting!r} (database weighting, not in the paper); "
-            f"valid: None, {', '.join(repr(n) for n in WEIGHTING_OPTIONS)}"
-        )
-    return weighting
 
 
 def weighting_sample(n_references: int) -> np.ndarray:
@@ -61,7 +46,7 @@ def weighting_stats(
     """Per query landmark ``(nq, Kq)`` statistics over the references of ``m`` with landmarks.
 
     Args:
-        weighting: a name in :data:`WEIGHTING_OPTIONS`.
+        weighting: a name in :data:`~.spec.WEIGHTING_OPTIONS`.
         m: matches of ``nq`` query images x the references that define the statistics.
         has: ``(nr,)`` bool: the reference has at least one landmark (only those count).
 
@@ -90,7 +75,7 @@ def database_weights(
     ``idf``: the landmark's ``log((N + 1) / (n_i + 1))``.
 
     Args:
-        weighting: a name in :data:`WEIGHTING_OPTIONS`; best: ``(nq, nr, Kq)`` ``b_i(r)``;
+        weighting: a name in :data:`~.spec.WEIGHTING_OPTIONS`; best: ``(nq, nr, Kq)`` ``b_i(r)``;
             stats: from :func:`weighting_stats`.
     """
     a, b = stats

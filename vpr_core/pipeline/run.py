@@ -116,15 +116,14 @@ def match(
         ``matching_s`` (Eq. (1) seconds).
     """
     matching = matching or Matching()
-    opts = {f.name: getattr(matching, f.name) for f in dataclasses.fields(matching)}
     args = (feats["query"], boxes["query"], feats["reference"], boxes["reference"])
     nq, nr = len(feats["query"]), len(feats["reference"])
     t0 = time.perf_counter()
     if shortlist is None:
         if client is None:
-            sim = similarity_matrix(*args, **opts)
+            sim = similarity_matrix(*args, matching=matching)
         else:
-            sim = similarity_blocks_distributed(client, *args, **opts)
+            sim = similarity_blocks_distributed(client, *args, matching)
         return sim, {
             "pairs": float(nq * nr),
             "shortlist_s": 0.0,
@@ -135,7 +134,7 @@ def match(
 
     pairs, _ = shortlist_pairs(global_desc["query"], global_desc["reference"], shortlist)
     t1 = time.perf_counter()
-    vals = similarity_pairs_distributed(client, *args, pairs, **opts)  # None: in-process
+    vals = similarity_pairs_distributed(client, *args, pairs, matching)  # None: in-process
     sim = rerank(vals, pairs, nq, nr)
     t2 = time.perf_counter()
     logger.info(

@@ -3,6 +3,7 @@ and a database weighting gets right, each match drawn in the colour of its weigh
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import matplotlib
@@ -27,11 +28,8 @@ def _matches(run: Any, pairs: list[tuple[int, int]], weighting: str) -> list:
         d["reference"],
         b["reference"],
         pairs,
-        weighting,
-        soft_nms_iou=m.soft_nms_iou,
-        sigma=m.sigma,
-        spatial=m.spatial,
-        sample=sample,
+        dataclasses.replace(m, weighting=weighting),
+        sample,
     )
 
 
