@@ -13,6 +13,7 @@ from vpr_core.labels import (
     LABEL_METHODS,
     LabelUnavailableError,
     PairGeometry,
+    Verification,
     append_labels,
     estimate_pair_geometry,
     label_matches,
@@ -378,9 +379,21 @@ BAD_LABEL_CALLS = {
         "unknown model 'box'; valid: auto, homography, points",
     ),
     "geometric: estimator": (
-        lambda f, t: estimate_pair_geometry(np.zeros((9, 9, 3), np.uint8), B3, robust="lmeds"),
+        lambda f, t: Verification(robust="lmeds"),
         ValueError,
         "unknown robust estimator 'lmeds'; valid: ransac, magsac",
+    ),
+    "geometric: unknown option": (
+        lambda f, t: label_matches(f, 0, 1, B3, B3, [[0, 0]], method="geometric", ratios=0.7),
+        TypeError,
+        r"unknown geometric-verification option\(s\) \['ratios'\]; valid: contrast_threshold",
+    ),
+    "geometric: option twice": (
+        lambda f, t: label_matches(
+            f, 0, 0, B3, B3, [[0, 0]], method="geometric", verification=Verification(), ratio=0.7
+        ),
+        ValueError,
+        "give verification=Verification",
     ),
     "file: no labels": (
         lambda f, t: label_matches(f, 0, 0, B3, B3, [[0, 0]], method="file"),

@@ -22,6 +22,7 @@ from .exact import (
 from .file import LABEL_COLUMNS, _label_file, append_labels, read_label_file
 from .geometric import (
     PairGeometry,
+    Verification,
     _label_pair_geometric,
     estimate_pair_geometry,
     label_matches_geometric,
@@ -36,6 +37,7 @@ __all__ = [
     "append_labels",
     "check_matches",
     "dataset_image_size",
+    "Verification",
     "estimate_pair_geometry",
     "is_ground_truth",
     "label_matches",
@@ -77,7 +79,8 @@ def label_matches(
     (docs/DEFINITIONS.md), by one of :data:`LABEL_METHODS`; ``labels``: the ``file`` CSV.
 
     ``**options``: ``geometric``: ``images``, ``geometry``, ``geometry_cache``, ``model``,
-    ``min_points``, ``point_iou`` and :func:`estimate_pair_geometry` keywords; ``file``:
+    ``min_points``, ``point_iou`` and ``verification=`` (a :class:`Verification`, or its
+    fields as keywords); ``file``:
     ``on_unmatched``; ``exact``: ``image_size_r``. LabelUnavailableError: no information.
     """
     bq, br = check_boxes(boxes_q, "boxes_q"), check_boxes(boxes_r, "boxes_r")

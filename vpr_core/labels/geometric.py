@@ -3,6 +3,7 @@ The rules and thresholds are in docs/DEFINITIONS.md ("Match labels")."""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
@@ -67,22 +68,63 @@ def _homography_is_sane(H: np.ndarray, size_q: tuple[int, int]) -> bool:
     return 1.0 / 16 <= ratio <= 16.0 and bool(cross[0] > 0)
 
 
+@dataclass(frozen=True)
+class Verification:
+    """How :func:`estimate_pair_geometry` verifies a pair (defaults set from the chance level;
+    docs/DEFINITIONS.md): SIFT (``max_features``, ``contrast_threshold``) after CLAHE
+    (``equalize``), a Gaussian ``denoise`` sigma and an ``upscale`` factor; Lowe's ``ratio``;
+    RANSAC or MAGSAC (``robust``, seeded by ``seed``) homography and fundamental matrix with
+    pixel thresholds ``h_threshold`` / ``f_threshold``; a model is kept with at least
+    ``min_inliers*`` inliers and ``min_inlier_ratio*`` of the ratio-test matches, the homography
+    only with ``h_share`` of the fundamental matrix's inliers."""
+
+    ratio: float = 0.8
+    max_features: int = 4000
+    equalize: bool = True
+    h_threshold: float = 4.0
+    f_threshold: float = 2.0
+    min_inliers: int = 15
+    min_inlier_ratio: float = 0.3
+    min_inliers_f: int = 20
+    min_inlier_ratio_f: float = 0.45
+    h_share: float = 0.7
+    contrast_threshold: float = 0.01
+    denoise: float = 0.0
+    upscale: float = 1.0
+    robust: str = "ransac"
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        check_choice(self.robust, "robust estimator", ("ransac", "magsac"))
+
+
+def as_verification(options: dict[str, Any]) -> Verification:
+    """A :class:`Verification` from ``verification=`` or its fields as keywords (not both)."""
+    value = options.pop("verification", None)
+    names = {f.name for f in dataclasses.fields(Verification)}
+    unknown = set(options) - names
+    if unknown:
+        raise TypeError(
+            f"unknown geometric-verification option(s) {sorted(unknown)}; valid: "
+            f"{', '.join(sorted(names))}, verification"
+        )
+    if value is None:
+        return Verification(**options)
+    if options:
+        raise ValueError("give verification=Verification(...) or its fields, not both")
+    return value
+
+
 def _ratio_test_points(
-    img_q: np.ndarray,
-    img_r: np.ndarray,
-    ratio: float,
-    max_features: int,
-    equalize: bool,
-    contrast_threshold: float,
-    denoise: float,
-    upscale: float,
+    img_q: np.ndarray, img_r: np.ndarray, v: Verification
 ) -> tuple[np.ndarray, np.ndarray] | None:
     """``(points_q (N, 2), points_r (N, 2))``: SIFT correspondences that pass Lowe's ratio test,
     in original pixels; None when an image has fewer than two keypoints."""
     sift = cv2.SIFT_create(  # type: ignore[attr-defined]
-        nfeatures=int(max_features), contrastThreshold=float(contrast_threshold)
+        nfeatures=int(v.max_features), contrastThreshold=float(v.contrast_threshold)
     )
-    gq, gr = _gray(img_q, equalize, denoise), _gray(img_r, equalize, denoise)
+    ratio, upscale = v.ratio, v.upscale
+    gq, gr = _gray(img_q, v.equalize, v.denoise), _gray(img_r, v.equalize, v.denoise)
     if upscale != 1.0:
         gq = cv2.resize(gq, None, fx=upscale, fy=upscale, interpolation=cv2.INTER_LINEAR)
         gr = cv2.resize(gr, None, fx=upscale, fy=upscale, interpolation=cv2.INTER_LINEAR)
@@ -98,20 +140,20 @@ def _ratio_test_points(
 
 
 def _fit_models(
-    pq: np.ndarray, pr: np.ndarray, robust: str, h_threshold: float, f_threshold: float, seed: int
+    pq: np.ndarray, pr: np.ndarray, v: Verification
 ) -> tuple[Any, np.ndarray, Any, np.ndarray]:
     """``(H or None, inliers_h (N,), F or None, inliers_f (N,))``: RANSAC (or MAGSAC)
     homography and fundamental matrix of ``(N, 2)`` correspondences."""
     n_put = len(pq)
-    h_method = cv2.RANSAC if robust == "ransac" else cv2.USAC_MAGSAC
-    f_method = cv2.FM_RANSAC if robust == "ransac" else cv2.USAC_MAGSAC
-    cv2.setRNGSeed(int(seed))
+    h_method = cv2.RANSAC if v.robust == "ransac" else cv2.USAC_MAGSAC
+    f_method = cv2.FM_RANSAC if v.robust == "ransac" else cv2.USAC_MAGSAC
+    cv2.setRNGSeed(int(v.seed))
     H, mask_h = cv2.findHomography(
-        pq, pr, h_method, float(h_threshold), maxIters=5000, confidence=0.999
+        pq, pr, h_method, float(v.h_threshold), maxIters=5000, confidence=0.999
     )
     inl_h = mask_h.ravel().astype(bool) if mask_h is not None else np.zeros(n_put, bool)
-    cv2.setRNGSeed(int(seed))
-    F, mask_f = cv2.findFundamentalMat(pq, pr, f_method, float(f_threshold), 0.999, 5000)
+    cv2.setRNGSeed(int(v.seed))
+    F, mask_f = cv2.findFundamentalMat(pq, pr, f_method, float(v.f_threshold), 0.999, 5000)
     if F is not None and F.shape != (3, 3):  # several solutions stacked: keep the first
         F = F[:3]
     inl_f = mask_f.ravel().astype(bool) if mask_f is not None else np.zeros(n_put, bool)
@@ -119,59 +161,35 @@ def _fit_models(
 
 
 def estimate_pair_geometry(
-    img_q: np.ndarray,
-    img_r: np.ndarray,
-    *,
-    ratio: float = 0.8,
-    max_features: int = 4000,
-    equalize: bool = True,
-    h_threshold: float = 4.0,
-    f_threshold: float = 2.0,
-    min_inliers: int = 15,
-    min_inlier_ratio: float = 0.3,
-    min_inliers_f: int = 20,
-    min_inlier_ratio_f: float = 0.45,
-    h_share: float = 0.7,
-    contrast_threshold: float = 0.01,
-    denoise: float = 0.0,
-    upscale: float = 1.0,
-    robust: str = "ransac",
-    seed: int = 0,
+    img_q: np.ndarray, img_r: np.ndarray, verification: Verification = Verification()
 ) -> PairGeometry:
-    """SIFT, Lowe ratio test, RANSAC homography and fundamental matrix for one pair.
-
-    The model choice and the defaults (set from the chance level) are in docs/DEFINITIONS.md:
-    thresholds in pixels, ``min_inlier_ratio*`` as shares of the ratio-test matches, ``h_share``
-    the ``n_inliers_h / n_inliers_f`` needed to keep the homography; ``equalize``: CLAHE,
-    ``denoise``: Gaussian sigma, ``upscale``: resize factor, all before SIFT.
-    """
-    check_choice(robust, "robust estimator", ("ransac", "magsac"))
+    """SIFT, Lowe ratio test, RANSAC homography and fundamental matrix for one pair; the
+    settings and the model choice: :class:`Verification`, docs/DEFINITIONS.md."""
+    v = verification
     size_q = (int(img_q.shape[0]), int(img_q.shape[1]))
     size_r = (int(img_r.shape[0]), int(img_r.shape[1]))
     empty = np.zeros((0, 2), dtype=np.float64)
-    cv2.setRNGSeed(int(seed))
-    points = _ratio_test_points(
-        img_q, img_r, ratio, max_features, equalize, contrast_threshold, denoise, upscale
-    )
+    cv2.setRNGSeed(int(v.seed))
+    points = _ratio_test_points(img_q, img_r, v)
     if points is None:
         return PairGeometry("none", None, None, empty, empty, 0, 0, 0, size_q, size_r)
     pq, pr = points
     n_put = len(pq)
-    if n_put < max(min(min_inliers, min_inliers_f), 8):
+    if n_put < max(min(v.min_inliers, v.min_inliers_f), 8):
         return PairGeometry("none", None, None, empty, empty, n_put, 0, 0, size_q, size_r)
-    H, inl_h, F, inl_f = _fit_models(pq, pr, robust, h_threshold, f_threshold, seed)
+    H, inl_h, F, inl_f = _fit_models(pq, pr, v)
     n_h, n_f = int(inl_h.sum()), int(inl_f.sum())
     if (
         H is not None
-        and n_h >= min_inliers
-        and n_h >= min_inlier_ratio * n_put
+        and n_h >= v.min_inliers
+        and n_h >= v.min_inlier_ratio * n_put
         and _homography_is_sane(H, size_q)
-        and n_h >= h_share * max(n_f, 1)
+        and n_h >= v.h_share * max(n_f, 1)
     ):
         return PairGeometry(
             "homography", H, F, pq[inl_h], pr[inl_h], n_put, n_h, n_f, size_q, size_r
         )
-    if F is not None and n_f >= min_inliers_f and n_f >= min_inlier_ratio_f * n_put:
+    if F is not None and n_f >= v.min_inliers_f and n_f >= v.min_inlier_ratio_f * n_put:
         return PairGeometry(
             "fundamental", None, F, pq[inl_f], pr[inl_f], n_put, n_h, n_f, size_q, size_r
         )
@@ -264,6 +282,7 @@ def _label_pair_geometric(
     images = options.pop("images", None)
     geometry = options.pop("geometry", None)
     cache = options.pop("geometry_cache", None)
+    verification = as_verification(options)
     if not is_ground_truth(dataset, q, r):
         return np.zeros(len(m), dtype=bool)
     if geometry is None and cache is not None:
@@ -271,7 +290,7 @@ def _label_pair_geometric(
     if geometry is None:
         if images is None:
             images = (dataset.load_image("query", q), dataset.load_image("reference", r))
-        geometry = estimate_pair_geometry(images[0], images[1], **options)
+        geometry = estimate_pair_geometry(images[0], images[1], verification)
         if cache is not None:
             cache[(q, r)] = geometry
     return _geometric_labels(bq, br, m, geometry, iou_threshold, **rule_opts)

@@ -133,24 +133,22 @@ def _decide_near_ties(
     qsel: Selection,
     rsel: Selection,
     margin: float,
-    rv: torch.Tensor,
-    cv: torch.Tensor,
-    ri: torch.Tensor,
-    ci: torch.Tensor,
-    amb_r: torch.Tensor,
-    amb_c: torch.Tensor,
+    maxima: tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor],
+    ambiguous: tuple[torch.Tensor, torch.Tensor],
 ) -> torch.Tensor:
-    """Re-decide ambiguous rows (``amb_r``) and columns (``amb_c``) by :func:`resolve_ties`.
+    """Re-decide ambiguous rows and columns by :func:`resolve_ties`.
 
     Args:
-        s: ``(nq, Kq, nr, Kr)`` block cosines; ``rv``, ``cv``, ``ri``, ``ci``: from
-            :func:`_maxima` (``ri`` and ``ci`` are updated in place).
+        s: ``(nq, Kq, nr, Kr)`` block cosines.
         q, r, qsel, rsel: the sides and the block's images; margin: float error bound.
-        amb_r: ``(nq, Kq, nr)`` bool rows to decide; amb_c: ``(nq, nr, Kr)`` bool columns.
+        maxima: ``(rv, cv, ri, ci)`` from :func:`_maxima` (``ri`` and ``ci`` updated in place).
+        ambiguous: ``(amb_r (nq, Kq, nr), amb_c (nq, nr, Kr))`` bool rows and columns to decide.
 
     Returns:
         ``(nq, Kq, nr)`` float64 row maxima (float64 cosines where a row was re-decided).
     """
+    rv, cv, ri, ci = maxima
+    amb_r, amb_c = ambiguous
     rv = rv.double()
     if bool(amb_r.any()):
         iq, ii, ir = amb_r.nonzero(as_tuple=True)
@@ -226,7 +224,7 @@ def reciprocal(
     has_q = (q.count[qsel] > 0).view(nq, 1, 1)
     amb_r = ~one_r & qmask[:, :, None] & has_r
     amb_c = ~one_c & rmask[None] & has_q
-    rv = _decide_near_ties(s, q, r, qsel, rsel, margin, rv, cv, ri, ci, amb_r, amb_c)
+    rv = _decide_near_ties(s, q, r, qsel, rsel, margin, (rv, cv, ri, ci), (amb_r, amb_c))
     ri_p = ri.permute(0, 2, 1)  # per image pair layout (nq, nr, Kq)
     recip = ci.gather(2, ri_p) == torch.arange(q.k, device=s.device)
     if q.padded:
