@@ -7,6 +7,8 @@ blank lines. Docstring lines are the lines of a module, class or function docstr
 
 Issue 31 adds the guard share: guard lines (``raise`` statements, and the test of an ``if``
 whose only body is a ``raise``) over code lines; the anchors (hloc, LightGlue, kornia) are 1-7%.
+It also counts how values flow (DESIGN.md habit 5): the functions with more than 8 explicit
+parameters, and in how many signatures each option the issue names appears (target: 3).
 
 Usage::
 
@@ -71,6 +73,36 @@ def guard_lines(source: str) -> set[int]:
     return lines
 
 
+#: The options issue 31 counts in signatures (an option should appear in at most 3).
+OPTIONS = (
+    "protocol",
+    "tolerance",
+    "sigma",
+    "input_size",
+    "spatial",
+    "soft_nms_iou",
+    "weighting",
+    "pooling",
+    "iou_threshold",
+)
+MAX_PARAMETERS = 8
+
+
+def signatures(root: Path) -> tuple[list[tuple[int, str]], Counter]:
+    """``([(parameters, "file:line name")] over MAX_PARAMETERS, {option: signatures})``."""
+    wide, options = [], Counter()
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                a = node.args
+                names = [x.arg for x in (*a.posonlyargs, *a.args, *a.kwonlyargs)]
+                names = [n for n in names if n not in ("self", "cls")]
+                if len(names) > MAX_PARAMETERS:
+                    wide.append((len(names), f"{path.relative_to(root)}:{node.lineno} {node.name}"))
+                options.update(n for n in names if n in OPTIONS)
+    return sorted(wide, reverse=True), options
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--root", default=str(Path(__file__).resolve().parents[1] / "vpr_core"))
@@ -91,6 +123,11 @@ def main() -> None:
     n = sum(total[k] for k in KINDS)
     print("share: " + ", ".join(f"{k} {total[k] / n:.0%}" for k in KINDS))
     print(f"guard lines / code lines: {total[GUARD] / max(total['code'], 1):.1%}")
+    wide, options = signatures(root)
+    print(f"functions with more than {MAX_PARAMETERS} parameters: {len(wide)}")
+    for n_params, where in wide:
+        print(f"  {n_params:3d}  {where}")
+    print("signatures per option: " + ", ".join(f"{o} {options[o]}" for o in OPTIONS))
 
 
 if __name__ == "__main__":
