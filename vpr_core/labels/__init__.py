@@ -72,21 +72,22 @@ def label_matches(
     matches: np.ndarray,
     method: str = "auto",
     iou_threshold: float = 0.5,
-    labels: Any = None,
     **options: Any,
 ) -> np.ndarray:
     """``(P,)`` bool: each landmark match ``(P, 2)`` of pair (q, r) correct or not
-    (docs/DEFINITIONS.md), by one of :data:`LABEL_METHODS`; ``labels``: the ``file`` CSV.
+    (docs/DEFINITIONS.md), by one of :data:`LABEL_METHODS`.
 
     ``**options``: ``geometric``: ``images``, ``geometry``, ``geometry_cache``, ``model``,
     ``min_points``, ``point_iou`` and ``verification=`` (a :class:`Verification`, or its
     fields as keywords); ``file``:
-    ``on_unmatched``; ``exact``: ``image_size_r``. LabelUnavailableError: no information.
+    ``labels`` (the CSV: a path or DataFrame; under ``auto`` it picks ``file`` where the
+    geometry is unknown) and ``on_unmatched``; ``exact``: ``image_size_r``.
+    LabelUnavailableError: no information.
     """
     bq, br = check_boxes(boxes_q, "boxes_q"), check_boxes(boxes_r, "boxes_r")
     m = check_matches(matches, len(bq), len(br))
-    method = resolve_label_method(dataset, method, labels)
-    return _label_parsed(dataset, q, r, bq, br, m, method, iou_threshold, labels, **options)
+    method = resolve_label_method(dataset, method, options.get("labels"))
+    return _label_parsed(dataset, q, r, bq, br, m, method, iou_threshold, **options)
 
 
 def _label_parsed(
@@ -98,10 +99,10 @@ def _label_parsed(
     m: np.ndarray,
     method: str,
     iou_threshold: float,
-    labels: Any,
     **options: Any,
 ) -> np.ndarray:
     """:func:`label_matches` of parsed boxes and matches and a resolved ``method`` (no checks)."""
+    labels = options.pop("labels", None)  # the file method's CSV
     allowed = {"exact": {"image_size_r"}, "file": {"on_unmatched"}}.get(method)
     unknown = set(options) - allowed if allowed is not None else set()
     if unknown:
