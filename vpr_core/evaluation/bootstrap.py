@@ -14,13 +14,10 @@ from .curves import (
     PROTOCOLS,
     _check,
     _kept_queries,
+    _metrics,
     _query_scores,
     _ranked,
     _true_rank,
-    auc_pr,
-    pr_curve,
-    recall_at_100_precision,
-    recall_at_k,
 )
 
 __all__ = [
@@ -164,12 +161,12 @@ def _resample_metrics(pq: _PerQuery, w: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def _point(s: np.ndarray, gt: np.ndarray, protocol: str, ks: tuple[int, ...]) -> dict[str, float]:
-    """Metrics on all queries, by the functions the tables use (no warning: logged already)."""
-    curve = pr_curve(s, gt, protocol, warn=False)
-    out = {"auc": auc_pr(curve), "r@100p": recall_at_100_precision(curve)}
-    for k in ks:
-        out[f"r@{k}"] = recall_at_k(s, gt, k, warn=False)
-    return out
+    """Metrics on all queries of checked inputs, as the tables compute them (no warning: logged
+    already)."""
+    keep = np.ones(s.shape[0], dtype=bool)
+    if protocol != "multi_match":
+        keep = _kept_queries(s, gt, warn=False, need_gt=protocol != "vpr_bench")
+    return _metrics(s, gt, keep, protocol, ks, warn=False)
 
 
 def _draws(n_boot: int, n_queries: int, seed: int):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -241,21 +242,35 @@ def pr_curve(
         ValueError: bad shapes or protocol, or no query with ground truth (no pair for
             ``multi_match``).
     """
+    return _curve(*_parse(similarity, ground_truth, protocol, ignore, warn), protocol)
+
+
+def _parse(
+    similarity: Any, ground_truth: Any, protocol: str, ignore: Any = None, warn: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Checked ``(s, gt, keep)`` for ``protocol``'s curve (``keep``: the queries it counts;
+    ``multi_match`` counts pairs, so every query)."""
     if protocol not in PROTOCOLS:
         raise ValueError(f"unknown protocol {protocol!r}; valid: {', '.join(PROTOCOLS)}")
     s, gt = _check(similarity, ground_truth, ignore)
     if protocol == "multi_match":
         if not gt.any():
             _kept_queries(s, gt)  # raises: no ground truth
-        ranked = ~np.isnan(s).ravel()
-        return _curve_from_scores(
-            s.ravel()[ranked], gt.ravel()[ranked], False, protocol, n_pos=int(gt.sum())
-        )
+        return s, gt, np.ones(s.shape[0], dtype=bool)
     if protocol == "ratio" and s.shape[1] < 2:
         raise ValueError(f"the ratio protocol needs at least 2 references, got {s.shape[1]}")
     if s.shape[1] < 1:
         raise ValueError("similarity has no reference column")
-    keep = _kept_queries(s, gt, warn, need_gt=protocol != "vpr_bench")
+    return s, gt, _kept_queries(s, gt, warn, need_gt=protocol != "vpr_bench")
+
+
+def _curve(s: np.ndarray, gt: np.ndarray, keep: np.ndarray, protocol: str) -> PRCurve:
+    """:func:`pr_curve` of parsed inputs (:func:`_parse`)."""
+    if protocol == "multi_match":
+        ranked = ~np.isnan(s).ravel()
+        return _curve_from_scores(
+            s.ravel()[ranked], gt.ravel()[ranked], False, protocol, n_pos=int(gt.sum())
+        )
     ranked = keep & _ranked(s)
     score, correct = _query_scores(s[ranked], gt[ranked], protocol)
     return _query_curve(score, correct, protocol, int(keep.sum() - ranked.sum()))
@@ -351,7 +366,11 @@ def recall_at_k(
     if int(k) < 1:
         raise ValueError(f"k must be >= 1, got {k}")
     s, gt = _check(similarity, ground_truth, ignore)
-    keep = _kept_queries(s, gt, warn)
+    return _recall(s, gt, _kept_queries(s, gt, warn), k)
+
+
+def _recall(s: np.ndarray, gt: np.ndarray, keep: np.ndarray, k: int) -> float:
+    """:func:`recall_at_k` of checked inputs over the queries ``keep``."""
     return float(_topk_hits(s[keep], gt[keep], k).mean())
 
 
@@ -407,13 +426,20 @@ def evaluate(
     ``ignore``: optional ``(Nq, Nr)`` bool soft ground truth (see the module docstring). Logs at
     most one coverage warning; raises a ValueError when no query has ground truth.
     """
-    s, gt = _check(similarity, ground_truth, ignore)
-    curve = pr_curve(s, gt, protocol)
+    s, gt, keep = _parse(similarity, ground_truth, protocol, ignore)
+    return _metrics(s, gt, keep, protocol, ks, warn=True)
+
+
+def _metrics(s, gt, keep, protocol: str, ks: Sequence[int], warn: bool) -> dict[str, float]:
+    """:func:`evaluate` of parsed inputs; R@K counts the queries with ground truth (its own
+    coverage warning only where the curve counted others: ``multi_match``, ``vpr_bench``)."""
+    curve = _curve(s, gt, keep, protocol)
     out = {"auc": auc_pr(curve), "r@100p": recall_at_100_precision(curve)}
-    for i, k in enumerate(ks):
-        out[f"r@{int(k)}"] = recall_at_k(
-            s, gt, k, warn=i == 0 and protocol in ("multi_match", "vpr_bench")
-        )
+    with_gt = _kept_queries(s, gt, warn and protocol in ("multi_match", "vpr_bench"))
+    for k in ks:
+        if int(k) < 1:
+            raise ValueError(f"k must be >= 1, got {k}")
+        out[f"r@{int(k)}"] = _recall(s, gt, with_gt, k)
     return out
 
 
