@@ -96,9 +96,7 @@ save(plot_pair(ds, run, query=1, reference=ds.n_reference // 2), "fig02_irreleva
 # `fig04c_asl`); the table holds every number plotted, `fig04_matches.csv` every match.
 
 # %%
-stats = scale_statistics(ds, run.boxes["query"], run.boxes["reference"],
-                         run.descriptors["query"], run.descriptors["reference"],
-                         n_irrelevant=n_irrelevant)
+stats = scale_statistics(ds, run, n_irrelevant=n_irrelevant)
 for stem, plot in (("fig04a_cmr", plot_cmr), ("fig04b_cls", plot_cls), ("fig04c_asl", plot_asl)):
     save(plot(stats), stem, label)
 save(plot_scale_statistics(stats), "fig04_scale_statistics", label)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -163,6 +164,14 @@ def synthetic_small():
     return out
 
 
+def _landmarks(boxes_q, boxes_r, desc_q, desc_r):
+    """A run's landmarks as scale_statistics reads them (``boxes``, ``descriptors``)."""
+    return SimpleNamespace(
+        boxes={"query": boxes_q, "reference": boxes_r},
+        descriptors={"query": desc_q, "reference": desc_r},
+    )
+
+
 def test_scale_statistics_end_to_end(synthetic_small):
     from vpr_core.matching import match_landmarks
     from vpr_core.statistics import scale_statistics
@@ -171,10 +180,7 @@ def test_scale_statistics_end_to_end(synthetic_small):
     ds = s["dataset"]
     st = scale_statistics(
         ds,
-        s["boxes_query"],
-        s["boxes_reference"],
-        s["desc_query"],
-        s["desc_reference"],
+        _landmarks(s["boxes_query"], s["boxes_reference"], s["desc_query"], s["desc_reference"]),
         n_irrelevant=2,
         seed=0,
     )
@@ -202,10 +208,7 @@ def test_scale_statistics_end_to_end(synthetic_small):
     # same seed -> same irrelevant pairs -> same statistics
     st2 = scale_statistics(
         ds,
-        s["boxes_query"],
-        s["boxes_reference"],
-        s["desc_query"],
-        s["desc_reference"],
+        _landmarks(s["boxes_query"], s["boxes_reference"], s["desc_query"], s["desc_reference"]),
         n_irrelevant=2,
         seed=0,
     )
@@ -254,10 +257,7 @@ def test_scale_statistics_geometric_labels(synthetic_small):
     s = synthetic_small
     st = scale_statistics(
         s["dataset"],
-        s["boxes_query"],
-        s["boxes_reference"],
-        s["desc_query"],
-        s["desc_reference"],
+        _landmarks(s["boxes_query"], s["boxes_reference"], s["desc_query"], s["desc_reference"]),
         label_method="geometric",
         n_irrelevant=1,
         queries=[0, 1],
@@ -277,14 +277,7 @@ def test_statistics_recomputed_independently_from_the_match_table(tiny_synthetic
     res = run_method(
         "dense", tiny_synthetic, keep_descriptors=True, scales=(0.16, 0.36), per_scale=9
     )
-    st = scale_statistics(
-        tiny_synthetic,
-        res.boxes["query"],
-        res.boxes["reference"],
-        res.descriptors["query"],
-        res.descriptors["reference"],
-        n_irrelevant=3,
-    )
+    st = scale_statistics(tiny_synthetic, res, n_irrelevant=3)
     df = st.matches_frame()
     assert len(df) == st.n_matches.sum() + st.n_matches_irrelevant.sum()
     gt, irr = df[df.pair == "gt"], df[df.pair == "irrelevant"]
@@ -373,9 +366,9 @@ _D = [np.ones((1, 4)) for _ in range(2)]
 def _stats(**kwargs):
     from vpr_core.statistics import scale_statistics
 
-    args = {"boxes_q": _B, "boxes_r": _B, "desc_q": _D, "desc_r": _D}
-    args.update(kwargs)
-    return scale_statistics(_TwoPlaces(), **args)
+    sides = {"boxes_q": _B, "boxes_r": _B, "desc_q": _D, "desc_r": _D}
+    sides.update({k: kwargs.pop(k) for k in list(kwargs) if k in sides})
+    return scale_statistics(_TwoPlaces(), _landmarks(*sides.values()), **kwargs)
 
 
 #: id -> (call, exception, message)
@@ -463,3 +456,28 @@ def test_statistics_of_two_places_check_each_box_at_most_twice(monkeypatch):
     # each query's boxes: the statistics' own check, then the matcher's once per pair (its
     # ground-truth and its irrelevant reference); scales and labels trust the parsed boxes
     assert [seen.count(id(b)) for b in boxes_q] == [3, 3]
+
+
+def test_scale_statistics_reads_the_runs_landmarks_and_matching(synthetic_small):
+    """The run carries its boxes, descriptors and Matching: a soft-NMS run's statistics use
+    Algorithm 4 (a bare landmark set, Eq. (1)); a run without descriptors is refused."""
+    from vpr_core.matching import Matching, match_landmarks
+    from vpr_core.statistics import scale_statistics
+
+    s = synthetic_small
+    lm = _landmarks(s["boxes_query"], s["boxes_reference"], s["desc_query"], s["desc_reference"])
+    nms = Matching(soft_nms_iou=0.3)
+    run = SimpleNamespace(**vars(lm), config=SimpleNamespace(matching=nms))
+    plain, soft = (scale_statistics(s["dataset"], r, n_irrelevant=1) for r in (lm, run))
+    assert plain.meta["soft_nms_iou"] is None and soft.meta["soft_nms_iou"] == 0.3
+    for st, m in ((plain, Matching()), (soft, nms)):
+        df = st.matches_frame()
+        got = df[(df.pair == "gt") & (df["query"] == 0)].score.to_numpy()
+        args = (s["desc_query"][0], s["boxes_query"][0], s["desc_reference"][0])
+        want = match_landmarks(*args, s["boxes_reference"][0], m).scores
+        np.testing.assert_allclose(got, want)
+    assert not np.allclose(
+        plain.matches_frame().score.to_numpy()[:50], soft.matches_frame().score.to_numpy()[:50]
+    )
+    with pytest.raises(ValueError, match=r"keep_descriptors=True"):
+        scale_statistics(s["dataset"], SimpleNamespace(boxes=lm.boxes, descriptors=None))

@@ -291,10 +291,7 @@ def _query_records(
 
 def scale_statistics(
     dataset: Any,
-    boxes_q: Sequence[np.ndarray],
-    boxes_r: Sequence[np.ndarray],
-    desc_q: Sequence[np.ndarray],
-    desc_r: Sequence[np.ndarray],
+    run: Any,
     *,
     label_method: str = "auto",
     n_irrelevant: int = 5,
@@ -302,21 +299,30 @@ def scale_statistics(
     image_sizes: Sequence[tuple[int, int]] | None = None,
     queries: Sequence[int] | None = None,
     gt_pairs: str = "center",
-    matching: Matching | None = None,
-    iou_threshold: float = 0.5,
-    labels: Any = None,
     **label_options: Any,
 ) -> ScaleStats:
     """Fig. 4 scale statistics of any landmark method (docs/DEFINITIONS.md, "Scale statistics").
 
-    Each query with ground truth is matched (:func:`vpr_core.matching.match_landmarks`) with its
-    ground-truth reference(s) (``gt_pairs``: :func:`ground_truth_references`), labelled by
-    :func:`label_matches` (``label_method``, ``labels``, ``iou_threshold``, ``**label_options``),
-    and with ``n_irrelevant`` query-irrelevant references sampled with ``seed``. Queries without
-    ground truth are skipped. Boxes ``(K_i, 4)`` and descriptors ``(K_i, D)`` per image;
-    ``image_sizes`` per query ``(H, W)`` (default: asked from the dataset); ``matching``: how
-    pairs are scored (default Eq. (1) as in the paper).
+    ``run``: a :class:`~vpr_core.pipeline.MethodResult` with its descriptors
+    (``run_method(..., keep_descriptors=True)``), or any object with ``boxes`` and
+    ``descriptors`` as ``{"query": [(K_i, 4)], "reference": [...]}`` / ``(K_i, D)``. Each query
+    with ground truth is matched (:func:`vpr_core.matching.match_landmarks`, with the run's
+    :class:`~vpr_core.matching.Matching` when it has one) with its ground-truth reference(s)
+    (``gt_pairs``: :func:`ground_truth_references`), labelled by :func:`label_matches`
+    (``label_method`` and ``**label_options``: ``iou_threshold``, ``labels``, ...), and with
+    ``n_irrelevant`` query-irrelevant references sampled with ``seed``. Queries without ground
+    truth are skipped; ``image_sizes`` per query ``(H, W)`` (default: asked from the dataset).
     """
+    descriptors = getattr(run, "descriptors", None)
+    if descriptors is None or not hasattr(run, "boxes"):
+        raise ValueError(
+            "scale_statistics needs the run's landmark descriptors: "
+            "run_method(..., keep_descriptors=True)"
+        )
+    boxes_q, boxes_r = run.boxes["query"], run.boxes["reference"]
+    desc_q, desc_r = descriptors["query"], descriptors["reference"]
+    config = getattr(run, "config", None)
+    matching = getattr(config, "matching", None) or Matching()
     gt = np.asarray(dataset.ground_truth, dtype=bool)
     nq, nr = gt.shape
     if len(boxes_q) != nq or len(desc_q) != nq:
@@ -331,6 +337,8 @@ def scale_statistics(
         raise TypeError("scale_statistics takes the labeller as label_method=..., not method=...")
     boxes_q = [check_boxes(b, f"boxes_q[{i}]") for i, b in enumerate(boxes_q)]
     boxes_r = [check_boxes(b, f"boxes_r[{j}]") for j, b in enumerate(boxes_r)]
+    labels = label_options.pop("labels", None)
+    iou_threshold = label_options.pop("iou_threshold", 0.5)
     method = resolve_label_method(dataset, label_method, labels)
     if method == "file" and labels is not None and isinstance(labels, (str, PathLike)):
         labels = read_label_file(labels)
@@ -339,7 +347,6 @@ def scale_statistics(
     qs = list(range(nq)) if queries is None else sorted(int(x) for x in queries)
     qs = [q for q in qs if gt[q].any()]
     irr = sample_irrelevant_references(gt, n_irrelevant, seed, qs)
-    matching = Matching() if matching is None else matching
     label_options = {
         "method": method,
         "iou_threshold": iou_threshold,
