@@ -12,6 +12,7 @@ import numpy as np
 
 from .curves import (
     PROTOCOLS,
+    Scored,
     _check,
     _kept_queries,
     _metrics,
@@ -163,10 +164,8 @@ def _resample_metrics(pq: _PerQuery, w: np.ndarray) -> dict[str, np.ndarray]:
 def _point(s: np.ndarray, gt: np.ndarray, protocol: str, ks: tuple[int, ...]) -> dict[str, float]:
     """Metrics on all queries of checked inputs, as the tables compute them (no warning: logged
     already)."""
-    keep = np.ones(s.shape[0], dtype=bool)
-    if protocol != "multi_match":
-        keep = _kept_queries(s, gt, warn=False, need_gt=protocol != "vpr_bench")
-    return _metrics(s, gt, keep, protocol, ks, warn=False)
+    keep = _kept_queries(s, gt, warn=False, need_gt=protocol != "vpr_bench")
+    return _metrics(Scored(s, gt, keep, protocol), ks, warn=False)
 
 
 def _draws(n_boot: int, n_queries: int, seed: int):

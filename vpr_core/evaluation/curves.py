@@ -6,7 +6,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -242,30 +242,40 @@ def pr_curve(
         ValueError: bad shapes or protocol, or no query with ground truth (no pair for
             ``multi_match``).
     """
-    return _curve(*_parse(similarity, ground_truth, protocol, ignore, warn), protocol)
+    return _curve(_parse(similarity, ground_truth, protocol, ignore, warn))
+
+
+class Scored(NamedTuple):
+    """Checked inputs of a metric: ``(Nq, Nr)`` similarities and ground truth, the ``(Nq,)``
+    queries the protocol counts (``multi_match`` counts pairs: every query) and the protocol."""
+
+    s: np.ndarray
+    gt: np.ndarray
+    keep: np.ndarray
+    protocol: str
 
 
 def _parse(
     similarity: Any, ground_truth: Any, protocol: str, ignore: Any = None, warn: bool = True
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Checked ``(s, gt, keep)`` for ``protocol``'s curve (``keep``: the queries it counts;
-    ``multi_match`` counts pairs, so every query)."""
+) -> Scored:
+    """The checked :class:`Scored` inputs of ``protocol``'s curve."""
     if protocol not in PROTOCOLS:
         raise ValueError(f"unknown protocol {protocol!r}; valid: {', '.join(PROTOCOLS)}")
     s, gt = _check(similarity, ground_truth, ignore)
     if protocol == "multi_match":
         if not gt.any():
             _kept_queries(s, gt)  # raises: no ground truth
-        return s, gt, np.ones(s.shape[0], dtype=bool)
+        return Scored(s, gt, np.ones(s.shape[0], dtype=bool), protocol)
     if protocol == "ratio" and s.shape[1] < 2:
         raise ValueError(f"the ratio protocol needs at least 2 references, got {s.shape[1]}")
     if s.shape[1] < 1:
         raise ValueError("similarity has no reference column")
-    return s, gt, _kept_queries(s, gt, warn, need_gt=protocol != "vpr_bench")
+    return Scored(s, gt, _kept_queries(s, gt, warn, need_gt=protocol != "vpr_bench"), protocol)
 
 
-def _curve(s: np.ndarray, gt: np.ndarray, keep: np.ndarray, protocol: str) -> PRCurve:
-    """:func:`pr_curve` of parsed inputs (:func:`_parse`)."""
+def _curve(x: Scored) -> PRCurve:
+    """:func:`pr_curve` of parsed inputs."""
+    s, gt, keep, protocol = x
     if protocol == "multi_match":
         ranked = ~np.isnan(s).ravel()
         return _curve_from_scores(
@@ -426,14 +436,14 @@ def evaluate(
     ``ignore``: optional ``(Nq, Nr)`` bool soft ground truth (see the module docstring). Logs at
     most one coverage warning; raises a ValueError when no query has ground truth.
     """
-    s, gt, keep = _parse(similarity, ground_truth, protocol, ignore)
-    return _metrics(s, gt, keep, protocol, ks, warn=True)
+    return _metrics(_parse(similarity, ground_truth, protocol, ignore), ks, warn=True)
 
 
-def _metrics(s, gt, keep, protocol: str, ks: Sequence[int], warn: bool) -> dict[str, float]:
+def _metrics(x: Scored, ks: Sequence[int], warn: bool) -> dict[str, float]:
     """:func:`evaluate` of parsed inputs; R@K counts the queries with ground truth (its own
     coverage warning only where the curve counted others: ``multi_match``, ``vpr_bench``)."""
-    curve = _curve(s, gt, keep, protocol)
+    s, gt, _, protocol = x
+    curve = _curve(x)
     out = {"auc": auc_pr(curve), "r@100p": recall_at_100_precision(curve)}
     with_gt = _kept_queries(s, gt, warn and protocol in ("multi_match", "vpr_bench"))
     for k in ks:
