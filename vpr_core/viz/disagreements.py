@@ -76,7 +76,6 @@ def _run_panel(ax, ds, run: Any, row: pd.Series, img_q: np.ndarray, frames: bool
         pm.matches[top],
         None if pm.labels is None else pm.labels[top],
         ax=ax,
-        lw=1.2,
         title=_panel_title(row, pm, top, _verdict(row, refs, frames)),
     )
     ax.title.set_fontsize(8)

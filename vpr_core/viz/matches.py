@@ -14,6 +14,9 @@ from ..checks import check_boxes, check_shape
 from ..labels import pair_matches
 from .base import draw_boxes
 
+#: White pixels between the query and the reference of a match figure; width of its box lines.
+GAP, LINE_WIDTH = 12, 1.2
+
 
 def plot_labelled_matches(
     img_q: np.ndarray,
@@ -23,11 +26,9 @@ def plot_labelled_matches(
     matches: np.ndarray,
     labels: np.ndarray | None,
     ax: Any = None,
-    gap: int = 12,
-    lw: float = 1.2,
     title: str | None = None,
 ) -> Figure:
-    """Fig. 1-2: query (left) and reference side by side, ``gap`` white pixels apart, each match
+    """Fig. 1-2: query (left) and reference side by side, :data:`GAP` white pixels apart, each match
     ``(P, 2)`` drawn as its two boxes joined by a line, coloured by its ``(P,)`` label (green
     correct, red incorrect; None: yellow); ``title`` defaults to the counts."""
     iq = np.asarray(img_q)
@@ -45,9 +46,9 @@ def plot_labelled_matches(
             interpolation=cv2.INTER_AREA,
         )
     hh = iq.shape[0]
-    canvas = np.full((hh, iq.shape[1] + gap + ir.shape[1], 3), 255, dtype=np.uint8)
+    canvas = np.full((hh, iq.shape[1] + GAP + ir.shape[1], 3), 255, dtype=np.uint8)
     canvas[:, : iq.shape[1]] = iq[..., :3]
-    off = iq.shape[1] + gap
+    off = iq.shape[1] + GAP
     canvas[:, off:] = ir[..., :3]
     if ax is None:  # sized to the canvas: no empty margins beside the pictures
         width = 14.0
@@ -71,13 +72,13 @@ def plot_labelled_matches(
         color = "yellow" if lab is None else ("lime" if lab[k] else "red")
         a = bq[i]
         b = br[j] + np.array([off, 0.0, 0.0, 0.0])
-        draw_boxes(ax, a[None], color=color, lw=lw)
-        draw_boxes(ax, b[None], color=color, lw=lw)
+        draw_boxes(ax, a[None], color=color, lw=LINE_WIDTH)
+        draw_boxes(ax, b[None], color=color, lw=LINE_WIDTH)
         ax.plot(
             [a[0] + a[2] / 2, b[0] + b[2] / 2],
             [a[1] + a[3] / 2, b[1] + b[3] / 2],
             color=color,
-            lw=lw * 0.8,
+            lw=LINE_WIDTH * 0.8,
             alpha=0.8,
         )
     if title is None:

@@ -33,9 +33,10 @@ def _matches(run: Any, pairs: list[tuple[int, int]], weighting: str) -> list:
     )
 
 
-def _pair_panel(ax, img_q, img_r, bq, br, match, cmap, norm, title: str) -> None:
-    """Query and reference side by side, each reciprocal match's boxes in its weight's colour
-    (zero weights thin and grey)."""
+def _pair_panel(ax, images: tuple, boxes: tuple, match, colour, title: str) -> None:
+    """Query and reference ``images`` side by side, each reciprocal match's ``boxes`` in its
+    weight's ``colour(w)`` (zero weights thin and grey)."""
+    (img_q, img_r), (bq, br) = images, boxes
     h = max(img_q.shape[0], img_r.shape[0])
     pad = [np.pad(im, ((0, h - im.shape[0]), (0, 0), (0, 0))) for im in (img_q, img_r)]
     ax.imshow(np.concatenate(pad, axis=1))
@@ -44,7 +45,7 @@ def _pair_panel(ax, img_q, img_r, bq, br, match, cmap, norm, title: str) -> None
     for k in order:
         i, j = match.matches[k]
         w = match.weights[k]
-        color = cmap(norm(w)) if w > 0 else (0.6, 0.6, 0.6, 0.7)
+        color = colour(w) if w > 0 else (0.6, 0.6, 0.6, 0.7)
         lw = 1.6 if w > 0 else 0.5
         for (x, y, bw, bh), dx in ((bq[i], 0), (br[j], off)):
             ax.add_patch(
@@ -122,13 +123,10 @@ def plot_weighted_matches(
             carried = np.count_nonzero(m.weights > 0)
             _pair_panel(
                 axes[k, c],
-                img_q,
-                ds.load_image("reference", r),
-                b["query"][q],
-                b["reference"][r],
+                (img_q, ds.load_image("reference", r)),
+                (b["query"][q], b["reference"][r]),
                 m,
-                cmap,
-                norm,
+                lambda w: cmap(norm(w)),
                 f"query {q} vs {what} r{r}: S {sim_p[q, r]:.3f} plain, {sim_w[q, r]:.3f} "
                 f"weighted\n{len(m.matches)} matches, {carried} with weight > 0",
             )
