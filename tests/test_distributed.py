@@ -113,7 +113,7 @@ def test_similarity_and_shortlist_of_real_features_equal_in_process(client, smal
     gq = np.stack([d.mean(0) for d in feats["query"]])
     gr = np.stack([d.mean(0) for d in feats["reference"]])
     pairs, _ = shortlist_pairs(gq, gr, 2)
-    vals = similarity_pairs_distributed(client, *args, pairs, block_queries=3, block_references=2)
+    vals = similarity_pairs_distributed(client, *args, pairs, blocks=(3, 2))
     assert np.array_equal(
         vals, similarity_pairs(*args, pairs, compute=Compute(show_progress=False))
     )
@@ -164,8 +164,7 @@ def test_similarity_blocks_unequal_landmark_counts_equal_in_process(client, soft
         rd,
         rb,
         pairs,
-        block_queries=3,
-        block_references=4,
+        blocks=(3, 4),
         matching=Matching(soft_nms_iou=soft_nms_iou, spatial=spatial),
     )
     assert np.array_equal(got_p, want_p)
@@ -312,9 +311,7 @@ def test_weighting_on_cluster_equals_in_process(client, weighting, nr):
     )
     pairs = np.stack([rng.integers(0, 11, 60), rng.integers(0, nr, 60)], axis=1)
     want_p = similarity_pairs(qd, qb, rd, rb, pairs, **kw, compute=Compute(show_progress=False))
-    got_p = similarity_pairs_distributed(
-        client, qd, qb, rd, rb, pairs, block_queries=3, block_references=4, **kw
-    )
+    got_p = similarity_pairs_distributed(client, qd, qb, rd, rb, pairs, blocks=(3, 4), **kw)
     assert np.array_equal(got_p, want_p)
     if nr <= 256:  # statistics over every reference: the matrix path's values
         np.testing.assert_allclose(got_p, want[pairs[:, 0], pairs[:, 1]], atol=1e-7, rtol=0)

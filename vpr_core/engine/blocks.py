@@ -154,8 +154,7 @@ def similarity_pairs_distributed(
     reference_boxes,
     pairs: np.ndarray,
     matching: Matching = Matching(),
-    block_queries: int = 128,
-    block_references: int = 512,
+    blocks: tuple[int, int] = (128, 512),
 ) -> np.ndarray:
     """Eq. (1) of listed pairs (a shortlist) as Dask tasks over query blocks.
 
@@ -171,14 +170,14 @@ def similarity_pairs_distributed(
         matching: the :class:`~vpr_core.matching.Matching`; with a weighting the references of
             its statistics (:func:`~vpr_core.matching.weighting.weighting_sample`) are scattered
             once to every worker.
-        block_queries: queries per task (rounded up to a multiple of 8).
-        block_references: references per scattered block.
+        blocks: queries per task and references per scattered block (each rounded up to a
+            multiple of 8).
 
     Returns:
         ``(P,)`` float64 in the order of ``pairs``, equal to the in-process result exactly.
     """
-    bq = _block_size(block_queries, "block_queries")
-    br = _block_size(block_references, "block_references")
+    bq = _block_size(blocks[0], "blocks[0] (queries per task)")
+    br = _block_size(blocks[1], "blocks[1] (references per block)")
     if client is None:
         return similarity_pairs(
             query_desc, query_boxes, reference_desc, reference_boxes, pairs, matching
@@ -203,15 +202,15 @@ def similarity_pairs_distributed(
         if rows.size == 0:
             continue
         ref_ids, local_r = np.unique(pr[rows, 1], return_inverse=True)
-        blocks = sorted({int(j) // br for j in ref_ids})
+        touched = sorted({int(j) // br for j in ref_ids})
         local = np.stack([pr[rows, 0] - q0, local_r.reshape(-1)], axis=1)
         part = client.scatter(_query_part(qd, qb, q0, q0 + bq, wide_q), hash=False)
         futures.append(
             client.submit(
                 _pairs_task,
                 part,
-                [rfut[b] for b in blocks],
-                [rstarts[b] for b in blocks],
+                [rfut[b] for b in touched],
+                [rstarts[b] for b in touched],
                 ref_ids,
                 wide_ref,
                 local,

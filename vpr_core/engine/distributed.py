@@ -120,7 +120,6 @@ def extract_features_distributed(
     boxes: Sequence[np.ndarray] | None = None,
     kind: str = "landmarks",
     shard_size: int = 16,
-    threads: int | None = None,
 ) -> tuple[list[np.ndarray], list[float]]:
     """Descriptors of one side's images, computed in shards of images on a Dask cluster.
 
@@ -135,11 +134,10 @@ def extract_features_distributed(
         indices: image indices to encode (default: all of the side), any order.
         boxes: with ``kind="landmarks"``, one ``(K_i, 4)`` array per entry of ``indices``.
         kind: ``"landmarks"`` (``encode(image, boxes)``) or ``"global"`` (``encode_global``).
-        shard_size: images per task.
-        threads: torch threads per worker task; default: this process's
-            ``torch.get_num_threads()``, so that descriptors equal the in-process ones bit for
-            bit (``roi`` feature maps depend on the thread count). Start workers with
-            ``--nthreads 1`` and fewer processes than cores to leave room for them.
+        shard_size: images per task. Each task runs on this process's
+            ``torch.get_num_threads()`` torch threads, so that descriptors equal the in-process
+            ones bit for bit (``roi`` feature maps depend on the thread count); start workers
+            with ``--nthreads 1`` and fewer processes than cores to leave room for them.
 
     Returns:
         ``(descriptors, seconds)`` in the order of ``indices``: ``(K_i, dim)`` float32 arrays
@@ -174,7 +172,7 @@ def extract_features_distributed(
             for i, b in progress(args, desc=f"features {side}")
         ]
     else:
-        nthreads = int(threads) if threads is not None else torch.get_num_threads()
+        nthreads = torch.get_num_threads()
         ds = client.scatter(dataset, broadcast=False, hash=False)
         mod = None if module is None else client.scatter(module, broadcast=True, hash=False)
         futures = [
