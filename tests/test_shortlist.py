@@ -59,7 +59,9 @@ def test_shortlist_k_clipped_and_validated():
     pairs, _ = shortlist_pairs(q, r, 50)
     assert pairs.shape == (15, 2)
     for bad in (0, -1, 2.5, True, None):
-        with pytest.raises(ValueError, match="k must be an integer >= 1"):
+        with pytest.raises(
+            ValueError, match=r"shortlist k \(references kept per query\) must be a positive"
+        ):
             shortlist_pairs(q, r, bad)
     with pytest.raises(ValueError, match="dimensions differ"):
         shortlist_pairs(q, rng.standard_normal((5, 3)), 2)

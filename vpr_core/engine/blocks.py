@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import check_int
 from ..matching import Compute, Matching, check_pairs, similarity_matrix, similarity_pairs
 from ..matching.weighting import weighting_sample
 from .client import gather_in_order
@@ -39,9 +40,7 @@ def _check_lists(desc: Any, boxes: Any, side: str) -> tuple[list, list]:
 
 def _block_size(n: Any, name: str) -> int:
     """``n`` as a positive int, rounded up to a multiple of :data:`QUERY_BATCH`."""
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or int(n) < 1:
-        raise ValueError(f"{name} must be an integer >= 1, got {n!r}")
-    return -(-int(n) // QUERY_BATCH) * QUERY_BATCH
+    return -(-check_int(n, name, 1) // QUERY_BATCH) * QUERY_BATCH
 
 
 def _widest(desc: list) -> int:

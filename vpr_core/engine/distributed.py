@@ -17,6 +17,7 @@ from torch import nn
 from ..backbones import weights_sha256
 from ..backbones.checkpoint import state_dict_sha256
 from ..backbones.module import architecture_sha256
+from ..checks import check_int
 from ..features import LandmarkEncoder
 from ..features.encoder import as_encoder
 from ..utils import progress
@@ -151,8 +152,7 @@ def extract_features_distributed(
         raise ValueError(f"side must be 'query' or 'reference', got {side!r}")
     if kind not in ("landmarks", "global"):
         raise ValueError(f"kind must be 'landmarks' or 'global', got {kind!r}")
-    if isinstance(shard_size, bool) or int(shard_size) < 1:
-        raise ValueError(f"shard_size must be an integer >= 1, got {shard_size!r}")
+    shard_size = check_int(shard_size, "shard_size", 1)
     n_side = len(dataset.paths(side))
     idx = list(range(n_side)) if indices is None else [int(i) for i in indices]
     if kind == "landmarks":

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..checks import check_int
 from ..datasets.base import SIDES
 from ..matching import check_pairs
 from ..matching.sides import rescale_rows
@@ -57,11 +58,7 @@ def _unit(x: np.ndarray) -> np.ndarray:
 
 
 def _check_k(k: int) -> int:
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or int(k) < 1:
-        raise ValueError(
-            f"shortlist k must be an integer >= 1 (references kept per query), got {k!r}"
-        )
-    return int(k)
+    return check_int(k, "shortlist k (references kept per query)", 1)
 
 
 def global_cosine(global_query: np.ndarray, global_reference: np.ndarray) -> np.ndarray:
