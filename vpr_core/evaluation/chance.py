@@ -8,6 +8,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from ..checks import check_choice
 from ..notices import notice
 from .curves import (
     PROTOCOLS,
@@ -138,8 +139,7 @@ def chance(
     Raises:
         ValueError: no query with ground truth, bad protocol, ``n`` or ``ks``.
     """
-    if protocol not in PROTOCOLS:
-        raise ValueError(f"unknown protocol {protocol!r}; valid: {', '.join(PROTOCOLS)}")
+    check_choice(protocol, "protocol", PROTOCOLS)
     if int(n) < 1 or any(int(k) < 1 for k in ks):
         raise ValueError(f"n (random rankings) and every k must be >= 1, got n={n}, ks={ks}")
     gt = _check(np.zeros(np.shape(ground_truth)), ground_truth)[1]

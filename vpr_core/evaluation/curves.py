@@ -11,6 +11,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import pandas as pd
 
+from ..checks import check_choice
 from ..datasets.ground_truth import ground_truth_coverage
 
 __all__ = [
@@ -259,8 +260,7 @@ def _parse(
     similarity: Any, ground_truth: Any, protocol: str, ignore: Any = None, warn: bool = True
 ) -> Scored:
     """The checked :class:`Scored` inputs of ``protocol``'s curve."""
-    if protocol not in PROTOCOLS:
-        raise ValueError(f"unknown protocol {protocol!r}; valid: {', '.join(PROTOCOLS)}")
+    check_choice(protocol, "protocol", PROTOCOLS)
     s, gt = _check(similarity, ground_truth, ignore)
     if protocol == "multi_match":
         if not gt.any():
