@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 LAB_STAMP := $(VENV)/.lab-installed
 
-.PHONY: study study-nordland test install lab git-filter bench lint clean
+.PHONY: study study-check study-nordland test install lab git-filter bench lint clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -34,6 +34,14 @@ git-filter: $(STAMP)
 study: $(STAMP)
 	MPLBACKEND=Agg $(VENV)/bin/vpr-study run --dataset synthetic
 	MPLBACKEND=Agg $(VENV)/bin/vpr-study eval --dataset synthetic --method dense classical
+
+# `make study`, then fail when a committed figure or table is not byte-identical to the one just
+# regenerated (or a new one appeared): the outputs-identical check of issue 35. Too slow for the
+# CI budget from an empty cache; run it before committing outputs.
+study-check: study
+	@out="$$(git status --porcelain -- figures results)"; if [ -n "$$out" ]; then \
+		echo "$$out"; echo "study-check: regenerated outputs differ from the committed ones"; \
+		exit 1; fi; echo "study-check: every committed figure and table is byte-identical"
 
 # Notebooks 05-06 on 715 Nordland places (every 5th of nordland_64x32, winter vs summer), roi
 # pooling, each query's top 25 references re-ranked by Eq. (1): about 30 min here. Then the
