@@ -28,17 +28,14 @@ class _World:
 
 def _fill_textured(
     world: _World,
-    x0: int,
-    y0: int,
-    x1: int,
-    y1: int,
+    rect: tuple[int, int, int, int],
     color: Sequence[float],
-    tex: str,
-    scale: float,
-    gain: float,
+    texture: tuple[str, float, float],
     rng: np.random.Generator,
 ) -> None:
-    """Fill a canvas rectangle with ``color * (1 + gain * texture)`` (clipped to the canvas)."""
+    """Fill the canvas rectangle ``rect = (x0, y0, x1, y1)`` with ``color * (1 + gain * t)``,
+    ``t`` the texture of ``texture = (name, scale, gain)`` (clipped to the canvas)."""
+    (x0, y0, x1, y1), (tex, scale, gain) = rect, texture
     hc, wc = world.img.shape[:2]
     x0, x1, y0, y1 = max(0, x0), min(wc, x1), max(0, y0), min(hc, y1)
     if x1 <= x0 or y1 <= y0:

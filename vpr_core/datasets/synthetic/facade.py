@@ -114,14 +114,9 @@ def _draw_building(
     color = np.clip(np.asarray(style["color"], float) + normal(rng, 0, 6, 3), 20, 250)
     _fill_textured(
         world,
-        x0,
-        top,
-        x1,
-        base,
+        (x0, top, x1, base),
         color,
-        style["texture"],
-        style["tex_scale"],
-        style["tex_gain"],
+        (style["texture"], style["tex_scale"], style["tex_gain"]),
         rng,
     )
     dark = tuple(int(c * 0.55) for c in color)
@@ -129,7 +124,7 @@ def _draw_building(
     floor_h = int(style["floor_h"] * u)
     gf_top = base - floor_h
     cv2.line(world.img, (x0, gf_top), (x1, gf_top), dark, max(1, int(0.012 * u)))
-    _draw_windows(world, x0, x1, top, gf_top, style, dark, rng, lit_windows)
+    _draw_windows(world, (x0, x1, top, gf_top), style, dark, rng, lit_windows)
     _draw_ground_floor(world, x0, x1, base, gf_top, floor_h, rng)
     # occasional big billboard on the facade (a strong, unique landmark)
     bw = x1 - x0
@@ -185,16 +180,15 @@ def _draw_roof(
 
 def _draw_windows(
     world: _World,
-    x0: int,
-    x1: int,
-    top: int,
-    gf_top: int,
+    upper: tuple[int, int, int, int],
     style: dict,
     dark: tuple,
     rng: np.random.Generator,
     lit_windows: float,
 ) -> None:
-    """The window grid of the upper floors; some windows are registered as lit at night."""
+    """The window grid of the upper floors ``upper = (x0, x1, top, gf_top)`` (facade columns,
+    roof line, top of the ground floor); some windows are registered as lit at night."""
+    x0, x1, top, gf_top = upper
     u, img = world.unit, world.img
     ww, wh = int(style["win_w"] * u), int(style["win_h"] * u)
     gx, gy = int(style["gap_x"] * u), int(style["gap_y"] * u)

@@ -57,7 +57,7 @@ def _render_world(
         x = x1 + (int(rng.uniform(0.02, 0.12) * unit) if rng.random() < 0.3 else 0)
     # sidewalk and road
     side_h = int(0.1 * hc)
-    _fill_textured(world, 0, base, wc, base + side_h, (165, 160, 150), "gravel", 0.5, 0.12, rng)
+    _fill_textured(world, (0, base, wc, base + side_h), (165, 160, 150), ("gravel", 0.5, 0.12), rng)
     for k in range(0, wc, max(8, int(0.18 * unit))):  # paving joints
         cv2.line(img, (k, base), (k - int(0.05 * unit), base + side_h), (135, 130, 125), 1)
     cv2.rectangle(
@@ -69,14 +69,9 @@ def _render_world(
     )
     _fill_textured(
         world,
-        0,
-        base + side_h + max(2, int(0.015 * unit)),
-        wc,
-        hc,
+        (0, base + side_h + max(2, int(0.015 * unit)), wc, hc),
         (70, 70, 75),
-        "gravel",
-        0.4,
-        0.18,
+        ("gravel", 0.4, 0.18),
         rng,
     )
     lane_y = base + side_h + int(0.17 * unit)
