@@ -81,9 +81,7 @@ def nordland_study(root: str, repeat: int) -> None:
             times[w].append(
                 _timed(
                     lambda w=w: similarity_matrix(
-                        *args,
-                        matching=Matching(weighting=w),
-                        compute=Compute(show_progress=False),
+                        *args, matching=Matching(weighting=w), compute=Compute(show_progress=False)
                     )
                 )[0]
             )

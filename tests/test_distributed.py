@@ -128,45 +128,14 @@ def test_similarity_blocks_unequal_landmark_counts_equal_in_process(client, soft
     rng = np.random.default_rng(7)
     qd, qb = _random_sets(rng, 11)
     rd, rb = _random_sets(rng, 13)
-    want = similarity_matrix(
-        qd,
-        qb,
-        rd,
-        rb,
-        matching=Matching(soft_nms_iou=soft_nms_iou, spatial=spatial),
-        compute=Compute(show_progress=False),
-    )
-    got = similarity_blocks_distributed(
-        client,
-        qd,
-        qb,
-        rd,
-        rb,
-        block_queries=4,
-        matching=Matching(soft_nms_iou=soft_nms_iou, spatial=spatial),
-    )
+    m, quiet = Matching(soft_nms_iou=soft_nms_iou, spatial=spatial), Compute(show_progress=False)
+    want = similarity_matrix(qd, qb, rd, rb, matching=m, compute=quiet)
+    got = similarity_blocks_distributed(client, qd, qb, rd, rb, m, block_queries=4)
     assert np.array_equal(got, want)
     # a shuffled shortlist with repeats, spread over several query and reference blocks
     pairs = np.stack([rng.integers(0, 11, 60), rng.integers(0, 13, 60)], axis=1)
-    want_p = similarity_pairs(
-        qd,
-        qb,
-        rd,
-        rb,
-        pairs,
-        matching=Matching(soft_nms_iou=soft_nms_iou, spatial=spatial),
-        compute=Compute(show_progress=False),
-    )
-    got_p = similarity_pairs_distributed(
-        client,
-        qd,
-        qb,
-        rd,
-        rb,
-        pairs,
-        blocks=(3, 4),
-        matching=Matching(soft_nms_iou=soft_nms_iou, spatial=spatial),
-    )
+    want_p = similarity_pairs(qd, qb, rd, rb, pairs, m, quiet)
+    got_p = similarity_pairs_distributed(client, qd, qb, rd, rb, pairs, m, blocks=(3, 4))
     assert np.array_equal(got_p, want_p)
     # the pairs path agrees with the matrix path (bit for bit without soft-NMS; with it the
     # matcher's float64 soft-NMS scores can differ in the last bit between the two paths)

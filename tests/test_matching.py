@@ -238,12 +238,7 @@ def test_similarity_matrix_equals_pairwise_unequal_counts_and_ties(t):
     rd[2], rb[2] = qd[3].copy(), qb[3].copy()
     qd[5], qb[5] = np.zeros((0, 48), np.float32), np.zeros((0, 4))
     got = similarity_matrix(
-        qd,
-        qb,
-        rd,
-        rb,
-        soft_nms_iou=t,
-        compute=Compute(batch_size=4, ref_batch_size=3),
+        qd, qb, rd, rb, soft_nms_iou=t, compute=Compute(batch_size=4, ref_batch_size=3)
     )
     want = _pairwise(qd, qb, rd, rb, soft_nms_iou=t)
     assert got.shape == (6, 7) and got.dtype == np.float64
@@ -422,22 +417,10 @@ def test_similarity_matrix_same_bits_for_any_thread_count():
     threads = torch.get_num_threads()
     try:
         torch.set_num_threads(1)
-        one = similarity_matrix(
-            qd,
-            qb,
-            rd,
-            rb,
-            compute=Compute(batch_size=3, show_progress=False),
-        )
+        one = similarity_matrix(qd, qb, rd, rb, compute=Compute(batch_size=3, show_progress=False))
         assert torch.get_num_threads() == 1
         torch.set_num_threads(2)
-        two = similarity_matrix(
-            qd,
-            qb,
-            rd,
-            rb,
-            compute=Compute(batch_size=3, show_progress=False),
-        )
+        two = similarity_matrix(qd, qb, rd, rb, compute=Compute(batch_size=3, show_progress=False))
         assert torch.get_num_threads() == 2  # the workers' thread setting does not leak
     finally:
         torch.set_num_threads(threads)
@@ -563,11 +546,7 @@ def test_spatial_match_landmarks_equals_oracle(t):
     for i in range(6):
         for j in range(6):
             got = match_landmarks(
-                qd[i],
-                qb[i],
-                rd[j],
-                rb[j],
-                matching=Matching(soft_nms_iou=t, spatial="consistency"),
+                qd[i], qb[i], rd[j], rb[j], matching=Matching(soft_nms_iou=t, spatial="consistency")
             )
             want = oracle.match_landmarks(
                 qd[i], qb[i], rd[j], rb[j], soft_nms_iou=t, spatial="consistency"
@@ -638,13 +617,7 @@ def _shifted_pair(move: tuple[float, float] | None = None):
 def test_spatial_one_shared_displacement_changes_nothing(t):
     a, ba, b, bb = _shifted_pair()
     plain = match_landmarks(a, ba, b, bb, matching=Matching(soft_nms_iou=t))
-    geo = match_landmarks(
-        a,
-        ba,
-        b,
-        bb,
-        matching=Matching(soft_nms_iou=t, spatial="consistency"),
-    )
+    geo = match_landmarks(a, ba, b, bb, matching=Matching(soft_nms_iou=t, spatial="consistency"))
     np.testing.assert_array_equal(geo.matches, [[0, 0], [1, 1], [2, 2], [3, 3]])
     np.testing.assert_array_equal(geo.spatial_weights, np.ones(4))
     np.testing.assert_array_equal(geo.scores, plain.scores)
@@ -655,11 +628,7 @@ def test_spatial_one_shared_displacement_changes_nothing(t):
     )
     for spatial in (None, "consistency"):
         s = similarity_matrix(
-            [a],
-            [ba],
-            [b],
-            [bb],
-            matching=Matching(soft_nms_iou=t, spatial=spatial),
+            [a], [ba], [b], [bb], matching=Matching(soft_nms_iou=t, spatial=spatial)
         )
         assert s[0, 0] == pytest.approx(plain.similarity, abs=1e-6)
 
@@ -667,21 +636,9 @@ def test_spatial_one_shared_displacement_changes_nothing(t):
 @pytest.mark.parametrize("t", [None, 0.3])
 def test_spatial_one_displaced_match_lowers_only_its_term(t):
     a, ba, b, bb = _shifted_pair()
-    before = match_landmarks(
-        a,
-        ba,
-        b,
-        bb,
-        matching=Matching(soft_nms_iou=t, spatial="consistency"),
-    )
+    before = match_landmarks(a, ba, b, bb, matching=Matching(soft_nms_iou=t, spatial="consistency"))
     a, ba, b, bb = _shifted_pair(move=(8.0, 40.0))  # same size: Eq. (2) does not change
-    after = match_landmarks(
-        a,
-        ba,
-        b,
-        bb,
-        matching=Matching(soft_nms_iou=t, spatial="consistency"),
-    )
+    after = match_landmarks(a, ba, b, bb, matching=Matching(soft_nms_iou=t, spatial="consistency"))
     plain = match_landmarks(a, ba, b, bb, matching=Matching(soft_nms_iou=t))
     np.testing.assert_array_equal(after.matches, before.matches)
     np.testing.assert_array_equal(after.raw_scores, plain.raw_scores)
@@ -694,11 +651,7 @@ def test_spatial_one_displaced_match_lowers_only_its_term(t):
     assert after.similarity < before.similarity
     assert plain.similarity == pytest.approx(before.similarity, abs=1e-12)
     got = similarity_matrix(
-        [a],
-        [ba],
-        [b],
-        [bb],
-        matching=Matching(soft_nms_iou=t, spatial="consistency"),
+        [a], [ba], [b], [bb], matching=Matching(soft_nms_iou=t, spatial="consistency")
     )
     assert got[0, 0] == pytest.approx(after.similarity, abs=1e-6)
 

@@ -22,6 +22,9 @@ from vpr_core.matching import (
 from vpr_core.matching.weighting import WEIGHTING_SAMPLE, weighting_sample
 from vpr_core.methods import Matching, as_method, get_method, method_label, run_key
 
+#: The values these tests pass again and again: float64 blocks, each weighting.
+F64 = Compute(matmul_dtype="float64")
+CONTRAST, IDF = Matching(weighting="contrast"), Matching(weighting="idf")
 BOX = [0.0, 0.0, 10.0, 10.0]
 
 
@@ -45,7 +48,7 @@ def test_similarity_matrix_equals_oracle(weighting, t, spatial):
     got = similarity_matrix(qd, qb, rd, rb, **kw, compute=Compute(batch_size=4, ref_batch_size=3))
     np.testing.assert_allclose(got, want, atol=1e-6, rtol=0)
     np.testing.assert_allclose(
-        similarity_matrix(qd, qb, rd, rb, **kw, compute=Compute(matmul_dtype="float64")),
+        similarity_matrix(qd, qb, rd, rb, **kw, compute=F64),
         want,
         atol=1e-12,
         rtol=0,
@@ -112,55 +115,34 @@ def _contrast_case():
 
 def test_contrast_by_hand_a_landmark_matching_every_place_carries_nothing():
     qd, qb, rd, rb = _contrast_case()
-    plain = similarity_matrix(qd, qb, rd, rb, compute=Compute(matmul_dtype="float64"))
+    plain = similarity_matrix(qd, qb, rd, rb, compute=F64)
     # cosines: wall 0.8 everywhere; rare 0.9, 0.1, 0.1 -> plain Eq. (1) (0.8 + 0.9) / 2 for r0
     np.testing.assert_allclose(plain[0], [0.85, 0.45, 0.45], atol=1e-12)
-    got = similarity_matrix(
-        qd,
-        qb,
-        rd,
-        rb,
-        matching=Matching(weighting="contrast"),
-        compute=Compute(matmul_dtype="float64"),
-    )
+    got = similarity_matrix(qd, qb, rd, rb, matching=CONTRAST, compute=F64)
     # wall: sigma 0 -> weight 0. rare: mu 1.1/3, sigma sqrt(((0.9 - mu)^2 + 2 (0.1 - mu)^2) / 3)
     mu = 1.1 / 3
     sd = math.sqrt(((0.9 - mu) ** 2 + 2 * (0.1 - mu) ** 2) / 3)
     w0 = (0.9 - mu) / sd  # = sqrt(2): above the mean by sqrt(2) standard deviations
     assert w0 == pytest.approx(math.sqrt(2))
     np.testing.assert_allclose(got[0], [0.9 * w0 / 2, 0, 0], atol=1e-12)
-    res = weighted_matches(qd, qb, rd, rb, [[0, 0], [0, 1]], Matching(weighting="contrast"))
+    res = weighted_matches(qd, qb, rd, rb, [[0, 0], [0, 1]], CONTRAST)
     np.testing.assert_allclose(res[0].weights, [0.0, w0], atol=1e-6)
     np.testing.assert_allclose(res[1].weights, [0.0, 0.0], atol=1e-6)  # 0.1 < mu: clipped to 0
     # one reference: sigma 0 for every landmark, every weight 0
-    one = similarity_matrix(qd, qb, rd[:1], rb[:1], matching=Matching(weighting="contrast"))
+    one = similarity_matrix(qd, qb, rd[:1], rb[:1], matching=CONTRAST)
     assert one[0, 0] == 0.0
 
 
 def test_idf_by_hand():
     qd, qb, rd, rb = _contrast_case()
-    got = similarity_matrix(
-        qd,
-        qb,
-        rd,
-        rb,
-        matching=Matching(weighting="idf"),
-        compute=Compute(matmul_dtype="float64"),
-    )
+    got = similarity_matrix(qd, qb, rd, rb, matching=IDF, compute=F64)
     # the wall matches all 3 references: log(4 / 4) = 0; the rare landmark is reciprocal in all
     # three too (each reference's landmark 1 is nearest to it), so every term weighs 0 ...
     np.testing.assert_allclose(got, 0.0, atol=1e-12)
     # ... until a reference offers the rare landmark nothing nearer than the wall
     rd2 = [rd[0], rd[1][:1], rd[2][:1]]
     rb2 = [rb[0], rb[1][:1], rb[2][:1]]
-    got = similarity_matrix(
-        qd,
-        qb,
-        rd2,
-        rb2,
-        matching=Matching(weighting="idf"),
-        compute=Compute(matmul_dtype="float64"),
-    )
+    got = similarity_matrix(qd, qb, rd2, rb2, matching=IDF, compute=F64)
     assert got[0, 0] == pytest.approx(0.9 * math.log(4 / 2) / 2, abs=1e-12)
     np.testing.assert_allclose(got[0, 1:], 0.0, atol=1e-12)
 
@@ -173,14 +155,7 @@ def test_weighted_same_bits_for_any_thread_count():
         for n in (1, 2):
             torch.set_num_threads(n)
             out.append(
-                similarity_matrix(
-                    qd,
-                    qb,
-                    rd,
-                    rb,
-                    matching=Matching(weighting="contrast"),
-                    compute=Compute(batch_size=3),
-                )
+                similarity_matrix(qd, qb, rd, rb, matching=CONTRAST, compute=Compute(batch_size=3))
             )
     finally:
         torch.set_num_threads(threads)

@@ -18,8 +18,8 @@ from .curves import (
     _metrics,
     _query_scores,
     _ranked,
-    _true_rank,
 )
+from .ranks import _true_rank
 
 __all__ = [
     "BOOTSTRAP_PROTOCOLS",

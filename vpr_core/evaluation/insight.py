@@ -12,7 +12,8 @@ import pandas as pd
 from ..matching import Matching, match_landmarks, weighted_matches
 from ..notices import notice
 from .compare import _check_same_dataset
-from .curves import _best_two, _query_scores, _ranked, _true_rank
+from .curves import _best_two, _query_scores, _ranked
+from .ranks import _true_rank
 
 __all__ = ["CONTRAST_COLUMN", "PER_QUERY_COLUMNS", "per_query"]
 
