@@ -7,10 +7,12 @@ import pytest
 
 from vpr_core.evaluation import (
     N_BOOTSTRAP,
+    Evaluation,
     PRCurve,
     auc_pr,
     bootstrap_columns,
     bootstrap_metrics,
+    chance,
     evaluate,
     format_interval,
     ground_truth_coverage,
@@ -20,7 +22,7 @@ from vpr_core.evaluation import (
     recall_at_100_precision,
     recall_at_k,
 )
-from vpr_core.evaluation.bootstrap import _per_query, _resample_metrics
+from vpr_core.evaluation.bootstrap import _per_query, _prepare, _resample_metrics
 
 # 5 queries x 3 references.
 S = np.array(
@@ -190,7 +192,7 @@ def test_bootstrap_resample_equals_metrics_of_repeated_rows():
     gt[20] = False  # vpr_bench resamples it too (a negative); the others never see it
     for protocol in ("ratio", "best_match", "vpr_bench"):
         rows = np.ones(60, bool) if protocol == "vpr_bench" else gt.any(axis=1)
-        pq = _per_query(s[rows], gt[rows], protocol, (1, 5))
+        pq = _per_query(_prepare(s, gt, Evaluation(protocol, 0)), (1, 5))
         n = int(rows.sum())
         for seed in range(5):
             idx = np.flatnonzero(rows)[np.random.default_rng(seed).integers(0, n, n)]
@@ -273,3 +275,15 @@ def test_bootstrap_bad_arguments():
         bootstrap_metrics(S, GT, ks=(0,))
     with pytest.raises(ValueError, match="shape"):
         paired_bootstrap(S, S[:, :2], GT)
+
+
+def test_a_runs_evaluation_value_stands_for_its_protocol_name():
+    """evaluate, chance and the saturation check take a run's Evaluation or the protocol's name;
+    a bad name is refused by the value, naming the valid ones."""
+    ev = Evaluation("best_match", 0)
+    assert evaluate(S, GT, ev) == evaluate(S, GT, "best_match") != evaluate(S, GT)
+    assert chance(GT, ev) == chance(GT, "best_match")
+    with pytest.raises(ValueError, match="ratio, best_match, vpr_bench, multi_match"):
+        evaluate(S, GT, "best-match")
+    with pytest.raises(ValueError, match="n_bootstrap"):  # multi_match has no intervals
+        bootstrap_metrics(S, GT, n=10, protocol="multi_match")

@@ -185,7 +185,7 @@ def test_run_method_protocols(tiny_synthetic):
     assert res.protocol == "vpr_bench"
     assert (
         res.metrics["auc"]
-        == evaluate(res.similarity, res.ground_truth, protocol="vpr_bench")["auc"]
+        == evaluate(res.similarity, res.ground_truth, "vpr_bench")["auc"]
     )
     assert res.intervals["auc"][0] == res.metrics["auc"]
     with pytest.raises(ValueError, match="ratio"):

@@ -29,8 +29,13 @@ from vpr_core.backbones import parse_backbone
 from vpr_core.baselines import find_vprbench_peers, peer_from_descriptors, peer_from_matrix
 from vpr_core.datasets import DATASETS, load_dataset
 from vpr_core.datasets.ground_truth import ground_truth_text
-from vpr_core.evaluation import compact_text, compare, compare_pairs, ground_truth_coverage
-from vpr_core.evaluation.curves import PROTOCOLS
+from vpr_core.evaluation import (
+    PROTOCOLS,
+    compact_text,
+    compare,
+    compare_pairs,
+    ground_truth_coverage,
+)
 from vpr_core.evaluation.spec import check_bootstrap_memory
 from vpr_core.matching import SPATIAL_OPTIONS, WEIGHTING_OPTIONS
 from vpr_core.methods import available_methods

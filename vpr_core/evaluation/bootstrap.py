@@ -10,16 +10,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .curves import (
-    PROTOCOLS,
-    Scored,
-    _check,
-    _kept_queries,
-    _metrics,
-    _query_scores,
-    _ranked,
-)
+from .curves import Scored, _metrics, _parse, _query_scores, _ranked
 from .ranks import _true_rank
+from .spec import BOOTSTRAP_PROTOCOLS, N_BOOTSTRAP, PROTOCOLS, Evaluation
 
 __all__ = [
     "BOOTSTRAP_PROTOCOLS",
@@ -32,12 +25,6 @@ __all__ = [
     "needs_text",
     "paired_bootstrap",
 ]
-
-#: Bootstrap resamples of every interval and paired difference (the one home of this count).
-N_BOOTSTRAP = 1000
-
-#: The protocols with per-query decisions, so with bootstrap intervals.
-BOOTSTRAP_PROTOCOLS = ("ratio", "best_match", "vpr_bench")
 
 #: ``queries_needed`` beyond this: "not decidable on any realistic set" (:func:`needs_text`).
 REALISTIC_QUERIES = 100_000
@@ -91,26 +78,12 @@ class _PerQuery:
     hits: dict[int, np.ndarray]  # k -> (n,) float64 top-k hit (0 where not kept)
 
 
-def _check_args(n: int, protocol: str, ks: Sequence[int]) -> tuple[int, ...]:
-    if int(n) < 0:
-        raise ValueError(f"n (number of resamples) must be >= 0 (0: no intervals), got {n}")
-    if protocol not in BOOTSTRAP_PROTOCOLS:
-        raise ValueError(
-            f"bootstrap supports protocol 'ratio', 'best_match' or 'vpr_bench' "
-            f"(per-query decisions), got {protocol!r}; valid protocols: "
-            f"{', '.join(PROTOCOLS)}"
-        )
-    ks = tuple(int(k) for k in ks)
-    if any(k < 1 for k in ks):
-        raise ValueError(f"ks must be >= 1, got {ks}")
-    return ks
-
-
-def _per_query(s: np.ndarray, gt: np.ndarray, protocol: str, ks: tuple[int, ...]) -> _PerQuery:
-    """Per-query quantities of one method; ``s``, ``gt``: the resampled rows."""
+def _per_query(x: Scored, ks: tuple[int, ...]) -> _PerQuery:
+    """Per-query quantities of one method on its resampled rows (:func:`_prepare`)."""
+    s, gt, protocol = x.s, x.gt, x.protocol
     ranked = _ranked(s)  # an unranked query is never accepted (not retrieved)
     idx = np.flatnonzero(ranked)
-    score, correct = _query_scores(s[ranked], gt[ranked], protocol)
+    score, correct = _query_scores(s[ranked], gt[ranked], protocol == "ratio")
     # the same sort as curves._curve_from_scores: accepted in this order, equal scores together
     o = np.argsort(score if protocol == "ratio" else -score, kind="stable")
     sc = score[o]
@@ -161,13 +134,6 @@ def _resample_metrics(pq: _PerQuery, w: np.ndarray) -> dict[str, np.ndarray]:
     return out
 
 
-def _point(s: np.ndarray, gt: np.ndarray, protocol: str, ks: tuple[int, ...]) -> dict[str, float]:
-    """Metrics on all queries of checked inputs, as the tables compute them (no warning: logged
-    already)."""
-    keep = _kept_queries(s, gt, warn=False, need_gt=protocol != "vpr_bench")
-    return _metrics(Scored(s, gt, keep, protocol), ks, warn=False)
-
-
 def _draws(n_boot: int, n_queries: int, seed: int):
     """Yield ``(B, n_queries)`` draw counts, ``_CHUNK`` resamples at a time (seeded)."""
     rng = np.random.default_rng(seed)
@@ -178,16 +144,25 @@ def _draws(n_boot: int, n_queries: int, seed: int):
         yield np.bincount(flat, minlength=b * n_queries).reshape(b, n_queries).astype(np.float64)
 
 
-def _prepare(similarity, ground_truth, protocol: str, ks, n: int, ignore=None):
-    """Checked ``(s, gt, ks, rows)``; ``rows``: the resampled queries (``(Nq,)`` bool)."""
-    ks = _check_args(n, protocol, ks)
-    s, gt = _check(similarity, ground_truth, ignore)
-    if s.shape[1] < 2 and protocol == "ratio":
-        raise ValueError(f"the ratio protocol needs at least 2 references, got {s.shape[1]}")
-    # raises without ground truth; warns once when queries are left out
-    _kept_queries(s, gt, need_gt=protocol != "vpr_bench")
-    rows = np.ones(s.shape[0], dtype=bool) if protocol == "vpr_bench" else gt.any(axis=1)
-    return s, gt, ks, rows
+def _prepare(similarity, ground_truth, evaluation: Evaluation, ignore=None) -> Scored:
+    """The checked inputs on the resampled queries: ``vpr_bench`` every query, else those with
+    ground truth (raises without ground truth; warns once when queries are left out)."""
+    if evaluation.protocol not in BOOTSTRAP_PROTOCOLS:
+        raise ValueError(
+            f"bootstrap supports protocol 'ratio', 'best_match' or 'vpr_bench' "
+            f"(per-query decisions), got {evaluation.protocol!r}; valid protocols: "
+            f"{', '.join(PROTOCOLS)}"
+        )
+    s, gt, keep, _ = _parse(similarity, ground_truth, evaluation, ignore)
+    rows = np.ones(s.shape[0], dtype=bool) if evaluation.protocol == "vpr_bench" else gt.any(1)
+    return Scored(s[rows], gt[rows], keep[rows], evaluation)
+
+
+def _ks(ks: Sequence[int]) -> tuple[int, ...]:
+    ks = tuple(int(k) for k in ks)
+    if any(k < 1 for k in ks):
+        raise ValueError(f"ks must be >= 1, got {ks}")
+    return ks
 
 
 def _interval(vals: list[np.ndarray]) -> tuple[float, float]:
@@ -223,13 +198,13 @@ def bootstrap_metrics(
         :func:`~vpr_core.evaluation.curves.evaluate`).
 
     Raises:
-        ValueError: no query with ground truth, bad ``n`` / ``protocol`` / ``ks`` / shapes.
+        ValueError: no query with ground truth, a protocol without intervals, bad ``ks`` or
+            shapes.
     """
-    s, gt, kt, rows = _prepare(similarity, ground_truth, protocol, ks, n, ignore)
-    s, gt = s[rows], gt[rows]
-    point = _point(s, gt, protocol, kt)
-    pq = _per_query(s, gt, protocol, kt)
-    draws = [_resample_metrics(pq, w) for w in _draws(n, s.shape[0], seed)]
+    x, kt = _prepare(similarity, ground_truth, Evaluation(protocol, n), ignore), _ks(ks)
+    point = _metrics(x, kt, warn=False)
+    pq = _per_query(x, kt)
+    draws = [_resample_metrics(pq, w) for w in _draws(n, len(x.s), seed)]
     return {
         key: (float(value), *_interval([d[key] for d in draws])) for key, value in point.items()
     }
@@ -280,15 +255,13 @@ def paired_bootstrap(
         unpacks as a 4-tuple and has ``.se`` and ``.queries_needed`` (module docstring);
         identical inputs give ``(0, 0, 0, 1)``.
     """
-    a, gt, kt, rows = _prepare(sim_a, ground_truth, protocol, ks, n, ignore)
-    b, _, _, _ = _prepare(sim_b, ground_truth, protocol, ks, n, ignore)
-    if a.shape != b.shape:
-        raise ValueError(f"sim_a and sim_b differ in shape: {a.shape} vs {b.shape}")
-    a, b, gt = a[rows], b[rows], gt[rows]
-    pa, pb = _point(a, gt, protocol, kt), _point(b, gt, protocol, kt)
-    qa, qb = _per_query(a, gt, protocol, kt), _per_query(b, gt, protocol, kt)
+    evaluation, kt = Evaluation(protocol, n), _ks(ks)
+    a = _prepare(sim_a, ground_truth, evaluation, ignore)
+    b = _prepare(sim_b, ground_truth, evaluation, ignore)  # same shape: both checked against it
+    pa, pb = _metrics(a, kt, warn=False), _metrics(b, kt, warn=False)
+    qa, qb = _per_query(a, kt), _per_query(b, kt)
     deltas: dict[str, list[np.ndarray]] = {key: [] for key in pa}
-    for w in _draws(n, a.shape[0], seed):
+    for w in _draws(n, len(a.s), seed):
         ma, mb = _resample_metrics(qa, w), _resample_metrics(qb, w)
         for key, parts in deltas.items():
             parts.append(ma[key] - mb[key])
@@ -303,7 +276,7 @@ def paired_bootstrap(
         d = d[~np.isnan(d)]
         se = float(np.std(d, ddof=1)) if d.size > 1 else np.nan
         out[key] = Difference(
-            delta, lo, hi, _p_value(delta, d), se, _queries_needed(delta, se, a.shape[0])
+            delta, lo, hi, _p_value(delta, d), se, _queries_needed(delta, se, len(a.s))
         )
     return out
 

@@ -8,16 +8,9 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from ..checks import check_choice
 from ..notices import notice
-from .curves import (
-    PROTOCOLS,
-    _check,
-    _kept_queries,
-    _query_curve,
-    auc_pr,
-    recall_at_100_precision,
-)
+from .curves import _check, _kept_queries, _query_curve, auc_pr, recall_at_100_precision
+from .spec import Evaluation, as_evaluation
 
 __all__ = [
     "CHANCE_CHECKED",
@@ -62,29 +55,31 @@ def _chance_recall(gt: np.ndarray, k: int, soft: np.ndarray | None = None) -> fl
     return float(np.mean([1.0 - table[pair] for pair in pairs]))
 
 
-def _p_correct(gt: np.ndarray, soft_only: np.ndarray, protocol: str) -> np.ndarray:
+def _p_correct(gt: np.ndarray, soft_only: np.ndarray, every_query: bool) -> np.ndarray:
     """Each counted query's chance ``c / Nr`` that a random top-1 is correct (``Nr`` without
-    its soft-only references; ``vpr_bench``: every query, else those with ground truth)."""
-    rows = np.ones(gt.shape[0], bool) if protocol == "vpr_bench" else gt.any(axis=1)
+    its soft-only references; ``every_query`` (``vpr_bench``), else those with ground truth)."""
+    rows = np.ones(gt.shape[0], bool) if every_query else gt.any(axis=1)
     nr = gt.shape[1] - soft_only[rows].sum(axis=1)
     return gt[rows].sum(axis=1) / np.maximum(nr, 1)
 
 
 def chance_precision(
-    ground_truth: np.ndarray, protocol: str = "ratio", soft: np.ndarray | None = None
+    ground_truth: np.ndarray, evaluation: Evaluation | str = "ratio", soft: np.ndarray | None = None
 ) -> float:
     """The precision a random ranking keeps at every recall (the flat PR curve of chance).
 
-    The share of decisions that are correct: ``c / Nr`` averaged over the counted queries
-    (``vpr_bench``: every query; ``ratio`` / ``best_match``: those with ground truth), the share
-    of ground-truth pairs for ``multi_match``. ``soft``: the soft ground truth, whose pairs
-    outside ``ground_truth`` are neither right nor wrong (left out of ``Nr``).
+    The share of decisions that are correct: ``c / Nr`` averaged over the queries the protocol
+    (an :class:`~vpr_core.evaluation.Evaluation` or its name) counts (``vpr_bench``: every
+    query; ``ratio`` / ``best_match``: those with ground truth), the share of ground-truth pairs
+    for ``multi_match``. ``soft``: the soft ground truth, whose pairs outside ``ground_truth``
+    are neither right nor wrong (left out of ``Nr``).
     """
+    protocol = as_evaluation(evaluation).protocol
     gt = np.asarray(ground_truth, dtype=bool)
     soft_only = _soft_only(gt, soft)
     if protocol == "multi_match":
         return float(gt.sum() / max(gt.size - soft_only.sum(), 1))
-    p = _p_correct(gt, soft_only, protocol)
+    p = _p_correct(gt, soft_only, protocol == "vpr_bench")
     return float(p.mean()) if p.size else float("nan")
 
 
@@ -108,7 +103,7 @@ def _chance_multi_match(gt: np.ndarray, n: int) -> tuple[float, float]:
 
 def chance(
     ground_truth: np.ndarray,
-    protocol: str = "ratio",
+    evaluation: Evaluation | str = "ratio",
     ks: Sequence[int] = (1, 5),
     n: int = CHANCE_RANKINGS,
     seed: int = 0,
@@ -124,7 +119,9 @@ def chance(
 
     Args:
         ground_truth: ``(Nq, Nr)`` bool.
-        protocol: the protocol of AUC and R@100P (:data:`PROTOCOLS`).
+        evaluation: the protocol of AUC and R@100P: an
+            :class:`~vpr_core.evaluation.Evaluation` (a run's ``.evaluation``) or a name of
+            :data:`~vpr_core.evaluation.PROTOCOLS`.
         ks: the K of R@K.
         n: random rankings of the per-query protocols (>= 1).
         seed: their seed (same seed, same values).
@@ -139,7 +136,8 @@ def chance(
     Raises:
         ValueError: no query with ground truth, bad protocol, ``n`` or ``ks``.
     """
-    check_choice(protocol, "protocol", PROTOCOLS)
+    evaluation = as_evaluation(evaluation)
+    protocol = evaluation.protocol
     if int(n) < 1 or any(int(k) < 1 for k in ks):
         raise ValueError(f"n (random rankings) and every k must be >= 1, got n={n}, ks={ks}")
     gt = _check(np.zeros(np.shape(ground_truth)), ground_truth)[1]
@@ -153,12 +151,12 @@ def chance(
     if protocol == "multi_match":
         auc, r100p = _chance_multi_match(gt, int(gt.size - soft_only.sum()))
     else:
-        p_correct = _p_correct(gt, soft_only, protocol)
+        p_correct = _p_correct(gt, soft_only, protocol == "vpr_bench")
         rng = np.random.default_rng(seed)
         values = []
         for _ in range(int(n)):
             correct = rng.random(p_correct.size) < p_correct
-            curve = _query_curve(rng.random(p_correct.size), correct, protocol, 0)
+            curve = _query_curve(rng.random(p_correct.size), correct, evaluation, 0)
             values.append((auc_pr(curve), recall_at_100_precision(curve)))
         auc, r100p = (float(v) for v in np.mean(values, axis=0))
     out = ChanceLevels(auc=auc, **{"r@100p": r100p})
@@ -182,7 +180,7 @@ def _inside(value: float, interval: Sequence[float]) -> bool:
 def saturation_notice(
     ground_truth: np.ndarray,
     intervals: Mapping | Sequence[Mapping] | None = None,
-    protocol: str = "ratio",
+    evaluation: Evaluation | str = "ratio",
     soft: np.ndarray | None = None,
 ) -> str | None:
     """Warn (:func:`~vpr_core.notices.notice`) when the ground truth makes the metrics meaningless.
@@ -197,7 +195,8 @@ def saturation_notice(
         ground_truth: ``bool (Nq, Nr)``.
         intervals: one run's ``{"auc": (value, lo, hi), ...}`` (:func:`bootstrap_metrics`), or a
             sequence of them (the runs being compared).
-        protocol: the protocol of the intervals' AUC.
+        evaluation: the protocol of the intervals' AUC (an
+            :class:`~vpr_core.evaluation.Evaluation` or its name).
         soft: optional soft ground truth (as :func:`chance`).
 
     Returns:
@@ -225,6 +224,7 @@ def saturation_notice(
         )
     if isinstance(intervals, Mapping) or not runs:
         return None
+    protocol = as_evaluation(evaluation).protocol
     level = chance(gt, protocol, ks=(1,), soft=soft)
     at_chance = [
         key

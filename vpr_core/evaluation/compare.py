@@ -198,13 +198,7 @@ def compare(
         if r is not base:
             row["baseline"] = base.label
             diff = paired_bootstrap(
-                r.similarity,
-                base.similarity,
-                gt,
-                n=n_bootstrap,
-                seed=seed,
-                ks=(1,),
-                protocol=protocol,
+                r.similarity, base.similarity, gt, n_bootstrap, seed, protocol, ks=(1,)
             )
             cols = bootstrap_columns({k: diff[k] for k in DIFFERENCES.values()}, prefix="d")
             for name, key in DIFFERENCES.items():

@@ -11,9 +11,9 @@ from typing import Any, NamedTuple
 import numpy as np
 import pandas as pd
 
-from ..checks import check_choice
 from ..datasets.ground_truth import ground_truth_coverage
 from .ranks import _recall, _true_rank
+from .spec import PROTOCOLS, Evaluation, as_evaluation
 
 __all__ = [
     "PROTOCOLS",
@@ -29,8 +29,6 @@ __all__ = [
 ]
 
 logger = logging.getLogger("vpr_core")
-
-PROTOCOLS = ("ratio", "best_match", "vpr_bench", "multi_match")
 
 
 @dataclass
@@ -159,20 +157,21 @@ def _best_two(s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return b1, s1, s2
 
 
-def _query_scores(s: np.ndarray, gt: np.ndarray, protocol: str) -> tuple[np.ndarray, np.ndarray]:
-    """Per-query score and correctness of the best match (``ratio`` / ``best_match``).
+def _query_scores(s: np.ndarray, gt: np.ndarray, ratio: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Per-query score and correctness of the best match.
 
     Args:
         s: ``(n, Nr)`` similarities of kept queries; gt: ``(n, Nr)`` bool.
-        protocol: ``"ratio"`` (score ``r = S2 / S1`` in ``[0, 1]``, accept ``r <= tau``) or
-            ``"best_match"`` / ``"vpr_bench"`` (score ``S1``, accept ``S1 >= tau``).
+        ratio: score ``r = S2 / S1`` in ``[0, 1]``, accepted if ``r <= tau`` (the ``ratio``
+            protocol); else score ``S1``, accepted if ``S1 >= tau`` (``best_match``,
+            ``vpr_bench``).
 
     Returns:
         ``(score (n,), correct (n,) bool)``.
     """
     b1, s1, s2 = _best_two(s)
     correct = gt[np.arange(s.shape[0]), b1]
-    if protocol != "ratio":
+    if not ratio:
         return s1, correct
     with np.errstate(invalid="ignore", divide="ignore"):
         r = np.where(s1 > 0, s2 / np.where(s1 > 0, s1, 1.0), 1.0)
@@ -183,11 +182,11 @@ def _curve_from_scores(
     score: np.ndarray,
     correct: np.ndarray,
     ascending: bool,
-    protocol: str,
     n_pos: int | None = None,
     n_missed: int = 0,
 ) -> PRCurve:
-    """Sweep a threshold over per-decision scores (accept ``score <= tau`` if ascending).
+    """Sweep a threshold over per-decision scores (accept ``score <= tau`` if ascending); the
+    caller names the curve's protocol.
 
     ``n_pos``: the recall denominator (None: ``TP + FN``, FN = rejected decisions plus
     ``n_missed``, the decisions never offered: queries that retrieved nothing).
@@ -212,7 +211,6 @@ def _curve_from_scores(
         recall=np.r_[0.0, recall],
         precision=np.r_[1.0, precision],
         thresholds=np.r_[sentinel, sc[last]],
-        protocol=protocol,
         n_queries=int(n + n_missed),
         tp=np.r_[0, tp].astype(np.int64),
         fp=np.r_[0, fp].astype(np.int64),
@@ -244,75 +242,80 @@ def pr_curve(
         ValueError: bad shapes or protocol, or no query with ground truth (no pair for
             ``multi_match``).
     """
-    return _curve(_parse(similarity, ground_truth, protocol, ignore, warn))
+    return _curve(_parse(similarity, ground_truth, Evaluation(protocol, 0), ignore, warn))
 
 
 class Scored(NamedTuple):
     """Checked inputs of a metric: ``(Nq, Nr)`` similarities and ground truth, the ``(Nq,)``
-    queries the protocol counts (``multi_match`` counts pairs: every query) and the protocol."""
+    queries the protocol counts (``multi_match`` counts pairs: every query) and the
+    :class:`~vpr_core.evaluation.Evaluation`."""
 
     s: np.ndarray
     gt: np.ndarray
     keep: np.ndarray
-    protocol: str
+    evaluation: Evaluation
+
+    @property
+    def protocol(self) -> str:
+        return self.evaluation.protocol
 
 
 def _parse(
-    similarity: Any, ground_truth: Any, protocol: str, ignore: Any = None, warn: bool = True
+    similarity: Any,
+    ground_truth: Any,
+    evaluation: Evaluation,
+    ignore: Any = None,
+    warn: bool = True,
 ) -> Scored:
-    """The checked :class:`Scored` inputs of ``protocol``'s curve."""
-    check_choice(protocol, "protocol", PROTOCOLS)
+    """The checked :class:`Scored` inputs of ``evaluation``'s curve."""
+    protocol = evaluation.protocol
     s, gt = _check(similarity, ground_truth, ignore)
     if protocol == "multi_match":
         if not gt.any():
             _kept_queries(s, gt)  # raises: no ground truth
-        return Scored(s, gt, np.ones(s.shape[0], dtype=bool), protocol)
+        return Scored(s, gt, np.ones(s.shape[0], dtype=bool), evaluation)
     if protocol == "ratio" and s.shape[1] < 2:
         raise ValueError(f"the ratio protocol needs at least 2 references, got {s.shape[1]}")
     if s.shape[1] < 1:
         raise ValueError("similarity has no reference column")
-    return Scored(s, gt, _kept_queries(s, gt, warn, need_gt=protocol != "vpr_bench"), protocol)
+    return Scored(s, gt, _kept_queries(s, gt, warn, need_gt=protocol != "vpr_bench"), evaluation)
 
 
 def _curve(x: Scored) -> PRCurve:
     """:func:`pr_curve` of parsed inputs."""
-    s, gt, keep, protocol = x
-    if protocol == "multi_match":
+    s, gt, keep, evaluation = x
+    if x.protocol == "multi_match":
         ranked = ~np.isnan(s).ravel()
-        return _curve_from_scores(
-            s.ravel()[ranked], gt.ravel()[ranked], False, protocol, n_pos=int(gt.sum())
-        )
+        curve = _curve_from_scores(s.ravel()[ranked], gt.ravel()[ranked], False, int(gt.sum()))
+        curve.protocol = x.protocol
+        return curve
     ranked = keep & _ranked(s)
-    score, correct = _query_scores(s[ranked], gt[ranked], protocol)
-    return _query_curve(score, correct, protocol, int(keep.sum() - ranked.sum()))
+    score, correct = _query_scores(s[ranked], gt[ranked], x.protocol == "ratio")
+    return _query_curve(score, correct, evaluation, int(keep.sum() - ranked.sum()))
 
 
-def _query_curve(score: np.ndarray, correct: np.ndarray, protocol: str, n_missed: int) -> PRCurve:
+def _query_curve(
+    score: np.ndarray, correct: np.ndarray, evaluation: Evaluation, n_missed: int
+) -> PRCurve:
     """The curve of per-query decisions (``ratio``, ``best_match``, ``vpr_bench``).
 
     Args:
         score, correct: ``(n,)`` score and top-1 correctness of the queries with a ranked
             reference; n_missed: counted queries that retrieved nothing (never accepted).
     """
+    protocol = evaluation.protocol
     # recall denominators: ratio TP + FN (None), best_match all counted queries, vpr_bench sum(y)
     n_pos = {
         "ratio": None,
         "best_match": score.size + n_missed,
         "vpr_bench": int(correct.sum()),
     }[protocol]
-    curve = _curve_from_scores(score, correct, protocol == "ratio", protocol, n_pos, n_missed)
+    curve = _curve_from_scores(score, correct, protocol == "ratio", n_pos, n_missed)
+    curve.protocol = protocol
     if protocol == "vpr_bench" and n_pos:  # stop at the first point of full recall
         end = int(np.searchsorted(curve.tp, n_pos)) + 1
-        curve = PRCurve(
-            curve.recall[:end],
-            curve.precision[:end],
-            curve.thresholds[:end],
-            protocol,
-            curve.n_queries,
-            curve.tp[:end],
-            curve.fp[:end],
-            curve.fn[:end],
-        )
+        for name in ("recall", "precision", "thresholds", "tp", "fp", "fn"):
+            setattr(curve, name, getattr(curve, name)[:end])
     return curve
 
 
@@ -398,26 +401,30 @@ def recall_rate_at_n(
 def evaluate(
     similarity: np.ndarray,
     ground_truth: np.ndarray,
-    protocol: str = "ratio",
+    evaluation: Evaluation | str = "ratio",
     ks: Sequence[int] = (1, 5),
     ignore: np.ndarray | None = None,
 ) -> dict[str, float]:
     """Table metrics ``{"auc", "r@100p", "r@K" for K in ks}`` (the keys of ``bootstrap_metrics``).
 
-    ``auc`` and ``r@100p`` follow ``protocol``; R@K is protocol-free (:func:`recall_at_k`).
+    ``auc`` and ``r@100p`` follow the protocol (``evaluation``: a protocol name or an
+    :class:`~vpr_core.evaluation.Evaluation`, e.g. a run's); R@K is protocol-free
+    (:func:`recall_at_k`).
     ``ignore``: optional ``(Nq, Nr)`` bool soft ground truth (see the module docstring). Logs at
     most one coverage warning; raises a ValueError when no query has ground truth.
     """
-    return _metrics(_parse(similarity, ground_truth, protocol, ignore), ks, warn=True)
+    return _metrics(
+        _parse(similarity, ground_truth, as_evaluation(evaluation), ignore), ks, warn=True
+    )
 
 
 def _metrics(x: Scored, ks: Sequence[int], warn: bool) -> dict[str, float]:
     """:func:`evaluate` of parsed inputs; R@K counts the queries with ground truth (its own
     coverage warning only where the curve counted others: ``multi_match``, ``vpr_bench``)."""
-    s, gt, _, protocol = x
+    s, gt = x.s, x.gt
     curve = _curve(x)
     out = {"auc": auc_pr(curve), "r@100p": recall_at_100_precision(curve)}
-    with_gt = _kept_queries(s, gt, warn and protocol in ("multi_match", "vpr_bench"))
+    with_gt = _kept_queries(s, gt, warn and x.protocol in ("multi_match", "vpr_bench"))
     for k in ks:
         if int(k) < 1:
             raise ValueError(f"k must be >= 1, got {k}")

@@ -102,7 +102,7 @@ def _one_run(result: Any, gt: np.ndarray, queries: np.ndarray, contrast: bool) -
     ratio = np.full(len(queries), np.nan)
     if ranked.any():
         top1[ranked] = _best_two(s[ranked])[0]
-        ratio[ranked] = _query_scores(s[ranked], g[ranked], "ratio")[0]
+        ratio[ranked] = _query_scores(s[ranked], g[ranked], ratio=True)[0]
     correct = ranked & g[np.arange(len(queries)), np.maximum(top1, 0)]
     far = _wrong_distance(g, top1, correct) if _sequence(result) else np.full(len(queries), np.nan)
     table = pd.DataFrame(

@@ -7,10 +7,23 @@ import dataclasses
 import os
 
 from ..checks import check_choice, check_int
-from .bootstrap import BOOTSTRAP_PROTOCOLS, N_BOOTSTRAP
-from .curves import PROTOCOLS
 
-__all__ = ["BOOTSTRAP_BYTES_PER_RESAMPLE", "Evaluation", "check_bootstrap_memory"]
+__all__ = [
+    "BOOTSTRAP_BYTES_PER_RESAMPLE",
+    "BOOTSTRAP_PROTOCOLS",
+    "N_BOOTSTRAP",
+    "PROTOCOLS",
+    "Evaluation",
+    "as_evaluation",
+    "check_bootstrap_memory",
+]
+
+#: The PR protocols (docs/DEFINITIONS.md).
+PROTOCOLS = ("ratio", "best_match", "vpr_bench", "multi_match")
+#: The protocols with per-query decisions, so with bootstrap intervals.
+BOOTSTRAP_PROTOCOLS = ("ratio", "best_match", "vpr_bench")
+#: Bootstrap resamples of every interval and paired difference (the one home of this count).
+N_BOOTSTRAP = 1000
 
 #: Bytes the bootstrap keeps per resample: 4 metrics (float64) as values, their concatenation
 #: and the percentile's copy (:mod:`~vpr_core.evaluation.bootstrap`; queries go in chunks).
@@ -53,3 +66,11 @@ class Evaluation:
                 f"per query); pass n_bootstrap=0, or a protocol of "
                 f"{', '.join(BOOTSTRAP_PROTOCOLS)}"
             )
+
+
+def as_evaluation(evaluation: Evaluation | str) -> Evaluation:
+    """An :class:`Evaluation`, or a protocol name with the default resamples (none for
+    ``multi_match``, which has no intervals)."""
+    if isinstance(evaluation, Evaluation):
+        return evaluation
+    return Evaluation(evaluation, N_BOOTSTRAP if evaluation in BOOTSTRAP_PROTOCOLS else 0)

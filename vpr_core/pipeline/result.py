@@ -143,11 +143,10 @@ class MethodResult:
         )
         return row
 
-    def curve(self, protocol: str | None = None):
-        """PR curve of this result under ``protocol`` (default: the result's own)."""
-        return pr_curve(
-            self.similarity, self.ground_truth, protocol=protocol or self.protocol, warn=False
-        )
+    def curve(self):
+        """PR curve of this result under its own protocol (another: :func:`pr_curve` of its
+        ``similarity`` and ``ground_truth``)."""
+        return pr_curve(self.similarity, self.ground_truth, self.protocol, warn=False)
 
 
 def peer_result(
@@ -168,7 +167,7 @@ def peer_result(
         label: its name in tables and legends (default ``"<name> (VPR-Bench)"``).
     """
     evaluation = dataclasses.replace(evaluation or Evaluation(), **overrides)
-    protocol, n_bootstrap = evaluation.protocol, evaluation.n_bootstrap
+    protocol = evaluation.protocol
 
     sim = dataset.ignore_soft(peer_similarity_for(dataset, peer))  # soft: neither right nor wrong
     gt = np.asarray(dataset.ground_truth, dtype=bool)
@@ -191,11 +190,11 @@ def peer_result(
         ground_truth=gt,
         soft_only=dataset.soft_only,
         boxes={"query": [], "reference": []},
-        metrics=evaluate(sim, gt, protocol=protocol),
+        metrics=evaluate(sim, gt, evaluation),
         timings=timings,
         intervals=(
-            bootstrap_metrics(sim, gt, n=n_bootstrap, seed=0, protocol=protocol)
-            if n_bootstrap
+            bootstrap_metrics(sim, gt, n=evaluation.n_bootstrap, protocol=protocol)
+            if evaluation.n_bootstrap
             else {}
         ),
         queries_with_gt=ground_truth_coverage(gt),

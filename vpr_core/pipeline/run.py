@@ -298,10 +298,10 @@ def run_method(
     sim = _exclude_empty(np.asarray(sim, dtype=np.float64), boxes, dataset)
     sim = dataset.ignore_soft(sim)  # soft positives: neither right nor wrong, in every metric
     gt = np.asarray(dataset.ground_truth, dtype=bool)
-    metrics = evaluate(sim, gt, protocol=protocol)
+    metrics = evaluate(sim, gt, evaluation)
     n_boot = evaluation.n_bootstrap
-    intervals = bootstrap_metrics(sim, gt, n=n_boot, seed=0, protocol=protocol) if n_boot else {}
-    saturation_notice(gt, intervals, soft=dataset.soft_only)
+    intervals = bootstrap_metrics(sim, gt, n=n_boot, protocol=protocol) if n_boot else {}
+    saturation_notice(gt, intervals, evaluation, soft=dataset.soft_only)
     n_img = nq + nr
     timings = {
         "landmarks_s_per_image": float(sum(map(sum, boxes["seconds"].values())) / n_img),
