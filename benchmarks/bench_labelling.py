@@ -43,6 +43,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from vpr_core.datasets import load_dataset
 from vpr_core.features import LandmarkEncoder
 from vpr_core.labels import (
+    LabelRule,
     LabelUnavailableError,
     estimate_pair_geometry,
     label_matches,
@@ -113,7 +114,7 @@ def agreement(pairs: list[dict], **rule) -> dict:
     for p in pairs:
         try:
             g = label_matches_geometric(
-                p["boxes_q"], p["boxes_r"], p["matches"], p["geometry"], **rule
+                p["boxes_q"], p["boxes_r"], p["matches"], p["geometry"], LabelRule(**rule)
             )
         except LabelUnavailableError:
             unl += 1

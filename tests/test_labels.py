@@ -11,6 +11,7 @@ import pytest
 from vpr_core.boxes import paired_iou
 from vpr_core.labels import (
     LABEL_METHODS,
+    LabelRule,
     LabelUnavailableError,
     PairGeometry,
     Verification,
@@ -96,6 +97,15 @@ def test_exact_labels_translation(fake):
     # threshold is respected
     lab = label_matches(fake, 0, 0, boxes_q, boxes_r, matches, method="exact", iou_threshold=0.4)
     assert lab[5]
+    # ... given as a LabelRule value too (not both)
+    rule = LabelRule(iou_threshold=0.4)
+    np.testing.assert_array_equal(
+        label_matches(fake, 0, 0, boxes_q, boxes_r, matches, rule=rule), lab
+    )
+    with pytest.raises(ValueError, match="not both"):
+        label_matches(fake, 0, 0, boxes_q, boxes_r, matches, rule=rule, iou_threshold=0.4)
+    with pytest.raises(ValueError, match="iou_threshold must be in"):
+        LabelRule(iou_threshold=1.5)
     # non-ground-truth pair: every match incorrect by definition
     assert not label_matches(fake, 0, 1, boxes_q, boxes_r, matches).any()
     # empty matches
@@ -186,7 +196,7 @@ def test_geometric_homography_matches_exact(warped_pair):
     )
     assert (exact == geom).mean() >= 0.95
     # the point rule (forced) agrees well too on this planar pair
-    pts_lab = label_matches_geometric(boxes_q, boxes_r, matches, geo, model="points")
+    pts_lab = label_matches_geometric(boxes_q, boxes_r, matches, geo, LabelRule(model="points"))
     assert (exact == pts_lab).mean() >= 0.8
     # cache: a second call reuses the geometry
     cache: dict = {}
@@ -219,7 +229,7 @@ def test_geometric_point_rule_by_hand():
     # (0,1): none -> incorrect
     lab = label_matches_geometric(bq, br, [[0, 0], [1, 1], [0, 2], [0, 1]], geo)
     assert lab.tolist() == [True, False, True, False]
-    lab = label_matches_geometric(bq, br, [[0, 2]], geo, point_iou=0.9)
+    lab = label_matches_geometric(bq, br, [[0, 2]], geo, LabelRule(point_iou=0.9))
     assert lab.tolist() == [False]
 
 
@@ -374,7 +384,7 @@ BAD_LABEL_CALLS = {
         "no two-view geometry",
     ),
     "geometric: model": (
-        lambda f, t: label_matches_geometric(B1, B1, [[0, 0]], NO_GEOMETRY, model="box"),
+        lambda f, t: label_matches_geometric(B1, B1, [[0, 0]], NO_GEOMETRY, LabelRule(model="box")),
         ValueError,
         "unknown model 'box'; valid: auto, homography, points",
     ),

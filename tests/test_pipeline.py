@@ -183,10 +183,7 @@ def test_run_method_protocols(tiny_synthetic):
 
     res = run_method("global", tiny_synthetic, backbone="hog", protocol="vpr_bench")
     assert res.protocol == "vpr_bench"
-    assert (
-        res.metrics["auc"]
-        == evaluate(res.similarity, res.ground_truth, "vpr_bench")["auc"]
-    )
+    assert res.metrics["auc"] == evaluate(res.similarity, res.ground_truth, "vpr_bench")["auc"]
     assert res.intervals["auc"][0] == res.metrics["auc"]
     with pytest.raises(ValueError, match="ratio"):
         run_method("global", tiny_synthetic, backbone="hog", protocol="nope")

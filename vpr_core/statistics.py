@@ -22,6 +22,7 @@ from .evaluation.bootstrap import N_BOOTSTRAP
 from .labels import (
     LabelUnavailableError,
     _label_parsed,
+    as_label_rule,
     dataset_image_size,
     label_matches,
     read_label_file,
@@ -338,8 +339,8 @@ def scale_statistics(
     boxes_q = [check_boxes(b, f"boxes_q[{i}]") for i, b in enumerate(boxes_q)]
     boxes_r = [check_boxes(b, f"boxes_r[{j}]") for j, b in enumerate(boxes_r)]
     labels = label_options.pop("labels", None)
-    iou_threshold = label_options.pop("iou_threshold", 0.5)
     method = resolve_label_method(dataset, label_method, labels)
+    rule = as_label_rule(label_options, method)
     if method == "file" and labels is not None and isinstance(labels, (str, PathLike)):
         labels = read_label_file(labels)
     if method == "geometric":
@@ -349,7 +350,7 @@ def scale_statistics(
     irr = sample_irrelevant_references(gt, n_irrelevant, seed, qs)
     label_options = {
         "method": method,
-        "iou_threshold": iou_threshold,
+        "rule": rule,
         "labels": labels,
         **label_options,
     }
@@ -374,7 +375,7 @@ def scale_statistics(
         "seed": seed,
         "gt_pairs": gt_pairs,
         "soft_nms_iou": matching.soft_nms_iou,
-        "iou_threshold": iou_threshold,
+        "iou_threshold": rule.iou_threshold,
         "tolerance": getattr(dataset, "tolerance", None),
         "ground_truth": ground_truth_text(
             gt,

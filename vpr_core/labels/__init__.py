@@ -12,8 +12,10 @@ from ..checks import check_boxes, check_choice
 from ..datasets.ground_truth import ground_truth_references
 from ..matching import match_landmarks
 from .exact import (
+    LabelRule,
     LabelUnavailableError,
     _label_exact,
+    as_label_rule,
     check_matches,
     dataset_image_size,
     is_ground_truth,
@@ -31,6 +33,7 @@ from .geometric import (
 __all__ = [
     "LABEL_COLUMNS",
     "LABEL_METHODS",
+    "LabelRule",
     "LabelUnavailableError",
     "PairGeometry",
     "PairMatches",
@@ -71,15 +74,14 @@ def label_matches(
     boxes_r: np.ndarray,
     matches: np.ndarray,
     method: str = "auto",
-    iou_threshold: float = 0.5,
     **options: Any,
 ) -> np.ndarray:
     """``(P,)`` bool: each landmark match ``(P, 2)`` of pair (q, r) correct or not
     (docs/DEFINITIONS.md), by one of :data:`LABEL_METHODS`.
 
-    ``**options``: ``geometric``: ``images``, ``geometry``, ``geometry_cache``, ``model``,
-    ``min_points``, ``point_iou`` and ``verification=`` (a :class:`Verification`, or its
-    fields as keywords); ``file``:
+    ``**options``: ``rule=`` (a :class:`LabelRule`, or its fields as keywords:
+    ``iou_threshold``, ...); ``geometric``: ``images``, ``geometry``, ``geometry_cache`` and
+    ``verification=`` (a :class:`Verification`, or its fields as keywords); ``file``:
     ``labels`` (the CSV: a path or DataFrame; under ``auto`` it picks ``file`` where the
     geometry is unknown) and ``on_unmatched``; ``exact``: ``image_size_r``.
     LabelUnavailableError: no information.
@@ -87,7 +89,8 @@ def label_matches(
     bq, br = check_boxes(boxes_q, "boxes_q"), check_boxes(boxes_r, "boxes_r")
     m = check_matches(matches, len(bq), len(br))
     method = resolve_label_method(dataset, method, options.get("labels"))
-    return _label_parsed(dataset, q, r, bq, br, m, method, iou_threshold, **options)
+    rule = as_label_rule(options, method)
+    return _label_parsed(dataset, q, r, bq, br, m, method, rule, **options)
 
 
 def _label_parsed(
@@ -98,7 +101,7 @@ def _label_parsed(
     br: np.ndarray,
     m: np.ndarray,
     method: str,
-    iou_threshold: float,
+    rule: LabelRule,
     **options: Any,
 ) -> np.ndarray:
     """:func:`label_matches` of parsed boxes and matches and a resolved ``method`` (no checks)."""
@@ -108,10 +111,10 @@ def _label_parsed(
     if unknown:
         raise TypeError(f"unexpected options for method={method!r}: {sorted(unknown)}")
     if method == "exact":
-        return _label_exact(dataset, q, r, bq, br, m, iou_threshold, **options)
+        return _label_exact(dataset, q, r, bq, br, m, rule, **options)
     if method == "file":
         return _label_file(labels, q, r, bq, br, m, **options)
-    return _label_pair_geometric(dataset, q, r, bq, br, m, iou_threshold, **options)
+    return _label_pair_geometric(dataset, q, r, bq, br, m, rule, **options)
 
 
 @dataclass(frozen=True)

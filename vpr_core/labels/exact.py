@@ -3,16 +3,54 @@ The rule is in docs/DEFINITIONS.md."""
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
 
 from ..boxes import _paired_iou
-from ..checks import check_shape
+from ..checks import check_choice, check_int, check_range, check_shape
 
 
 class LabelUnavailableError(ValueError):
     """The labeller cannot label this pair; ``scale_statistics`` counts it as unlabelled."""
+
+
+@dataclasses.dataclass(frozen=True)
+class LabelRule:
+    """When a landmark match is correct (docs/DEFINITIONS.md, "Match labels"): its query box
+    mapped by the pair's homography overlaps the matched box with IoU >= ``iou_threshold``
+    (``exact``, and ``geometric`` with a homography); without one (``geometric``, ``model``
+    ``"auto"`` or ``"points"``) at least ``min_points`` inlier correspondences fall in both
+    boxes with point-IoU >= ``point_iou``. Checked once, here."""
+
+    iou_threshold: float = 0.5
+    model: str = "auto"
+    min_points: int = 2
+    point_iou: float = 0.4
+
+    def __post_init__(self) -> None:
+        check_range(self.iou_threshold, "iou_threshold", 0.0, 1.0)
+        check_choice(self.model, "model", ("auto", "homography", "points"))
+        check_int(self.min_points, "min_points", 1)
+        check_range(self.point_iou, "point_iou", 0.0, 1.0)
+
+
+#: The :class:`LabelRule` fields a labeller reads (``geometric``: all of them).
+RULE_FIELDS = {"exact": ("iou_threshold",), "file": ()}
+
+
+def as_label_rule(options: dict[str, Any], method: str = "geometric") -> LabelRule:
+    """Pop ``rule=`` (a :class:`LabelRule`) or the fields ``method`` reads from ``options`` (not
+    both; a field it does not read stays, and is refused as an unexpected option)."""
+    names = RULE_FIELDS.get(method, [f.name for f in dataclasses.fields(LabelRule)])
+    value = options.pop("rule", None)
+    given = {name: options.pop(name) for name in names if name in options}
+    if value is None:
+        return LabelRule(**given)
+    if given:
+        raise ValueError("give rule=LabelRule(...) or its fields, not both")
+    return value
 
 
 def check_matches(matches: Any, n_q: int, n_r: int) -> np.ndarray:
@@ -80,7 +118,7 @@ def _label_exact(
     bq: np.ndarray,
     br: np.ndarray,
     m: np.ndarray,
-    iou_threshold: float = 0.5,
+    rule: LabelRule,
     image_size_r: tuple[int, int] | None = None,
 ) -> np.ndarray:
     """``method="exact"`` of :func:`vpr_core.labels.label_matches` on parsed boxes and matches.
@@ -109,4 +147,4 @@ def _label_exact(
         image_size_r if image_size_r is not None else dataset_image_size(dataset, "reference", r)
     )
     mapped = map_boxes(bq[m[:, 0]], np.asarray(Hs, dtype=np.float64)[q], size_r)
-    return _paired_iou(mapped, br[m[:, 1]]) >= iou_threshold
+    return _paired_iou(mapped, br[m[:, 1]]) >= rule.iou_threshold

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..boxes import _paired_iou
 from ..checks import check_boxes, check_choice
-from .exact import LabelUnavailableError, check_matches, is_ground_truth, map_boxes
+from .exact import LabelRule, LabelUnavailableError, check_matches, is_ground_truth, map_boxes
 
 
 @dataclass
@@ -210,29 +210,18 @@ def label_matches_geometric(
     boxes_r: np.ndarray,
     matches: np.ndarray,
     geometry: PairGeometry,
-    *,
-    iou_threshold: float = 0.5,
-    model: str = "auto",
-    min_points: int = 2,
-    point_iou: float = 0.4,
+    rule: LabelRule = LabelRule(),
 ) -> np.ndarray:
     """``(P,)`` geometric-verification labels of ``(P, 2)`` matches from a :class:`PairGeometry`
-    (docs/DEFINITIONS.md); ``model`` forces the ``"homography"`` or the ``"points"`` rule."""
+    (docs/DEFINITIONS.md) by a :class:`LabelRule` (its ``model`` forces the ``"homography"`` or
+    the ``"points"`` rule)."""
     bq, br = check_boxes(boxes_q, "boxes_q"), check_boxes(boxes_r, "boxes_r")
     m = check_matches(matches, len(bq), len(br))
-    check_choice(model, "model", ("auto", "homography", "points"))
-    return _geometric_labels(bq, br, m, geometry, iou_threshold, model, min_points, point_iou)
+    return _geometric_labels(bq, br, m, geometry, rule)
 
 
 def _geometric_labels(
-    bq: np.ndarray,
-    br: np.ndarray,
-    m: np.ndarray,
-    geometry: PairGeometry,
-    iou_threshold: float = 0.5,
-    model: str = "auto",
-    min_points: int = 2,
-    point_iou: float = 0.4,
+    bq: np.ndarray, br: np.ndarray, m: np.ndarray, geometry: PairGeometry, rule: LabelRule
 ) -> np.ndarray:
     """:func:`label_matches_geometric` of parsed boxes and matches (no checks)."""
     if geometry.kind == "none":
@@ -242,12 +231,12 @@ def _geometric_labels(
         )
     if len(m) == 0:
         return np.zeros(0, dtype=bool)
-    use_h = model == "homography" or (model == "auto" and geometry.kind == "homography")
+    use_h = rule.model == "homography" or (rule.model == "auto" and geometry.kind == "homography")
     if use_h:
         if geometry.homography is None:
             raise LabelUnavailableError("homography rule requested but the pair has no homography")
         mapped = map_boxes(bq[m[:, 0]], geometry.homography, geometry.image_size_r)
-        return _paired_iou(mapped, br[m[:, 1]]) >= iou_threshold
+        return _paired_iou(mapped, br[m[:, 1]]) >= rule.iou_threshold
     in_q = _inside(geometry.points_q, bq[m[:, 0]])  # (P, N)
     in_r = _inside(geometry.points_r, br[m[:, 1]])
     n_q = in_q.sum(1)
@@ -255,7 +244,7 @@ def _geometric_labels(
     n_qr = (in_q & in_r).sum(1)
     union = n_q + n_r - n_qr
     piou = np.where(union > 0, n_qr / np.maximum(union, 1), 0.0)
-    return (n_qr >= min_points) & (piou >= point_iou)
+    return (n_qr >= rule.min_points) & (piou >= rule.point_iou)
 
 
 def _label_pair_geometric(
@@ -265,20 +254,15 @@ def _label_pair_geometric(
     bq: np.ndarray,
     br: np.ndarray,
     m: np.ndarray,
-    iou_threshold: float = 0.5,
+    rule: LabelRule,
     **options: Any,
 ) -> np.ndarray:
     """``method="geometric"`` of :func:`vpr_core.labels.label_matches` (parsed inputs).
 
     The geometry comes from ``geometry=``, else ``geometry_cache[(q, r)]``, else is estimated
-    from ``images=(img_q, img_r)`` or the dataset's images (and cached); the other options go
-    to :func:`_geometric_labels` (``model``, ``min_points``, ``point_iou``) or
-    :func:`estimate_pair_geometry`.
+    from ``images=(img_q, img_r)`` or the dataset's images (and cached); the other options are
+    the :class:`Verification` of :func:`estimate_pair_geometry`.
     """
-    rule_keys = {"model", "min_points", "point_iou"}
-    rule_opts = {k: options.pop(k) for k in list(options) if k in rule_keys}
-    if "model" in rule_opts:
-        check_choice(rule_opts["model"], "model", ("auto", "homography", "points"))
     images = options.pop("images", None)
     geometry = options.pop("geometry", None)
     cache = options.pop("geometry_cache", None)
@@ -293,4 +277,4 @@ def _label_pair_geometric(
         geometry = estimate_pair_geometry(images[0], images[1], verification)
         if cache is not None:
             cache[(q, r)] = geometry
-    return _geometric_labels(bq, br, m, geometry, iou_threshold, **rule_opts)
+    return _geometric_labels(bq, br, m, geometry, rule)
