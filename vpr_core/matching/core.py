@@ -61,13 +61,21 @@ def shape_terms(
     return torch.exp(0.5 * (term(wa, wb) + term(ha, hb)))
 
 
+class SoftNMS(NamedTuple):
+    """Algorithm 4's settings and every image's box IoUs ``(N, K, K)`` per side."""
+
+    iou_q: torch.Tensor
+    iou_r: torch.Tensor
+    t: float
+    sigma: float
+
+
 def soft_nms(
     scores: torch.Tensor,
     alive: torch.Tensor,
     oq: torch.Tensor,
     orf: torch.Tensor,
-    t: float,
-    sigma: float,
+    nms: SoftNMS,
 ) -> torch.Tensor:
     """Algorithm 4 (soft-NMS, overlap Scheme 2) on G image pairs in lockstep.
 
@@ -76,13 +84,13 @@ def soft_nms(
         alive: ``(G, P)`` bool real pairs.
         oq: ``(G, P, P)`` IoU of the query boxes of two pairs.
         orf: ``(G, P, P)`` IoU of the reference boxes of two pairs.
-        t: threshold; sigma: Gaussian width.
+        nms: Algorithm 4's threshold ``t`` and Gaussian width ``sigma``.
 
     Returns:
         ``(G, P)`` rescaled scores (undefined where not alive).
     """
     o = torch.minimum(oq, orf)
-    decay = torch.where(o > t, torch.exp(-(o * o) / sigma), torch.ones_like(o))
+    decay = torch.where(o > nms.t, torch.exp(-(o * o) / nms.sigma), torch.ones_like(o))
     del o
     g = scores.shape[0]
     cur = scores.clone()
@@ -99,15 +107,6 @@ def soft_nms(
         alive[ar, m] = False
         cur = cur * decay[ar, m]
     return out
-
-
-class SoftNMS(NamedTuple):
-    """Algorithm 4's settings and every image's box IoUs ``(N, K, K)`` per side."""
-
-    iou_q: torch.Tensor
-    iou_r: torch.Tensor
-    t: float
-    sigma: float
 
 
 def _nms_block(
@@ -158,7 +157,7 @@ def _nms_block(
             sc[alive] *= weight[gq, gr].gather(1, order)[alive]
         oq = iou_q[gq[:, None, None], ii[:, :, None], ii[:, None, :]]
         orf = iou_r[gr[:, None, None], jj[:, :, None], jj[:, None, :]]
-        new = soft_nms(sc, alive, oq, orf, nms.t, nms.sigma)
+        new = soft_nms(sc, alive, oq, orf, nms)
         rows = score[gq, gr]
         rows.scatter_(1, order, torch.where(alive, new, sc))
         score[gq, gr] = rows
