@@ -1,8 +1,6 @@
-"""Several study notebooks in one kernel: the child process of the runner (``python -m``).
-
-One kernel start and one round of imports per dataset instead of one per notebook; before each
-notebook the kernel's namespace, figures and inline format are reset (as a fresh kernel's).
-"""
+"""Several study notebooks in one kernel, the runner's child process (``python -m``): one kernel
+start and one round of imports per dataset; before each notebook the kernel's namespace, figures
+and inline format are reset (as a fresh kernel's)."""
 
 from __future__ import annotations
 
