@@ -7,6 +7,7 @@ import json
 import os
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -65,6 +66,39 @@ def test_notebook_is_clean_paired_and_parametrised(path):
     assert "save(" in source
 
 
+#: Every metric column of the quick study's tables as this code computes them (AUC, R@100P, R@K
+#: with intervals and chance levels, the paired differences and verdicts).
+PINNED = Path(__file__).parent / "data" / "quick_study_metrics.csv"
+
+
+def assert_metrics_as_pinned(table: pd.DataFrame) -> None:
+    """The quick study's metric columns equal :data:`PINNED` (to 1e-6; verdicts exactly). A
+    change meant to move a number rewrites PINNED from ``runner.summary_table("synthetic_quick")``
+    with its columns, and says which numbers moved and why in its commit."""
+    want = pd.read_csv(PINNED).set_index(["figure", "run"])
+    got = table.set_index(["figure", "run"])[want.columns]
+    assert sorted(got.index) == sorted(want.index)
+    got = got.loc[want.index]
+    for col in want.columns:
+        if pd.api.types.is_numeric_dtype(want[col]):
+            moved = ~np.isclose(got[col].astype(float), want[col], atol=1e-6, equal_nan=True)
+        else:
+            moved = want[col].fillna("") != got[col].fillna("")
+        assert not moved.any(), f"{col} moved: {list(want.index[moved])}"
+
+
+def test_the_pinned_metrics_catch_a_moved_number_or_verdict():
+    table = pd.read_csv(PINNED)
+    assert_metrics_as_pinned(table.iloc[::-1])  # row order does not matter
+    for col, value in (("R@1 hi", 0.6251), ("dAUC verdict", "inconclusive")):
+        moved = table.copy()
+        moved.loc[1, col] = value
+        with pytest.raises(AssertionError, match=f"{col} moved"):
+            assert_metrics_as_pinned(moved)
+    with pytest.raises(AssertionError):
+        assert_metrics_as_pinned(table.iloc[1:])  # a run missing
+
+
 def test_quick_study_runs_headless_and_writes_every_figure(tmp_path, monkeypatch):
     out = tmp_path / "out"
     monkeypatch.setenv("VPR_OUTPUT_DIR", str(out))
@@ -117,6 +151,7 @@ def test_quick_study_runs_headless_and_writes_every_figure(tmp_path, monkeypatch
     fig13 = table[table["figure"] == "fig13_comparison"].set_index("run")
     assert round(fig13.loc["classical", "AUC"], 4) == 0.3544
     assert round(fig13.loc["dense", "AUC"], 4) == 0.9643
+    assert_metrics_as_pinned(table)
     findings = (out / "results" / "findings.md").read_text()
     assert "selection Scheme 1 beats classical" in findings
     assert os.environ["VPR_OUTPUT_DIR"] == str(out)  # the runner restored the environment
