@@ -373,6 +373,15 @@ def test_roi_config_shape_and_global(roi_encoder, encoder):
     assert roi_encoder.encode(img, np.zeros((0, 4))).shape == (0, 1024)
 
 
+def test_roi_pools_alexnet_conv3_to_its_13_x_13_cells():
+    """AlexNet's conv3 map of a 227 px crop is 13 x 13, not ceil(227 / 16): roi mode pools to
+    the backbone's own cells (it failed with a matmul shape error)."""
+    enc = LandmarkEncoder("alexnet_conv3", weights="random", pooling="roi", dim=None)
+    assert enc.roi_grid.side == 13 and enc.raw_dim == 384 * 13 * 13
+    d = enc.encode(_natural_image(), np.array([[0, 0, 640, 360], [100, 50, 200, 150]], float))
+    assert d.shape == (2, enc.raw_dim) and np.isfinite(d).all()
+
+
 def test_roi_grouping_invariant_and_deterministic(roi_encoder):
     from vpr_core.landmarks import dense_sampling
 
@@ -392,7 +401,7 @@ def test_roi_grouping_invariant_and_deterministic(roi_encoder):
 def test_roi_pool_equals_grid_sample_reference():
     """The separable weights equal grid_sample (bilinear, border, align_corners=False) averaged
     over each cell's r x r sub-samples."""
-    from vpr_core.features.roi import roi_pool, roi_sample_points
+    from vpr_core.features.roi import RoiGrid, roi_pool, roi_sample_points
 
     g = torch.Generator().manual_seed(0)
     fmap = torch.randn(1, 5, 9, 13, generator=g)
@@ -400,9 +409,10 @@ def test_roi_pool_equals_grid_sample_reference():
         [[0, 0, 208, 144], [30, 20, 70, 50], [-10, 100, 90, 60], [190, 5, 40, 40]], dtype=float
     )
     image_size, work, s, stride, off, r = (144, 208), (144, 208), 64, 16, 15.5, 3
-    got = roi_pool(fmap, boxes, image_size, work, s, stride, off, r)
+    grid = RoiGrid(s, s // stride, stride, off, r)
+    got = roi_pool(fmap, boxes, image_size, work, grid)
     n = s // stride
-    pts = roi_sample_points(boxes, image_size, s, n, stride, off, r)
+    pts = roi_sample_points(boxes, image_size, grid)
     qx = ((pts[0] + 0.5) - off) / stride
     qy = ((pts[1] + 0.5) - off) / stride
     gx = (2 * qx + 1) / 13 - 1

@@ -22,7 +22,14 @@ from ..checks import check_boxes, check_choice, check_image, check_int
 from ..paper import PROJECTION_DIM
 from .crops import crop_boxes, pyramid_levels
 from .projection import random_projection
-from .roi import DEFAULT_ROI_SAMPLING, ROI_VERSION, default_working_size, roi_pool, working_image
+from .roi import (
+    DEFAULT_ROI_SAMPLING,
+    ROI_VERSION,
+    WORKING_SIZE_FACTOR,
+    RoiGrid,
+    roi_pool,
+    working_image,
+)
 
 logger = logging.getLogger("vpr_core")
 
@@ -190,8 +197,19 @@ class LandmarkEncoder:
                 f"{name!r} has none: use pooling='crop' (a module may set a `stride` attribute)"
             )
         self.input_size = int(self.model.input_size)
+        self.roi_grid = (
+            RoiGrid(
+                self.input_size,
+                int(self.model.feature_shape[-1]),  # AlexNet conv3: 13, not ceil(227 / 16)
+                int(self.model.stride),
+                float(self.model.feature_offset),
+                self.roi_sampling,
+            )
+            if self.pooling == "roi"
+            else None
+        )
         self.working_size = (
-            default_working_size(self.input_size)
+            WORKING_SIZE_FACTOR * self.input_size
             if spec.working_size is None
             else spec.working_size
         )
@@ -359,18 +377,9 @@ class LandmarkEncoder:
     def _roi_raw(self, image: np.ndarray, boxes: np.ndarray) -> torch.Tensor:
         """``roi`` mode raw features ``(K, raw_dim)`` on the device (one backbone pass)."""
         x = working_image(self._image_tensor(image), self.working_size)
-        fmap = self.model.feature_map(x)
-        return roi_pool(
-            fmap,
-            boxes,
-            image.shape[:2],
-            (int(x.shape[-2]), int(x.shape[-1])),
-            self.input_size,
-            int(self.model.stride),
-            float(self.model.feature_offset),
-            self.roi_sampling,
-            self.batch_size,
-        )
+        fmap, work = self.model.feature_map(x), (int(x.shape[-2]), int(x.shape[-1]))
+        assert self.roi_grid is not None  # roi mode
+        return roi_pool(fmap, boxes, image.shape[:2], work, self.roi_grid, self.batch_size)
 
     def _project_fixed(self, raw: torch.Tensor) -> torch.Tensor:
         """Project ``(B, raw_dim)`` rows in a matmul of fixed shape ``(batch_size, raw_dim)``."""

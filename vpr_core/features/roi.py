@@ -1,10 +1,10 @@
 """The ``roi`` pooling mode: one backbone pass per image at a working size (long side 4 crop sides,
-:func:`default_working_size`), each box pooled by bilinear RoIAlign to crop mode's ``(C, n, n)``
+:data:`WORKING_SIZE_FACTOR`), each box pooled by bilinear RoIAlign to crop mode's ``(C, n, n)``
 grid (cells placed as crop mode's, via the backbone's ``stride`` and ``feature_offset``)."""
 
 from __future__ import annotations
 
-import math
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -14,7 +14,7 @@ __all__ = [
     "DEFAULT_ROI_SAMPLING",
     "ROI_VERSION",
     "WORKING_SIZE_FACTOR",
-    "default_working_size",
+    "RoiGrid",
     "roi_pool",
     "roi_sample_points",
     "working_image",
@@ -29,9 +29,17 @@ ROI_VERSION = 2
 DEFAULT_ROI_SAMPLING = 4
 
 
-def default_working_size(input_size: int) -> int:
-    """Default ``roi`` working size (long side, pixels) for crops of side ``input_size``."""
-    return WORKING_SIZE_FACTOR * int(input_size)
+class RoiGrid(NamedTuple):
+    """Where crop mode's ``side x side`` feature cells (the backbone's feature map of one crop
+    of side ``crop_size``) fall: the backbone's ``stride`` and ``offset`` (its
+    ``feature_offset``: the continuous coordinate of cell 0's centre) and the bilinear
+    ``sampling`` per cell and axis."""
+
+    crop_size: int
+    side: int
+    stride: int
+    offset: float
+    sampling: int = DEFAULT_ROI_SAMPLING
 
 
 def working_shape(image_size: tuple[int, int], working_size: int) -> tuple[int, int]:
@@ -53,25 +61,10 @@ def working_image(image: torch.Tensor, working_size: int) -> torch.Tensor:
     return F.interpolate(image, size=(hw, ww), mode="bilinear", align_corners=False, antialias=True)
 
 
-def roi_sample_points(
-    boxes: np.ndarray,
-    image_size: tuple[int, int],
-    crop_size: int,
-    side: int,
-    stride: int,
-    offset: float,
-    sampling: int,
-) -> np.ndarray:
-    """Image pixel coordinates (index convention) of every RoIAlign sample of every box.
-
-    Args:
-        boxes: ``(K, 4)`` float64 ``(x, y, w, h)`` in image pixels.
-        image_size: ``(H, W)`` of the image.
-        crop_size: ``crop`` mode's square input side ``s``.
-        side: ``n``, the crop-mode feature map side.
-        stride: the backbone's output stride.
-        offset: the backbone's ``feature_offset`` (continuous coordinate of cell 0's centre).
-        sampling: samples per cell and axis ``r``.
+def roi_sample_points(boxes: np.ndarray, image_size: tuple[int, int], grid: RoiGrid) -> np.ndarray:
+    """Image pixel coordinates (index convention) of every RoIAlign sample of every box:
+    ``boxes`` ``(K, 4)`` float64 ``(x, y, w, h)`` in pixels of an image of ``image_size``
+    ``(H, W)``, sampled on ``grid`` (``n`` cells, ``r`` samples per cell and axis).
 
     Returns:
         ``(2, K, n*r)`` float64: ``[0]`` x positions along the box width, ``[1]`` y positions
@@ -82,11 +75,12 @@ def roi_sample_points(
     y1 = np.clip(boxes[:, 1], 0, h_img - 1)
     x2 = np.clip(np.maximum(boxes[:, 0] + boxes[:, 2] - 1.0, x1), 0, w_img - 1)
     y2 = np.clip(np.maximum(boxes[:, 1] + boxes[:, 3] - 1.0, y1), 0, h_img - 1)
-    j = np.arange(side)[:, None]
+    stride, sampling = grid.stride, grid.sampling
+    j = np.arange(grid.side)[:, None]
     t = np.arange(sampling)[None, :]
     # crop-pixel index of each sample: cell centre, spread over the cell's stride pixels
-    c = (stride * j + offset - 0.5 + ((t + 0.5) / sampling - 0.5) * stride).reshape(-1)
-    scale = 1.0 / max(crop_size - 1, 1)
+    c = (stride * j + grid.offset - 0.5 + ((t + 0.5) / sampling - 0.5) * stride).reshape(-1)
+    scale = 1.0 / max(grid.crop_size - 1, 1)
     xs = x1[:, None] + c[None, :] * ((x2 - x1) * scale)[:, None]
     ys = y1[:, None] + c[None, :] * ((y2 - y1) * scale)[:, None]
     return np.stack([xs, ys])
@@ -123,10 +117,7 @@ def roi_pool(
     boxes: np.ndarray,
     image_size: tuple[int, int],
     work_size: tuple[int, int],
-    crop_size: int,
-    stride: int,
-    offset: float,
-    sampling: int = DEFAULT_ROI_SAMPLING,
+    grid: RoiGrid,
     chunk: int = 50,
 ) -> torch.Tensor:
     """Pool every box from a feature map to crop mode's ``(C, n, n)`` layout, flattened.
@@ -144,18 +135,16 @@ def roi_pool(
         boxes: ``(K, 4)`` float64 boxes in pixels of the *original* image.
         image_size: ``(H, W)`` of the original image.
         work_size: ``(Hw, Ww)`` of the working-size image that produced ``fmap``.
-        crop_size: crop mode's square input side ``s``; ``n = ceil(s / stride)``.
-        stride, offset: the backbone's ``stride`` and ``feature_offset``.
-        sampling: bilinear samples per output cell and axis.
+        grid: crop mode's cells in the feature map (:class:`RoiGrid`).
         chunk: boxes per batched matmul (fixed shape; the encoder passes its ``batch_size``).
 
     Returns:
         ``(K, C * n * n)`` float32 on ``fmap.device`` (order ``C, y, x`` like ``crop`` mode).
     """
-    n = math.ceil(crop_size / stride)
-    k, r = len(boxes), int(sampling)
+    n, r, stride, offset = grid.side, grid.sampling, grid.stride, grid.offset
+    k = len(boxes)
     c, hf, wf = fmap.shape[-3:]
-    pts = roi_sample_points(boxes, image_size, crop_size, n, stride, offset, r)
+    pts = roi_sample_points(boxes, image_size, grid)
     # image index -> working-image continuous coordinate -> feature index (cell centre = integer)
     qx = ((pts[0] + 0.5) * (work_size[1] / image_size[1]) - offset) / stride
     qy = ((pts[1] + 0.5) * (work_size[0] / image_size[0]) - offset) / stride
