@@ -11,7 +11,6 @@ import sys
 import tempfile
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
@@ -19,6 +18,7 @@ import pandas as pd
 from vpr_core import paths, settings
 from vpr_core.datasets import load_dataset
 from vpr_study import memo
+from vpr_study.figures import FIGURES, NOTEBOOKS, expected_figures
 from vpr_study.findings import findings_markdown, result_labels
 
 logger = logging.getLogger("vpr_core")
@@ -27,62 +27,6 @@ logger = logging.getLogger("vpr_core")
 QUICK_PLACES = 8
 #: Images per side kept from a real dataset in quick mode (``PlaceDataset.subset``).
 QUICK_IMAGES = 20
-
-
-@dataclass(frozen=True)
-class FigureSpec:
-    """One expected figure ``figures/<label>/<stem>.png``, the notebook that writes it and the
-    paper item it reproduces (``"Fig. 5"``), or what it shows when the paper has no such figure."""
-
-    stem: str
-    notebook: str
-    paper: str
-
-
-_NB1, _NB2, _NB3 = "01_pipeline_tour", "02_scale_statistics", "03_landmark_selection"
-_NB4, _NB5, _NB6 = "04_overlap", "05_dense_sampling_parameters", "06_comparison"
-
-#: Every figure the notebooks write, in notebook order.
-FIGURES: tuple[FigureSpec, ...] = (
-    FigureSpec("examples", _NB1, "Sec. 5.2: example reference/query pairs"),
-    FigureSpec("tour1_edge_boxes", _NB1, "Sec. 2.1: edge_boxes on one pair"),
-    FigureSpec("tour1_dense_sampling", _NB1, "Sec. 4: dense_sampling on one pair"),
-    FigureSpec("tour2_descriptors", _NB1, "Sec. 2.1: LandmarkEncoder.encode, descriptors"),
-    FigureSpec("tour3_reciprocal_matches", _NB1, "Sec. 2.1: reciprocal_matches"),
-    FigureSpec("tour4_image_similarity", _NB1, "Eq. 1-2: image_similarity, per-pair terms"),
-    FigureSpec("fig03_classical_pipeline", _NB1, "Fig. 3"),
-    FigureSpec("fig08_dense_pipeline", _NB1, "Fig. 8"),
-    FigureSpec("fig09_dense_scales", _NB1, "Fig. 9"),
-    FigureSpec("fig01_labelled_matches", _NB2, "Fig. 1"),
-    FigureSpec("fig02_irrelevant_matches", _NB2, "Fig. 2"),
-    FigureSpec("fig04a_cmr", _NB2, "Fig. 4a"),
-    FigureSpec("fig04b_cls", _NB2, "Fig. 4b"),
-    FigureSpec("fig04c_asl", _NB2, "Fig. 4c"),
-    FigureSpec("fig04_scale_statistics", _NB2, "Fig. 4"),
-    FigureSpec("fig05_selection", _NB3, "Fig. 5"),
-    FigureSpec("fig06a_scheme1_scales", _NB3, "Fig. 6a"),
-    FigureSpec("fig06b_scheme2_scales", _NB3, "Fig. 6b"),
-    FigureSpec("fig07a_overlap_nms", _NB4, "Fig. 7a"),
-    FigureSpec("fig07b_overlap_soft_nms", _NB4, "Fig. 7b"),
-    FigureSpec("fig10_scale_levels", _NB5, "Fig. 10 / Table 2"),
-    FigureSpec("fig11_landmarks_per_scale", _NB5, "Fig. 11 / Table 3"),
-    FigureSpec("fig12_normalized_scales", _NB5, "Fig. 12 / Table 4"),
-    FigureSpec("fig13_comparison", _NB6, "Fig. 13"),
-    FigureSpec("disagreements_dense_classical", _NB6, "not in the paper: per-query view"),
-    FigureSpec("geometry_dense", _NB6, "not in the paper: geometry-aware score"),
-    FigureSpec("geometry_classical", _NB6, "not in the paper: geometry-aware score"),
-    FigureSpec("fig14_coverage_comparison", _NB6, "Fig. 14"),
-    FigureSpec("weighting_dense", _NB6, "not in the paper: database weighting"),
-    FigureSpec("weighting_classical", _NB6, "not in the paper: database weighting"),
-)
-
-
-def expected_figures() -> dict[str, list[str]]:
-    """``{notebook stem: [figure stems]}`` in notebook order."""
-    out: dict[str, list[str]] = {}
-    for spec in FIGURES:
-        out.setdefault(spec.notebook, []).append(spec.stem)
-    return out
 
 
 #: The Nordland subset of ``make study``: every 50th of the 3,576 places of
@@ -275,7 +219,7 @@ def _print_summary(table: pd.DataFrame, label: str, backbone: str) -> None:
 
 #: The comparison notebooks that ``make study`` also runs on the real datasets beside the
 #: project (:func:`study_datasets`).
-REAL_DATA_NOTEBOOKS = (_NB3, _NB4, _NB5, _NB6)
+REAL_DATA_NOTEBOOKS = NOTEBOOKS[2:]
 
 
 def _execute(
