@@ -449,25 +449,11 @@ def test_cuda_equals_pairwise(t, spatial):
     qd, qb = _random_sets(rng, 6, 1, 20, 48)
     rd, rb = _random_sets(rng, 7, 1, 20, 48)
     want = _pairwise(qd, qb, rd, rb, soft_nms_iou=t, spatial=spatial)
-    got = similarity_matrix(
-        qd,
-        qb,
-        rd,
-        rb,
-        matching=Matching(soft_nms_iou=t, spatial=spatial),
-        compute=Compute(device="cuda"),
-    )
+    m, cuda = Matching(soft_nms_iou=t, spatial=spatial), Compute(device="cuda")
+    got = similarity_matrix(qd, qb, rd, rb, matching=m, compute=cuda)
     np.testing.assert_allclose(got, want, atol=1e-5, rtol=0)
     pairs = np.array([[0, 1], [5, 6], [2, 2]])
-    got_p = similarity_pairs(
-        qd,
-        qb,
-        rd,
-        rb,
-        pairs,
-        matching=Matching(soft_nms_iou=t, spatial=spatial),
-        compute=Compute(device="cuda"),
-    )
+    got_p = similarity_pairs(qd, qb, rd, rb, pairs, matching=m, compute=cuda)
     np.testing.assert_allclose(got_p, want[pairs[:, 0], pairs[:, 1]], atol=1e-5, rtol=0)
 
 

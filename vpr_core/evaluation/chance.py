@@ -224,8 +224,8 @@ def saturation_notice(
         )
     if isinstance(intervals, Mapping) or not runs:
         return None
-    protocol = as_evaluation(evaluation).protocol
-    level = chance(gt, protocol, ks=(1,), soft=soft)
+    evaluation = as_evaluation(evaluation)
+    level = chance(gt, evaluation, ks=(1,), soft=soft)
     at_chance = [
         key
         for key in CHANCE_CHECKED
@@ -235,8 +235,8 @@ def saturation_notice(
         named = ", ".join(f"{key.upper()} {level[key]:.3f}" for key in at_chance)
         return notice(
             f"at chance level: a random ranking of this ground truth scores {named} "
-            f"(protocol {protocol}), inside the 95% interval of every run; this set cannot tell "
-            "these runs from chance. Use more queries or a harder set.",
+            f"(protocol {evaluation.protocol}), inside the 95% interval of every run; this set "
+            "cannot tell these runs from chance. Use more queries or a harder set.",
             stacklevel=4,
         )
     return None
