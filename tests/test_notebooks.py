@@ -164,14 +164,27 @@ def test_quick_study_runs_headless_and_writes_every_figure(tmp_path, monkeypatch
     assert before and before == after
 
 
-def test_real_datasets_beside_the_project_get_the_comparison(tmp_path, monkeypatch):
+def test_real_datasets_beside_the_project_get_the_comparison(tmp_path, monkeypatch, capsys):
+    """Three labels, two kernels side by side (``jobs=2``): each label's tables are the same
+    as those of a run with one kernel at a time, and its output lines name it."""
     found = runner.study_datasets()
     if not found:
         pytest.skip("no real datasets beside the project (../shared/data)")
     out = tmp_path / "out"
     monkeypatch.setenv("VPR_OUTPUT_DIR", str(out))
     monkeypatch.setenv("VPR_CACHE_DIR", os.environ.get("VPR_CACHE_DIR", str(REPO / ".cache")))
-    runner.run_study(dataset="synthetic", quick=True, notebooks=["06_comparison"], real_data=True)
+    run = dict(dataset="synthetic", quick=True, notebooks=["06_comparison"], real_data=True)
+    runner.run_study(**run, jobs=2)
+    printed = capsys.readouterr().out
+    tables = {p: p.read_bytes() for p in (out / "results").glob("*/fig13_comparison*.csv")}
+    assert len(tables) == 2 * (len(found) + 1)  # the table and its .timings, per label
+    runner.run_study(**run, jobs=1, force=True)
+    after = {p: p.read_bytes() for p in tables}
+    assert {p: b for p, b in after.items() if ".timings" not in p.name} == {
+        p: b for p, b in tables.items() if ".timings" not in p.name
+    }
+    for label in ["synthetic_quick", *(f"{name}_quick" for name in found)]:
+        assert f"[{label}] " in printed
     for name in found:
         label = f"{name}_quick"
         assert (out / "figures" / label / "fig13_comparison.png").stat().st_size > 1000

@@ -3,6 +3,8 @@ parameters the notebooks get, and the summary of the saved comparison tables."""
 
 from __future__ import annotations
 
+import time
+
 import pandas as pd
 import pytest
 
@@ -74,7 +76,7 @@ def test_a_stopped_run_says_what_finished_and_where_the_files_are(tmp_path, monk
     monkeypatch.setenv("VPR_OUTPUT_DIR", str(tmp_path))
     calls = []
 
-    def fake_execute(notebooks, out_dir, params, kernel, finished):
+    def fake_execute(notebooks, out_dir, params, kernel, finished, prefix=None):
         calls.extend(nb.stem for nb in notebooks)
         finished[notebooks[0].stem] = (0.0, 0.0)  # the first finished, then Ctrl-C
         raise KeyboardInterrupt
@@ -183,3 +185,24 @@ def test_kernels_get_their_settings_through_env_not_os_environ(tmp_path, monkeyp
     assert seen["env"]["VPR_CACHE_DIR"] == str(tmp_path / "cli" / ".cache")
     assert seen["env"]["VPR_PROGRESS"] == "text"
     assert json.loads(seen["command"][-1])["cwd"] == str(nb.parent)
+
+
+def test_labels_side_by_side_all_finish_before_the_first_error_is_raised(monkeypatch):
+    finished = []
+
+    def fake_run_label(label, notebooks, params, kernel, force=False, side_by_side=False):
+        assert side_by_side
+        if label == "a":
+            raise RuntimeError("notebook 03 failed")
+        time.sleep(0.2)  # still running when "a" fails
+        finished.append(label)
+        return [f"{label}/fig.png (absent)"]
+
+    monkeypatch.setattr(runner, "_run_label", fake_run_label)
+    with pytest.raises(RuntimeError, match="notebook 03 failed"):
+        runner._run_chains([("a", [], {}), ("b", [], {})], "python3", False, jobs=2)
+    assert finished == ["b"]
+    missing = runner._run_chains([("b", [], {}), ("c", [], {})], "python3", False, jobs=2)
+    assert missing == ["b/fig.png (absent)", "c/fig.png (absent)"]
+    with pytest.raises(ValueError, match="jobs must be an integer >= 1"):
+        runner.run_study("synthetic", quick=True, jobs=0)

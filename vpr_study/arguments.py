@@ -52,6 +52,17 @@ def _non_negative(text: str) -> int:
     return value
 
 
+def _positive(text: str) -> int:
+    """``--jobs``: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}")
+    return value
+
+
 def _folder(text: str) -> str:
     """``--root``: a non-empty folder name (``''`` would read the current folder)."""
     if not text.strip():
@@ -264,6 +275,13 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
         action="store_true",
         help="execute every notebook, also those whose inputs and outputs are unchanged since "
         "their last execution (skipped by default)",
+    )
+    r.add_argument(
+        "--jobs",
+        type=_positive,
+        default=None,
+        help="dataset labels executed at once, each in its own kernel (default: one per CPU "
+        "core); the outputs are the same for any count",
     )
     r.add_argument(
         "--real-data",

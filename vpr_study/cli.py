@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import errno
 import itertools
+import os
 import shutil
 import signal
 import sys
@@ -324,6 +325,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         pooling=args.pooling,
         shortlist=args.shortlist,
         force=args.force,
+        jobs=args.jobs or os.cpu_count() or 1,
     )
     return 0
 
