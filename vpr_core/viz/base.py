@@ -178,7 +178,7 @@ def layout_problems(fig: matplotlib.figure.Figure) -> list[str]:
     dpi = fig.get_dpi()
     fig.set_dpi(SAVE_DPI)  # text extents do not scale exactly with the resolution
     try:
-        fig.canvas.draw()
+        fig.draw_without_rendering()
         renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # Agg and inline
         canvas = fig.bbox.frozen()
         parts = [
@@ -206,7 +206,7 @@ def layout_problems(fig: matplotlib.figure.Figure) -> list[str]:
             or bb.y1 > canvas.y1 + 1
         ):
             problems.append(f"{what} extends beyond the canvas")
-    fig.canvas.draw()
+    fig.draw_without_rendering()
     renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # Agg and inline
     for leg in _legend_boxes(fig):
         bb = leg.get_window_extent(renderer)
