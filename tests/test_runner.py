@@ -3,6 +3,9 @@ parameters the notebooks get, and the summary of the saved comparison tables."""
 
 from __future__ import annotations
 
+import os
+import signal
+import threading
 import time
 
 import pandas as pd
@@ -206,3 +209,22 @@ def test_labels_side_by_side_all_finish_before_the_first_error_is_raised(monkeyp
     assert missing == ["b/fig.png (absent)", "c/fig.png (absent)"]
     with pytest.raises(ValueError, match="jobs must be an integer >= 1"):
         runner.run_study("synthetic", quick=True, jobs=0)
+
+
+def test_ctrl_c_while_labels_run_side_by_side_starts_no_further_label(monkeypatch):
+    started, b_running = [], threading.Event()
+
+    def fake_run_label(label, notebooks, params, kernel, force=False, side_by_side=False):
+        started.append(label)
+        if label == "b":
+            b_running.set()
+        if label == "a" and b_running.wait(5):
+            os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C while the main thread waits
+        time.sleep(0.3)
+        return []
+
+    monkeypatch.setattr(runner, "_run_label", fake_run_label)
+    chains = [("a", [], {}), ("b", [], {}), ("c", [], {})]
+    with pytest.raises(KeyboardInterrupt):
+        runner._run_chains(chains, "python3", False, jobs=2)
+    assert sorted(started) == ["a", "b"]  # "c" was waiting for a free slot: never started

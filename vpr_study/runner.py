@@ -354,7 +354,8 @@ def _run_chains(
 ) -> list[str]:
     """:func:`_run_label` of each ``(label, notebooks, parameters)``, ``jobs`` labels at once
     (the first, longest chain starts first); every chain runs to its end before the first
-    error is raised. Returns the expected figures not written."""
+    error is raised, but a Ctrl-C starts no further chain. Returns the expected figures not
+    written."""
     if jobs <= 1 or len(chains) <= 1:
         return [
             m
@@ -366,7 +367,11 @@ def _run_chains(
             pool.submit(_run_label, label, nbs, params, kernel, force, True)
             for label, nbs, params in chains
         ]
-        errors = [f.exception() for f in futures]
+        try:
+            errors = [f.exception() for f in futures]
+        except BaseException:  # Ctrl-C: the running kernels got it too; start no other label
+            pool.shutdown(cancel_futures=True)
+            raise
     for error in errors:
         if error is not None:
             raise error
