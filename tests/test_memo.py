@@ -17,7 +17,7 @@ def fake_study(tmp_path, monkeypatch):
     monkeypatch.setenv("VPR_CACHE_DIR", str(tmp_path / "cache"))
     executed: list[str] = []
 
-    def fake_execute(notebooks, out_dir, params, kernel, finished, prefix=None):
+    def fake_execute(notebooks, out_dir, params, kernel, finished, **_):
         for nb in notebooks:
             started = time.time()
             executed.append(nb.stem)

@@ -79,7 +79,7 @@ def test_a_stopped_run_says_what_finished_and_where_the_files_are(tmp_path, monk
     monkeypatch.setenv("VPR_OUTPUT_DIR", str(tmp_path))
     calls = []
 
-    def fake_execute(notebooks, out_dir, params, kernel, finished, prefix=None):
+    def fake_execute(notebooks, out_dir, params, kernel, finished, **_):
         calls.extend(nb.stem for nb in notebooks)
         finished[notebooks[0].stem] = (0.0, 0.0)  # the first finished, then Ctrl-C
         raise KeyboardInterrupt
@@ -191,10 +191,11 @@ def test_kernels_get_their_settings_through_env_not_os_environ(tmp_path, monkeyp
 
 
 def test_labels_side_by_side_all_finish_before_the_first_error_is_raised(monkeypatch):
-    finished = []
+    finished, niceness = [], {}
 
-    def fake_run_label(label, notebooks, params, kernel, force=False, side_by_side=False):
+    def fake_run_label(label, notebooks, params, kernel, force=False, side_by_side=False, nice=0):
         assert side_by_side
+        niceness[label] = nice
         if label == "a":
             raise RuntimeError("notebook 03 failed")
         time.sleep(0.2)  # still running when "a" fails
@@ -205,8 +206,11 @@ def test_labels_side_by_side_all_finish_before_the_first_error_is_raised(monkeyp
     with pytest.raises(RuntimeError, match="notebook 03 failed"):
         runner._run_chains([("a", [], {}), ("b", [], {})], "python3", False, jobs=2)
     assert finished == ["b"]
+    niceness.clear()
     missing = runner._run_chains([("b", [], {}), ("c", [], {})], "python3", False, jobs=2)
     assert missing == ["b/fig.png (absent)", "c/fig.png (absent)"]
+    # the first label keeps its CPU priority, the others fill the cores it leaves idle
+    assert niceness == {"b": 0, "c": runner.BACKGROUND_NICE}
     with pytest.raises(ValueError, match="jobs must be an integer >= 1"):
         runner.run_study("synthetic", quick=True, jobs=0)
 
@@ -214,7 +218,7 @@ def test_labels_side_by_side_all_finish_before_the_first_error_is_raised(monkeyp
 def test_ctrl_c_while_labels_run_side_by_side_starts_no_further_label(monkeypatch):
     started, b_running = [], threading.Event()
 
-    def fake_run_label(label, notebooks, params, kernel, force=False, side_by_side=False):
+    def fake_run_label(label, notebooks, params, kernel, force=False, side_by_side=False, nice=0):
         started.append(label)
         if label == "b":
             b_running.set()

@@ -240,10 +240,12 @@ def _execute(
     kernel: str,
     finished: dict,
     prefix: str | None = None,
+    nice: int = 0,
 ) -> None:
     """Run papermill on ``notebooks`` in order, all in one kernel (:mod:`vpr_study.session`),
     in a child process whose environment holds :func:`kernel_settings`; the kernel's output
-    streams here live, each line led by ``prefix`` when given (kernels side by side).
+    streams here live, each line led by ``prefix`` when given (kernels side by side). ``nice``:
+    the child's and its kernel's CPU niceness (higher: lower priority).
     ``finished`` gets ``{notebook stem: (unix time it started, ended)}`` of each notebook that
     finished, also when the run stops.
 
@@ -264,6 +266,7 @@ def _execute(
             and sys.stderr.isatty()
             and not settings.progress_disabled(),
             "status": str(status),
+            "nice": nice,
         }
         logger.info("executing %s -> %s", ", ".join(nb.name for nb in notebooks), out_dir)
         command = [sys.executable, "-m", "vpr_study.session", json.dumps(request)]
@@ -304,11 +307,12 @@ def _run_label(
     kernel: str,
     force: bool = False,
     side_by_side: bool = False,
+    nice: int = 0,
 ) -> list[str]:
     """Execute ``selected`` notebooks for one output label (one kernel), skipping those whose
     inputs and recorded outputs are unchanged (:mod:`vpr_study.memo`) unless ``force``; the
     expected figures not written. ``side_by_side``: other labels run meanwhile (output lines
-    get a ``[label]`` prefix)."""
+    get a ``[label]`` prefix); ``nice``: the kernel's CPU niceness."""
     inputs = memo.inputs_key(params)
     keys = {nb.stem: memo.notebook_key(nb, inputs) for nb in selected}
     todo = [
@@ -326,7 +330,7 @@ def _run_label(
     finished: dict[str, tuple[float, float]] = {}
     try:
         prefix = f"[{label}] " if side_by_side else None
-        _execute(todo, paths.runs_dir(label), params, kernel, finished, prefix)
+        _execute(todo, paths.runs_dir(label), params, kernel, finished, prefix=prefix, nice=nice)
     except BaseException:
         stopped = next((nb.stem for nb in todo if nb.stem not in finished), "?")
         print(
@@ -349,6 +353,12 @@ def _run_label(
     return missing
 
 
+#: CPU niceness of the labels after the first when labels run side by side: the first (the
+#: ``--dataset`` study, in ``make study`` the longest chain) keeps the cores it can use, the
+#: others fill those it leaves idle (its single-threaded plotting, Edge Boxes and I/O).
+BACKGROUND_NICE = 10
+
+
 def _run_chains(
     chains: Sequence[tuple[str, Sequence[Path], dict]], kernel: str, force: bool, jobs: int
 ) -> list[str]:
@@ -364,8 +374,10 @@ def _run_chains(
         ]
     with ThreadPoolExecutor(min(jobs, len(chains)), thread_name_prefix="label") as pool:
         futures = [
-            pool.submit(_run_label, label, nbs, params, kernel, force, True)
-            for label, nbs, params in chains
+            pool.submit(
+                _run_label, label, nbs, params, kernel, force, True, BACKGROUND_NICE * (n > 0)
+            )
+            for n, (label, nbs, params) in enumerate(chains)
         ]
         try:
             errors = [f.exception() for f in futures]

@@ -5,6 +5,7 @@ and inline format are reset (as a fresh kernel's)."""
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -28,7 +29,8 @@ def run_session(request: dict) -> None:
 
     Appends ``{"notebook": stem, "started": unix time}`` to ``request["status"]`` (JSON
     lines) when a notebook starts and ``{"done": stem, "ended": unix time}`` when it ends,
-    so the caller can say what finished.
+    so the caller can say what finished. ``request["nice"]`` (optional) lowers the CPU priority
+    of this process and of the kernel it starts.
 
     Raises:
         RuntimeError: the kernel did not accept the reset (its reply names the error).
@@ -38,6 +40,8 @@ def run_session(request: dict) -> None:
     from jupyter_client.manager import AsyncKernelManager
     from jupyter_core.utils import run_sync
 
+    if request.get("nice"):
+        os.nice(int(request["nice"]))  # this process and the kernel it starts
     status = Path(request["status"])
     km = AsyncKernelManager(kernel_name=request["kernel"])
     run_sync(km.start_kernel)(cwd=request["cwd"])
