@@ -305,7 +305,7 @@ def study_plan(args: argparse.Namespace) -> list[tuple[str, list[Path], dict]]:
 def one_pass(plan, args, out_root: Path, cache: Path, work: Path, tag: str) -> dict:
     """Run the plan once; ``{(label, notebook): {category: seconds}}``."""
     from vpr_core import settings
-    from vpr_study.runner import kernel_settings
+    from vpr_study.execution import kernel_settings
 
     os.environ[settings.OUTPUT_ENV] = str(out_root)
     os.environ[settings.CACHE_ENV] = str(cache)

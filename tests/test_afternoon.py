@@ -94,7 +94,7 @@ def test_a_users_cells_save_into_the_ignored_user_area_and_the_study_keeps_its_f
 
 
 def test_the_user_area_is_git_ignored_and_the_runner_hands_its_kernels_the_output_root():
-    from vpr_study import runner
+    from vpr_study import execution
 
     ignored = subprocess.run(
         ["git", "check-ignore", "-q", "user/figures/gardens_point_mini/mine.png"], cwd=REPO
@@ -104,7 +104,7 @@ def test_the_user_area_is_git_ignored_and_the_runner_hands_its_kernels_the_outpu
         ["git", "check-ignore", "-q", "figures/gardens_point_mini/mine.png"], cwd=REPO
     )
     assert tracked.returncode == 1
-    assert runner.kernel_settings()["VPR_OUTPUT_DIR"] == str(paths.output_root())
+    assert execution.kernel_settings()["VPR_OUTPUT_DIR"] == str(paths.output_root())
 
 
 def test_a_user_kernel_in_notebooks_does_not_modify_a_tracked_file(tmp_path):

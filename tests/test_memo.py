@@ -6,7 +6,8 @@ import time
 
 import pytest
 
-from vpr_study import memo, runner
+from vpr_study import execution, memo, runner
+from vpr_study.figures import expected_figures
 
 
 @pytest.fixture
@@ -21,19 +22,19 @@ def fake_study(tmp_path, monkeypatch):
         for nb in notebooks:
             started = time.time()
             executed.append(nb.stem)
-            for stem in runner.expected_figures()[nb.stem]:
+            for stem in expected_figures()[nb.stem]:
                 png = runner.paths.figures_dir(params["label"]) / f"{stem}.png"
                 png.write_bytes(f"{nb.stem} run {executed.count(nb.stem)}".encode())
             finished[nb.stem] = (started, time.time())
 
-    monkeypatch.setattr(runner, "_execute", fake_execute)
+    monkeypatch.setattr(execution, "_execute", fake_execute)
     return executed
 
 
 def _run(**kw):
     nb = runner.notebook_paths(["03_landmark_selection"])
     params = runner.notebook_parameters("synthetic", quick=True, **kw)
-    return runner._run_label(params["label"], nb, params, "python3")
+    return execution._run_label(params["label"], nb, params, "python3")
 
 
 def test_unchanged_notebook_is_not_executed_again(fake_study, capsys):
@@ -60,8 +61,8 @@ def test_changed_parameters_or_outputs_execute_it_again(fake_study):
 def test_force_executes_every_notebook(fake_study):
     nb = runner.notebook_paths(["03_landmark_selection"])
     params = runner.notebook_parameters("synthetic", quick=True)
-    runner._run_label(params["label"], nb, params, "python3")
-    runner._run_label(params["label"], nb, params, "python3", force=True)
+    execution._run_label(params["label"], nb, params, "python3")
+    execution._run_label(params["label"], nb, params, "python3", force=True)
     assert len(fake_study) == 2
 
 

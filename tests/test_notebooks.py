@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from vpr_study import runner
-from vpr_study.runner import FIGURES, expected_figures
+from vpr_study.figures import FIGURES, expected_figures
 
 REPO = Path(__file__).resolve().parents[1]
 NB_DIR = REPO / "notebooks"

@@ -11,19 +11,19 @@ import time
 import pandas as pd
 import pytest
 
-from vpr_study import runner
+from vpr_study import execution, figures, runner
 
 
 def test_registry_is_one_list():
-    stems = [s.stem for s in runner.FIGURES]
+    stems = [s.stem for s in figures.FIGURES]
     assert len(stems) == len(set(stems)), "a figure stem is registered twice"
-    by_nb = runner.expected_figures()
+    by_nb = figures.expected_figures()
     assert list(by_nb) == sorted(by_nb)
     assert "fig05_selection" in by_nb["03_landmark_selection"]
 
 
 def test_every_registered_figure_is_saved_by_its_notebook():
-    for nb, stems in runner.expected_figures().items():
+    for nb, stems in figures.expected_figures().items():
         source = (runner.notebooks_dir() / f"{nb}.py").read_text()
         for stem in stems:
             assert f'"{stem}"' in source, f"{nb} does not save {stem}"
@@ -84,7 +84,7 @@ def test_a_stopped_run_says_what_finished_and_where_the_files_are(tmp_path, monk
         finished[notebooks[0].stem] = (0.0, 0.0)  # the first finished, then Ctrl-C
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(runner, "_execute", fake_execute)
+    monkeypatch.setattr(execution, "_execute", fake_execute)
     with pytest.raises(KeyboardInterrupt):
         runner.run_study(
             "synthetic", quick=True, notebooks=["01_pipeline_tour", "02_scale_statistics"]
@@ -178,11 +178,11 @@ def test_kernels_get_their_settings_through_env_not_os_environ(tmp_path, monkeyp
         seen.update(command=command, env=env)
         return subprocess.CompletedProcess(command, 0)
 
-    monkeypatch.setattr(runner.subprocess, "run", fake_run)
+    monkeypatch.setattr(execution.subprocess, "run", fake_run)
     before = dict(os.environ)
     nb = runner.notebook_paths(["01_pipeline_tour"])[0]
     with runner.paths.using_output_root(tmp_path / "cli"):  # what --out does
-        runner._execute([nb], tmp_path, {"dataset": "synthetic"}, "python3", {})
+        execution._execute([nb], tmp_path, {"dataset": "synthetic"}, "python3", {})
     assert dict(os.environ) == before
     assert seen["env"]["VPR_OUTPUT_DIR"] == str(tmp_path / "cli")
     assert seen["env"]["VPR_CACHE_DIR"] == str(tmp_path / "cli" / ".cache")
@@ -202,15 +202,15 @@ def test_labels_side_by_side_all_finish_before_the_first_error_is_raised(monkeyp
         finished.append(label)
         return [f"{label}/fig.png (absent)"]
 
-    monkeypatch.setattr(runner, "_run_label", fake_run_label)
+    monkeypatch.setattr(execution, "_run_label", fake_run_label)
     with pytest.raises(RuntimeError, match="notebook 03 failed"):
-        runner._run_chains([("a", [], {}), ("b", [], {})], "python3", False, jobs=2)
+        execution.run_labels([("a", [], {}), ("b", [], {})], "python3", False, jobs=2)
     assert finished == ["b"]
     niceness.clear()
-    missing = runner._run_chains([("b", [], {}), ("c", [], {})], "python3", False, jobs=2)
+    missing = execution.run_labels([("b", [], {}), ("c", [], {})], "python3", False, jobs=2)
     assert missing == ["b/fig.png (absent)", "c/fig.png (absent)"]
     # the first label keeps its CPU priority, the others fill the cores it leaves idle
-    assert niceness == {"b": 0, "c": runner.BACKGROUND_NICE}
+    assert niceness == {"b": 0, "c": execution.BACKGROUND_NICE}
     with pytest.raises(ValueError, match="jobs must be an integer >= 1"):
         runner.run_study("synthetic", quick=True, jobs=0)
 
@@ -227,8 +227,8 @@ def test_ctrl_c_while_labels_run_side_by_side_starts_no_further_label(monkeypatc
         time.sleep(0.3)
         return []
 
-    monkeypatch.setattr(runner, "_run_label", fake_run_label)
+    monkeypatch.setattr(execution, "_run_label", fake_run_label)
     chains = [("a", [], {}), ("b", [], {}), ("c", [], {})]
     with pytest.raises(KeyboardInterrupt):
-        runner._run_chains(chains, "python3", False, jobs=2)
+        execution.run_labels(chains, "python3", False, jobs=2)
     assert sorted(started) == ["a", "b"]  # "c" was waiting for a free slot: never started

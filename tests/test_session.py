@@ -10,7 +10,7 @@ import sys
 import nbformat
 import pytest
 
-from vpr_study import runner
+from vpr_study import execution, runner
 
 FIRST = """\
 from matplotlib_inline.backend_inline import set_matplotlib_formats
@@ -82,5 +82,5 @@ def test_a_failing_notebook_names_itself_and_what_finished(tmp_path, monkeypatch
     ok = _notebook(tmp_path / "01_ok.ipynb", "x = 1")
     bad = _notebook(tmp_path / "02_bad.ipynb", "raise ValueError('boom')")
     with pytest.raises(RuntimeError, match=r"notebook 02_bad.ipynb failed"):
-        runner._run_label("t", [ok, bad], {}, "python3")
+        execution._run_label("t", [ok, bad], {}, "python3")
     assert "stopped in 02_bad (t); finished: 01_ok" in capsys.readouterr().out

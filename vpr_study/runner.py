@@ -1,25 +1,20 @@
-"""Execute the study notebooks headless (papermill, one kernel per dataset label, labels side by
-side), parameters overridden, into ``<output root>/runs/<label>/``; check each wrote the figures
-:data:`FIGURES` lists; also the real datasets of ``make study`` and the quick test settings."""
+"""The study: which notebooks run on which datasets with which parameters (the real datasets of
+``make study``, the quick test settings), executed headless by :mod:`vpr_study.execution` into
+``<output root>/runs/<label>/``, then the summary of their tables and the paper's claims."""
 
 from __future__ import annotations
 
-import json
 import logging
-import subprocess
-import sys
-import tempfile
 import time
 from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pandas as pd
 
 from vpr_core import paths, settings
 from vpr_core.datasets import load_dataset
-from vpr_study import memo
-from vpr_study.figures import FIGURES, NOTEBOOKS, expected_figures
+from vpr_study.execution import run_labels
+from vpr_study.figures import FIGURES, NOTEBOOKS
 from vpr_study.findings import findings_markdown, result_labels
 
 logger = logging.getLogger("vpr_core")
@@ -184,33 +179,6 @@ def summary_table(label: str) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True)
 
 
-def kernel_settings(shared: bool = False) -> dict[str, str]:
-    """The ``env=`` settings of the notebook kernels: the absolute output and cache roots (a
-    kernel in ``notebooks/`` writes where the caller does), inline figures even under
-    ``MPLBACKEND=Agg``, and text progress bars the saved notebooks can show. ``shared``: kernels
-    run side by side, so torch's OpenMP threads sleep when idle instead of spinning (two
-    spinning kernels on 2 cores run crop features 1.8x slower; same bits either way)."""
-    env = {
-        settings.OUTPUT_ENV: str(paths.output_root()),
-        settings.CACHE_ENV: str(paths.cache_root()),
-        "MPLBACKEND": "module://matplotlib_inline.backend_inline",
-        settings.PROGRESS_ENV: "text",
-    }
-    return {**env, "OMP_WAIT_POLICY": "PASSIVE"} if shared else env
-
-
-def _unwritten(folder: Path, stems: Sequence[str], since: float) -> list[str]:
-    """The expected ``<stem>.png`` in ``folder`` that are absent or older than ``since``."""
-    out = []
-    for stem in stems:
-        png = folder / f"{stem}.png"
-        if not png.exists():
-            out.append(f"{png} (absent)")
-        elif png.stat().st_mtime < since - 2.0:  # 2 s: coarse file-system timestamps
-            out.append(f"{png} (not rewritten by this run)")
-    return out
-
-
 def _print_summary(table: pd.DataFrame, label: str, backbone: str) -> None:
     with pd.option_context(
         "display.width", 200, "display.max_rows", 200, "display.float_format", "{:.3f}".format
@@ -224,170 +192,6 @@ def _print_summary(table: pd.DataFrame, label: str, backbone: str) -> None:
 #: The comparison notebooks that ``make study`` also runs on the real datasets beside the
 #: project (:func:`study_datasets`).
 REAL_DATA_NOTEBOOKS = NOTEBOOKS[2:]
-
-
-def _relay(stream, prefix: str) -> None:
-    """Print each line of a child's output with ``prefix`` (kernels running side by side)."""
-    for line in stream:
-        sys.stdout.write(prefix + line)
-        sys.stdout.flush()
-
-
-def _execute(
-    notebooks: Sequence[Path],
-    out_dir: Path,
-    params: dict,
-    kernel: str,
-    finished: dict,
-    prefix: str | None = None,
-    nice: int = 0,
-) -> None:
-    """Run papermill on ``notebooks`` in order, all in one kernel (:mod:`vpr_study.session`),
-    in a child process whose environment holds :func:`kernel_settings`; the kernel's output
-    streams here live, each line led by ``prefix`` when given (kernels side by side). ``nice``:
-    the child's and its kernel's CPU niceness (higher: lower priority).
-    ``finished`` gets ``{notebook stem: (unix time it started, ended)}`` of each notebook that
-    finished, also when the run stops.
-
-    Raises:
-        RuntimeError: a notebook failed (the message names the first unfinished one).
-    """
-    t0 = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="vpr_session_") as tmp:
-        status = Path(tmp) / "status.jsonl"
-        request = {
-            "notebooks": [
-                {"input_path": str(nb), "output_path": str(out_dir / nb.name), "parameters": params}
-                for nb in notebooks
-            ],
-            "cwd": str(notebooks[0].parent),
-            "kernel": kernel,
-            "progress_bar": prefix is None
-            and sys.stderr.isatty()
-            and not settings.progress_disabled(),
-            "status": str(status),
-            "nice": nice,
-        }
-        logger.info("executing %s -> %s", ", ".join(nb.name for nb in notebooks), out_dir)
-        command = [sys.executable, "-m", "vpr_study.session", json.dumps(request)]
-        env = settings.child_environment(kernel_settings(shared=prefix is not None))
-        try:
-            if prefix is None:
-                done = subprocess.run(command, env=env)
-            else:
-                with subprocess.Popen(
-                    command, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
-                ) as child:
-                    assert child.stdout is not None  # piped above
-                    _relay(child.stdout, prefix)
-                done = subprocess.CompletedProcess(command, child.wait())
-        finally:
-            lines = (
-                [json.loads(x) for x in status.read_text().splitlines()] if status.exists() else []
-            )
-            started = {x["notebook"]: x["started"] for x in lines if "started" in x}
-            finished.update(
-                {x["done"]: (started[x["done"]], x["ended"]) for x in lines if "done" in x}
-            )
-    if done.returncode != 0:
-        failed = next(nb for nb in notebooks if nb.stem not in finished)
-        raise RuntimeError(
-            f"notebook {failed.name} failed (the error is printed above); open "
-            f"{out_dir / failed.name} to see the failing cell"
-        )
-    logger.info(
-        "%d notebook(s) done in %.1f s -> %s", len(notebooks), time.perf_counter() - t0, out_dir
-    )
-
-
-def _run_label(
-    label: str,
-    selected: Sequence[Path],
-    params: dict,
-    kernel: str,
-    force: bool = False,
-    side_by_side: bool = False,
-    nice: int = 0,
-) -> list[str]:
-    """Execute ``selected`` notebooks for one output label (one kernel), skipping those whose
-    inputs and recorded outputs are unchanged (:mod:`vpr_study.memo`) unless ``force``; the
-    expected figures not written. ``side_by_side``: other labels run meanwhile (output lines
-    get a ``[label]`` prefix); ``nice``: the kernel's CPU niceness."""
-    inputs = memo.inputs_key(params)
-    keys = {nb.stem: memo.notebook_key(nb, inputs) for nb in selected}
-    todo = [
-        nb for nb in selected if force or memo.up_to_date(label, nb.stem, keys[nb.stem]) is None
-    ]
-    for nb in selected:
-        if nb not in todo:
-            print(
-                f"{nb.stem} ({label}): inputs and outputs unchanged since its last execution, "
-                "not executed again (vpr-study run --force executes it)"
-            )
-    if not todo:
-        return []
-    expected = expected_figures()
-    finished: dict[str, tuple[float, float]] = {}
-    try:
-        prefix = f"[{label}] " if side_by_side else None
-        _execute(todo, paths.runs_dir(label), params, kernel, finished, prefix=prefix, nice=nice)
-    except BaseException:
-        stopped = next((nb.stem for nb in todo if nb.stem not in finished), "?")
-        print(
-            f"\nstopped in {stopped} ({label}); finished: {', '.join(finished) or 'none'}. "
-            f"Figures so far in {paths.figures_dir(label)}, tables in "
-            f"{paths.results_dir(label)}; cached work is kept, rerun to resume."
-        )
-        raise
-    missing: list[str] = []
-    folders = [paths.figures_dir(label), paths.results_dir(label), paths.runs_dir(label)]
-    for nb in todo:
-        started, ended = finished[nb.stem]
-        lost = _unwritten(paths.figures_dir(label), expected.get(nb.stem, []), started)
-        missing += lost
-        if not lost:
-            outputs = [
-                p for p in memo.written_since(folders, started) if p.stat().st_mtime <= ended + 2.0
-            ]
-            memo.record(label, nb.stem, keys[nb.stem], outputs, ended - started)
-    return missing
-
-
-#: CPU niceness of the labels after the first when labels run side by side: the first (the
-#: ``--dataset`` study, in ``make study`` the longest chain) keeps the cores it can use, the
-#: others fill those it leaves idle (its single-threaded plotting, Edge Boxes and I/O).
-BACKGROUND_NICE = 10
-
-
-def _run_chains(
-    chains: Sequence[tuple[str, Sequence[Path], dict]], kernel: str, force: bool, jobs: int
-) -> list[str]:
-    """:func:`_run_label` of each ``(label, notebooks, parameters)``, ``jobs`` labels at once
-    (the first, longest chain starts first); every chain runs to its end before the first
-    error is raised, but a Ctrl-C starts no further chain. Returns the expected figures not
-    written."""
-    if jobs <= 1 or len(chains) <= 1:
-        return [
-            m
-            for label, nbs, params in chains
-            for m in _run_label(label, nbs, params, kernel, force)
-        ]
-    with ThreadPoolExecutor(min(jobs, len(chains)), thread_name_prefix="label") as pool:
-        futures = [
-            pool.submit(
-                _run_label, label, nbs, params, kernel, force, True, BACKGROUND_NICE * (n > 0)
-            )
-            for n, (label, nbs, params) in enumerate(chains)
-        ]
-        try:
-            errors = [f.exception() for f in futures]
-        except BaseException:  # Ctrl-C: the running kernels got it too; start no other label
-            pool.shutdown(cancel_futures=True)
-            raise
-    for error in errors:
-        if error is not None:
-            raise error
-    return [m for f in futures for m in f.result()]
 
 
 def _write_findings(labels: Sequence[str]) -> None:
@@ -475,7 +279,7 @@ def run_study(
             pooling=spec.get("pooling", "crop"),
         )
         chains.append((sub, real_selected, sub_params))
-    missing = _run_chains(chains, kernel, force, jobs)
+    missing = run_labels(chains, kernel, force, jobs)
     if missing:
         raise RuntimeError("expected figures were not written: " + ", ".join(missing))
     table = summary_table(label)
