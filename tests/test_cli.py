@@ -87,7 +87,7 @@ def test_eval_label_keeps_two_folder_datasets_apart(tmp_path, gardens_point_mini
 def test_seed_must_be_non_negative(capsys):
     with pytest.raises(SystemExit):
         cli.main(["eval", "--seed", "-1"])
-    assert "--seed must be an integer >= 0" in capsys.readouterr().err
+    assert "argument --seed: must be an integer >= 0" in capsys.readouterr().err
 
 
 def test_user_peer_from_a_matrix_enters_the_table(tmp_path, capsys):

@@ -42,25 +42,19 @@ def dataset_options(args: argparse.Namespace) -> dict:
     return opts
 
 
-def _non_negative(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"--seed must be an integer >= 0, got {text!r}")
-    return value
+def _int_at_least(low: int) -> Callable[[str], int]:
+    """An argparse ``type=``: an integer >= ``low`` (argparse names the option in the error)."""
 
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = low - 1
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {low}, got {text!r}")
+        return value
 
-def _positive(text: str) -> int:
-    """``--jobs``: an integer >= 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}")
-    return value
+    return parse
 
 
 def _folder(text: str) -> str:
@@ -166,7 +160,7 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
         help=f"descriptor dimension after the random projection (default {PROJECTION_DIM})",
     )
     e.add_argument(
-        "--seed", type=_non_negative, default=0, help="seed of the random projection (default 0)"
+        "--seed", type=_int_at_least(0), default=0, help="seed of the random projection (default 0)"
     )
     e.add_argument("--weights", default=None, help="AlexNet weights file (alexnet_conv3)")
     e.add_argument(
@@ -278,7 +272,7 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
     )
     r.add_argument(
         "--jobs",
-        type=_positive,
+        type=_int_at_least(1),
         default=None,
         help="dataset labels executed at once, each in its own kernel (default: one per CPU "
         "core); the outputs are the same for any count",
