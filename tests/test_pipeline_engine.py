@@ -327,3 +327,59 @@ def test_an_unwritable_output_folder_is_named_with_the_fix(tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 2 and "--out / VPR_OUTPUT_DIR" in err and "a file is in the way" in err
     assert str(blocker) in err and "Traceback" not in err
+
+
+def test_mapped_arrays_equal_eager_reads(tmp_path):
+    from vpr_core.pipeline.cache import atomic_savez, load_npz
+
+    rng = np.random.default_rng(0)
+    arrays = {
+        "c": rng.random((50, 9), dtype=np.float32),
+        "f": np.asfortranarray(rng.random((7, 5))),
+        "empty": np.zeros((0, 4), np.float32),
+    }
+    path = tmp_path / "entry.npz"
+    atomic_savez(path, identity="x", **arrays)
+    got = load_npz(path, tuple(arrays), identity="x", mapped=tuple(arrays))
+    assert got is not None and isinstance(got["c"], np.memmap)
+    for key, value in arrays.items():
+        np.testing.assert_array_equal(got[key], value)
+        assert got[key].shape == value.shape and got[key].dtype == value.dtype
+
+
+def _short_desc_store(store):
+    """The store with a ``desc.npy`` member whose header promises more rows than it holds."""
+    import io
+    import zipfile
+
+    a = _npz(store)
+    buf = io.BytesIO()
+    np.lib.format.write_array(buf, a["desc"])
+    with zipfile.ZipFile(store, "w", zipfile.ZIP_STORED) as z:
+        for key, value in a.items():
+            if key == "desc":
+                z.writestr("desc.npy", buf.getvalue()[: -a["desc"].itemsize * 3])
+            else:
+                member = io.BytesIO()
+                np.lib.format.write_array(member, value)
+                z.writestr(f"{key}.npy", member.getvalue())
+
+
+@pytest.mark.parametrize("damage", ["compressed", "short"])
+def test_a_store_that_cannot_be_mapped_heals(damage, small, isolated_cache, caplog):
+    """Descriptors are memory-mapped from the store: a compressed member or one shorter than its
+    header says is named, removed and recomputed, and the numbers do not change."""
+    ref = _run(small)
+    for f in (isolated_cache / "results").rglob("*.npz"):
+        f.unlink()
+    store = min((isolated_cache / "features").rglob("*.npz"))
+    if damage == "compressed":
+        np.savez_compressed(store, **_npz(store))
+    else:
+        _short_desc_store(store)
+    pipeline.get_encoder.cache_clear()
+    with caplog.at_level(logging.WARNING, logger="vpr_core"):
+        again = _run(small)
+    msgs = [r.getMessage() for r in caplog.records if "unreadable" in r.getMessage()]
+    assert any(str(store) in m and "desc" in m for m in msgs), msgs
+    np.testing.assert_array_equal(ref.similarity, again.similarity)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import struct
 import tempfile
 import zipfile
 from collections.abc import Callable
@@ -65,11 +66,39 @@ def atomic_savez(path: Path, identity: str | None = None, **arrays: Any) -> None
             os.remove(tmp)
 
 
+def _mapped(path: Path, z: Any, key: str) -> np.ndarray:
+    """Array ``key`` of an uncompressed ``.npz`` as a read-only memory map: only the parts a
+    caller indexes are read (a large store asked for a few rows); its CRC is not checked."""
+    info = z.zip.getinfo(f"{key}.npy")
+    if info.compress_type != zipfile.ZIP_STORED:
+        raise ValueError(f"{key} is compressed")
+    with open(path, "rb") as f:
+        f.seek(info.header_offset)
+        local = f.read(30)
+        if local[:4] != b"PK\x03\x04":
+            raise ValueError(f"no zip entry header for {key}")
+        name_len, extra_len = struct.unpack("<HH", local[26:30])
+        f.seek(info.header_offset + 30 + name_len + extra_len)
+        start = f.tell()
+        fmt = np.lib.format
+        v2 = fmt.read_magic(f) == (2, 0)
+        shape, fortran, dtype = (fmt.read_array_header_2_0 if v2 else fmt.read_array_header_1_0)(f)
+        offset = f.tell()
+    if dtype.hasobject or offset - start + dtype.itemsize * int(np.prod(shape)) > info.file_size:
+        raise ValueError(f"{key} is not a plain array of its stated size")
+    if 0 in shape:
+        return np.zeros(shape, dtype)
+    return np.memmap(
+        path, dtype=dtype, mode="r", offset=offset, shape=shape, order="F" if fortran else "C"
+    )
+
+
 def load_npz(
     path: Path,
     keys: tuple[str, ...],
     identity: str | None = None,
     check: Callable[[dict[str, np.ndarray]], str | None] | None = None,
+    mapped: tuple[str, ...] = (),
 ) -> dict[str, np.ndarray] | None:
     """Read ``keys`` from a cached ``.npz``; ``None`` if it is absent, unreadable or foreign.
 
@@ -79,10 +108,11 @@ def load_npz(
 
     Args:
         path: the cache entry.
-        keys: the arrays the caller needs (all are read eagerly, so damage surfaces here).
+        keys: the arrays the caller needs (read eagerly, so damage surfaces here).
         identity: what the caller expects the entry to be computed from (None: not checked).
         check: returns why the arrays do not fit (e.g. ``"descriptors of 7 columns, expected
             1024"``) or None.
+        mapped: keys to memory-map instead (:func:`_mapped`; their size and header are checked).
 
     Returns:
         ``{key: array}`` or ``None``.
@@ -91,7 +121,7 @@ def load_npz(
         return None
     try:
         with np.load(path, allow_pickle=False) as z:
-            out = {k: np.asarray(z[k]) for k in keys}
+            out = {k: _mapped(path, z, k) if k in mapped else np.asarray(z[k]) for k in keys}
             if identity is not None:
                 stored = str(z["_identity"]) if "_identity" in z.files else "no identity"
                 if stored != identity:

@@ -72,7 +72,8 @@ def _store_identity(path) -> str:
 
 
 def _read_store(path, dim: int, overwrite: bool = False):
-    """``(boxes (S, 4), desc (S, dim), cost (S,))`` of a per-image store (empty if absent)."""
+    """``(boxes (S, 4), desc (S, dim), cost (S,))`` of a per-image store (empty if absent);
+    ``desc`` memory-mapped: a run reads only the rows of its own boxes."""
 
     def check(a: dict) -> str | None:
         b, d, c = a["boxes"], a["desc"], a["cost"]
@@ -87,7 +88,13 @@ def _read_store(path, dim: int, overwrite: bool = False):
     stored = (
         None
         if overwrite
-        else load_npz(path, ("boxes", "desc", "cost"), identity=_store_identity(path), check=check)
+        else load_npz(
+            path,
+            ("boxes", "desc", "cost"),
+            identity=_store_identity(path),
+            check=check,
+            mapped=("desc",),
+        )
     )
     if stored is None:
         return np.zeros((0, 4)), np.zeros((0, dim), np.float32), np.zeros((0,))
@@ -118,7 +125,7 @@ def _rows(store, boxes: np.ndarray) -> tuple[np.ndarray, float]:
     s_boxes, s_desc, s_cost = store
     index = {k: j for j, k in enumerate(_box_keys(s_boxes))}
     rows = np.array([index[k] for k in _box_keys(boxes)], dtype=np.int64)
-    return s_desc[rows].astype(np.float32), float(s_cost[rows].sum())
+    return np.array(s_desc[rows], dtype=np.float32), float(s_cost[rows].sum())
 
 
 def features_for_image(
