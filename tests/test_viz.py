@@ -182,6 +182,26 @@ def test_layout_problems_finds_cut_text_and_a_legend_over_the_curves():
     plt.close(fig)
 
 
+def test_scale_distribution_wraps_a_dataset_line_longer_than_the_figure():
+    """Nordland's dataset line (name, subsampling, settings) was cut at the right edge of the
+    committed Fig. 6; a line that fits stays one line."""
+    import matplotlib.pyplot as plt
+
+    counts = {"query": np.arange(10), "reference": np.arange(10)}
+    line = (
+        "nordland_64x32, every 50th place: 72 of 72 queries with ground truth, tolerance 0, "
+        "protocol ratio, pooling crop"
+    )
+    fig = viz.plot_scale_distribution(counts, title=f"scheme: landmarks per scale\n{line}")
+    assert viz.layout_problems(fig) == []
+    assert fig.axes[0].get_title(loc="left").count("\n") == 2
+    short = "gardens_point_mini: 10 of 10 queries with ground truth, tolerance 0, protocol ratio"
+    fig2 = viz.plot_scale_distribution(counts, title=f"scheme\n{short}")
+    assert fig2.axes[0].get_title(loc="left") == f"scheme\n{short}"
+    plt.close(fig)
+    plt.close(fig2)
+
+
 def test_save_warns_about_a_broken_layout(tmp_path):
     import matplotlib.pyplot as plt
 

@@ -57,8 +57,10 @@ def plot_scale_distribution(
     ax.set_xticklabels([s.replace("Scale ", "S") for s in SCALE_LABELS])
     ax.set_xlabel("landmark scale (Table 1)")
     ax.set_ylabel("share of landmarks" if normalize else "number of landmarks")
-    if title:  # left-aligned like the PR figures: a long dataset line stays on the canvas
-        ax.set_title(title, loc="left", fontsize=10)
+    if title:  # left-aligned like the PR figures, a line longer than the figure wrapped
+        chars = int(fig.get_figwidth() * 72 / 6.2)  # 10-point text: about 6.2 points a character
+        lines = [w for line in title.split("\n") for w in textwrap.wrap(line, chars) or [""]]
+        ax.set_title("\n".join(lines), loc="left", fontsize=10)
     if labels:  # headroom above the tallest bar: the legend never covers a bar
         top = max(float(np.nanmax(p.get_height())) for p in ax.patches) if ax.patches else 1.0
         ax.set_ylim(0, (top if top > 0 else 1.0) * 1.25)
