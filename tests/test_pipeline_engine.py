@@ -183,7 +183,9 @@ def test_image_without_landmarks_is_excluded_and_named(tmp_path, isolated_cache,
         res = pipeline.run_method("classical", ds, dim=32, n_bootstrap=0)
     text = " ".join(r.getMessage() for r in caplog.records)
     assert "001.png" in text and "excluded from ranking" in text
-    assert "gave 0 of the 100 landmarks" in text
+    # one warning for the run, the image with the fewest landmarks named first
+    short = [r.getMessage() for r in caplog.records if "gave fewer than the 100" in r.getMessage()]
+    assert len(short) == 1 and "001.png): 0" in short[0].split(": ", 1)[1].split(";")[0], short
     assert np.isnan(res.similarity[1]).all() and not np.isnan(res.similarity[0]).any()
 
 

@@ -1,10 +1,9 @@
-"""Algorithms 1-3: choosing 100 landmarks from 1,000 Edge Box candidates (Sec. 3.2), each
-walking the candidates in proposal order; with ``return_indices`` also the kept candidates'
-``(N,)`` int64 indices. Fewer than ``n`` qualifying: all of them, and a logged warning."""
+"""Algorithms 1-3: 100 landmarks from 1,000 Edge Box candidates (Sec. 3.2) in proposal order;
+``return_indices`` adds the kept candidates' ``(N,)`` int64 indices. Fewer than ``n`` qualifying:
+all of them (a run names such images once, :func:`vpr_core.pipeline.extract_landmarks`)."""
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Sequence
 
 import numpy as np
@@ -14,19 +13,11 @@ from ..checks import check_boxes, check_image_size, check_int, check_range
 from ..paper import MIN_SCALE_INDEX, N_LANDMARKS, N_SCALES, NMS_IOU, SCALE_PRIORITY_ORDER
 from .scales import _box_scale_index
 
-logger = logging.getLogger("vpr_core")
-
 
 def _result(boxes: np.ndarray, idx: list[int] | np.ndarray, return_indices: bool):
     idx = np.asarray(idx, dtype=np.int64)
     sel = boxes[idx] if idx.size else np.zeros((0, 4), dtype=np.float64)
     return (sel, idx) if return_indices else sel
-
-
-def _warn_undersupply(name: str, got: int, n: int, k: int) -> None:
-    if got < n:
-        msg = "%s: only %d of the requested %d landmarks qualify among %d candidates; returning %d"
-        logger.warning(msg, name, got, n, k, got)
 
 
 def select_min_scale(
@@ -42,7 +33,6 @@ def select_min_scale(
     if not 1 <= int(min_index) <= N_SCALES:
         raise ValueError(f"min_index must be in 1..9, got {min_index}")
     idx = np.flatnonzero(_box_scale_index(b, size) >= int(min_index))[:n]
-    _warn_undersupply("select_min_scale", idx.size, n, b.shape[0])
     return _result(b, idx, return_indices)
 
 
@@ -69,7 +59,6 @@ def select_scale_priority(
         picked.append(cand)
         total += cand.size
     idx = np.concatenate(picked) if picked else np.zeros(0, dtype=np.int64)
-    _warn_undersupply("select_scale_priority", idx.size, n, b.shape[0])
     return _result(b, idx, return_indices)
 
 
@@ -95,5 +84,4 @@ def reduce_overlap(
             np.maximum(
                 max_iou[i + 1 :], _box_iou(b[i : i + 1], b[i + 1 :])[0], out=max_iou[i + 1 :]
             )
-    _warn_undersupply("reduce_overlap", len(kept), n, b.shape[0])
     return _result(b, kept, return_indices)

@@ -96,8 +96,8 @@ def landmarks_for_image(
     scheme's ``boxes(image)`` is cached under its class, field values and version
     (:func:`~vpr_core.landmarks.schemes.scheme_version`), or computed on every call when its
     class declares no version (a user's code may read globals that changed). A scheme that
-    yields fewer than its ``n`` landmarks logs a warning naming the image. ``fresh=True``
-    computes the boxes again (and rewrites their cache entry), so the seconds are measured now.
+    ``fresh=True`` computes the boxes again (and rewrites their cache entry), so the seconds
+    are measured now.
 
     Args:
         scheme: a landmark scheme (:mod:`vpr_core.landmarks.schemes` or a user's).
@@ -127,16 +127,6 @@ def landmarks_for_image(
     t0 = time.perf_counter()
     boxes = np.asarray(scheme.select(cands, dataset.image_size(side, i)), dtype=np.float64)
     seconds += time.perf_counter() - t0
-    n = getattr(scheme, "n", None)
-    if n is not None and len(boxes) < n:
-        logger.warning(
-            "%s gave %d of the %d landmarks asked for %s (%d Edge Box candidates)",
-            type(scheme).__name__,
-            len(boxes),
-            n,
-            _image_name(dataset, side, i),
-            len(cands),
-        )
     return boxes.reshape(-1, 4), seconds
 
 
@@ -175,4 +165,33 @@ def extract_landmarks(scheme: Any, dataset) -> dict[str, Any]:
             secs.append(s)
         out[side] = boxes
         out["seconds"][side] = secs
+    n = getattr(scheme, "n", None)
+    if isinstance(scheme, CandidateScheme) and n is not None:
+        _report_short(type(scheme).__name__, n, dataset, out)
     return out
+
+
+def _report_short(name: str, n: int, dataset, out: dict[str, Any], shown: int = 3) -> None:
+    """One warning for all images where an Edge Box scheme found fewer than its ``n`` landmarks
+    (small or plain images give few candidates), the ``shown`` with the fewest named."""
+    short = [(side, i, len(b)) for side in SIDES for i, b in enumerate(out[side]) if len(b) < n]
+    short.sort(key=lambda item: item[2])  # stable: sides and images in order within a count
+    if not short:
+        return
+    counts = [k for _, _, k in short]
+    total = sum(len(out[side]) for side in SIDES)
+    spread = (
+        f" ({min(counts)} to {max(counts)}, median {np.median(counts):g})" if counts[1:] else ""
+    )
+    named = "; ".join(f"{_image_name(dataset, side, i)}: {k}" for side, i, k in short[:shown])
+    more = f"; {len(short) - shown} more" if len(short) > shown else ""
+    logger.warning(
+        "%s gave fewer than the %d landmarks asked for %d of %d images%s: %s%s",
+        name,
+        n,
+        len(short),
+        total,
+        spread,
+        named,
+        more,
+    )
