@@ -192,7 +192,7 @@ def test_bootstrap_resample_equals_metrics_of_repeated_rows():
     gt[20] = False  # vpr_bench resamples it too (a negative); the others never see it
     for protocol in ("ratio", "best_match", "vpr_bench"):
         rows = np.ones(60, bool) if protocol == "vpr_bench" else gt.any(axis=1)
-        pq = _per_query(_prepare(s, gt, Evaluation(protocol, 0)), (1, 5))
+        pq = _per_query(_prepare(s, gt, Evaluation(protocol, n_bootstrap=0)), (1, 5))
         n = int(rows.sum())
         for seed in range(5):
             idx = np.flatnonzero(rows)[np.random.default_rng(seed).integers(0, n, n)]
@@ -280,7 +280,7 @@ def test_bootstrap_bad_arguments():
 def test_a_runs_evaluation_value_stands_for_its_protocol_name():
     """evaluate, chance and the saturation check take a run's Evaluation or the protocol's name;
     a bad name is refused by the value, naming the valid ones."""
-    ev = Evaluation("best_match", 0)
+    ev = Evaluation("best_match", n_bootstrap=0)
     assert evaluate(S, GT, ev) == evaluate(S, GT, "best_match") != evaluate(S, GT)
     assert chance(GT, ev) == chance(GT, "best_match")
     with pytest.raises(ValueError, match="ratio, best_match, vpr_bench, multi_match"):

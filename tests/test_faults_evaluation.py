@@ -152,7 +152,7 @@ def test_not_retrieved_resamples_equal_metrics_of_repeated_rows():
     s[5, 2:] = np.nan  # a shortlist-like row: a few ranked references, still a query
     b = bootstrap_metrics(s, gt, n=20, seed=1)
     for protocol in ("ratio", "best_match"):
-        pq = _per_query(_prepare(s, gt, Evaluation(protocol, 0)), (1, 5))
+        pq = _per_query(_prepare(s, gt, Evaluation(protocol, n_bootstrap=0)), (1, 5))
         for seed in range(6):
             idx = np.random.default_rng(seed).integers(0, 12, 12)
             if np.isnan(s[idx]).all(axis=1).all():

@@ -230,7 +230,7 @@ def test_run_method_takes_its_three_values_or_their_fields_as_keywords(four, iso
         "dense",
         four,
         encoder=Encoder("hog", dim=32),
-        evaluation=Evaluation("best_match", 0),
+        evaluation=Evaluation("best_match", n_bootstrap=0),
         **grid,
     )
     b = run_method(
@@ -277,3 +277,85 @@ def test_bad_options_are_refused_before_any_work(four, monkeypatch, options, mat
 def test_multi_match_runs_end_to_end_without_intervals(four, isolated_cache):
     r = run_method("dense", four, backbone="hog", protocol="multi_match", n_bootstrap=0)
     assert r.protocol == "multi_match" and 0 <= r.metrics["auc"] <= 1 and r.intervals == {}
+
+
+# ------------------------------------------------------------ the evaluation's tolerance
+def test_evaluation_fields_in_designs_order_and_a_bad_tolerance_is_refused():
+    from vpr_core.evaluation import Evaluation
+
+    ev = Evaluation("best_match", 2, 0)
+    assert (ev.protocol, ev.tolerance, ev.n_bootstrap) == ("best_match", 2, 0)
+    assert Evaluation().tolerance is None
+    for bad in (-1, "25 m", True, 1.5):
+        with pytest.raises(ValueError, match=r"tolerance \(frames\) must be a non-negative int"):
+            Evaluation(tolerance=bad)
+
+
+def test_a_run_scored_at_another_tolerance_equals_one_loaded_with_it(four, isolated_cache):
+    """Evaluation(tolerance=N) scores the cached matrix against the ground truth the loader
+    gives at N, in both directions; one matrix serves every tolerance of one dataset."""
+    opts = {"backbone": "hog", "dim": 32, "scales": (0.25,), "per_scale": 4, "n_bootstrap": 50}
+    wide = load_dataset("synthetic", n_places=4, image_size=(64, 112), tolerance=1)
+    at_0 = run_method("dense", four, **opts)
+    at_1 = run_method("dense", four, tolerance=1, **opts)
+    assert len(list((isolated_cache / "results").rglob("*.npz"))) == 1  # one matrix for both
+    loaded_1 = run_method("dense", wide, **opts)
+    back_to_0 = run_method("dense", wide, tolerance=0, **opts)
+    np.testing.assert_array_equal(at_1.ground_truth, wide.ground_truth)
+    assert not np.array_equal(at_1.ground_truth, at_0.ground_truth)
+    assert at_1.metrics == loaded_1.metrics and at_1.intervals == loaded_1.intervals
+    assert at_1.metrics != at_0.metrics and at_1.tolerance == 1 and at_0.tolerance == 0
+    np.testing.assert_array_equal(back_to_0.ground_truth, four.ground_truth)
+    assert back_to_0.metrics == at_0.metrics and back_to_0.tolerance == 0
+    np.testing.assert_array_equal(at_1.similarity, at_0.similarity)
+
+
+def test_ground_truth_at_widens_a_files_truth_and_refuses_what_it_cannot_derive(tmp_path):
+    from vpr_core.datasets import PlaceDataset
+    from vpr_core.datasets.ground_truth import frame_aligned, ground_truth_at, widen
+
+    paths = [tmp_path / f"{i}.png" for i in range(6)]
+    file_gt = np.zeros((6, 6), dtype=bool)
+    file_gt[[0, 1, 2, 3, 4, 5], [0, 0, 2, 5, 4, 4]] = True  # many-to-one, not the diagonal
+    ds = PlaceDataset("f", paths, paths, widen(file_gt, 1), 1, meta={"ground_truth_file": "x"})
+    np.testing.assert_array_equal(ground_truth_at(ds, 3), widen(file_gt, 3))
+    assert (
+        ground_truth_at(ds, None) is not None
+        and ground_truth_at(ds, 1).sum() == ds.ground_truth.sum()
+    )
+    with pytest.raises(ValueError, match=r"widened by 1 frames.*load it with tolerance=0"):
+        ground_truth_at(ds, 0)
+    # more queries than references: rebuilt by the frame rule, not widened
+    aligned = PlaceDataset("a", paths, paths[:3], frame_aligned(6, 3, 0), 0)
+    np.testing.assert_array_equal(ground_truth_at(aligned, 2), frame_aligned(6, 3, 2))
+    by_distance = PlaceDataset("u", paths, paths, np.eye(6, dtype=bool), "25 m")
+    with pytest.raises(ValueError, match=r"by distance \(25 m\).*positive_dist_threshold"):
+        ground_truth_at(by_distance, 1)
+    soft = PlaceDataset(
+        "s", paths, paths, np.eye(6, dtype=bool), 0, ground_truth_soft=np.ones((6, 6), bool)
+    )
+    with pytest.raises(ValueError, match=r"soft \(GTsoft beside GThard\)"):
+        ground_truth_at(soft, 1)
+
+
+def test_a_tolerance_a_dataset_cannot_take_is_refused_before_any_work(four, isolated_cache):
+    from vpr_core.datasets import PlaceDataset
+
+    by_distance = PlaceDataset(
+        "u", four.query_paths, four.reference_paths, four.ground_truth, "25 m"
+    )
+    with pytest.raises(ValueError, match="by distance"):
+        run_method("dense", by_distance, tolerance=1, backbone="hog", dim=32)
+    assert not isolated_cache.exists() or not any(isolated_cache.rglob("*.npz"))
+
+
+def test_a_peer_is_scored_at_the_evaluations_tolerance(four):
+    from vpr_core.baselines import peer_from_matrix
+    from vpr_core.pipeline import peer_result
+
+    peer = peer_from_matrix(np.random.default_rng(0).random((4, 4)), "mine")
+    at_2 = peer_result(peer, four, tolerance=2, n_bootstrap=0)
+    wide = load_dataset("synthetic", n_places=4, image_size=(64, 112), tolerance=2)
+    np.testing.assert_array_equal(at_2.ground_truth, wide.ground_truth)
+    assert at_2.tolerance == 2
+    assert at_2.metrics == peer_result(peer, wide, n_bootstrap=0).metrics

@@ -107,6 +107,38 @@ def widen(gt: np.ndarray, tolerance: int) -> np.ndarray:
     return out
 
 
+def ground_truth_at(dataset: Any, tolerance: int | None) -> np.ndarray:
+    """``dataset``'s ``bool (Nq, Nr)`` ground truth at ``tolerance`` frames (None: as loaded).
+
+    Frame-aligned ground truth is rebuilt at ``tolerance``; any other (a file's, widened by
+    the loaded tolerance) is widened further. Refused, naming the fix: a distance rule or soft
+    ground truth (no frames to count), and less widening than the file was loaded with.
+    """
+    gt = np.asarray(dataset.ground_truth, dtype=bool)
+    loaded = dataset.tolerance
+    if tolerance is None or tolerance == loaded:
+        return gt
+    if not isinstance(loaded, int) or dataset.ground_truth_soft is not None:
+        rule = f"by distance ({loaded})" if isinstance(loaded, str) else "not by frames"
+        if dataset.ground_truth_soft is not None:
+            rule = "soft (GTsoft beside GThard)"
+        raise ValueError(
+            f"tolerance={tolerance}: the ground truth of {dataset.name!r} is {rule}, so a "
+            "tolerance in frames does not apply; leave tolerance=None and set its rule when "
+            "loading it (e.g. load_dataset('utm', root, positive_dist_threshold=...))"
+        )
+    nq, nr = gt.shape
+    if np.array_equal(gt, frame_aligned(nq, nr, loaded)):
+        return frame_aligned(nq, nr, tolerance)
+    if tolerance > loaded:
+        return widen(gt, tolerance - loaded)
+    raise ValueError(
+        f"tolerance={tolerance}: {dataset.name!r} was loaded with its ground truth widened by "
+        f"{loaded} frames, which cannot be narrowed again; load it with tolerance={tolerance} "
+        "(or 0) and pass a tolerance at or above that"
+    )
+
+
 # ----------------------------------------------------------------------------------------------
 # Coverage
 # ----------------------------------------------------------------------------------------------

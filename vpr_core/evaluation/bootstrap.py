@@ -201,7 +201,7 @@ def bootstrap_metrics(
         ValueError: no query with ground truth, a protocol without intervals, bad ``ks`` or
             shapes.
     """
-    x, kt = _prepare(similarity, ground_truth, Evaluation(protocol, n), ignore), _ks(ks)
+    x, kt = _prepare(similarity, ground_truth, Evaluation(protocol, n_bootstrap=n), ignore), _ks(ks)
     point = _metrics(x, kt, warn=False)
     pq = _per_query(x, kt)
     draws = [_resample_metrics(pq, w) for w in _draws(n, len(x.s), seed)]
@@ -255,7 +255,7 @@ def paired_bootstrap(
         unpacks as a 4-tuple and has ``.se`` and ``.queries_needed`` (module docstring);
         identical inputs give ``(0, 0, 0, 1)``.
     """
-    evaluation, kt = Evaluation(protocol, n), _ks(ks)
+    evaluation, kt = Evaluation(protocol, n_bootstrap=n), _ks(ks)
     a = _prepare(sim_a, ground_truth, evaluation, ignore)
     b = _prepare(sim_b, ground_truth, evaluation, ignore)  # same shape: both checked against it
     pa, pb = _metrics(a, kt, warn=False), _metrics(b, kt, warn=False)

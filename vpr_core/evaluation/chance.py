@@ -120,7 +120,7 @@ def chance(
     Args:
         ground_truth: ``(Nq, Nr)`` bool.
         evaluation: the protocol of AUC and R@100P: an
-            :class:`~vpr_core.evaluation.Evaluation` (a run's ``.evaluation``) or a name of
+            :class:`~vpr_core.evaluation.Evaluation` or the name (a run's ``.protocol``) of one of
             :data:`~vpr_core.evaluation.PROTOCOLS`.
         ks: the K of R@K.
         n: random rankings of the per-query protocols (>= 1).

@@ -242,7 +242,9 @@ def pr_curve(
         ValueError: bad shapes or protocol, or no query with ground truth (no pair for
             ``multi_match``).
     """
-    return _curve(_parse(similarity, ground_truth, Evaluation(protocol, 0), ignore, warn))
+    return _curve(
+        _parse(similarity, ground_truth, Evaluation(protocol, n_bootstrap=0), ignore, warn)
+    )
 
 
 class Scored(NamedTuple):

@@ -1,5 +1,6 @@
-"""How a run is evaluated, as a value: :class:`Evaluation` (protocol, bootstrap resamples),
-checked once when it is made, so a run that cannot be evaluated is refused before any work."""
+"""How a run is evaluated, as a value: :class:`Evaluation` (protocol, ground-truth tolerance,
+bootstrap resamples), checked once when it is made, so a run that cannot be evaluated is refused
+before any work."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import dataclasses
 import os
 
 from ..checks import check_choice, check_int
+from ..datasets.ground_truth import check_tolerance
 
 __all__ = [
     "BOOTSTRAP_BYTES_PER_RESAMPLE",
@@ -48,15 +50,24 @@ def check_bootstrap_memory(n: int, name: str = "n_bootstrap") -> None:
 
 @dataclasses.dataclass(frozen=True)
 class Evaluation:
-    """The PR protocol of AUC and R@100P (:data:`~vpr_core.evaluation.PROTOCOLS`) and the
-    bootstrap resamples of the intervals (0: none). The ground-truth tolerance is the dataset's
-    (applied when it is loaded, ``load_dataset(..., tolerance=N)``)."""
+    """The PR protocol of AUC and R@100P (:data:`~vpr_core.evaluation.PROTOCOLS`), the
+    ground-truth ``tolerance`` in frames and the bootstrap resamples of the intervals (0: none).
+
+    ``tolerance=None`` scores against the dataset's ground truth as loaded
+    (``load_dataset(..., tolerance=N)``); ``N`` re-derives it at ``N`` frames without loading
+    again (:func:`~vpr_core.datasets.ground_truth.ground_truth_at`: what a dataset's rule
+    allows, else a clear error). It is applied where a run reads its dataset
+    (:func:`~vpr_core.pipeline.run_method`, :func:`~vpr_core.pipeline.peer_result`); the
+    functions given a ground-truth matrix score that matrix."""
 
     protocol: str = "ratio"
+    tolerance: int | None = None
     n_bootstrap: int = N_BOOTSTRAP
 
     def __post_init__(self) -> None:
         check_choice(self.protocol, "protocol", PROTOCOLS)
+        if self.tolerance is not None:
+            object.__setattr__(self, "tolerance", check_tolerance(self.tolerance))
         n = check_int(self.n_bootstrap, "n_bootstrap (resamples; 0: no intervals)", 0)
         object.__setattr__(self, "n_bootstrap", n)
         check_bootstrap_memory(n)
@@ -73,4 +84,6 @@ def as_evaluation(evaluation: Evaluation | str) -> Evaluation:
     ``multi_match``, which has no intervals)."""
     if isinstance(evaluation, Evaluation):
         return evaluation
-    return Evaluation(evaluation, N_BOOTSTRAP if evaluation in BOOTSTRAP_PROTOCOLS else 0)
+    return Evaluation(
+        evaluation, n_bootstrap=N_BOOTSTRAP if evaluation in BOOTSTRAP_PROTOCOLS else 0
+    )

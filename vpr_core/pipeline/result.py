@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from ..baselines import peer_similarity_for
-from ..datasets.ground_truth import ground_truth_text
+from ..datasets.ground_truth import ground_truth_at, ground_truth_text
 from ..evaluation import (
     Evaluation,
     bootstrap_metrics,
@@ -59,8 +59,9 @@ class MethodResult:
             of image pairs scored by Eq. (1).
         shortlist: None (exhaustive) or the k of shortlist + re-rank.
         queries_with_gt: ``(queries with ground truth, all queries)``.
-        tolerance, root: the dataset's ground-truth tolerance and folder (tables and titles
-            print them beside every number).
+        tolerance, root: the ground-truth tolerance the run was scored at (the dataset's, or
+            its :class:`~vpr_core.evaluation.Evaluation`'s) and the dataset's folder (tables and
+            titles print them beside every number).
         dataset_title: the dataset as titles print it (:attr:`PlaceDataset.title
             <vpr_core.datasets.PlaceDataset.title>`: the name and a subset such as "every 50th
             place").
@@ -162,15 +163,15 @@ def peer_result(
     Args:
         peer: a loaded peer (:func:`~vpr_core.baselines.load_vprbench_precomputed`).
         dataset: the :class:`~vpr_core.datasets.PlaceDataset` it was computed on.
-        evaluation: protocol and bootstrap resamples (as :func:`~vpr_core.pipeline.run_method`;
-            ``protocol=`` and ``n_bootstrap=`` given as keywords change it).
+        evaluation: protocol, ground-truth tolerance and bootstrap resamples (as
+            :func:`~vpr_core.pipeline.run_method`; its fields given as keywords change it).
         label: its name in tables and legends (default ``"<name> (VPR-Bench)"``).
     """
     evaluation = dataclasses.replace(evaluation or Evaluation(), **overrides)
     protocol = evaluation.protocol
+    gt = ground_truth_at(dataset, evaluation.tolerance)
 
     sim = dataset.ignore_soft(peer_similarity_for(dataset, peer))  # soft: neither right nor wrong
-    gt = np.asarray(dataset.ground_truth, dtype=bool)
     nq, nr = gt.shape
     timings = {
         "landmarks_s_per_image": float("nan"),
@@ -198,7 +199,7 @@ def peer_result(
             else {}
         ),
         queries_with_gt=ground_truth_coverage(gt),
-        tolerance=dataset.tolerance,
+        tolerance=dataset.tolerance if evaluation.tolerance is None else evaluation.tolerance,
         root=None if dataset.root is None else str(dataset.root),
         ground_truth_from_file=bool(dataset.meta.get("ground_truth_file")),
         dataset_title=dataset.title,

@@ -13,6 +13,7 @@ from typing import Any, ParamSpec
 
 import numpy as np
 
+from ..datasets.ground_truth import ground_truth_at
 from ..engine.blocks import similarity_blocks_distributed, similarity_pairs_distributed
 from ..engine.client import get_client
 from ..engine.shortlist import rerank, shortlist_pairs, split_whole_image, with_whole_image_boxes
@@ -211,9 +212,11 @@ def run_method(
         encoder: the landmark encoder (default ``Encoder()``: ``efficientnet_lite0``, ``crop``
             pooling, the paper's projection); ``backbone=``, ``weights=``, ``pooling=``,
             ``input_size=``, ``device=``, ``dim=``, ``seed=`` given as keywords change it.
-        evaluation: the PR protocol and bootstrap resamples (default ``Evaluation()``: the
-            paper's ``ratio`` protocol, ``N_BOOTSTRAP`` resamples); ``protocol=`` and
-            ``n_bootstrap=`` given as keywords change it. R@K is protocol-free.
+        evaluation: the PR protocol, ground-truth tolerance and bootstrap resamples (default
+            ``Evaluation()``: the paper's ``ratio`` protocol, the dataset's ground truth as
+            loaded, ``N_BOOTSTRAP`` resamples); ``protocol=``, ``tolerance=`` and
+            ``n_bootstrap=`` given as keywords change it. R@K is protocol-free; the similarity
+            matrix does not depend on the tolerance (a sweep over it reuses the cache).
         shortlist: None (exhaustive, the paper's) or k: each query's top-k references by the
             cosine of whole-image descriptors (same backbone and pooling) are re-ranked by
             Eq. (1); all other pairs are NaN ("not ranked"; the ratio protocol's S2 is the
@@ -232,6 +235,8 @@ def run_method(
     """
     conf, spec, evaluation = _values(method, encoder, evaluation, overrides)
     protocol = evaluation.protocol
+    gt = ground_truth_at(dataset, evaluation.tolerance)  # a tolerance it cannot take: refused now
+    tolerance = dataset.tolerance if evaluation.tolerance is None else evaluation.tolerance
     nq, nr = n_images(dataset, "query"), n_images(dataset, "reference")
     k = _check_shortlist(shortlist, nr)
     landmark_encoder = get_encoder(spec)
@@ -297,7 +302,6 @@ def run_method(
             client.close()
     sim = _exclude_empty(np.asarray(sim, dtype=np.float64), boxes, dataset)
     sim = dataset.ignore_soft(sim)  # soft positives: neither right nor wrong, in every metric
-    gt = np.asarray(dataset.ground_truth, dtype=bool)
     metrics = evaluate(sim, gt, evaluation)
     n_boot = evaluation.n_bootstrap
     intervals = bootstrap_metrics(sim, gt, n=n_boot, protocol=protocol) if n_boot else {}
@@ -341,7 +345,7 @@ def run_method(
         intervals=intervals,
         shortlist=k,
         queries_with_gt=ground_truth_coverage(gt),
-        tolerance=dataset.tolerance,
+        tolerance=tolerance,
         root=None if dataset.root is None else str(dataset.root),
         ground_truth_from_file=bool(dataset.meta.get("ground_truth_file")),
         dataset_title=dataset.title,
