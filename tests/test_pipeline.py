@@ -292,6 +292,10 @@ def test_evaluation_fields_in_designs_order_and_a_bad_tolerance_is_refused():
 
 
 def test_a_run_scored_at_another_tolerance_equals_one_loaded_with_it(four, isolated_cache):
+    import dataclasses
+
+    from vpr_core.evaluation import compare
+
     """Evaluation(tolerance=N) scores the cached matrix against the ground truth the loader
     gives at N, in both directions; one matrix serves every tolerance of one dataset."""
     opts = {"backbone": "hog", "dim": 32, "scales": (0.25,), "per_scale": 4, "n_bootstrap": 50}
@@ -308,6 +312,8 @@ def test_a_run_scored_at_another_tolerance_equals_one_loaded_with_it(four, isola
     np.testing.assert_array_equal(back_to_0.ground_truth, four.ground_truth)
     assert back_to_0.metrics == at_0.metrics and back_to_0.tolerance == 0
     np.testing.assert_array_equal(at_1.similarity, at_0.similarity)
+    with pytest.raises(ValueError, match=r"tolerance 1 vs 0\); score them at one tolerance"):
+        compare([at_0, dataclasses.replace(at_1, label="at 1")])
 
 
 def test_ground_truth_at_widens_a_files_truth_and_refuses_what_it_cannot_derive(tmp_path):

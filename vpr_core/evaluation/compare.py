@@ -107,9 +107,13 @@ def _check_same_dataset(results: Sequence[Any], base: Any) -> np.ndarray:
                 "query i of the other; compare runs of one dataset only"
             )
         if not _same(np.asarray(r.ground_truth, dtype=bool), gt):
+            tol, base_tol = getattr(r, "tolerance", None), getattr(base, "tolerance", None)
+            fix = "compare runs of one dataset only"
+            if tol != base_tol:
+                fix = f"(tolerance {tol} vs {base_tol}); score them at one tolerance"
             raise ValueError(
                 f"compare(): {r.label!r} was evaluated on another ground truth than "
-                f"{base.label!r}; compare runs of one dataset only"
+                f"{base.label!r}; {fix}"
             )
     return gt
 
