@@ -331,6 +331,8 @@ def test_ground_truth_at_widens_a_files_truth_and_refuses_what_it_cannot_derive(
     )
     with pytest.raises(ValueError, match=r"widened by 1 frames.*load it with tolerance=0"):
         ground_truth_at(ds, 0)
+    with pytest.raises(ValueError, match=r"subset.*load it with tolerance=2, then take the subset"):
+        ground_truth_at(ds.subset(4), 2)
     # more queries than references: rebuilt by the frame rule, not widened
     aligned = PlaceDataset("a", paths, paths[:3], frame_aligned(6, 3, 0), 0)
     np.testing.assert_array_equal(ground_truth_at(aligned, 2), frame_aligned(6, 3, 2))

@@ -112,7 +112,8 @@ def ground_truth_at(dataset: Any, tolerance: int | None) -> np.ndarray:
 
     Frame-aligned ground truth is rebuilt at ``tolerance``; any other (a file's, widened by
     the loaded tolerance) is widened further. Refused, naming the fix: a distance rule or soft
-    ground truth (no frames to count), and less widening than the file was loaded with.
+    ground truth (no frames to count), less widening than the file was loaded with, and
+    widening a :meth:`~vpr_core.datasets.PlaceDataset.subset` of a file's.
     """
     gt = np.asarray(dataset.ground_truth, dtype=bool)
     loaded = dataset.tolerance
@@ -130,8 +131,14 @@ def ground_truth_at(dataset: Any, tolerance: int | None) -> np.ndarray:
     nq, nr = gt.shape
     if np.array_equal(gt, frame_aligned(nq, nr, loaded)):
         return frame_aligned(nq, nr, tolerance)
-    if tolerance > loaded:
+    if tolerance > loaded and "subset" not in dataset.meta:
         return widen(gt, tolerance - loaded)
+    if tolerance > loaded:  # pairs beyond the cut would widen into it: not what loading gives
+        raise ValueError(
+            f"tolerance={tolerance}: {dataset.name!r} is a subset of a ground-truth file's "
+            "dataset, and widening the cut matrix would miss the pairs beyond the cut; load it "
+            f"with tolerance={tolerance}, then take the subset"
+        )
     raise ValueError(
         f"tolerance={tolerance}: {dataset.name!r} was loaded with its ground truth widened by "
         f"{loaded} frames, which cannot be narrowed again; load it with tolerance={tolerance} "
