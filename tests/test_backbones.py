@@ -12,6 +12,7 @@ from vpr_core.backbones import (
     backbone_options,
     build_backbone,
     canonical_backbone,
+    feature_shape,
     parse_backbone,
 )
 from vpr_core.backbones.efficientnet_lite import (
@@ -68,15 +69,18 @@ def test_lite_variants_are_different_networks():
     ],
 )
 def test_spec_feature_shapes(spec, shape):
+    size = parse_backbone(spec)[1]["input_size"]
     model = build_backbone(spec)
-    assert model.feature_shape == shape and model.raw_dim == int(np.prod(shape))
-    x = torch.zeros(2, 3, model.input_size, model.input_size)
+    assert feature_shape(model, size) == shape
+    x = torch.zeros(2, 3, size, size)
     with torch.inference_mode():
-        assert model(x).shape == (2, model.raw_dim)
+        assert model(x).shape == (2, int(np.prod(shape)))
+    enc = LandmarkEncoder(spec, dim=None)
+    assert (enc.input_size, enc.feature_shape, enc.raw_dim) == (size, shape, int(np.prod(shape)))
 
 
 def test_lite_stage_features_match_classifier():
-    feats = EfficientNetLiteFeatures(input_size=96, stage=5, variant="lite2")
+    feats = EfficientNetLiteFeatures(stage=5, variant="lite2")
     clf = efficientnet_lite_classifier("lite2")
     x = torch.randn(2, 3, 96, 96, generator=torch.Generator().manual_seed(0))
     with torch.inference_mode():

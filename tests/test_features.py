@@ -14,6 +14,7 @@ from torch import nn
 
 from vpr_core import settings
 from vpr_core.backbones import alexnet as alexnet_mod
+from vpr_core.backbones import feature_shape
 from vpr_core.backbones.checkpoint import file_sha256
 from vpr_core.backbones.efficientnet_lite import (
     IMAGENET_MEAN,
@@ -99,8 +100,8 @@ def test_same_padding_shapes():
 
 
 def test_truncated_fused_features_match_classifier_stage(classifier):
-    feats = EfficientNetLiteFeatures(input_size=96, stage=5, variant="lite0")
-    assert feats.feature_shape == (112, 6, 6) and feats.raw_dim == 112 * 36
+    feats = EfficientNetLiteFeatures(stage=5, variant="lite0")
+    assert feature_shape(feats, 96) == (112, 6, 6)
     x = torch.randn(3, 3, 96, 96, generator=torch.Generator().manual_seed(0))
     with torch.inference_mode():
         ref = classifier.extract_stage(x, 5).flatten(1)
@@ -248,7 +249,7 @@ def test_alexnet_weights_from_file_and_env(tmp_path, monkeypatch, no_alexnet_env
     path = tmp_path / "my_alexnet.pth"
     torch.save(sd, path)
     enc = LandmarkEncoder("alexnet_conv3", dim=64, weights=str(path))
-    assert enc.raw_dim == 64_896 and enc.model.feature_shape == (384, 13, 13)
+    assert enc.raw_dim == 64_896 and enc.feature_shape == (384, 13, 13)
     sha = file_sha256(path)
     assert enc.input_size == 227 and enc.config["weights"] == f"user weights {sha[:12]}"
     assert enc.config["weights_sha256"] == sha

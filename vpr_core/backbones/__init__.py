@@ -1,6 +1,6 @@
 """Landmark backbones by name or spec (``"efficientnet_lite0:stage=4,input_size=96"``) or a user's
-``nn.Module`` (:class:`ModuleBackbone`); each has ``input_size``, ``raw_dim``, ``feature_shape``,
-``mean``, ``std``, ``weights_sha256`` (identity by content), ``weights_source`` and ``forward``."""
+``nn.Module`` (:class:`ModuleBackbone`); each has ``mean``, ``std``, ``weights_sha256`` (identity
+by content), ``weights_source`` and ``forward``; the crop side is the encoder's."""
 
 from __future__ import annotations
 
@@ -8,8 +8,9 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
+import torch
 from torch import nn
 
 from ..paper import ALEXNET_INPUT
@@ -38,10 +39,8 @@ class _Entry:
 
 
 def _lite(variant: str) -> Factory:
-    def build(input_size: int, weights: Weights, seed: int, stage: int) -> nn.Module:
-        return EfficientNetLiteFeatures(
-            input_size=input_size, stage=stage, weights=weights, variant=variant
-        )
+    def build(weights: Weights, seed: int, stage: int) -> nn.Module:
+        return EfficientNetLiteFeatures(stage=stage, weights=weights, variant=variant)
 
     return build
 
@@ -53,14 +52,14 @@ def _lite_file(variant: str) -> Callable[[Weights], Path]:
     return resolve
 
 
-def _alexnet_conv3(input_size: int, weights: Weights, seed: int) -> nn.Module:
-    return AlexNetConv3(input_size=input_size, weights=weights, seed=seed)
+def _alexnet_conv3(weights: Weights, seed: int) -> nn.Module:
+    return AlexNetConv3(weights=weights, seed=seed)
 
 
-def _hog(input_size: int, weights: Weights, seed: int) -> nn.Module:
+def _hog(weights: Weights, seed: int) -> nn.Module:
     if weights is not None:
         raise ValueError("the 'hog' backbone has no weights; pass weights=None")
-    return HOGBackbone(input_size=input_size)
+    return HOGBackbone()
 
 
 _REGISTRY: dict[str, _Entry] = {
@@ -73,7 +72,7 @@ _REGISTRY: dict[str, _Entry] = {
     "alexnet_conv3": _Entry(_alexnet_conv3, ALEXNET_INPUT, {}, resolve_weights),
     "hog": _Entry(_hog, 64),
 }
-#: name -> factory (``factory(input_size, weights, seed, **options)``).
+#: name -> factory (``factory(weights, seed, **options)``; the crop side is the encoder's).
 BACKBONES: dict[str, Factory] = {k: v.factory for k, v in _REGISTRY.items()}
 #: Default crop side per backbone (square).
 DEFAULT_INPUT_SIZE: dict[str, int] = {k: v.input_size for k, v in _REGISTRY.items()}
@@ -164,31 +163,28 @@ def weights_sha256(spec: str, weights: Weights = None) -> str:
     return file_sha256(found) if found.is_file() else "missing"
 
 
-def build_backbone(
-    name: str | nn.Module,
-    input_size: int | None = None,
-    weights: Weights = None,
-    seed: int = 0,
-) -> nn.Module:
-    """Instantiate a backbone from its name or spec, or wrap a user module (eval mode).
+def build_backbone(spec: str, weights: Weights = None, seed: int = 0) -> nn.Module:
+    """The network of a backbone name or spec, in eval mode (the spec's ``input_size`` is the
+    encoder's crop side; :func:`feature_shape` gives the network's output at a side).
 
     The arguments are trusted: :class:`~vpr_core.features.Encoder` checks them once.
-
-    Args:
-        name: one of :func:`available_backbones`, optionally with options (see module doc), or
-            an ``nn.Module`` (see :class:`ModuleBackbone`; then ``input_size`` is its crop side).
-        input_size: crop side; None -> the spec's ``input_size`` or the backbone's default.
-        weights: backbone-specific weights (path, ``"random"`` for AlexNet, None = default).
-        seed: seed for backbones with a random initialisation (``alexnet_conv3``, ``"random"``).
+    ``weights``: a path, ``"random"`` for AlexNet, None: the default lookup; ``seed`` seeds a
+    random initialisation.
     """
-    if isinstance(name, nn.Module):
-        return ModuleBackbone(name, int(cast(int, input_size)))
-    base, options = parse_backbone(name)
-    if input_size is not None:
-        options["input_size"] = int(input_size)
-    size = options.pop("input_size")
-    model: Any = _REGISTRY[base].factory(size, weights, seed, **options)
+    base, options = parse_backbone(spec)
+    del options["input_size"]
+    model: Any = _REGISTRY[base].factory(weights, seed, **options)
     return model.eval()
+
+
+def feature_shape(model: nn.Module, input_size: int) -> tuple[int, ...]:
+    """``model``'s feature shape on ``(B, 3, S, S)`` crops, ``S = input_size``: its feature map's
+    ``(C, h, w)`` where it has one, else its output's ``(D,)`` (measured on one zero crop)."""
+    net: Any = model
+    with torch.inference_mode():
+        x = torch.zeros(1, 3, input_size, input_size)
+        out = net.feature_map(x) if hasattr(net, "feature_map") else net(x)
+    return tuple(int(n) for n in out.shape[1:])
 
 
 __all__ = [
@@ -199,6 +195,7 @@ __all__ = [
     "backbone_options",
     "build_backbone",
     "canonical_backbone",
+    "feature_shape",
     "parse_backbone",
     "weights_sha256",
 ]

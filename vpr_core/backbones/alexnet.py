@@ -12,7 +12,6 @@ import torch
 from torch import nn
 
 from .. import settings
-from ..paper import ALEXNET_INPUT
 from .checkpoint import file_sha256, load_checkpoint, user_weights_label
 
 logger = logging.getLogger("vpr_core")
@@ -123,9 +122,10 @@ def extract_conv3_state(
 class AlexNetConv3(nn.Module):
     """AlexNet truncated after conv3 + ReLU (torchvision parameter names ``features.N``).
 
+    Its features on the paper's 227-pixel crops (``paper.ALEXNET_INPUT``) are ``(384, 13, 13)``,
+    ``paper.ALEXNET_CONV3_DIM`` values.
+
     Attributes:
-        input_size: square crop side (``paper.ALEXNET_INPUT`` = 227).
-        raw_dim: ``384 * 13 * 13`` (``paper.ALEXNET_CONV3_DIM``) at 227.
         stride: 16, the conv3 output stride (two stride-2 max-pools after the stride-4 conv1).
         feature_offset: 15.5: conv3 cell ``i`` is centred on input pixel ``16 * i + 15``
             (continuous coordinate ``16 * i + 15.5``; conv1 pads 2 with an 11-pixel kernel).
@@ -133,7 +133,7 @@ class AlexNetConv3(nn.Module):
         weights_source: ``"ImageNet (torchvision ...)"`` when the hash is torchvision's file,
             ``"user weights <first 12 hex>"`` otherwise, or ``"random (NOT pretrained)"``.
 
-    ``forward``: ``(B, 3, s, s)`` ImageNet-normalised crops -> ``(B, raw_dim)`` float32;
+    ``forward``: ``(B, 3, s, s)`` ImageNet-normalised crops -> ``(B, 384 * h * w)`` float32;
     ``feature_map``: ``(B, 3, H, W)`` -> ``(B, 384, h, w)``.
     """
 
@@ -142,12 +142,7 @@ class AlexNetConv3(nn.Module):
     stride = 16
     feature_offset = 15.5
 
-    def __init__(
-        self,
-        input_size: int = ALEXNET_INPUT,
-        weights: str | os.PathLike | None = None,
-        seed: int = 0,
-    ) -> None:
+    def __init__(self, weights: str | os.PathLike | None = None, seed: int = 0) -> None:
         super().__init__()
         self.features = nn.Sequential(
             nn.Conv2d(3, 64, kernel_size=11, stride=4, padding=2),
@@ -184,11 +179,6 @@ class AlexNetConv3(nn.Module):
                 if self.weights_sha256.startswith(IMAGENET_SHA256_PREFIX)
                 else user_weights_label(self.weights_sha256)
             )
-        self.input_size = int(input_size)
-        with torch.inference_mode():
-            shape = self.features(torch.zeros(1, 3, self.input_size, self.input_size)).shape[1:]
-        self.feature_shape = tuple(shape)
-        self.raw_dim = int(shape.numel())
         self.eval()
 
     def feature_map(self, batch: torch.Tensor) -> torch.Tensor:

@@ -386,19 +386,16 @@ class EfficientNetLiteFeatures(nn.Module):
     chosen on real data (README "Which descriptor?", ``benchmarks/bench_descriptors.py``).
 
     Attributes:
-        input_size: square crop side fed to the network.
         stage: the stage whose output is the feature.
         stride: output stride of that stage (16 for stages 4-5).
         feature_offset: continuous pixel coordinate of the centre of feature cell 0 along each
             axis (TF "same" padding puts it at ``stride - 0.5`` for even sizes); cell ``i`` is
             centred at ``stride * i + feature_offset``.
-        feature_shape: ``(C, side, side)`` with ``side = ceil(input_size / stride)``.
-        raw_dim: flattened feature size ``C * side**2``.
         weights_sha256: sha256 of the weights file's contents (the cache key's weights identity).
         weights_source: ``"ImageNet (<package>)"`` for the shipped file, else
             ``"user weights <first 12 hex>"`` (from the hash, never the file name).
 
-    ``forward``: ``(B, 3, s, s)`` normalised crops -> ``(B, raw_dim)`` float32;
+    ``forward``: ``(B, 3, s, s)`` normalised crops -> ``(B, C * ceil(s / stride)**2)`` float32;
     ``feature_map``: ``(B, 3, H, W)`` -> ``(B, C, ceil(H / stride), ceil(W / stride))``.
     """
 
@@ -407,7 +404,6 @@ class EfficientNetLiteFeatures(nn.Module):
 
     def __init__(
         self,
-        input_size: int = 128,
         stage: int = 5,
         weights: str | os.PathLike | None = None,
         variant: str = "lite0",
@@ -425,12 +421,7 @@ class EfficientNetLiteFeatures(nn.Module):
         self.net: Any = fused.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
         self.variant = variant
         self.stage = stage
-        self.input_size = int(input_size)
         self.feature_offset = self.stride - 0.5
-        channels = VARIANTS[variant][0][stage - 1]
-        side = math.ceil(self.input_size / self.stride)
-        self.feature_shape = (channels, side, side)
-        self.raw_dim = channels * side * side
         self.weights_sha256 = file_sha256(path)
         self.weights_source = weights_label(self.weights_sha256, variant)
 

@@ -9,18 +9,14 @@ from torch import nn
 
 
 class HOGBackbone(nn.Module):
-    """Histogram of oriented gradients on grayscale crops (default 64x64).
+    """Histogram of oriented gradients on grayscale crops (the registry's default 64x64).
 
     9 orientations, 8x8-pixel cells, 2x2-cell blocks, L2-Hys block normalisation: at 64x64 the
     descriptor is 7*7*2*2*9 = 1,764-d. A cheap, training-free baseline for the CNN descriptors.
-
-    Attributes:
-        input_size: square crop side.
-        raw_dim: HOG length.
-        weights_sha256: ``"none"``; weights_source: ``"none (handcrafted)"``.
+    ``weights_sha256``: ``"none"``; ``weights_source``: ``"none (handcrafted)"``.
 
     ``forward``: ``(B, 3, s, s)`` RGB crops in [0, 1] (``mean=0``, ``std=1``: no normalisation)
-    -> ``(B, raw_dim)`` float32 on the batch's device (HOG itself runs on the CPU). No
+    -> ``(B, D)`` float32 on the batch's device (HOG itself runs on the CPU). No
     ``feature_map``: the ``roi`` pooling mode does not apply to it.
     """
 
@@ -30,14 +26,9 @@ class HOGBackbone(nn.Module):
     weights_source = "none (handcrafted)"
 
     def __init__(
-        self,
-        input_size: int = 64,
-        orientations: int = 9,
-        pixels_per_cell: int = 8,
-        cells_per_block: int = 2,
+        self, orientations: int = 9, pixels_per_cell: int = 8, cells_per_block: int = 2
     ) -> None:
         super().__init__()
-        self.input_size = int(input_size)
         self.hog_params = {
             "orientations": orientations,
             "pixels_per_cell": (pixels_per_cell, pixels_per_cell),
@@ -45,17 +36,9 @@ class HOGBackbone(nn.Module):
             "block_norm": "L2-Hys",
             "feature_vector": True,
         }
-        self.raw_dim = int(
-            hog(np.zeros((self.input_size, self.input_size)), **self.hog_params).size
-        )
-        self.feature_shape = (self.raw_dim,)
 
     def forward(self, batch: torch.Tensor) -> torch.Tensor:
         w = torch.tensor([0.299, 0.587, 0.114], dtype=batch.dtype, device=batch.device)
         gray = (batch * w[None, :, None, None]).sum(1).cpu().numpy().astype(np.float64)
-        feats = (
-            np.stack([hog(g, **self.hog_params) for g in gray])
-            if len(gray)
-            else np.zeros((0, self.raw_dim))
-        )
+        feats = np.stack([hog(g, **self.hog_params) for g in gray])
         return torch.from_numpy(feats.astype(np.float32)).to(batch.device)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import math
 from typing import Any, cast
 
 import numpy as np
@@ -16,6 +17,7 @@ from ..backbones import (
     ModuleBackbone,
     build_backbone,
     canonical_backbone,
+    feature_shape,
     parse_backbone,
 )
 from ..checks import check_boxes, check_choice, check_image, check_int
@@ -147,6 +149,7 @@ class LandmarkEncoder:
 
     Attributes:
         spec: the :class:`Encoder` value.
+        input_size: the crop side; feature_shape: the backbone's output on one crop.
         raw_dim: backbone feature length before projection.
         dim: descriptor length actually produced.
         config: dict describing everything that determines the descriptors (cache key),
@@ -167,7 +170,6 @@ class LandmarkEncoder:
         self.kwargs: dict[str, Any] = {
             f.name: getattr(spec, f.name) for f in dataclasses.fields(spec)
         }
-        is_module = isinstance(spec.backbone, nn.Module)
         name = (
             type(spec.backbone).__name__
             if isinstance(spec.backbone, nn.Module)
@@ -182,25 +184,24 @@ class LandmarkEncoder:
         self.batch_size = spec.batch_size
         self.antialias = spec.antialias
         self.roi_sampling = spec.roi_sampling
-        self.model: Any = cast(
-            Any,
-            build_backbone(
-                spec.backbone if is_module else name,
-                input_size=spec.input_size,
-                weights=spec.weights,
-                seed=self.seed,
-            ).to(self.device),
-        )
+        if isinstance(spec.backbone, nn.Module):
+            model: Any = ModuleBackbone(spec.backbone, cast(int, spec.input_size))
+            self.input_size, shape = model.input_size, model.feature_shape
+        else:
+            model = build_backbone(name, spec.weights, self.seed)
+            size = spec.input_size or parse_backbone(name)[1]["input_size"]
+            self.input_size, shape = size, feature_shape(model, size)
+        self.model = model.to(self.device)
         if self.pooling == "roi" and getattr(self.model, "stride", None) is None:
             raise ValueError(
                 f"pooling='roi' needs a backbone with a spatial feature map of known stride; "
                 f"{name!r} has none: use pooling='crop' (a module may set a `stride` attribute)"
             )
-        self.input_size = int(self.model.input_size)
+        self.feature_shape: tuple[int, ...] = shape
         self.roi_grid = (
             RoiGrid(
                 self.input_size,
-                int(self.model.feature_shape[-1]),  # AlexNet conv3: 13, not ceil(227 / 16)
+                shape[-1],  # AlexNet conv3: 13, not ceil(227 / 16)
                 int(self.model.stride),
                 float(self.model.feature_offset),
                 self.roi_sampling,
@@ -213,7 +214,7 @@ class LandmarkEncoder:
             if spec.working_size is None
             else spec.working_size
         )
-        self.raw_dim = int(self.model.raw_dim)
+        self.raw_dim = math.prod(shape)
         self.weights_source = str(self.model.weights_source)
         self._mean = torch.tensor(self.model.mean, dtype=torch.float32, device=self.device)
         self._std = torch.tensor(self.model.std, dtype=torch.float32, device=self.device)
@@ -234,7 +235,7 @@ class LandmarkEncoder:
             "backbone": self.backbone_name,
             "input_size": self.input_size,
             "raw_dim": self.raw_dim,
-            "feature_shape": list(getattr(self.model, "feature_shape", (self.raw_dim,))),
+            "feature_shape": list(self.feature_shape),
             "dim": self.dim,
             "projection": (
                 "none"
