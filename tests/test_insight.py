@@ -284,9 +284,11 @@ def test_per_query_contrast_zero_share(kept):
         Matching(weighting="contrast"),
     )[0]
     assert row["contrast zero share"] == pytest.approx(np.mean(m.weights == 0))
-    # the same statistics as the weighted run: its top-1 score is that pair's similarity
+    # the same statistics as the weighted run: its top-1 score is that pair's similarity, to
+    # float32 rounding (the pair and the block take their cosines from matmuls of other shapes,
+    # which round differently by CPU: 1.5e-7 relative on an Intel Xeon, under 1e-9 on an AMD EPYC)
     w = run_method("dense", dense_set(kept), weighting="contrast", n_bootstrap=0).similarity
-    assert m.similarity == pytest.approx(w[q, r], abs=1e-9)
+    assert m.similarity == pytest.approx(w[q, r], rel=1e-6)
 
 
 def dense_set(kept):
