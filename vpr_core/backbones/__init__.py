@@ -32,7 +32,7 @@ def _no_weights(weights: Weights) -> Path | str | None:
 
 @dataclass(frozen=True)
 class _Entry:
-    factory: Factory
+    factory: Factory  # factory(weights, seed, **options): a network; the crop side is the encoder's
     input_size: int
     options: dict[str, int] = field(default_factory=dict)  # option -> default (besides size)
     resolve: Callable[[Weights], Path | str | None] = _no_weights  # the weights file it reads
@@ -72,10 +72,6 @@ _REGISTRY: dict[str, _Entry] = {
     "alexnet_conv3": _Entry(_alexnet_conv3, ALEXNET_INPUT, {}, resolve_weights),
     "hog": _Entry(_hog, 64),
 }
-#: name -> factory (``factory(weights, seed, **options)``; the crop side is the encoder's).
-BACKBONES: dict[str, Factory] = {k: v.factory for k, v in _REGISTRY.items()}
-#: Default crop side per backbone (square).
-DEFAULT_INPUT_SIZE: dict[str, int] = {k: v.input_size for k, v in _REGISTRY.items()}
 #: Valid stage range of the EfficientNet-Lite backbones.
 _STAGES = range(1, 8)
 
@@ -188,8 +184,6 @@ def feature_shape(model: nn.Module, input_size: int) -> tuple[int, ...]:
 
 
 __all__ = [
-    "BACKBONES",
-    "DEFAULT_INPUT_SIZE",
     "ModuleBackbone",
     "available_backbones",
     "backbone_options",
