@@ -6,7 +6,9 @@ the paper's crop pooling kept. Each distinct box of each study image goes throug
 exactly once (the feature stores are keyed by box content, shared by every sweep point and
 notebook). This script counts the rows of the stores in a cache that ``make study`` filled and
 times ``LandmarkEncoder.encode_crops`` (network and projection, the study's batches of 50) here;
-their product is what the crop features alone take, whatever the rest of the study does.
+their product is what the crop features alone take, whatever the rest of the study does. The
+timing is taken with the backbone's fused oneDNN path (what the study runs) and, interleaved,
+without it (``fused_onednn = False``), and the two runs' descriptors are compared bit for bit.
 
 Usage::
 
@@ -43,17 +45,32 @@ def store_rows(folder: Path) -> tuple[int, int]:
     return len(stores), rows
 
 
-def seconds_per_crop(encoder, n: int, repeats: int) -> float:
-    """Median seconds per crop of ``encode_crops`` on ``n`` random crops, ``repeats`` times."""
+def seconds_per_crop(encoder, n: int, repeats: int) -> tuple[float, float, bool]:
+    """Median seconds per crop of ``encode_crops`` on ``n`` random crops, with the backbone's fused
+    oneDNN path and without it (interleaved, ``repeats`` times each), and whether the two gave the
+    same descriptors bit for bit."""
     s = encoder.input_size
     crops = torch.randn(n, 3, s, s, generator=torch.Generator().manual_seed(0))
-    encoder.encode_crops(crops[: encoder.batch_size])  # warm-up
-    times = []
+    model = encoder.model
+    fusable = hasattr(model, "fused_onednn")
+    times: dict[bool, list[float]] = {True: [], False: []}
+    outs: dict[bool, np.ndarray] = {}
+    for fused in (True, False) if fusable else (False,):
+        if fusable:
+            model.fused_onednn = fused
+        outs[fused] = encoder.encode_crops(crops[: encoder.batch_size])  # warm-up (and check)
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        encoder.encode_crops(crops)
-        times.append((time.perf_counter() - t0) / n)
-    return statistics.median(times)
+        for fused in outs:
+            if fusable:
+                model.fused_onednn = fused
+            t0 = time.perf_counter()
+            encoder.encode_crops(crops)
+            times[fused].append((time.perf_counter() - t0) / n)
+    if fusable:
+        model.fused_onednn = True
+    fused_s = statistics.median(times[True] or times[False])
+    same = all(np.array_equal(o, outs[False]) for o in outs.values())
+    return fused_s, statistics.median(times[False]), same
 
 
 def main() -> None:
@@ -72,12 +89,14 @@ def main() -> None:
         print(f"(other encoder {other.name}: {n_box:,} boxes in {n_img} images, not counted)")
     if boxes == 0:
         raise SystemExit(f"no feature stores in {root / slug}: run make study with this cache")
-    per_crop = seconds_per_crop(encoder, args.crops, args.repeats)
+    per_crop, module_s, same = seconds_per_crop(encoder, args.crops, args.repeats)
     floor = boxes * per_crop
     print(f"distinct crops in {root / slug}: {boxes:,} in {images} images")
     print(
         f"encode_crops here: {per_crop * 1e3:.2f} ms per crop (median of {args.repeats} x "
-        f"{args.crops} crops, {torch.get_num_threads()} torch threads)"
+        f"{args.crops} crops, {torch.get_num_threads()} torch threads); module path "
+        f"{module_s * 1e3:.2f} ms ({module_s / per_crop:.2f}x the fused oneDNN path), "
+        f"descriptors {'identical' if same else 'DIFFERENT'} bit for bit"
     )
     print(
         f"floor: the crop features alone take >= {floor:.0f} s; issue 35's target for the "

@@ -151,3 +151,65 @@ def test_stride2_block_fused_path_equals_unfused():
         y = block._bn1(block._depthwise_conv(y)).clamp_(0.0, 6.0)  # F.pad inside forward
         ref = block._bn2(block._project_conv(y))
     assert torch.equal(got, ref)
+
+
+@pytest.fixture(scope="module")
+def lite0_features():
+    return EfficientNetLiteFeatures(stage=5)
+
+
+@pytest.mark.parametrize(
+    "shape", [(3, 3, 128, 128), (2, 3, 96, 96), (1, 3, 97, 130), (1, 3, 61, 64)]
+)
+def test_onednn_feature_map_computes_the_module_path(lite0_features, shape):
+    """The fused oneDNN convolutions (ReLU6 on the accumulators, stride-2 "same" padding inside the
+    call, the extra output row/column sliced off after the 1x1 projection) compute the module
+    path's network on odd and even sizes: the same shape, equal to float32 rounding."""
+    from vpr_core.backbones.efficientnet_lite import onednn_feature_map
+
+    x = torch.randn(*shape, generator=torch.Generator().manual_seed(3)) * 1.5
+    x = x.contiguous(memory_format=torch.channels_last)
+    with torch.inference_mode():
+        ref = lite0_features._module_feature_map(x)
+        got = onednn_feature_map(lite0_features.net, x)
+    assert got.shape == ref.shape == (shape[0], 112, -(-shape[2] // 16), -(-shape[3] // 16))
+    torch.testing.assert_close(got, ref, rtol=1e-5, atol=1e-5)
+
+
+def test_feature_map_gives_the_module_paths_bits_on_every_call():
+    """feature_map's first batch of a shape checks the fused path against the module path; every
+    call after that returns the module path's bits, fused or not (whatever this CPU decided)."""
+    model = EfficientNetLiteFeatures(stage=5)
+    x = torch.randn(4, 3, 96, 96, generator=torch.Generator().manual_seed(4))
+    with torch.inference_mode():
+        ref = model._module_feature_map(x.contiguous(memory_format=torch.channels_last))
+        first, second = model.feature_map(x), model.feature_map(x)
+    assert set(model._onednn_agrees) == {((4, 3, 96, 96), torch.get_num_threads())}
+    assert torch.equal(first, ref) and torch.equal(second, ref)
+
+
+def test_feature_map_keeps_the_module_path_where_the_fused_one_differs(monkeypatch):
+    """A shape whose fused result differs in one bit is recorded as such and runs the module path
+    from then on (the fused function is not called again)."""
+    from vpr_core.backbones import efficientnet_lite
+
+    model = EfficientNetLiteFeatures(stage=5)
+    real = efficientnet_lite.onednn_feature_map
+    calls = []
+
+    def off_by_one_ulp(net, x):
+        calls.append(x.shape)
+        out = real(net, x)
+        return torch.nextafter(out, out + 1)
+
+    monkeypatch.setattr(efficientnet_lite, "onednn_feature_map", off_by_one_ulp)
+    x = torch.randn(2, 3, 64, 64, generator=torch.Generator().manual_seed(5))
+    with torch.inference_mode():
+        ref = model._module_feature_map(x.contiguous(memory_format=torch.channels_last))
+        outs = [model.feature_map(x) for _ in range(3)]
+    assert model._onednn_agrees == {((2, 3, 64, 64), torch.get_num_threads()): False}
+    assert len(calls) == 1 and all(torch.equal(o, ref) for o in outs)
+    model.fused_onednn = False  # off: a new shape is neither checked nor fused
+    with torch.inference_mode():
+        assert model.feature_map(torch.randn(1, 3, 32, 32)).shape == (1, 112, 2, 2)
+    assert len(calls) == 1 and len(model._onednn_agrees) == 1
