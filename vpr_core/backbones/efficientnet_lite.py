@@ -273,8 +273,9 @@ def _onednn_conv(
 
 def onednn_feature_map(net: EfficientNetLite, x: torch.Tensor) -> torch.Tensor:
     """:meth:`EfficientNetLite.extract_stage` of a BN-folded net over its blocks, through fused
-    oneDNN convolutions (CPU, float32, inference); about 1.4x faster on 50 crops of 128 px. The
-    stem keeps its ``F.pad`` (3 channels: cheap, and its kernel changes with in-call padding)."""
+    oneDNN convolutions (CPU, float32, inference; 1.25x faster on the study's crops, see
+    ``benchmarks/study_floor.py``). The stem keeps its ``F.pad``: 3 channels are cheap to pad,
+    and with in-call padding its kernel, and its bits, change."""
     stem = net._conv_stem
     pads = stem.same_pads(x.shape[-2], x.shape[-1])
     x = F.pad(x, pads) if any(pads) else x
