@@ -213,3 +213,20 @@ def test_feature_map_keeps_the_module_path_where_the_fused_one_differs(monkeypat
     with torch.inference_mode():
         assert model.feature_map(torch.randn(1, 3, 32, 32)).shape == (1, 112, 2, 2)
     assert len(calls) == 1 and len(model._onednn_agrees) == 1
+
+
+def test_feature_map_keeps_the_module_path_where_the_fused_call_fails(monkeypatch):
+    """A oneDNN build whose fused call raises gives the module path's result, and only that."""
+    from vpr_core.backbones import efficientnet_lite
+
+    def unsupported(net, x):
+        raise RuntimeError("could not create a primitive descriptor")
+
+    model = EfficientNetLiteFeatures(stage=5)
+    monkeypatch.setattr(efficientnet_lite, "onednn_feature_map", unsupported)
+    x = torch.randn(2, 3, 32, 32, generator=torch.Generator().manual_seed(6))
+    with torch.inference_mode():
+        ref = model._module_feature_map(x.contiguous(memory_format=torch.channels_last))
+        outs = [model.feature_map(x) for _ in range(2)]
+    assert list(model._onednn_agrees.values()) == [False]
+    assert all(torch.equal(o, ref) for o in outs)

@@ -505,10 +505,13 @@ class EfficientNetLiteFeatures(nn.Module):
         fast = self._onednn_agrees.get(key) if self.fused_onednn else False
         if fast is None and self._onednn_usable(x):
             ref = self._module_feature_map(x)
-            fast = torch.equal(onednn_feature_map(self.net, x), ref)
+            try:
+                fast, why = torch.equal(onednn_feature_map(self.net, x), ref), "gives other bits"
+            except RuntimeError as exc:  # a oneDNN build without this primitive
+                fast, why = False, f"failed ({exc})"
             self._onednn_agrees[key] = fast
             if not fast:
-                logger.debug("fused oneDNN path differs at %s here: module path kept", key)
+                logger.debug("fused oneDNN path %s at %s: module path kept", why, key)
             return ref
         if fast and self._onednn_usable(x):
             return onednn_feature_map(self.net, x)
@@ -527,6 +530,7 @@ class EfficientNetLiteFeatures(nn.Module):
             and x.dtype == torch.float32
             and not torch.is_grad_enabled()
             and torch.backends.mkldnn.is_available()
+            and hasattr(torch.ops.mkldnn, "_convolution_pointwise")
         )
 
     def forward(self, batch: torch.Tensor) -> torch.Tensor:
