@@ -153,11 +153,20 @@ def test_stride2_block_fused_path_equals_unfused():
     assert torch.equal(got, ref)
 
 
+needs_fused_onednn = pytest.mark.skipif(
+    not (
+        torch.backends.mkldnn.is_available() and hasattr(torch.ops.mkldnn, "_convolution_pointwise")
+    ),
+    reason="this torch build has no oneDNN _convolution_pointwise (the module path runs instead)",
+)
+
+
 @pytest.fixture(scope="module")
 def lite0_features():
     return EfficientNetLiteFeatures(stage=5)
 
 
+@needs_fused_onednn
 @pytest.mark.parametrize(
     "shape", [(3, 3, 128, 128), (2, 3, 96, 96), (1, 3, 97, 130), (1, 3, 61, 64)]
 )
@@ -176,6 +185,7 @@ def test_onednn_feature_map_computes_the_module_path(lite0_features, shape):
     torch.testing.assert_close(got, ref, rtol=1e-5, atol=1e-5)
 
 
+@needs_fused_onednn
 def test_feature_map_gives_the_module_paths_bits_on_every_call():
     """feature_map's first batch of a shape checks the fused path against the module path; every
     call after that returns the module path's bits, fused or not (whatever this CPU decided)."""
@@ -188,6 +198,7 @@ def test_feature_map_gives_the_module_paths_bits_on_every_call():
     assert torch.equal(first, ref) and torch.equal(second, ref)
 
 
+@needs_fused_onednn
 def test_feature_map_keeps_the_module_path_where_the_fused_one_differs(monkeypatch):
     """A shape whose fused result differs in one bit is recorded as such and runs the module path
     from then on (the fused function is not called again)."""
@@ -215,6 +226,7 @@ def test_feature_map_keeps_the_module_path_where_the_fused_one_differs(monkeypat
     assert len(calls) == 1 and len(model._onednn_agrees) == 1
 
 
+@needs_fused_onednn
 def test_feature_map_keeps_the_module_path_where_the_fused_call_fails(monkeypatch):
     """A oneDNN build whose fused call raises gives the module path's result, and only that."""
     from vpr_core.backbones import efficientnet_lite
