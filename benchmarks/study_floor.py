@@ -8,7 +8,8 @@ notebook). This script counts the rows of the stores in a cache that ``make stud
 times ``LandmarkEncoder.encode_crops`` (network and projection, the study's batches of 50) here;
 their product is what the crop features alone take, whatever the rest of the study does. The
 timing is taken with the backbone's fused oneDNN path (what the study runs) and, interleaved,
-without it (``fused_onednn = False``), and the two runs' descriptors are compared bit for bit.
+without it (``model.fused.enabled = False``); the two runs' descriptors are compared bit for
+bit.
 
 Usage::
 
@@ -52,22 +53,22 @@ def seconds_per_crop(encoder, n: int, repeats: int) -> tuple[float, float, bool]
     s = encoder.input_size
     crops = torch.randn(n, 3, s, s, generator=torch.Generator().manual_seed(0))
     model = encoder.model
-    fusable = hasattr(model, "fused_onednn")
+    fusable = hasattr(model, "fused")
     times: dict[bool, list[float]] = {True: [], False: []}
     outs: dict[bool, np.ndarray] = {}
     for fused in (True, False) if fusable else (False,):
         if fusable:
-            model.fused_onednn = fused
+            model.fused.enabled = fused
         outs[fused] = encoder.encode_crops(crops[: encoder.batch_size])  # warm-up (and check)
     for _ in range(repeats):
         for fused in outs:
             if fusable:
-                model.fused_onednn = fused
+                model.fused.enabled = fused
             t0 = time.perf_counter()
             encoder.encode_crops(crops)
             times[fused].append((time.perf_counter() - t0) / n)
     if fusable:
-        model.fused_onednn = True
+        model.fused.enabled = True
     fused_s = statistics.median(times[True] or times[False])
     same = all(np.array_equal(o, outs[False]) for o in outs.values())
     return fused_s, statistics.median(times[False]), same

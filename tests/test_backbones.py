@@ -174,12 +174,12 @@ def test_onednn_feature_map_computes_the_module_path(lite0_features, shape):
     """The fused oneDNN convolutions (ReLU6 on the accumulators, stride-2 "same" padding inside the
     call, the extra output row/column sliced off after the 1x1 projection) compute the module
     path's network on odd and even sizes: the same shape, equal to float32 rounding."""
-    from vpr_core.backbones.efficientnet_lite import onednn_feature_map
+    from vpr_core.backbones.fused import onednn_feature_map
 
     x = torch.randn(*shape, generator=torch.Generator().manual_seed(3)) * 1.5
     x = x.contiguous(memory_format=torch.channels_last)
     with torch.inference_mode():
-        ref = lite0_features._module_feature_map(x)
+        ref = lite0_features._module_path(x)
         got = onednn_feature_map(lite0_features.net, x)
     assert got.shape == ref.shape == (shape[0], 112, -(-shape[2] // 16), -(-shape[3] // 16))
     torch.testing.assert_close(got, ref, rtol=1e-5, atol=1e-5)
@@ -192,9 +192,9 @@ def test_feature_map_gives_the_module_paths_bits_on_every_call():
     model = EfficientNetLiteFeatures(stage=5)
     x = torch.randn(4, 3, 96, 96, generator=torch.Generator().manual_seed(4))
     with torch.inference_mode():
-        ref = model._module_feature_map(x.contiguous(memory_format=torch.channels_last))
+        ref = model._module_path(x.contiguous(memory_format=torch.channels_last))
         first, second = model.feature_map(x), model.feature_map(x)
-    assert set(model._onednn_agrees) == {((4, 3, 96, 96), torch.get_num_threads())}
+    assert set(model.fused.agrees) == {((4, 3, 96, 96), torch.get_num_threads())}
     assert torch.equal(first, ref) and torch.equal(second, ref)
 
 
@@ -202,10 +202,10 @@ def test_feature_map_gives_the_module_paths_bits_on_every_call():
 def test_feature_map_keeps_the_module_path_where_the_fused_one_differs(monkeypatch):
     """A shape whose fused result differs in one bit is recorded as such and runs the module path
     from then on (the fused function is not called again)."""
-    from vpr_core.backbones import efficientnet_lite
+    from vpr_core.backbones import fused
 
     model = EfficientNetLiteFeatures(stage=5)
-    real = efficientnet_lite.onednn_feature_map
+    real = fused.onednn_feature_map
     calls = []
 
     def off_by_one_ulp(net, x):
@@ -213,32 +213,32 @@ def test_feature_map_keeps_the_module_path_where_the_fused_one_differs(monkeypat
         out = real(net, x)
         return torch.nextafter(out, out + 1)
 
-    monkeypatch.setattr(efficientnet_lite, "onednn_feature_map", off_by_one_ulp)
+    monkeypatch.setattr(fused, "onednn_feature_map", off_by_one_ulp)
     x = torch.randn(2, 3, 64, 64, generator=torch.Generator().manual_seed(5))
     with torch.inference_mode():
-        ref = model._module_feature_map(x.contiguous(memory_format=torch.channels_last))
+        ref = model._module_path(x.contiguous(memory_format=torch.channels_last))
         outs = [model.feature_map(x) for _ in range(3)]
-    assert model._onednn_agrees == {((2, 3, 64, 64), torch.get_num_threads()): False}
+    assert model.fused.agrees == {((2, 3, 64, 64), torch.get_num_threads()): False}
     assert len(calls) == 1 and all(torch.equal(o, ref) for o in outs)
-    model.fused_onednn = False  # off: a new shape is neither checked nor fused
+    model.fused.enabled = False  # off: a new shape is neither checked nor fused
     with torch.inference_mode():
         assert model.feature_map(torch.randn(1, 3, 32, 32)).shape == (1, 112, 2, 2)
-    assert len(calls) == 1 and len(model._onednn_agrees) == 1
+    assert len(calls) == 1 and len(model.fused.agrees) == 1
 
 
 @needs_fused_onednn
 def test_feature_map_keeps_the_module_path_where_the_fused_call_fails(monkeypatch):
     """A oneDNN build whose fused call raises gives the module path's result, and only that."""
-    from vpr_core.backbones import efficientnet_lite
+    from vpr_core.backbones import fused
 
     def unsupported(net, x):
         raise RuntimeError("could not create a primitive descriptor")
 
     model = EfficientNetLiteFeatures(stage=5)
-    monkeypatch.setattr(efficientnet_lite, "onednn_feature_map", unsupported)
+    monkeypatch.setattr(fused, "onednn_feature_map", unsupported)
     x = torch.randn(2, 3, 32, 32, generator=torch.Generator().manual_seed(6))
     with torch.inference_mode():
-        ref = model._module_feature_map(x.contiguous(memory_format=torch.channels_last))
+        ref = model._module_path(x.contiguous(memory_format=torch.channels_last))
         outs = [model.feature_map(x) for _ in range(2)]
-    assert list(model._onednn_agrees.values()) == [False]
+    assert list(model.fused.agrees.values()) == [False]
     assert all(torch.equal(o, ref) for o in outs)

@@ -4,7 +4,6 @@ Lite: no squeeze-excitation, ReLU6, TF "same" padding, BatchNorm eps 1e-3 (folde
 
 from __future__ import annotations
 
-import logging
 import math
 import os
 from pathlib import Path
@@ -16,8 +15,7 @@ from torch import nn
 
 from .. import settings
 from .checkpoint import WeightsFileError, file_sha256, load_checkpoint, user_weights_label
-
-logger = logging.getLogger("vpr_core")
+from .fused import BitCheckedFusion
 
 #: (expand ratio, kernel, stride) per stage, shared by all Lite variants.
 STAGE_OPS: tuple[tuple[int, int, int], ...] = (
@@ -231,68 +229,6 @@ def fuse_batchnorms_(model: nn.Module) -> nn.Module:
     return model
 
 
-def _onednn_conv(
-    conv: Conv2dSame, x: torch.Tensor, relu6: bool
-) -> tuple[torch.Tensor, tuple[int, int, int, int] | None]:
-    """A BN-folded ``conv`` (+ ReLU6) as one oneDNN call: the clip runs on the accumulators, so the
-    activation is not written and read again. Stride-2 layers take their TF "same" padding inside
-    the call (symmetric, widened to keep the stride phase) instead of an ``F.pad`` copy of the
-    expanded activation; their output then has an extra row/column: the ``(row, col, h, w)``
-    window returned says where the wanted output lies (None: all of it)."""
-    pads = list(conv.padding)  # type: ignore[arg-type]
-    window = None
-    if conv._dynamic:
-        (top, bottom), (left, right) = (
-            _same_pad_amounts(x.shape[d], conv.kernel_size[i], conv.stride[i])
-            for i, d in ((0, -2), (1, -1))
-        )
-        s_h, s_w = conv.stride
-        pad_h = top + s_h * math.ceil(max(bottom - top, 0) / s_h)
-        pad_w = left + s_w * math.ceil(max(right - left, 0) / s_w)
-        pads = [pad_h, pad_w]
-        window = (
-            (pad_h - top) // s_h,
-            (pad_w - left) // s_w,
-            math.ceil(x.shape[-2] / s_h),
-            math.ceil(x.shape[-1] / s_w),
-        )
-    y = torch.ops.mkldnn._convolution_pointwise(
-        x,
-        conv.weight,
-        conv.bias,
-        pads,
-        list(conv.stride),
-        list(conv.dilation),
-        conv.groups,
-        "hardtanh" if relu6 else "none",
-        [0.0, 6.0] if relu6 else [],
-        "",
-    )
-    return y, window
-
-
-def onednn_feature_map(net: EfficientNetLite, x: torch.Tensor) -> torch.Tensor:
-    """:meth:`EfficientNetLite.extract_stage` of a BN-folded net over its blocks, through fused
-    oneDNN convolutions (CPU, float32, inference; 1.25x faster on the study's crops, see
-    ``benchmarks/study_floor.py``). The stem keeps its ``F.pad``: 3 channels are cheap to pad,
-    and with in-call padding its kernel, and its bits, change."""
-    stem = net._conv_stem
-    pads = stem.same_pads(x.shape[-2], x.shape[-1])
-    x = F.pad(x, pads) if any(pads) else x
-    x = torch.ops.mkldnn._convolution_pointwise(
-        x, stem.weight, stem.bias, [0, 0], list(stem.stride), [1, 1], 1, "hardtanh", [0.0, 6.0], ""
-    )
-    for block in cast(list[MBConvBlock], net._blocks):
-        y = _onednn_conv(block._expand_conv, x, relu6=True)[0] if block.has_expand else x
-        y, window = _onednn_conv(block._depthwise_conv, y, relu6=True)
-        y = _onednn_conv(block._project_conv, y, relu6=False)[0]  # 1x1: per pixel
-        if window is not None:  # slice after the projection: fewer channels to copy later
-            r, c, h, w = window
-            y = y[:, :, r : r + h, c : c + w]
-        x = y + x if block.skip else y
-    return x
-
-
 def stage_block_ranges(variant: str = "lite0") -> list[tuple[int, int]]:
     """Block index range ``[start, end)`` of each of the 7 stages (1-based stage = index + 1)."""
     ranges, start = [], 0
@@ -489,49 +425,20 @@ class EfficientNetLiteFeatures(nn.Module):
         self.feature_offset = self.stride - 0.5
         self.weights_sha256 = file_sha256(path)
         self.weights_source = weights_label(self.weights_sha256, variant)
-        self.fused_onednn = True  # False: always the module path (benchmarks compare the two)
-        self._onednn_agrees: dict[tuple[Any, ...], bool] = {}  # see feature_map
+        self.fused = BitCheckedFusion()  # fused.enabled = False: always the module path
 
     def feature_map(self, batch: torch.Tensor) -> torch.Tensor:
-        """``(B, 3, H, W)`` normalised images -> ``(B, C, ceil(H/stride), ceil(W/stride))``.
+        """``(B, 3, H, W)`` normalised images -> ``(B, C, ceil(H/stride), ceil(W/stride))``; on
+        CPU at inference through :attr:`fused` (the module path's bits, checked per shape)."""
+        return self.fused(
+            self.net, batch.contiguous(memory_format=torch.channels_last), self._module_path
+        )
 
-        On CPU at inference the fused oneDNN path (:func:`onednn_feature_map`) runs where it gave
-        the module path's bits: the first batch of each shape (and thread count) runs both and
-        compares them bit for bit; a shape where they differ keeps the module path, as does
-        ``fused_onednn = False``.
-        """
-        x = batch.contiguous(memory_format=torch.channels_last)
-        key = (tuple(x.shape), torch.get_num_threads())
-        fast = self._onednn_agrees.get(key) if self.fused_onednn else False
-        if fast is None and self._onednn_usable(x):
-            ref = self._module_feature_map(x)
-            try:
-                fast, why = torch.equal(onednn_feature_map(self.net, x), ref), "gives other bits"
-            except RuntimeError as exc:  # a oneDNN build without this primitive
-                fast, why = False, f"failed ({exc})"
-            self._onednn_agrees[key] = fast
-            if not fast:
-                logger.debug("fused oneDNN path %s at %s: module path kept", why, key)
-            return ref
-        if fast and self._onednn_usable(x):
-            return onednn_feature_map(self.net, x)
-        return self._module_feature_map(x)
-
-    def _module_feature_map(self, x: torch.Tensor) -> torch.Tensor:
+    def _module_path(self, x: torch.Tensor) -> torch.Tensor:
         x = self.net._bn0(self.net._conv_stem(x)).clamp_(0.0, 6.0)
         for block in self.net._blocks:
             x = block(x)
         return x
-
-    @staticmethod
-    def _onednn_usable(x: torch.Tensor) -> bool:
-        return (
-            x.device.type == "cpu"
-            and x.dtype == torch.float32
-            and not torch.is_grad_enabled()
-            and torch.backends.mkldnn.is_available()
-            and hasattr(torch.ops.mkldnn, "_convolution_pointwise")
-        )
 
     def forward(self, batch: torch.Tensor) -> torch.Tensor:
         return self.feature_map(batch).contiguous().flatten(1)
