@@ -1,10 +1,12 @@
-"""Landmark matching: Eq. (1)-(2), reciprocal nearest neighbours and Algorithm 4, in one torch core
-(:mod:`.core`); the public functions are in :mod:`.similarity`."""
+"""Landmark matching: Eq. (1)-(2), reciprocal nearest neighbours and Algorithm 4, for one image
+pair in :mod:`.pairwise` (the float64 reference that reads like the paper) and for blocks of pairs
+in the torch engine (:mod:`.core`, the same numbers); the public functions are in
+:mod:`.similarity`."""
 
 from __future__ import annotations
 
+from .pairwise import MatchResult
 from .similarity import (
-    MatchResult,
     check_pairs,
     cosine_distance,
     image_similarity,

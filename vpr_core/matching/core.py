@@ -1,5 +1,6 @@
-"""The one matching core: Eq. (1) with Eq. (2) and optional Algorithm 4 for blocks of image pairs.
-Inputs prepared in :mod:`.sides`, matches found in :mod:`.reciprocal`, public entry points in
+"""The block engine: Eq. (1) with Eq. (2) and optional Algorithm 4 for blocks of image pairs, the
+same numbers for blocks of pairs (reference: matching/pairwise.py, one pair in float64). Inputs
+prepared in :mod:`.sides`, matches found in :mod:`.reciprocal`, public entry points in
 :mod:`.similarity`; definitions in docs/DEFINITIONS.md (Matching)."""
 
 from __future__ import annotations

@@ -1,11 +1,12 @@
-"""Public matching functions, each a case of the one core (:class:`.core.Problem`): many pairs
-(:func:`similarity_matrix`, :func:`similarity_pairs`), one pair (the rest, float64)."""
+"""Public matching functions: many pairs by the block engine (:class:`.core.Problem`:
+:func:`similarity_matrix`, :func:`similarity_pairs`, :func:`weighted_matches`), one pair by the
+float64 reference of :mod:`.pairwise` (:func:`match_landmarks`, :func:`image_similarity`,
+:func:`reciprocal_matches`); the same numbers either way."""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
-from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
@@ -15,12 +16,12 @@ from ..checks import check_boxes
 from ..paper import SOFT_NMS_SIGMA
 from ..utils import progress
 from .core import BLOCK_BYTES, Problem, shape_terms
+from .pairwise import MatchResult, match_pair
 from .sides import LandmarkSets, rescale_rows, unit_rows
 from .spec import Compute, Matching, as_matching
 from .weighting import weighting_sample
 
 __all__ = [
-    "MatchResult",
     "check_pairs",
     "cosine_distance",
     "image_similarity",
@@ -224,38 +225,7 @@ def _run(prob: Problem, tasks: Sequence[Callable[[], None]]) -> None:
             bar.close()
 
 
-# ---- one image pair: the 1 x 1 case of the core, in float64 ------------------------------
-@dataclass
-class MatchResult:
-    """Landmark matches of one image pair and their Eq. (1) terms.
-
-    Attributes:
-        matches: ``(P, 2)`` int64 reciprocal ``(i, j)`` pairs, sorted by ``i``.
-        distances: ``(P,)`` cosine distances ``d_ij``.
-        shape: ``(P,)`` shape penalties ``s_ij`` (Eq. 2).
-        scores: ``(P,)`` pair scores entering Eq. (1): ``1 - d * s``, times ``spatial_weights``,
-            after soft-NMS if enabled.
-        similarity: Eq. (1) image similarity ``scores.sum() / sqrt(na * nb)``.
-        raw_scores: ``(P,)`` ``1 - d * s`` before any weight and soft-NMS.
-        n_a: number of landmarks of image a.
-        n_b: number of landmarks of image b.
-        spatial_weights: ``(P,)`` geometry weights (not in the paper; all 1 with ``spatial=None``).
-        weights: ``(P,)`` database weights (not in the paper; :func:`weighted_matches`), None
-            without a weighting.
-    """
-
-    matches: np.ndarray
-    distances: np.ndarray
-    shape: np.ndarray
-    scores: np.ndarray
-    similarity: float
-    raw_scores: np.ndarray
-    n_a: int
-    n_b: int
-    spatial_weights: np.ndarray
-    weights: np.ndarray | None = None
-
-
+# ---- the matches of listed pairs with their database weights (the block engine) ----------
 def _result(p, sim: float, na: int, nb: int, weights: bool = False) -> MatchResult:
     """A :class:`MatchResult` from the core's pairs of one image pair."""
     return MatchResult(
@@ -321,6 +291,7 @@ def weighted_matches(
     return out
 
 
+# ---- one image pair: the float64 reference of pairwise.py --------------------------------
 def match_landmarks(
     desc_a: np.ndarray | Sequence,
     boxes_a: np.ndarray | Sequence | None,
@@ -329,7 +300,8 @@ def match_landmarks(
     matching: Matching = Matching(),
 ) -> MatchResult:
     """Match the landmarks of two images and score them (Eq. 1-2, optional Algorithm 4), in
-    float64.
+    float64, by the reference :func:`~.pairwise.match_pair` (the same numbers as
+    :func:`similarity_matrix`).
 
     Args:
         desc_a: ``(Ka, D)`` descriptors of image a (query).
@@ -339,23 +311,19 @@ def match_landmarks(
         matching: a :class:`~.spec.Matching` without a weighting (that needs the references:
             :func:`weighted_matches`).
     """
-    if matching.weighting is not None:
-        raise ValueError("a weighting needs every reference: use weighted_matches")
+    # the boundary check of every matching call (shapes, NaN / inf, box counts, dimensions)
     prob = Problem.build(
         [np.asarray(desc_a)],
         None if boxes_a is None else [np.asarray(boxes_a)],
         [np.asarray(desc_b)],
         None if boxes_b is None else [np.asarray(boxes_b)],
-        matching,
+        Matching(),
         Compute(matmul_dtype="float64"),
         sides=("a", "b"),
     )
-    na, nb = int(prob.q.count[0]), int(prob.r.count[0])
-    if prob.empty:
-        e = np.zeros(0, dtype=np.float64)
-        return MatchResult(np.zeros((0, 2), dtype=np.int64), e, e, e, 0.0, e, na, nb, e)
-    sim, p = prob.block(slice(0, 1), slice(0, 1), keep_pairs=True)
-    return _result(p, float(sim[0, 0]), na, nb)
+    a, b = prob.q, prob.r
+    desc_a_, desc_b_ = a.raw[: len(a.boxes[0])].numpy(), b.raw[: len(b.boxes[0])].numpy()
+    return match_pair(desc_a_, a.boxes[0], desc_b_, b.boxes[0], matching)
 
 
 def image_similarity(
