@@ -17,6 +17,7 @@ __all__ = [
     "USER_AREA",
     "cache_root",
     "check_label",
+    "check_name",
     "figures_dir",
     "figures_root",
     "find_input",
@@ -200,6 +201,44 @@ def check_label(label: object) -> str:
             "the file system limits to 255 bytes)"
         )
     return label
+
+
+#: Longest file stem given to ``save()``, in UTF-8 bytes: 255 less the longest suffix added
+#: (``.timings.csv``) and the temporary file's prefix and suffix.
+MAX_NAME_BYTES = 200
+
+
+def check_name(name: object) -> str:
+    """``name`` if it is one file stem inside an output folder (one path component: no ``/``,
+    ``\\``, ``.``/``..``, absolute path or control character), as :func:`check_label` confines a
+    label; ``save(obj, name, label)`` writes ``<label>/<name>.png`` / ``.csv`` and nowhere else.
+
+    Raises:
+        ValueError: e.g. ``../x``, ``/tmp/x`` or ``a/b`` (would write outside the label's
+            folder), or a name over :data:`MAX_NAME_BYTES` bytes.
+        TypeError: not a string (e.g. ``name=5``).
+    """
+    if not isinstance(name, str):
+        raise TypeError(f"name must be a string such as 'fig13_comparison', got {name!r}")
+    if (
+        not name.strip()
+        or name.strip(".") == ""
+        or "/" in name
+        or "\\" in name
+        or any(ord(c) < 32 or ord(c) == 127 for c in name)
+        or Path(name).is_absolute()
+    ):
+        raise ValueError(
+            f"name {name!r} must be one file name without folders (no '/', '\\', '..', "
+            "absolute path or control character), e.g. 'fig13_comparison'; it names "
+            "<label>/<name>.png or .csv, the label chooses the folder"
+        )
+    if len(name.encode()) > MAX_NAME_BYTES:
+        raise ValueError(
+            f"name {name[:20] + '...'!r} is {len(name.encode())} bytes long; give a name of at "
+            f"most {MAX_NAME_BYTES} (the file system limits file names to 255 bytes)"
+        )
+    return name
 
 
 def _sub(kind: str, label: str | None) -> Path:

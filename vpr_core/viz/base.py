@@ -16,14 +16,24 @@ import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.patches import Rectangle
 
 from ..notices import notice
-from ..paths import check_label, figures_dir, figures_root, make_dir
-from ..utils import csv_safe
+from ..paths import (
+    USER_AREA,
+    check_label,
+    check_name,
+    figures_dir,
+    figures_root,
+    make_dir,
+    output_root,
+)
+from ..utils import csv_safe, write_frame_csv
 
 __all__ = [
     "METHOD_COLORS",
+    "DEFAULT_LABEL",
     "SAVE_DPI",
     "TIMING_COLUMN",
     "curve_note",
@@ -38,6 +48,10 @@ __all__ = [
 logger = logging.getLogger("vpr_core")
 
 _OUT_SETTING = "--out / VPR_OUTPUT_DIR (default: the project checkout, else the current folder)"
+
+#: The label of a figure or table saved without one (:func:`save`): it goes to
+#: ``<output root>/user/figures/scratch/`` or ``.../results/scratch/``, never among the study's.
+DEFAULT_LABEL = "scratch"
 
 #: Resolution of every saved study figure (dots per inch).
 SAVE_DPI = 110
@@ -167,6 +181,16 @@ def _texts(fig: matplotlib.figure.Figure) -> list:
     return [t for t in found if t is not None and t.get_visible() and t.get_text().strip()]
 
 
+def _renderer(fig: matplotlib.figure.Figure):
+    """The renderer of ``fig``'s canvas, whatever the figure's history: a figure shown by the
+    inline backend in an earlier cell, or closed with ``plt.close``, keeps a bare
+    ``FigureCanvasBase`` without a renderer; it gets an Agg canvas, the one ``savefig`` uses
+    for a PNG anyway (the saved bytes stay the same)."""
+    if not hasattr(fig.canvas, "get_renderer"):
+        FigureCanvasAgg(fig)  # attaches itself as fig.canvas
+    return fig.canvas.get_renderer()  # type: ignore[attr-defined]
+
+
 def layout_problems(fig: matplotlib.figure.Figure) -> list[str]:
     """What a reader would see as broken in a figure: text cut by the canvas edge (each text's
     extent measured at the saving resolution :data:`SAVE_DPI`), a legend drawn over the
@@ -179,7 +203,7 @@ def layout_problems(fig: matplotlib.figure.Figure) -> list[str]:
     fig.set_dpi(SAVE_DPI)  # text extents do not scale exactly with the resolution
     try:
         fig.draw_without_rendering()
-        renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # Agg and inline
+        renderer = _renderer(fig)
         canvas = fig.bbox.frozen()
         parts = [
             (
@@ -207,7 +231,7 @@ def layout_problems(fig: matplotlib.figure.Figure) -> list[str]:
         ):
             problems.append(f"{what} extends beyond the canvas")
     fig.draw_without_rendering()
-    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # Agg and inline
+    renderer = _renderer(fig)
     for leg in _legend_boxes(fig):
         bb = leg.get_window_extent(renderer)
         for ax in fig.axes:
@@ -254,18 +278,19 @@ def _write_csv(table: pd.DataFrame, tmp: Path) -> None:
     for i, dtype in enumerate(table.dtypes):
         if not pd.api.types.is_numeric_dtype(dtype):  # text cells; numbers stay numbers
             table.isetitem(i, table.iloc[:, i].map(csv_safe))
-    table.to_csv(tmp, float_format="%.6f", index=with_index)
+    write_frame_csv(table, tmp, float_format="%.6f", index=with_index)
 
 
 def save_all(
     items: Sequence[tuple[str, matplotlib.figure.Figure | pd.DataFrame]],
-    label: str,
+    label: str | None = None,
     out: str | Path | None = None,
 ) -> list[Path]:
     """Write figures and tables of one label as one unit (the one output writer).
 
     A matplotlib Figure goes to ``figures/<label>/<name>.png`` (byte-identical for identical
-    inputs, checked by :func:`layout_problems`); a pandas DataFrame to
+    inputs, checked by :func:`layout_problems`, whatever the figure's history: shown inline in
+    an earlier cell, closed with ``plt.close``); a pandas DataFrame to
     ``results/<label>/<name>.csv`` (floats with 6 decimals, the index kept; timing columns to
     ``<name>.timings.csv``, :func:`split_timings`; a table of nothing but timings, such as
     Table 5, goes only there). Everything is written to unique temporary
@@ -274,8 +299,11 @@ def save_all(
 
     Args:
         items: ``(file stem, Figure or DataFrame)`` pairs; a figure and its table may share a
-            stem.
-        label: the dataset label (one folder name), e.g. ``"gardens_point_mini"``.
+            stem, which is one file name (:func:`vpr_core.paths.check_name`).
+        label: the dataset label (one folder name), e.g. ``"gardens_point_mini"``. None: the
+            user area ``<output root>/user/`` (:data:`vpr_core.paths.USER_AREA`) under the label
+            :data:`DEFAULT_LABEL`, never the study's folders; the log (``vpr_core``, INFO)
+            names the label and every path written.
         out: another output root (default :func:`vpr_core.paths.figures_root`: the study's
             folders for the study and the CLI, the git-ignored ``user/`` for a user's own
             cells in the checkout).
@@ -285,11 +313,22 @@ def save_all(
         included), in the order of ``items``.
 
     Raises:
-        TypeError: an item is neither a Figure nor a DataFrame, or ``label`` not a string.
-        ValueError: ``label`` is not one folder name (``../x``, ``/tmp/x``).
+        TypeError: an item is neither a Figure nor a DataFrame, or ``label`` / a name not a
+            string.
+        ValueError: ``label`` is not one folder name or a name not one file name (``../x``,
+            ``/tmp/x``, ``a/b``); nothing is written then.
     """
-    check_label(label)
-    root = figures_root() if out is None else Path(out).expanduser().resolve()
+    items = list(items)
+    for name, _ in items:
+        check_name(name)
+    unlabelled = label is None
+    if label is None:
+        base = output_root() if out is None else Path(out).expanduser().resolve()
+        root = base / USER_AREA
+        label = DEFAULT_LABEL
+    else:
+        check_label(label)
+        root = figures_root() if out is None else Path(out).expanduser().resolve()
     staged: list[tuple[Path, Path]] = []
     written: list[Path] = []
     try:
@@ -324,16 +363,29 @@ def save_all(
             tmp.unlink(missing_ok=True)
         raise
     _commit(staged, make_dir(root, _OUT_SETTING))
+    if unlabelled:
+        for path in written:
+            logger.info(
+                "saved without a label: label %r, written to %s (pass a label, e.g. "
+                "save(obj, name, 'mine'), to choose the folder)",
+                DEFAULT_LABEL,
+                path,
+            )
     return written
 
 
-def save(obj, name: str, label: str, out: str | Path | None = None) -> Path:
+def save(obj, name: str, label: str | None = None, out: str | Path | None = None) -> Path:
     """Write one figure or table of the study under its dataset label (:func:`save_all`).
+
+    Works on a figure whatever its history (shown inline in an earlier cell, closed).
 
     Args:
         obj: ``matplotlib.figure.Figure`` or ``pandas.DataFrame``.
-        name: file stem, e.g. ``"fig05_selection"``.
-        label: the dataset label (one folder name), e.g. ``"synthetic"``.
+        name: file stem, one file name, e.g. ``"fig05_selection"`` (``../x``, ``/tmp/x`` or
+            ``a/b`` are refused: the label chooses the folder).
+        label: the dataset label (one folder name), e.g. ``"synthetic"``. None (left out):
+            ``<output root>/user/figures/scratch/`` or ``.../results/scratch/``
+            (:data:`DEFAULT_LABEL`), the label and the path written named in the log.
         out: another output root.
 
     Returns:
@@ -341,6 +393,7 @@ def save(obj, name: str, label: str, out: str | Path | None = None) -> Path:
 
     Raises:
         TypeError: ``obj`` is neither a Figure nor a DataFrame.
+        ValueError: ``name`` or ``label`` would write outside its folder.
     """
     return save_all([(name, obj)], label, out)[0]
 
