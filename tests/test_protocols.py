@@ -175,8 +175,10 @@ def test_no_resamples_no_interval_no_verdict():
         assert difference_verdict(lo, hi) == "not computed"
     assert format_interval(0.8123, np.nan, np.nan) == "0.812 [not computed]"
     assert (
-        difference_verdict(0.1, 0.2) == "finding"
+        difference_verdict(0.1, 0.2) == "higher"
+        and difference_verdict(-0.2, -0.1) == "lower"
         and difference_verdict(-0.1, 0.2) == "inconclusive"
+        and difference_verdict(0.0, 0.2) == "inconclusive"  # touching 0 is not excluding it
     )
 
 
@@ -196,6 +198,6 @@ def test_queries_needed_and_difference_tuple():
     assert (
         needs_text(2e5)
         == needs_text(math.inf)
-        == ("> 100,000 queries: not decidable on any realistic set")
+        == ("needs over 100,000 queries: not decidable on any realistic set")
     )
     assert needs_text(float("nan")) == "not computed"

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from vpr_core import paths
-from vpr_core.evaluation.bootstrap import N_BOOTSTRAP, needs_text
+from vpr_core.evaluation.bootstrap import N_BOOTSTRAP, VERDICTS, difference_verdict, needs_text
 from vpr_core.methods import get_method, run_key
 from vpr_core.paper import TABLE2, TABLE3, TABLE4
 
@@ -26,8 +26,9 @@ class Claim:
         text: the claim, as the paper makes it.
         figure: the figure (and saved table ``results/<label>/<figure>.csv``) comparing the runs.
         method, baseline: ``(preset name, {options})`` of the two runs.
-        expect: ``">"`` (method better), ``"<"`` (method worse), ``"~"`` (on par) or ``"?"``
-            (no claim: the verdict only says whether there is a finding and its sign).
+        expect: ``">"`` (method better), ``"<"`` (method worse), ``"~"`` (on par, judged with
+            :data:`ON_PAR_MARGIN`) or ``"?"`` (no claim: the verdict is higher, lower or
+            inconclusive).
         metric: ``"dAUC"`` or ``"dR@1"`` (columns of the comparison table).
     """
 
@@ -113,19 +114,56 @@ OBSERVATION_1 = (
 MATCHES_TABLE = "fig04_matches"
 
 
-def _verdict(expect: str, lo: float, hi: float, delta: float | None = None) -> str:
+#: The equivalence margin of a claim "on par" in AUC (docs/DEFINITIONS.md, "Verdicts"), fixed
+#: before looking at the results: the claim holds only when the whole 95% interval of the
+#: difference lies inside ``[-ON_PAR_MARGIN, +ON_PAR_MARGIN]``.
+ON_PAR_MARGIN = 0.05
+
+#: The leading words a findings cell's verdict can have (bold in the Markdown table).
+CELL_WORDS = (*VERDICTS, "on par", "not testable", "not computed", "not run")
+
+_PAPER = {">": "higher", "<": "lower", "~": "on par"}
+
+
+def _on_par_needs(delta: float, lo: float, hi: float, queries: float) -> str:
+    """``"on par needs ~N queries"``: the queries at which an interval of today's half-width,
+    shrinking as ``1 / sqrt(n)``, would fit inside the margin around ``delta``; empty when
+    ``|delta|`` is at or beyond the margin (more queries would then show a difference) or the
+    queries are unknown."""
+    room = ON_PAR_MARGIN - abs(delta)
+    if room <= 0 or not np.isfinite(queries) or queries <= 0:
+        return ""
+    return "on par " + needs_text(queries * ((hi - lo) / 2 / room) ** 2)
+
+
+def _verdict(
+    expect: str,
+    lo: float,
+    hi: float,
+    delta: float | None = None,
+    needs: float = np.nan,
+    queries: float = np.nan,
+) -> str:
+    """The cell's verdict: the observed word (:func:`difference_verdict`; ``on par`` for a claim
+    of parity whose interval lies inside the margin), then how it stands to the paper's claim:
+    ``(as the paper says)`` or ``(paper: <word>)``; an inconclusive one names the queries a
+    verdict would need where known."""
     if not (np.isfinite(lo) and np.isfinite(hi)):
         return "not run"
     if delta == 0 and lo == 0 and hi == 0:
         return "not testable (identical results)"
-    if expect == "?":
-        return "finding: higher" if lo > 0 else ("finding: lower" if hi < 0 else "inconclusive")
-    if expect == "~":
-        return "holds (no difference found)" if lo <= 0 <= hi else "does not hold"
-    above, below = lo > 0, hi < 0
-    if not (above or below):
-        return "inconclusive"
-    return "holds" if (above if expect == ">" else below) else "does not hold"
+    word = difference_verdict(lo, hi)
+    if expect == "~" and lo >= -ON_PAR_MARGIN and hi <= ON_PAR_MARGIN:
+        word = "on par"
+    if word == "inconclusive":
+        notes = [] if np.isnan(needs) else [needs_text(needs)]
+        par = _on_par_needs(delta, lo, hi, queries) if expect == "~" and delta is not None else ""
+        notes = [par] if par else notes
+        return f"{word} ({'; '.join(notes)})" if notes else word
+    if expect in _PAPER:
+        paper = _PAPER[expect]
+        return f"{word} ({'as the paper says' if word == paper else f'paper: {paper}'})"
+    return word
 
 
 def _claim_cell(folder: Path, claim: Claim) -> tuple[str, str]:
@@ -152,9 +190,9 @@ def _claim_cell(folder: Path, claim: Claim) -> tuple[str, str]:
         return "-", "not run"
     r = rows.iloc[0]
     d, lo, hi, p = (float(r[m]), float(r[f"{m} lo"]), float(r[f"{m} hi"]), float(r[f"{m} p"]))
-    verdict = _verdict(claim.expect, lo, hi, d)
-    if verdict == "inconclusive" and f"{m} needs" in df.columns:
-        verdict += f" ({needs_text(float(r[f'{m} needs']))})"
+    needs = float(r[f"{m} needs"]) if f"{m} needs" in df.columns else np.nan
+    queries = float(r["queries"]) if "queries" in df.columns else np.nan
+    verdict = _verdict(claim.expect, lo, hi, d, needs, queries)
     return f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] p={p:.3f}", verdict
 
 
@@ -260,16 +298,44 @@ def findings_table(labels: Sequence[str], out: str | Path | None = None) -> pd.D
     return pd.DataFrame(rows).set_index("claim")
 
 
+#: The line above the Markdown findings table: how to read a cell.
+LEGEND = (
+    "Each cell: `method - baseline` AUC [95% interval] p, then the verdict: **higher** or "
+    "**lower** when the interval lies above or below 0, else **inconclusive** (with the queries a "
+    f"verdict would need); a claim of parity is **on par** only when the whole interval lies "
+    f'inside ±{ON_PAR_MARGIN} AUC. "(as the paper says)" or "(paper: lower)" sets the verdict '
+    'beside the paper\'s claim (docs/DEFINITIONS.md, "Verdicts").'
+)
+
+
+def markdown_cell(text: object) -> str:
+    """``text`` as one Markdown table cell: HTML (``&``, ``<``, ``>``) and ``|`` and ``\\``
+    escaped, each line break (CR, LF, CRLF) a ``<br>``: a label or claim cannot add a column,
+    inject a row or carry markup."""
+    out = str(text).replace("\\", "\\\\").replace("&", "&amp;")
+    out = out.replace("<", "&lt;").replace(">", "&gt;").replace("|", "\\|")
+    return "<br>".join(out.replace("\r\n", "\n").replace("\r", "\n").split("\n"))
+
+
+def _bold_verdict(verdict: str) -> str:
+    """``**higher** (paper: lower)``: the verdict's word bold, its note after it."""
+    word = next((w for w in CELL_WORDS if verdict.startswith(w)), verdict)
+    rest = verdict[len(word) :]
+    return f"**{markdown_cell(word)}**{markdown_cell(rest)}"
+
+
 def findings_markdown(labels: Sequence[str], out: str | Path | None = None) -> str:
-    """:func:`findings_table` as a Markdown table (value and verdict in one cell)."""
+    """:func:`findings_table` as Markdown: :data:`LEGEND`, then the table (value and verdict in
+    one cell; every header and cell escaped by :func:`markdown_cell`)."""
     table = findings_table(labels, out=out)
-    head = "| paper's claim | " + " | ".join(labels) + " |"
+    head = "| paper's claim | " + " | ".join(markdown_cell(lab) for lab in labels) + " |"
     sep = "|---" * (len(labels) + 1) + "|"
-    lines = [head, sep]
+    lines = [LEGEND, "", head, sep]
     for claim, r in table.iterrows():
         cells = [
-            f"{r[lab]} **{r[lab + ' verdict']}**" if r[lab] != "-" else f"**{r[lab + ' verdict']}**"
+            (f"{markdown_cell(r[lab])} " if r[lab] != "-" else "")
+            + _bold_verdict(r[lab + " verdict"])
             for lab in labels
         ]
-        lines.append(f"| {claim} | " + " | ".join(cells) + " |")
+        lines.append(f"| {markdown_cell(claim)} | " + " | ".join(cells) + " |")
     return "\n".join(lines)

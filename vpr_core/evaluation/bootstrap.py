@@ -24,6 +24,7 @@ __all__ = [
     "format_interval",
     "needs_text",
     "paired_bootstrap",
+    "VERDICTS",
 ]
 
 #: ``queries_needed`` beyond this: "not decidable on any realistic set" (:func:`needs_text`).
@@ -281,22 +282,31 @@ def paired_bootstrap(
     return out
 
 
+#: The verdict words of a paired difference (docs/DEFINITIONS.md, "Verdicts"): the same in
+#: :func:`~vpr_core.evaluation.compare`, the findings table and the README.
+VERDICTS = ("higher", "lower", "inconclusive")
+
+
 def difference_verdict(low: float, high: float) -> str:
-    """``"finding"`` when the 95% interval of a difference excludes 0, ``"inconclusive"`` when it
-    does not, ``"not computed"`` when a bound is not finite (no resamples)."""
+    """``"higher"`` when the 95% interval of a difference ``a - b`` lies above 0, ``"lower"`` when
+    it lies below, ``"inconclusive"`` when it contains 0, ``"not computed"`` when a bound is not
+    finite (no resamples)."""
     if not (np.isfinite(low) and np.isfinite(high)):
         return "not computed"
-    return "finding" if low > 0 or high < 0 else "inconclusive"
+    if low > 0:
+        return "higher"
+    return "lower" if high < 0 else "inconclusive"
 
 
 def needs_text(queries_needed: float) -> str:
     """``"needs ~1,200 queries"`` (2 significant digits); beyond ``REALISTIC_QUERIES``
-    ``"> 100,000 queries: not decidable on any realistic set"``; NaN: ``"not computed"``."""
+    ``"needs over 100,000 queries: not decidable on any realistic set"``; NaN:
+    ``"not computed"``."""
     q = float(queries_needed)
     if np.isnan(q):
         return "not computed"
     if q > REALISTIC_QUERIES:
-        return f"> {REALISTIC_QUERIES:,} queries: not decidable on any realistic set"
+        return f"needs over {REALISTIC_QUERIES:,} queries: not decidable on any realistic set"
     return f"needs ~{int(float(f'{math.ceil(q):.2g}')):,} queries"
 
 

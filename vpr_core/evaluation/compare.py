@@ -129,6 +129,35 @@ def _with_chance(row: dict, level: dict[str, float]) -> dict:
     return out
 
 
+def _is_result(obj: Any) -> bool:
+    return all(hasattr(obj, a) for a in ("label", "similarity", "ground_truth"))
+
+
+def _check_results(results: Any) -> list:
+    """``results`` as a list, refused naming the fix when it is one result or not a sequence of
+    results."""
+    if _is_result(results):
+        raise TypeError(
+            f"compare(): results is one result ({getattr(results, 'label', '?')!r}), not a list "
+            "of them: pass compare([result]) for its metrics, or compare([baseline, other, ...])"
+        )
+    if isinstance(results, (str, bytes, dict)) or not hasattr(results, "__iter__"):
+        raise TypeError(
+            f"compare(): results must be a list of results (run_method or peer_result), "
+            f"got {type(results).__name__}"
+        )
+    out = list(results)
+    if not out:
+        raise ValueError("compare() needs at least one result")
+    bad = [i for i, r in enumerate(out) if not _is_result(r)]
+    if bad:
+        raise TypeError(
+            f"compare(): results[{bad[0]}] is a {type(out[bad[0]]).__name__}, not a result: pass "
+            "what run_method or peer_result return"
+        )
+    return out
+
+
 def compare(
     results: Sequence[Any],
     baseline: str | int | None = None,
@@ -151,19 +180,32 @@ def compare(
         label: ``run``, ``AUC``/``AUC lo``/``AUC hi``/``AUC chance`` ... ``R@5 chance`` (chance:
         :func:`~vpr_core.evaluation.chance`, the same on every row), ``queries``, the cost
         columns, ``identical to``, ``baseline`` and for each of :data:`DIFFERENCES` the delta,
-        ``lo``, ``hi``, ``p``, ``verdict`` and ``needs`` (queries at which an inconclusive
-        interval would exclude 0, where known), then the context columns and ``warnings``.
+        ``lo``, ``hi``, ``p``, ``verdict`` (``higher`` / ``lower`` when the interval lies
+        above / below 0, else ``inconclusive``; ``not computed`` without resamples) and
+        ``needs`` (queries at which an inconclusive interval would exclude 0, where known),
+        then the context columns and ``warnings``.
         A notice is raised when chance lies inside every run's interval
         (:func:`~vpr_core.evaluation.saturation_notice`).
 
     Raises:
+        TypeError: ``results`` is one result (pass a list) or holds something else than
+            results; ``baseline`` is neither a label nor an index (``True`` included); ``seed``
+            is not an integer >= 0.
         ValueError: no results, duplicate labels, an unknown baseline, or results on different
             datasets (fingerprints or ground truths differ; both are named).
     """
     check_bootstrap_memory(n_bootstrap)
-    results = list(results)
-    if not results:
-        raise ValueError("compare() needs at least one result")
+    if _is_result(baseline):
+        raise TypeError(
+            "compare(): the second argument is the baseline, and a result was given: pass the "
+            "results as one list, compare([a, b, ...]), and baseline=<label> if not the first"
+        )
+    results = _check_results(results)
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise TypeError(
+            f"compare(): seed={seed!r} is not a seed of the resampling: pass an integer >= 0 "
+            "(e.g. seed=0, the default)"
+        )
     labels = [r.label for r in results]
     dup = sorted({x for x in labels if labels.count(x) > 1})
     if dup:
@@ -173,7 +215,12 @@ def compare(
         )
     if baseline is None:
         base = results[0]
-    elif isinstance(baseline, int):
+    elif isinstance(baseline, bool) or not isinstance(baseline, (str, int, np.integer)):
+        raise TypeError(
+            f"compare(): baseline={baseline!r} is neither a label nor a position: pass one of the "
+            f"labels ({', '.join(labels)}), an index 0 to {len(results) - 1}, or None (the first)"
+        )
+    elif isinstance(baseline, (int, np.integer)):
         if not -len(results) <= baseline < len(results):
             raise ValueError(
                 f"compare(): baseline={baseline} is not one of the {len(results)} results: give "

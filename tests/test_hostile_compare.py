@@ -1,0 +1,61 @@
+"""compare() given arguments of the wrong kind (issue 45): one meaning per argument, and an
+error that names the argument and the fix instead of a bare numpy or Python error."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vpr_core.evaluation import compare
+from vpr_core.pipeline import run_method
+
+
+@pytest.fixture(scope="module")
+def runs(tiny_synthetic):
+    return [
+        run_method(m, tiny_synthetic, backbone="hog", n_bootstrap=20)
+        for m in ("dense", "classical")
+    ]
+
+
+def test_baseline_true_is_refused_not_read_as_index_1(runs):
+    with pytest.raises(TypeError, match=r"baseline=True is neither a label nor a position") as e:
+        compare(runs, baseline=True, n_bootstrap=20)
+    assert "dense, classical" in str(e.value) and "index 0 to 1" in str(e.value)
+    with pytest.raises(TypeError, match="baseline=False"):
+        compare(runs, baseline=False, n_bootstrap=20)
+    with pytest.raises(TypeError, match=r"baseline=1\.0"):
+        compare(runs, baseline=1.0, n_bootstrap=20)
+    # the accepted forms still work: a label, an index (numpy's too), None
+    for base in ("classical", 1, np.int64(1), -1):
+        assert compare(runs, baseline=base, n_bootstrap=20)["baseline"].iloc[0] == "classical"
+    assert compare(runs, n_bootstrap=20)["baseline"].iloc[1] == "dense"
+
+
+def test_one_result_instead_of_a_list_says_to_pass_a_list(runs):
+    one = r"results is one result \('dense'\).*compare\(\[result\]\)"
+    with pytest.raises(TypeError, match=one):
+        compare(runs[0])
+    with pytest.raises(TypeError, match=r"pass the results as one list, compare\(\[a, b"):
+        compare(runs[0], runs[1])
+    with pytest.raises(TypeError, match=r"results\[1\] is a str, not a result"):
+        compare([runs[0], "classical"])
+    with pytest.raises(TypeError, match="must be a list of results.*got str"):
+        compare("dense")
+    assert list(compare([runs[0]], n_bootstrap=20).index) == ["dense"]
+
+
+@pytest.mark.parametrize("seed", ["x", 1.5, -1, True, None])
+def test_a_bad_seed_names_seed(runs, seed):
+    with pytest.raises(TypeError, match=rf"seed={seed!r} .*integer >= 0"):
+        compare(runs, seed=seed, n_bootstrap=20)
+
+
+def test_the_verdict_column_uses_the_three_words(runs):
+    table = compare(runs, n_bootstrap=20)
+    for name in ("dAUC", "dR@1", "dR@100P"):
+        verdict = table[f"{name} verdict"].iloc[1]
+        lo, hi = table[f"{name} lo"].iloc[1], table[f"{name} hi"].iloc[1]
+        want = "higher" if lo > 0 else "lower" if hi < 0 else "inconclusive"
+        assert verdict == want, (name, lo, hi, verdict)
+    assert compare(runs, n_bootstrap=0)["dAUC verdict"].iloc[1] == "not computed"
