@@ -1,6 +1,6 @@
 """A study notebook is executed again only when something it reads changed (as ``make`` does,
-but keyed by content): its text, parameters, the package code, the data, the installed
-packages and the ``VPR_*`` settings; and only while its recorded outputs are intact."""
+but keyed by content): its folder's files, its parameters and every file or folder they name, the
+package code, the installed packages and the ``VPR_*`` settings; while its outputs are intact."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import importlib.metadata
 import json
 import os
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from vpr_core import paths
@@ -19,11 +19,38 @@ from vpr_core.utils import file_sha256
 _PLACEMENT = {"VPR_OUTPUT_DIR", "VPR_CACHE_DIR", "VPR_PROGRESS", "VPR_DASK_SCHEDULER"}
 
 
+#: Folders a walk never enters: editor and interpreter litter, not what a notebook reads.
+_LITTER = {".ipynb_checkpoints", "__pycache__", ".git"}
+
+
+def _files(top: Path) -> list[Path]:
+    """Every file under folder ``top``, symlinked folders followed (each real folder walked
+    once, in name order: a link loop ends) and :data:`_LITTER` left out."""
+    found: list[Path] = []
+    seen: set[tuple[int, int]] = set()
+    for folder, dirs, names in os.walk(top, followlinks=True):
+        st = os.stat(folder)
+        if (st.st_dev, st.st_ino) in seen:
+            dirs.clear()
+            continue
+        seen.add((st.st_dev, st.st_ino))
+        dirs[:] = sorted(d for d in dirs if d not in _LITTER)
+        found += [p for p in (Path(folder, n) for n in names) if p.is_file()]
+    return found
+
+
 def _tree_digest(files: Iterable[Path], base: Path) -> str:
     digest = hashlib.sha256()
     for f in sorted(files):
         digest.update(f"{f.relative_to(base)}|{file_sha256(f)}|".encode())
     return digest.hexdigest()
+
+
+def _path_digest(path: Path) -> str:
+    """A file by its content, a folder by every file under it (:func:`_files`)."""
+    if path.is_file():
+        return file_sha256(path)
+    return _tree_digest(_files(path), path)
 
 
 def _code_digest() -> str:
@@ -53,22 +80,54 @@ def _settings() -> dict[str, str]:
     return out
 
 
-def _data_digest(root: str | None) -> str:
-    """A dataset root by the content of every file under it (None: the generated set, made by
-    the package code, which the key holds already)."""
-    if root is None:
-        return ""
-    base = Path(root).expanduser()
-    files = [base] if base.is_file() else [p for p in base.rglob("*") if p.is_file()]
-    return _tree_digest(files, base.parent if base.is_file() else base)
+def _strings(value: object) -> Iterator[str]:
+    """Every string in a parameter value (nested dicts, lists and tuples walked)."""
+    if isinstance(value, str):
+        yield value
+    elif isinstance(value, dict):
+        for item in value.values():
+            yield from _strings(item)
+    elif isinstance(value, (list, tuple)):
+        for item in value:
+            yield from _strings(item)
+
+
+def _named_path(text: str) -> Path | None:
+    """The existing file or folder a parameter string names as a notebook resolves it
+    (:func:`vpr_core.paths.find_input`), else None. A folder holding the cache or the output
+    root is no input (the run itself writes in it)."""
+    if not text.strip() or text.strip() == "." or "\n" in text or len(text) > 4096:
+        return None
+    try:
+        found = paths.find_input(text).resolve()
+    except (OSError, ValueError):  # not there, or not a path at all (a NUL, too long)
+        return None
+    if found.is_dir() and any(
+        w.resolve().is_relative_to(found) for w in (paths.cache_root(), paths.output_root())
+    ):
+        return None
+    return found
+
+
+def _paths_digest(params: dict) -> dict[str, str]:
+    """Every file or folder a parameter names (``root``, ``--opt ground_truth=...``), by
+    content; ``label`` names outputs, not an input."""
+    named = {
+        text: _named_path(text)
+        for key, value in params.items()
+        if key != "label"
+        for text in _strings(value)
+    }
+    return {text: _path_digest(path) for text, path in sorted(named.items()) if path is not None}
 
 
 def inputs_key(params: dict) -> str:
-    """The content key of what a study notebook reads besides its own text, with ``params``."""
+    """The content key of what a study notebook reads besides its own folder, with ``params``:
+    every file or folder a parameter names is hashed by content (symlinks followed)."""
     parts = {
         "parameters": params,
         "code": _code_digest(),
-        "data": _data_digest(params.get("root")),
+        "paths": _paths_digest(params),
         "packages": _packages(),
         "settings": _settings(),
         "output root": str(paths.output_root()),
@@ -77,10 +136,10 @@ def inputs_key(params: dict) -> str:
 
 
 def notebook_key(notebook: Path, inputs: str) -> str:
-    """The content key of one execution: the notebook's text, the Python files beside it (a
-    module a cell imports from its folder) and :func:`inputs_key`."""
-    helpers = _tree_digest(notebook.parent.glob("*.py"), notebook.parent)
-    return hashlib.sha256(f"{file_sha256(notebook)}|{helpers}|{inputs}".encode()).hexdigest()
+    """The content key of one execution: every file of the notebook's folder tree (the
+    notebook, a module or CSV a cell reads beside it or in a subfolder, symlinked folders
+    followed) and :func:`inputs_key`."""
+    return hashlib.sha256(f"{_path_digest(notebook.parent)}|{inputs}".encode()).hexdigest()
 
 
 def _record_path(label: str, stem: str) -> Path:

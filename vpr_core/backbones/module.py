@@ -24,10 +24,36 @@ def architecture_sha256(module: nn.Module) -> str:
     return code_sha256((c for m in module.modules() for c in type(m).__mro__), repr(module))
 
 
-def probe_input(size: int) -> torch.Tensor:
-    """The fixed input a user module's identity is measured on: ``(1, 3, size, size)`` float32
-    standard normal from ``torch.Generator`` seeded 0."""
-    return torch.randn(1, 3, size, size, generator=torch.Generator().manual_seed(0))
+#: Crops in :func:`probe_input`: more than one, so a ``forward`` that behaves otherwise on a batch
+#: (reads a global, or returns constant rows, only for several crops) is seen in the probe.
+PROBE_CROPS = 2
+
+
+def probe_input(size: int, crops: int = PROBE_CROPS) -> torch.Tensor:
+    """The fixed input a user module's identity is measured on: ``(crops, 3, size, size)``
+    float32 standard normal from ``torch.Generator`` seeded 0."""
+    return torch.randn(crops, 3, size, size, generator=torch.Generator().manual_seed(0))
+
+
+def _alike(inputs: torch.Tensor, per_cell: bool) -> bool:
+    """The inputs are all one crop (a padded batch of one), or one uniform image (``per_cell``):
+    identical features for them prove nothing."""
+    first = inputs[..., :1, :1] if per_cell else inputs[:1]
+    return bool((inputs == first).all())
+
+
+def _degenerate(out: torch.Tensor, per_cell: bool) -> str | None:
+    """What makes ``out`` unable to tell different inputs apart, None when nothing does
+    (vectorised). ``per_cell``: ``out`` is one image's ``(1, C, h, w)`` map, compared cell by
+    cell; else one row per crop."""
+    if not out.any():
+        return "all zeros"
+    if per_cell:
+        if math.prod(out.shape[-2:]) > 1 and bool((out == out[..., :1, :1]).all()):
+            return "the same value in every cell of its feature map"
+    elif bool((out == out[:1]).all()):
+        return "the same features for every crop"
+    return None
 
 
 class ModuleBackbone(nn.Module):
@@ -37,6 +63,11 @@ class ModuleBackbone(nn.Module):
     ``roi`` pooling needs spatial output; its ``stride`` is the module's ``stride`` attribute or
     ``S / h`` when that divides, cell ``i`` centred at ``stride * i + feature_offset`` (the
     module's ``feature_offset``, default ``stride / 2``).
+
+    The module's output is checked on :func:`probe_input` when wrapped, and on its first real
+    batch of different crops (``forward``) or first non-uniform image (``feature_map``): all
+    zeros or the same features for every crop (every cell) are refused, naming the module;
+    every call is checked for its shape and for NaN or inf (vectorised: negligible cost).
 
     Attributes:
         label: the module's class name; qualname: ``module.Class``.
@@ -68,20 +99,27 @@ class ModuleBackbone(nn.Module):
         self.architecture_sha256 = architecture_sha256(module)
         param = next(module.parameters(), None)
         device = param.device if param is not None else torch.device("cpu")
+        probe = probe_input(self.input_size).to(device)
         with torch.inference_mode():
-            out = module(probe_input(self.input_size).to(device))
+            out = module(probe)
+        size = f"({PROBE_CROPS}, 3, {self.input_size}, {self.input_size})"
         if not isinstance(out, torch.Tensor) or out.ndim not in (2, 4):
             got = tuple(out.shape) if isinstance(out, torch.Tensor) else type(out).__name__
             raise ValueError(
-                f"backbone module {self.label} returned {got} for a (1, 3, {self.input_size}, "
-                f"{self.input_size}) crop; it must return (B, C, h, w) or (B, C) features"
+                f"backbone module {self.label} returned {got} for a {size} batch of crops; it "
+                "must return (B, C, h, w) or (B, C) features"
             )
-        if not out.isfinite().all() or not out.any():
+        fault = (
+            "NaN or inf"
+            if not out.isfinite().all()
+            else _degenerate(out, False)
+            if len(out) == len(probe)
+            else None
+        )
+        if fault is not None:
             raise ValueError(
-                f"backbone module {self.label} returns "
-                f"{'all zeros' if out.isfinite().all() else 'NaN or inf'} on a random (1, 3, "
-                f"{self.input_size}, {self.input_size}) input (backbones.module.probe_input): "
-                "its descriptors could not tell landmarks apart"
+                f"backbone module {self.label} returns {fault} on a random {size} input "
+                f"(backbones.module.probe_input): {self._fix}"
             )
         self.probe_sha256 = array_sha256([out.detach().float().cpu().numpy()])
         self.feature_shape = tuple(int(n) for n in out.shape[1:])
@@ -96,23 +134,72 @@ class ModuleBackbone(nn.Module):
             if isinstance(stride, int) and math.ceil(self.input_size / stride) == h:
                 self.stride = stride
                 self.feature_offset = float(getattr(module, "feature_offset", stride / 2))
+        self._seen = {"crop": False, "roi": False}  # a real input checked for degenerate output
+
+    @property
+    def _fix(self) -> str:
+        s = self.input_size
+        return (
+            "its descriptors could not tell landmarks apart. Check its forward on a batch of "
+            f"different crops: {self.label}(...).eval()(torch.randn(4, 3, {s}, {s})) must give "
+            "4 different rows, finite and not all zero, whatever the batch size (a forward "
+            "that reads a global or a state left by an earlier call, or divides by a statistic "
+            "of the batch, may not)"
+        )
+
+    def _check_first_real(
+        self, mode: str, out: torch.Tensor, inputs: torch.Tensor, where: str
+    ) -> None:
+        """Refuse degenerate output on the first real input of ``mode`` (``crop``: different
+        crops; ``roi``: a non-uniform image); later calls of that mode are not checked."""
+        per_cell = mode == "roi"
+        if self._seen[mode] or _alike(inputs, per_cell):
+            return
+        fault = _degenerate(out, per_cell)
+        if fault is not None:
+            raise ValueError(
+                f"backbone module {self.label} returns {fault} on {where}: {self._fix}"
+            )
+        self._seen[mode] = True
 
     def feature_map(self, batch: torch.Tensor) -> torch.Tensor:
-        """``(B, 3, H, W)`` normalised images -> the module's ``(B, C, h, w)`` map."""
-        return self.module(batch).float()
+        """``(1, 3, H, W)`` normalised image -> the module's ``(1, C, h, w)`` map (``roi``),
+        checked: one map with the probe's ``C`` channels, finite, not degenerate."""
+        out = self.module(batch)
+        n, size = batch.shape[0], tuple(batch.shape)
+        channels = self.feature_shape[0]
+        if not isinstance(out, torch.Tensor) or out.ndim != 4 or out.shape[:2] != (n, channels):
+            got = tuple(out.shape) if isinstance(out, torch.Tensor) else type(out).__name__
+            raise ValueError(
+                f"backbone module {self.label} returned {got} for a {size} image "
+                f"(pooling='roi'); expected ({n}, {channels}, h, w): one feature map per image "
+                f"with the {channels} channels it gives on crops. Fix its forward to keep the "
+                "batch dimension and work on images of any size, or use pooling='crop'"
+            )
+        if not out.isfinite().all():
+            raise ValueError(
+                f"backbone module {self.label} returned NaN or inf on a finite {size} image "
+                "(pooling='roi', its feature map): check its forward on images of that size "
+                "(an overflow, a division by zero), or use pooling='crop'"
+            )
+        self._check_first_real("roi", out, batch, f"a real {size} image (pooling='roi')")
+        return out.float()
 
     def forward(self, batch: torch.Tensor) -> torch.Tensor:
         """``(B, 3, S, S)`` crops -> ``(B, raw_dim)``; the module's output checked (user code)."""
         out = self.module(batch)
         n = batch.shape[0]
-        if tuple(out.shape) != (n, *self.feature_shape):
+        if not isinstance(out, torch.Tensor) or tuple(out.shape) != (n, *self.feature_shape):
+            got = tuple(out.shape) if isinstance(out, torch.Tensor) else type(out).__name__
             raise ValueError(
-                f"backbone module {self.label} returned {tuple(out.shape)} for {n} crops; "
+                f"backbone module {self.label} returned {got} for {n} crops; "
                 f"expected {(n, *self.feature_shape)}: one row per crop, the same shape on every "
-                "call"
+                "call. Fix its forward to keep the batch dimension (B crops in, B rows out)"
             )
         if not out.isfinite().all():
             raise ValueError(
-                f"backbone module {self.label} returned NaN or inf for finite crops (its forward)"
+                f"backbone module {self.label} returned NaN or inf for finite crops (its "
+                "forward): check it on real crops (an overflow, a division by zero)"
             )
+        self._check_first_real("crop", out, batch, f"a real batch of {n} different crops")
         return out.float().flatten(1)
