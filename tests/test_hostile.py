@@ -503,9 +503,11 @@ def test_findings_for_a_label_without_results_is_refused(tmp_path, capsys):
     assert "nosuch" in capsys.readouterr().err
 
 
-def test_huge_n_bootstrap_is_refused_before_the_work(capsys, monkeypatch):
+def test_huge_n_bootstrap_is_refused_before_the_work(capsys, monkeypatch, tmp_path):
     """The CLI refuses at its argument check, naming the flag (8 GB free pinned: 1e8
-    resamples need 9.6 GB, whatever the machine has)."""
+    resamples need 9.6 GB, whatever the machine has). Were it not refused, its figure goes to
+    ``tmp_path``, never into the study's figures/ (where an earlier version of this test left
+    eval_synthetic_dense_n-bootstrap-100000000_n-places-4.png)."""
     import os
     import time
 
@@ -515,7 +517,8 @@ def test_huge_n_bootstrap_is_refused_before_the_work(capsys, monkeypatch):
     free = {"SC_AVPHYS_PAGES": 8_000_000_000 // page, "SC_PAGE_SIZE": page}
     monkeypatch.setattr(os, "sysconf", lambda name: free[name])
     start = time.monotonic()
-    rc = cli.main(["eval", "--n-places", "4", "--method", "dense", "--n-bootstrap", "100000000"])
+    argv = ["eval", "--out", str(tmp_path), "--n-places", "4", "--method", "dense"]
+    rc = cli.main([*argv, "--n-bootstrap", "100000000"])
     err = capsys.readouterr().err
     assert rc == 2 and "--n-bootstrap 100000000" in err and "9.6 GB" in err, err
     assert "landmarks/img" not in err  # refused before any method ran
