@@ -20,15 +20,18 @@ $(LAB_STAMP): $(STAMP) pyproject.toml
 	$(PY) -m pip install -q -e '.[dev,lab]'
 	touch $(LAB_STAMP)
 
-# nbstripout as this clone's git filter (.git/config; .gitattributes names the notebooks): the
-# outputs, execution counts and run metadata that JupyterLab saves into a notebook never reach
-# git; cell ids are kept (vpr_study.lab: the same stripping as `make lab`'s save hook). Outside a
-# git clone it does nothing.
-STRIP := "$(abspath $(PY))" -m vpr_study.lab
-git-filter: $(STAMP)
+# The git filter of this clone (.git/config; .gitattributes names the notebooks): the outputs,
+# execution counts and run metadata that JupyterLab saves into a notebook never reach git; cell
+# ids are kept (vpr_study.lab: the same stripping as `make lab`'s save hook). The command is
+# relative (git runs it at the top of the work tree), so it works in any clone, moved or not;
+# without .venv (after `make clean`) tools/nbstrip passes notebooks through, saying so once.
+# Outside a git clone it does nothing.
+STRIP := sh tools/nbstrip
+git-filter:
 	@if git rev-parse --git-dir >/dev/null 2>&1; then \
-		$(PY) -m nbstripout --install --attributes .gitattributes && \
 		git config --local filter.nbstripout.clean '$(STRIP)' && \
+		git config --local filter.nbstripout.smudge cat && \
+		git config --local filter.nbstripout.required false && \
 		git config --local diff.ipynb.textconv '$(STRIP)'; fi
 
 study: $(STAMP)
@@ -59,13 +62,17 @@ test: $(STAMP)
 	MPLBACKEND=Agg $(PY) -m pytest -q
 
 # JupyterLab on the project, on 127.0.0.1 with its token; --allow-root only when run as root
-# (containers, cloud machines). Kernels share the project's .cache/ whatever their working
-# directory; a user's own cells save under the git-ignored user/. The [lab] extra (jupyterlab,
-# ipywidgets) is installed once ($(LAB_STAMP)), again only when pyproject.toml changes.
+# (containers, cloud machines). It opens the starter notebook in user/notebooks/ (git-ignored,
+# a user's own; copied there when absent, never replaced) beside the study's notebooks/; a
+# user's own cells save under user/. The save hook strips only the committed study notebooks.
+# Kernels share the project's .cache/ whatever their working directory. The [lab] extra
+# (jupyterlab, ipywidgets) is installed once ($(LAB_STAMP)), again only when pyproject.toml changes.
 lab: $(LAB_STAMP) git-filter
+	$(PY) -m vpr_study.lab init
 	$(VENV)/bin/jupyter lab --ip=127.0.0.1 --ServerApp.root_dir="$(CURDIR)" \
 		--ContentsManager.pre_save_hook=vpr_study.lab.strip_outputs \
-		--LabApp.default_url=/lab/tree/notebooks $(if $(filter 0,$(shell id -u)),--allow-root)
+		--LabApp.default_url=/lab/tree/user/notebooks/00_start_here.ipynb \
+		$(if $(filter 0,$(shell id -u)),--allow-root)
 
 bench: $(STAMP)
 	for f in benchmarks/bench_*.py; do $(PY) $$f || exit 1; done

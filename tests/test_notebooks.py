@@ -54,8 +54,12 @@ def test_notebook_is_clean_paired_and_parametrised(path):
 
     listed = params.split("\n")[0].split("#")[1].replace("|", " ").split()
     assert set(listed) == set(DATASETS), listed  # the dataset line names every loader
-    # the .py twin holds the same cells (jupytext pairing)
-    twin = jupytext.read(path.with_suffix(".py"))
+    # the .py twin in notebooks/scripts/ holds the same cells (jupytext pairing; Lab lists
+    # each notebook once)
+    assert nb["metadata"]["jupytext"]["formats"] == "ipynb,scripts//py:percent"
+    assert not path.with_suffix(".py").exists()
+    twin = jupytext.read(NB_DIR / "scripts" / f"{path.stem}.py")
+    assert twin.metadata["jupytext"]["formats"] == "ipynb,scripts//py:percent"
     assert [c.source for c in twin.cells] == ["".join(c["source"]) for c in nb["cells"]]
     # the notebook is the experiment: it calls the pipeline, no facade, and stays thin
     source = "".join("".join(c["source"]) for c in code)
