@@ -175,9 +175,17 @@ def progress(iterable: Iterable | None, **kwargs: Any):
 
 #: The source files each cached stage's results depend on (folders of ``vpr_core``, or files).
 STAGE_SOURCES: dict[str, tuple[str, ...]] = {
-    "landmarks": ("landmarks", "boxes.py", "checks.py", "pipeline/landmark_stage.py"),
-    "features": ("features", "backbones", "pipeline/feature_stage.py"),
-    "matching": ("matching", "boxes.py", "pipeline/run.py", "engine"),
+    # pipeline/cache.py in each: a change of the entries' format gives new keys, so entries of
+    # the old format are never read (not healed one by one, each with a warning)
+    "landmarks": (
+        "landmarks",
+        "boxes.py",
+        "checks.py",
+        "pipeline/landmark_stage.py",
+        "pipeline/cache.py",
+    ),
+    "features": ("features", "backbones", "pipeline/feature_stage.py", "pipeline/cache.py"),
+    "matching": ("matching", "boxes.py", "pipeline/run.py", "engine", "pipeline/cache.py"),
 }
 _CODE_VERSIONS: dict[str, str] = {}
 

@@ -15,6 +15,7 @@ __all__ = [
     "WeightsFileError",
     "file_sha256",
     "load_checkpoint",
+    "nonfinite_tensors",
     "state_dict_sha256",
     "user_weights_label",
 ]
@@ -48,7 +49,8 @@ def load_checkpoint(path: str | os.PathLike, expected: str) -> dict[str, torch.T
 
     Raises:
         WeightsFileError: not a torch checkpoint (truncated, other format), not a dict of
-            tensors, or NaN / inf in a tensor.
+            tensors, or NaN / inf in a tensor (:func:`nonfinite_tensors`; the message names the
+            file, the tensors and the fix).
     """
     p = Path(path)
     try:
@@ -69,7 +71,32 @@ def load_checkpoint(path: str | os.PathLike, expected: str) -> dict[str, torch.T
             f"weights file {p} holds a {type(state).__name__}, not a state dict of tensors; "
             f"expected {expected}."
         )
-    bad = [k for k, t in state.items() if t.is_floating_point() and not t.isfinite().all()]
+    bad = nonfinite_tensors(state)
     if bad:
-        raise WeightsFileError(f"weights file {p} holds NaN or inf in {', '.join(bad[:3])}")
+        raise WeightsFileError(
+            f"weights file {p} holds NaN or inf in {', '.join(bad[:3])}"
+            f"{' ...' if len(bad) > 3 else ''} ({len(bad)} tensor(s); a float64 value beyond "
+            "float32's range counts: it becomes inf); every descriptor computed with it would "
+            "be NaN. The file is damaged or was saved from a diverged training run: download "
+            "it again, or re-create it "
+            "(torch.save(model.state_dict(), path) from a model whose weights are finite)."
+        )
     return state
+
+
+#: Largest finite float32 value: a float64 weight beyond it becomes inf in the float32 network.
+_F32_MAX = float(torch.finfo(torch.float32).max)
+
+
+def nonfinite_tensors(state: Mapping[str, torch.Tensor]) -> list[str]:
+    """Names of the floating-point (or complex) tensors of ``state`` holding NaN or inf, or a
+    value beyond float32's range (the backbones compute in float32: it becomes inf there)."""
+    bad = []
+    for name, t in state.items():
+        if not (t.is_floating_point() or t.is_complex()) or t.numel() == 0:
+            continue
+        if not bool(t.isfinite().all()) or (
+            t.dtype == torch.float64 and float(t.abs().max()) > _F32_MAX
+        ):
+            bad.append(name)
+    return bad

@@ -6,6 +6,7 @@ import hashlib
 import json
 import logging
 import os
+import secrets
 import shutil
 import tempfile
 import time
@@ -17,6 +18,7 @@ from pathlib import Path
 from tqdm.auto import tqdm
 
 from .. import settings
+from ..utils import file_sha256
 
 __all__ = ["DOWNLOADS", "download_dataset"]
 
@@ -79,9 +81,18 @@ def download_dataset(
     the archive. The body must have the announced ``Content-Length`` and arrive within
     ``deadline_s``; the archive is extracted into a temporary folder first and moved into place
     only when complete; a zip (by name or content) counts as complete only when it opens and
-    every member reads (otherwise it is removed). A marker file, written last, records a
-    finished download; a second call returns at once unless ``overwrite``. Whatever fails
+    every member reads (otherwise it is removed). A marker file (``.vpr_download.json``), written
+    last, records per URL what each download created (its top-level entries and every file) and
+    the archive's sha256; a second call returns at once unless ``overwrite``. Whatever fails
     leaves no partial file behind.
+
+    A download never deletes or overwrites what it did not create itself in an earlier download
+    of the same URL: an entry in the way that the marker does not record (a user's folder of the
+    archive's top-level name, a file of the URL's file name with other content), or a recorded
+    folder that has gained files of someone else's, is refused before anything is moved.
+    A download whose completeness cannot be shown (no ``Content-Length``, not chunked, no
+    SHA-256 to check and not a zip that verifies) is kept, with a warning, but not recorded
+    as finished: the next call fetches it again (pass ``sha256=...`` to make it stick).
 
     Args:
         name: Dataset name (a :data:`DOWNLOADS` key unless ``url`` is given).
@@ -100,6 +111,8 @@ def download_dataset(
         ValueError: unknown name without ``url``, a URL not ending in a file name, checksum
             mismatch (the file is removed), a bad deadline, or a truncated, damaged or too
             large archive (nothing is left extracted).
+        FileExistsError: something the download did not create is in the way (the message
+            names it and the fix); nothing was changed.
         OSError: network or file-system errors, a body shorter or longer than its
             ``Content-Length``, the deadline passed (with the URL in the message).
     """
@@ -118,10 +131,11 @@ def download_dataset(
     root = Path(root).expanduser()
     root.mkdir(parents=True, exist_ok=True)
     marker = root / _MARKER
-    if marker.is_file() and not overwrite:
-        info = json.loads(marker.read_text())
-        done = root / info["top"] if info.get("top") else root
-        if done.is_dir():
+    records = _read_marker(marker)
+    record = records.get(url)
+    if record is not None and record.get("complete") and not overwrite:
+        done = root / record["top"] if record.get("top") else root
+        if done.is_dir() and all((root / c).exists() for c in record.get("created", [])):
             log.info("%s already downloaded into %s (overwrite=True to fetch again)", name, root)
             return done
     raw_name = urllib.request.url2pathname(url.split("?")[0].rstrip("/").split("/")[-1])
@@ -131,9 +145,12 @@ def download_dataset(
             f"the URL {url} ends in the file name {raw_name!r}, which is not a file name of "
             f"its own; pass a URL whose last part names the file (e.g. .../{name}.zip)."
         )
-    marker.unlink(missing_ok=True)  # from here until the end, nothing is recorded as done
-    part = root / (fname + ".part")
-    got = _stream(name, url, part, root, deadline_s)
+    target = root / fname
+    if target.is_dir() and not target.is_symlink():
+        raise _in_the_way(target, url, "a folder of the URL's file name")
+    # a name of its own: never a user's file that happens to end in .part
+    part = root / f"{fname}.{secrets.token_hex(4)}.part"
+    got, length_shown = _stream(name, url, part, root, deadline_s)
     if expected is not None and got != expected:
         part.unlink(missing_ok=True)
         raise ValueError(
@@ -147,7 +164,11 @@ def download_dataset(
             url,
             got,
         )
-    target = root / fname
+    if (target.exists() or target.is_symlink()) and not (
+        _owns(record, root, fname) or (target.is_file() and file_sha256(target) == got)
+    ):
+        part.unlink(missing_ok=True)  # the same bytes may replace it; other bytes may not
+        raise _in_the_way(target, url, "a file of the URL's file name with other content")
     os.replace(part, target)
     with open(target, "rb") as f:
         looks_zip = f.read(4) == b"PK\x03\x04" or target.suffix.lower() == ".zip"
@@ -159,15 +180,92 @@ def download_dataset(
             "received, no end of archive); "
             f"it was removed and nothing is recorded as done. Download it again from {url}."
         )
-    top = _unzip(name, target, root, max_extract_bytes) if looks_zip else ""
-    tmp_marker = marker.with_name(marker.name + ".tmp")
-    tmp_marker.write_text(json.dumps({"name": name, "url": url, "sha256": got, "top": top}))
-    os.replace(tmp_marker, marker)
+    if looks_zip:
+        top, created, files = _unzip(name, target, root, max_extract_bytes, url, record, marker)
+    else:
+        top, created, files = "", [fname], [fname]
+    complete = looks_zip or length_shown or expected is not None
+    records = _read_marker(marker)
+    records[url] = {
+        "name": name,
+        "url": url,
+        "sha256": got,
+        "top": top,
+        "created": created,
+        "files": files,
+        "complete": complete,
+    }
+    _write_marker(marker, records)
+    if not complete:
+        log.warning(
+            "%s: %s arrived without a Content-Length and no SHA-256 is known, so its "
+            "completeness cannot be shown: it is kept at %s but not recorded as finished (the "
+            "next call downloads it again). Pass sha256=%s if that is the published hash.",
+            name,
+            url,
+            target,
+            got,
+        )
     return root / top if top else root
 
 
-def _stream(name: str, url: str, part: Path, root: Path, deadline_s: float) -> str:
-    """Stream ``url`` into ``part`` with a progress bar; return the SHA-256 hex digest.
+def _read_marker(marker: Path) -> dict[str, dict]:
+    """The marker's records by URL (``{}`` when absent or unreadable; a record of the older
+    format, without the list of what it created, proves no ownership)."""
+    try:
+        data = json.loads(marker.read_text())
+    except (OSError, ValueError):
+        return {}
+    if isinstance(data, dict) and isinstance(data.get("downloads"), dict):
+        return {k: v for k, v in data["downloads"].items() if isinstance(v, dict)}
+    if isinstance(data, dict) and isinstance(data.get("url"), str):  # the format before records
+        return {data["url"]: {**data, "created": [], "files": [], "complete": True}}
+    return {}
+
+
+def _write_marker(marker: Path, records: dict[str, dict]) -> None:
+    """Write the records atomically (a unique temporary file, then a rename); no file when
+    there is no record."""
+    if not records:
+        marker.unlink(missing_ok=True)
+        return
+    tmp = marker.with_name(f"{marker.name}.{secrets.token_hex(4)}.tmp")
+    try:
+        tmp.write_text(json.dumps({"format": 2, "downloads": records}, indent=1))
+        os.replace(tmp, marker)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def _owns(record: dict | None, root: Path, entry: str) -> bool:
+    """Whether ``root/entry`` is what an earlier download (``record``) created: a recorded
+    top-level entry, and every file under it one the download extracted."""
+    if not record or entry not in record.get("created", ()):
+        return False
+    files = set(record.get("files", ()))
+    path = root / entry
+    if path.is_symlink() or not path.is_dir():
+        return entry in files
+    return all(
+        (Path(d) / f).relative_to(root).as_posix() in files
+        for d, dirs, names in os.walk(path)
+        for f in [*names, *(x for x in dirs if (Path(d) / x).is_symlink())]
+    )
+
+
+def _in_the_way(path: Path, url: str, what: str) -> FileExistsError:
+    """The error for an entry a download would replace but did not create."""
+    return FileExistsError(
+        f"{path} is in the way of the download from {url}: {what}, not created by an earlier "
+        "download of this URL (or holding files added since), so it is left untouched and "
+        f"nothing was changed. Move or rename {path}, or pass another root= (an empty folder)."
+    )
+
+
+def _stream(name: str, url: str, part: Path, root: Path, deadline_s: float) -> tuple[str, bool]:
+    """Stream ``url`` into ``part`` with a progress bar; return the SHA-256 hex digest and
+    whether the body's length was shown complete (``Content-Length`` matched, or a chunked body
+    ended by its last chunk; a ``file://`` URL's length is the file's).
 
     The body must match its ``Content-Length`` (when sent) and arrive within ``deadline_s``
     seconds; otherwise ``part`` is removed and OSError raised.
@@ -178,8 +276,9 @@ def _stream(name: str, url: str, part: Path, root: Path, deadline_s: float) -> s
     try:
         with urllib.request.urlopen(url, timeout=min(_READ_TIMEOUT_S, deadline_s)) as resp:
             total = int(resp.headers.get("Content-Length") or 0) or None
+            chunked = "chunked" in str(resp.headers.get("Transfer-Encoding", "")).lower()
             with (
-                open(part, "wb") as f,
+                open(part, "xb") as f,
                 tqdm(
                     total=total,
                     unit="B",
@@ -211,26 +310,52 @@ def _stream(name: str, url: str, part: Path, root: Path, deadline_s: float) -> s
             f"download of {name!r} from {url} failed: {exc}; nothing was kept. Check the URL "
             f"and your connection and retry, or download it by hand into {root}."
         ) from exc
-    return digest.hexdigest()
+    return digest.hexdigest(), total is not None or chunked
 
 
-def _unzip(name: str, target: Path, root: Path, max_bytes: int) -> str:
+def _unzip(
+    name: str,
+    target: Path,
+    root: Path,
+    max_bytes: int,
+    url: str,
+    record: dict | None,
+    marker: Path,
+) -> tuple[str, list[str], list[str]]:
     """Extract the zip ``target`` into ``root`` (via a temporary folder, moved into place when
-    complete), remove it; return its single top folder or ""."""
+    complete), remove it; return its single top folder (or ""), the top-level entries created
+    and every file extracted (relative to ``root``).
+
+    An entry in the way that ``record`` (the earlier download of ``url``) did not create is
+    refused before anything is moved (:class:`FileExistsError`, the archive removed)."""
     staging = Path(tempfile.mkdtemp(prefix=".extract-", dir=root))
     try:
         with zipfile.ZipFile(target) as zf:
             names = _safe_extract(zf, staging, max_bytes)
-        for entry in staging.iterdir():
-            dest = root / entry.name
-            if dest.exists() or dest.is_symlink():
-                if dest.is_dir() and not dest.is_symlink():
-                    shutil.rmtree(dest)
-                else:
-                    dest.unlink()
-            os.replace(entry, dest)
+        entries = sorted(e.name for e in staging.iterdir())
+        files = sorted(
+            (Path(d) / f).relative_to(staging).as_posix()
+            for d, _, found in os.walk(staging)
+            for f in found
+        )
+        for entry in entries:
+            dest = root / entry
+            if (dest.exists() or dest.is_symlink()) and not _owns(record, root, entry):
+                raise _in_the_way(dest, url, "an entry of the archive's top level")
+        if record is not None and any((root / e).exists() for e in entries):
+            # replacing what the earlier download made: not finished until the end
+            _write_marker(marker, {**_read_marker(marker), url: {**record, "complete": False}})
+        for entry in entries:
+            dest = root / entry
+            if dest.is_dir() and not dest.is_symlink():
+                shutil.rmtree(dest)
+            elif dest.exists() or dest.is_symlink():
+                dest.unlink()
+            os.replace(staging / entry, dest)
     except (zipfile.BadZipFile, OSError, EOFError, zlib.error, NotImplementedError) as exc:
         target.unlink(missing_ok=True)  # a member does not read: the archive is damaged
+        if isinstance(exc, FileExistsError):
+            raise
         raise ValueError(
             f"{target} could not be extracted ({type(exc).__name__}: {exc}); it was removed and "
             "nothing was kept. Download it again."
@@ -241,5 +366,5 @@ def _unzip(name: str, target: Path, root: Path, max_bytes: int) -> str:
     log.info("%s: extracted %d entries into %s", name, len(names), root)
     tops = {n.split("/")[0] for n in names if n.strip("/")}
     if len(tops) == 1 and (root / next(iter(tops))).is_dir():
-        return next(iter(tops))
-    return ""
+        return next(iter(tops)), entries, files
+    return "", entries, files

@@ -4,9 +4,11 @@ edge map; boxes in proposal order (descending objectness score)."""
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import os
 import re
+import tempfile
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -47,7 +49,9 @@ EDGE_BOXES_DEFAULTS: dict[str, float | bool] = {
     "edge_nms": True,
 }
 
+#: Loaded structured-edge detectors by the sha256 of their model file's bytes (oldest first).
 _SED_CACHE: dict[str, Any] = {}
+_SED_CACHE_SIZE = 4
 _LOGGED_SOURCES: set[str] = set()
 
 
@@ -160,10 +164,11 @@ def _model_options(fs: Any, path: Path) -> dict[str, int]:
 MAX_MODEL_BYTES = 1 << 30
 
 
-def _model_text(path: Path) -> str:
-    """The model file's text, unpacked when gzip'd, refused beyond :data:`MAX_MODEL_BYTES` (a
-    small archive that unpacks to gigabytes) before OpenCV reads it."""
-    raw = path.read_bytes()
+def _model_text(path: Path, raw: bytes | None = None) -> str:
+    """The model file's text (``raw``: its bytes, read once by the caller), unpacked when
+    gzip'd, refused beyond :data:`MAX_MODEL_BYTES` (a small archive that unpacks to gigabytes)
+    before OpenCV reads it."""
+    raw = path.read_bytes() if raw is None else raw
     if raw[:2] == b"\x1f\x8b":
         unpack = zlib.decompressobj(16 + zlib.MAX_WBITS)
         try:
@@ -208,14 +213,18 @@ def _model_trees(path: Path, fs: Any, text: str) -> dict[str, list[np.ndarray]]:
     return trees
 
 
-def _check_model(path: Path) -> None:
+def _check_model(path: Path, copy: Path | None = None, raw: bytes | None = None) -> None:
     """Refuse a structured-edge model file OpenCV would crash or loop on (it indexes its trees
-    unchecked): readable FileStorage, bounded options, every index within the model's sizes."""
-    text = _model_text(path)
+    unchecked): readable FileStorage, bounded options, every index within the model's sizes.
+
+    ``copy`` (a private copy of the file's bytes ``raw``) is what is read; messages name
+    ``path``."""
+    text = _model_text(path, raw)
     try:
-        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+        fs = cv2.FileStorage(str(copy or path), cv2.FILE_STORAGE_READ)
     except (cv2.error, SystemError) as exc:  # the binding wraps a parse error in SystemError
-        reason = str(exc.__cause__ or exc.__context__ or exc).strip().splitlines()[-1][-120:]
+        reason = str(exc.__cause__ or exc.__context__ or exc).replace(str(copy), str(path))
+        reason = reason.strip().splitlines()[-1][-120:]
         raise _bad_model(path, f"not a readable OpenCV FileStorage: {reason}") from None
     try:
         if not fs.isOpened():
@@ -257,6 +266,35 @@ def _check_model(path: Path) -> None:
         raise _bad_model(path, f"'edgeBins' must lie in [0, {n_bins})")
 
 
+def model_cache_key(path: Path) -> tuple[str, bytes]:
+    """``(sha256 hex, bytes)`` of a structured-edge model file, read now: the key of the loaded
+    detector, so a file overwritten in place is loaded again (never keyed by path or mtime)."""
+    raw = path.read_bytes()
+    return hashlib.sha256(raw).hexdigest(), raw
+
+
+def _detector(path: Path) -> Any:
+    """The structured-edge detector of the model file's current bytes (cached by their sha256:
+    the same identity as :func:`edge_model_id`). It is loaded from a private copy of the bytes
+    that were hashed, so a file replaced while it loads cannot give the detector another key."""
+    digest, raw = model_cache_key(path)
+    sed = _SED_CACHE.get(digest)
+    if sed is None:
+        with tempfile.TemporaryDirectory(prefix="vpr-sed-") as tmp:
+            copy = Path(tmp) / path.name  # the same name: OpenCV reads .gz by the suffix
+            copy.write_bytes(raw)
+            _check_model(path, copy, raw)
+            try:
+                sed = cv2.ximgproc.createStructuredEdgeDetection(str(copy))
+            except cv2.error as exc:
+                why = str(exc).replace(str(copy), str(path))
+                raise _bad_model(path, why.strip().splitlines()[-1][-160:]) from None
+        while len(_SED_CACHE) >= _SED_CACHE_SIZE:  # a few models per process at most
+            _SED_CACHE.pop(next(iter(_SED_CACHE)))
+        _SED_CACHE[digest] = sed
+    return sed
+
+
 def _structured_edges(image: np.ndarray, path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Structured-edge map and orientation, both ``(H, W)`` float32, NMS-thinned.
 
@@ -264,15 +302,7 @@ def _structured_edges(image: np.ndarray, path: Path) -> tuple[np.ndarray, np.nda
         ValueError: the model file cannot be read or is not a structured-edge model (names the
             file and ``VPR_SED_MODEL``).
     """
-    key = str(path.resolve())
-    sed = _SED_CACHE.get(key)
-    if sed is None:
-        _check_model(path)
-        try:
-            sed = cv2.ximgproc.createStructuredEdgeDetection(key)
-        except cv2.error as exc:
-            raise _bad_model(path, str(exc).strip().splitlines()[-1][-160:]) from None
-        _SED_CACHE[key] = sed
+    sed = _detector(path)
     rgb = image if image.ndim == 3 else np.repeat(image[:, :, None], 3, axis=2)
     edges = sed.detectEdges(np.ascontiguousarray(rgb, dtype=np.float32) / 255.0)
     orient = sed.computeOrientation(edges)

@@ -1,10 +1,18 @@
-"""On-disk cache entries: atomic writes, and reads that heal a corrupted or foreign entry (each
-records its identity and is checked on read; a file that fails is logged, removed and
-recomputed, so a damaged cache never stops a run and never changes a number)."""
+"""On-disk cache entries: atomic writes, and reads that heal a corrupted, edited or foreign entry
+(each records its identity and the sha256 of every array, checked on read; a file that fails is
+logged, removed and recomputed, so a damaged cache never stops a run and never changes a number).
+
+Memory-mapped arrays (the per-image feature stores' descriptors) are not hashed on read, which
+would read every row: they are protected by the atomic rename (never a partial file), the zip's
+member size and the ``.npy`` header (a truncated or resized array is refused), the dtype and
+shape recorded beside their checksum, and the checksums of the arrays read in full (the store's
+index: boxes and costs)."""
 
 from __future__ import annotations
 
 import contextlib
+import hashlib
+import json
 import os
 import struct
 import tempfile
@@ -18,7 +26,15 @@ import numpy as np
 from ..datasets.base import SIDES
 from ..utils import logger, short_hash
 
-__all__ = ["ForeignEntryError", "atomic_savez", "dataset_fingerprint", "load_npz", "n_images"]
+__all__ = [
+    "CHECKSUMS",
+    "DamagedEntryError",
+    "ForeignEntryError",
+    "atomic_savez",
+    "dataset_fingerprint",
+    "load_npz",
+    "n_images",
+]
 
 _REPORTED: set[str] = set()
 _UNREADABLE = (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError)
@@ -26,6 +42,47 @@ _UNREADABLE = (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError)
 
 class ForeignEntryError(ValueError):
     """A readable cache entry that is not the one asked for (another identity, wrong shape)."""
+
+
+class DamagedEntryError(ValueError):
+    """A readable cache entry whose arrays do not match the checksums written beside them
+    (edited by hand, damaged on disk, or written by a version without checksums)."""
+
+
+#: Name of the array of an entry that holds ``{key: [dtype, shape, sha256]}`` of every other one.
+CHECKSUMS = "_checksums"
+
+
+def _digest(a: np.ndarray) -> str:
+    """Hex sha256 of an array's bytes in C order (no copy when already contiguous)."""
+    a = np.ascontiguousarray(a)
+    return hashlib.sha256(a.reshape(-1).view(np.uint8).data if a.size else b"").hexdigest()
+
+
+def _checksums(arrays: dict[str, Any]) -> str:
+    """``{key: [dtype, shape, sha256]}`` of ``arrays`` as JSON (what :func:`load_npz` checks)."""
+    out = {}
+    for k, v in arrays.items():
+        a = np.asanyarray(v)
+        out[k] = [a.dtype.str, list(a.shape), _digest(a) if not a.dtype.hasobject else ""]
+    return json.dumps(out, sort_keys=True)
+
+
+def _verify(z: Any, out: dict[str, np.ndarray], mapped: tuple[str, ...]) -> None:
+    """Raise :class:`DamagedEntryError` unless each array of ``out`` matches the checksum the
+    entry records: dtype and shape always, the sha256 of its bytes unless memory-mapped."""
+    if CHECKSUMS not in z.files:
+        raise DamagedEntryError("it carries no checksums (written by an older version)")
+    try:
+        recorded = json.loads(str(z[CHECKSUMS]))
+    except ValueError:
+        raise DamagedEntryError("its checksums do not read") from None
+    for k, a in out.items():
+        dtype, shape, digest = recorded.get(k, (None, None, None))
+        if (dtype, shape) != (a.dtype.str, list(a.shape)):
+            raise DamagedEntryError(f"{k!r} is not the {dtype} {shape} array it was written as")
+        if k not in mapped and digest != _digest(a):
+            raise DamagedEntryError(f"the bytes of {k!r} do not match its checksum (edited?)")
 
 
 def _cache_folder_error(path: Path, exc: OSError) -> OSError:
@@ -39,7 +96,8 @@ def _cache_folder_error(path: Path, exc: OSError) -> OSError:
 
 
 def atomic_savez(path: Path, identity: str | None = None, **arrays: Any) -> None:
-    """Write ``arrays`` to ``path`` (``.npz``) via a temporary file and an atomic rename.
+    """Write ``arrays`` to ``path`` (``.npz``) via a temporary file and an atomic rename, with
+    the dtype, shape and sha256 of each array beside them (:data:`CHECKSUMS`).
 
     Args:
         path: the entry.
@@ -52,6 +110,7 @@ def atomic_savez(path: Path, identity: str | None = None, **arrays: Any) -> None
     """
     if identity is not None:
         arrays["_identity"] = np.array(identity)
+    arrays[CHECKSUMS] = np.array(_checksums(arrays))
     tmp = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -103,8 +162,10 @@ def load_npz(
     """Read ``keys`` from a cached ``.npz``; ``None`` if it is absent, unreadable or foreign.
 
     An unreadable file (``BadZipFile``, ``EOFError``, a missing key, a damaged array), one whose
-    recorded identity differs from ``identity``, or one that ``check`` rejects is logged once
-    with its path and the reason, removed, and reported as missing so the caller recomputes it.
+    arrays do not match their recorded checksums (:class:`DamagedEntryError`: an entry edited by
+    hand, or one without checksums), one whose recorded identity differs from ``identity``, or
+    one that ``check`` rejects is logged once with its path and the reason, removed, and
+    reported as missing so the caller recomputes it.
 
     Args:
         path: the cache entry.
@@ -112,7 +173,8 @@ def load_npz(
         identity: what the caller expects the entry to be computed from (None: not checked).
         check: returns why the arrays do not fit (e.g. ``"descriptors of 7 columns, expected
             1024"``) or None.
-        mapped: keys to memory-map instead (:func:`_mapped`; their size and header are checked).
+        mapped: keys to memory-map instead (:func:`_mapped`; their size, header, dtype and shape
+            are checked, their bytes are not read).
 
     Returns:
         ``{key: array}`` or ``None``.
@@ -126,9 +188,10 @@ def load_npz(
                 stored = str(z["_identity"]) if "_identity" in z.files else "no identity"
                 if stored != identity:
                     raise ForeignEntryError(f"it holds {stored!r}, not {identity!r}")
-        problem = check(out) if check is not None else None
-        if problem:
-            raise ForeignEntryError(problem)
+            problem = check(out) if check is not None else None
+            if problem:
+                raise ForeignEntryError(problem)
+            _verify(z, out, mapped)  # last: an entry of the wrong shape is named for its shape
         return out
     except _UNREADABLE as exc:
         if str(path) not in _REPORTED:
@@ -136,6 +199,8 @@ def load_npz(
             what = (
                 "does not hold what it is named for"
                 if isinstance(exc, ForeignEntryError)
+                else "does not match its checksums"
+                if isinstance(exc, DamagedEntryError)
                 else "is unreadable"
             )
             logger.warning(

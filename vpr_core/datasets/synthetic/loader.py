@@ -33,9 +33,31 @@ def _write_png(path: Path, rgb: np.ndarray) -> None:
     )
     if not ok:  # pragma: no cover - encoding a uint8 RGB array does not fail
         raise RuntimeError(f"could not encode {path}")
+    _write_atomic(path, buf.tobytes())
+
+
+def _write_atomic(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` via a temporary file and a rename; a failed write (a full
+    disk, a read-only folder) removes the temporary file and raises an OSError of the same
+    errno that names ``path`` and the fix."""
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_bytes(buf.tobytes())
-    os.replace(tmp, path)
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise _write_error(path, exc) from exc
+
+
+def _write_error(path: Path, exc: OSError) -> OSError:
+    """The error of a write that failed under the synthetic dataset's folder: the file, the
+    cause and the fix."""
+    return OSError(
+        exc.errno,
+        f"synthetic: cannot write {path} ({exc.strerror or exc}); free space on that disk, or "
+        "set VPR_CACHE_DIR (or pass root=...) to a writable folder with room for the "
+        "dataset; nothing partial was kept",
+    )
 
 
 def load_synthetic(
@@ -124,8 +146,11 @@ def load_synthetic(
         if root is not None
         else cache_dir("datasets", f"synthetic-{short_hash(params)}")
     )
-    (out / "query").mkdir(parents=True, exist_ok=True)
-    (out / "reference").mkdir(parents=True, exist_ok=True)
+    for side in ("query", "reference"):
+        try:
+            (out / side).mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise _write_error(out / side, exc) from exc
     qp = [out / "query" / f"{i:04d}.png" for i in range(n_places)]
     rp = [out / "reference" / f"{i:04d}.png" for i in range(n_places)]
     missing = [i for i in range(n_places) if not (qp[i].is_file() and rp[i].is_file())]
@@ -159,9 +184,7 @@ def load_synthetic(
                 str(i): synthetic_homography(seed, i, size, diff).round(10).tolist() for i in have
             },
         )
-        tmp = manifest_path.with_name(f".manifest.{os.getpid()}.tmp")
-        tmp.write_text(json.dumps(manifest, indent=1))
-        os.replace(tmp, manifest_path)
+        _write_atomic(manifest_path, json.dumps(manifest, indent=1).encode())
     gt = _frame_aligned(n_places, n_places, tolerance)
     meta = dict(
         params,
