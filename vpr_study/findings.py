@@ -300,11 +300,12 @@ def findings_table(labels: Sequence[str], out: str | Path | None = None) -> pd.D
 
 #: The line above the Markdown findings table: how to read a cell.
 LEGEND = (
-    "Each cell: `method - baseline` AUC [95% interval] p, then the verdict: **higher** or "
-    "**lower** when the interval lies above or below 0, else **inconclusive** (with the queries a "
-    f"verdict would need); a claim of parity is **on par** only when the whole interval lies "
-    f'inside ±{ON_PAR_MARGIN} AUC. "(as the paper says)" or "(paper: lower)" sets the verdict '
-    'beside the paper\'s claim (docs/DEFINITIONS.md, "Verdicts").'
+    "Each cell: the difference `method - baseline` (AUC; Obs. 1: CMR) [95% interval] p, then "
+    "the verdict: **higher** or **lower** when the interval lies above or below 0, else "
+    "**inconclusive** (with the queries a verdict would need); a claim of parity is **on par** "
+    f'only when the whole interval lies inside ±{ON_PAR_MARGIN} AUC. "(as the paper says)" or '
+    '"(paper: lower)" sets the verdict beside the paper\'s claim (docs/DEFINITIONS.md, '
+    '"Verdicts").'
 )
 
 
