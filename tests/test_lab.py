@@ -8,7 +8,6 @@ from __future__ import annotations
 import copy
 import json
 import logging
-import os
 import re
 import shutil
 import subprocess
@@ -372,7 +371,9 @@ def _checkout(tmp_path: Path) -> Path:
     return root
 
 
-def test_init_writes_the_starter_when_absent_and_never_replaces_a_users_file(tmp_path, capsys):
+def test_init_writes_the_starter_when_absent_and_never_replaces_a_users_file(
+    tmp_path, capsys, monkeypatch
+):
     root = _checkout(tmp_path)
     path = lab.init(root)
     assert path == root / "user" / "notebooks" / "00_start_here.ipynb"
@@ -389,12 +390,10 @@ def test_init_writes_the_starter_when_absent_and_never_replaces_a_users_file(tmp
     assert done.returncode == 0 and path.read_bytes() == lab.starter_source()
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
-    with pytest.raises(FileNotFoundError, match="--root"):
-        os.chdir(elsewhere)
-        try:
-            lab.init()
-        finally:
-            os.chdir(REPO)
+    monkeypatch.chdir(elsewhere)
+    with pytest.raises(FileNotFoundError, match="not inside a checkout.*--root"):
+        lab.init()
+    assert not (elsewhere / "user").exists()
 
 
 @needs_git
