@@ -58,8 +58,8 @@ ds
 # %% [markdown]
 # ## Fig. 5 — PR curves: classical vs Scheme 1 vs Scheme 2 (ratio protocol)
 # Three runs of `run_method`, then `compare` (metrics with 95% bootstrap intervals and the
-# paired difference of each run against classical: a finding only when its interval excludes
-# 0), then the PR curves.
+# paired difference of each run against classical: higher or lower only when its interval
+# excludes 0, else inconclusive), then the PR curves.
 
 # %%
 methods = ("classical", "selection_scheme1", "selection_scheme2")

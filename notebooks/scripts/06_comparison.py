@@ -68,7 +68,8 @@ ds
 # %% [markdown]
 # ## Fig. 13 — dense sampling vs Scheme 1 vs classical (and peers)
 # `compare` puts every run beside dense sampling: the paired bootstrap resamples the same
-# queries for both methods, and a difference is a finding only when its interval excludes 0.
+# queries for both methods; a difference is higher or lower only when its interval excludes 0
+# (else inconclusive).
 
 # %%
 runs = [run_method(m, ds, **run_options) for m in ("dense", "selection_scheme1", "classical", "global")]
@@ -101,8 +102,8 @@ shown
 # Eq. (1) ignores where the matched landmarks lie. `spatial="consistency"` weights each
 # reciprocal match by how well its box displacement agrees with the pair's median displacement
 # (docs/DEFINITIONS.md), for any method. Each figure pairs a method with and without it; the
-# table's paired difference says whether geometry is a finding on this dataset. Off by default:
-# on the shared real data no difference is a finding.
+# table's paired difference says whether geometry scores higher, lower or inconclusive on this
+# dataset. Off by default: on the shared real data every difference is inconclusive.
 
 # %%
 for m, stem in (("dense", "geometry_dense"), ("classical", "geometry_classical")):
@@ -142,7 +143,8 @@ cost
 # standard deviations, 0 below the mean); `weighting="idf"` by the log of the references over
 # those the landmark matches (docs/DEFINITIONS.md). Each figure shows a method with each
 # weighting; the table's paired differences against the paper's Eq. (1) say whether a weighting
-# is a finding on this dataset. Off by default: the study reproduces the paper.
+# is higher, lower or inconclusive on this dataset. Off by default: the study reproduces
+# the paper.
 
 # %%
 for m, stem in (("dense", "weighting_dense"), ("classical", "weighting_classical")):
