@@ -224,7 +224,7 @@ def test_ctrl_c_while_labels_run_side_by_side_starts_no_further_label(monkeypatc
             b_running.set()
         if label == "a" and b_running.wait(5):
             os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C while the main thread waits
-        time.sleep(0.3)
+        time.sleep(2.0)  # a and b hold both slots until the main thread has seen Ctrl-C
         return []
 
     monkeypatch.setattr(execution, "_run_label", fake_run_label)
@@ -232,3 +232,42 @@ def test_ctrl_c_while_labels_run_side_by_side_starts_no_further_label(monkeypatc
     with pytest.raises(KeyboardInterrupt):
         execution.run_labels(chains, "python3", False, jobs=2)
     assert sorted(started) == ["a", "b"]  # "c" was waiting for a free slot: never started
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_every_label_runs_when_one_fails_and_the_failures_are_named(monkeypatch, jobs):
+    ran = []
+
+    def fake_run_label(label, notebooks, params, kernel, force=False, side_by_side=False, nice=0):
+        ran.append(label)
+        if label in ("a", "c"):
+            raise RuntimeError(f"notebook 0{len(ran)} of {label} failed")
+        return [f"{label}/fig.png (absent)"]
+
+    monkeypatch.setattr(execution, "_run_label", fake_run_label)
+    chains = [("a", [], {}), ("b", [], {}), ("c", [], {})]
+    with pytest.raises(RuntimeError) as err:
+        execution.run_labels(chains, "python3", False, jobs=jobs)
+    assert sorted(ran) == ["a", "b", "c"]  # the labels after the failed first one ran
+    text = str(err.value)
+    assert "2 of 3 dataset labels failed" in text
+    assert "a: notebook" in text and "of a failed" in text and "of c failed" in text
+    assert "These ran to their end: b" in text
+
+
+def test_vpr_study_run_exits_non_zero_naming_the_failed_labels(tmp_path, monkeypatch, capsys):
+    from vpr_study import cli
+
+    def fake_run_label(label, notebooks, params, kernel, force=False, side_by_side=False, nice=0):
+        raise RuntimeError(f"notebook 03_landmark_selection.ipynb of {label} failed")
+
+    monkeypatch.setattr(execution, "_run_label", fake_run_label)
+    monkeypatch.setattr(
+        runner, "study_datasets", lambda: {"other": {"dataset": "synthetic", "root": None}}
+    )
+    argv = ["run", "--dataset", "synthetic", "--quick", "--real-data", "--jobs", "1"]
+    rc = cli.main([*argv, "--out", str(tmp_path)])
+    assert rc != 0
+    err = capsys.readouterr().err
+    assert "2 of 2 dataset labels failed" in err
+    assert "synthetic_quick: notebook" in err and "other_quick: notebook" in err

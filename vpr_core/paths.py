@@ -173,26 +173,34 @@ _OUT_SETTING = "--out / VPR_OUTPUT_DIR (default: the project checkout, else the 
 MAX_LABEL_BYTES = 100
 
 
+#: The characters a label may hold, as :func:`check_label`'s message names them.
+LABEL_CHARACTERS = "letters, digits, '_', '-', '.' and '+'"
+
+
+def _label_character(c: str) -> bool:
+    """True for a letter or a decimal digit (any script) or one of ``_ - . +``."""
+    return c.isalpha() or c.isdecimal() or c in "_-.+"
+
+
 def check_label(label: object) -> str:
-    """``label`` if it names one output subfolder (one path component, not ``.``/``..``).
+    """``label`` if it names one output subfolder: only :data:`LABEL_CHARACTERS` (letters,
+    digits, ``_ - . +``), not starting with ``.``; one rule for every output label (CLI, runner,
+    ``save``), so a label never adds a column or a row, or HTML, to a table that names it.
 
     Raises:
-        ValueError: e.g. ``../../x`` or ``/tmp/x`` (would write outside the output root).
+        ValueError: e.g. ``../../x`` or ``/tmp/x`` (would write outside the output root),
+            ``a|b``, a newline or ``<img ...>``; the message names the allowed characters.
         TypeError: not a string (e.g. ``label=5``).
     """
     if not isinstance(label, str):
         raise TypeError(f"label must be a string such as 'gardens_point', got {label!r}")
-    if (
-        not label.strip()
-        or label in (".", "..")
-        or "/" in label
-        or "\\" in label
-        or "\0" in label
-        or Path(label).is_absolute()
-    ):
+    bad = sorted({c for c in label if not _label_character(c)})
+    if not label or label.startswith(".") or bad:
+        found = f"it holds {', '.join(map(repr, bad))}" if bad else "it is empty or starts with '.'"
         raise ValueError(
-            f"label {label!r} must be one folder name (no '/', '..' or absolute path), "
-            "e.g. 'gardens_point'; it names figures/<label>/ and results/<label>/"
+            f"label {label!r} must be one folder name (no '/', '..' or absolute path) of "
+            f"{LABEL_CHARACTERS}, not starting with '.', e.g. 'gardens_point' ({found}); it "
+            "names figures/<label>/ and results/<label>/"
         )
     if len(label.encode()) > MAX_LABEL_BYTES:
         raise ValueError(

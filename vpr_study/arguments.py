@@ -9,7 +9,7 @@ from collections.abc import Callable
 import torch
 
 from vpr_core import paths, settings
-from vpr_core.backbones import parse_backbone
+from vpr_core.backbones import available_backbones, parse_backbone, weights_sha256
 from vpr_core.datasets import DATASETS
 from vpr_core.evaluation import PROTOCOLS
 from vpr_core.matching import SPATIAL_OPTIONS, WEIGHTING_OPTIONS
@@ -27,18 +27,36 @@ def _parse_value(text: str):
 
 
 def dataset_options(args: argparse.Namespace) -> dict:
+    """The loader options of ``--tolerance``, ``--n-places``, ``--step`` and ``--opt KEY=VALUE``.
+
+    Raises:
+        ValueError: an ``--opt`` that is not KEY=VALUE, ``--opt root=...`` (``--root`` says
+            it), or one option set twice (``--opt tolerance=1 --tolerance 2``,
+            ``--opt a=1 --opt a=2``): the message names both.
+    """
     opts: dict = {}
-    if args.tolerance is not None:
-        opts["tolerance"] = args.tolerance
-    if getattr(args, "n_places", None) is not None:
-        opts["n_places"] = args.n_places
-    if getattr(args, "step", None) is not None:
-        opts["step"] = args.step
+    given: dict[str, str] = {}
+
+    def put(key: str, value: object, how: str) -> None:
+        same = key.replace("-", "_")
+        if same in given:
+            raise ValueError(
+                f"{given[same]} and {how} both set the loader option {same!r}; give it once"
+            )
+        given[same] = how
+        opts[key] = value
+
+    for key, flag in (("tolerance", "--tolerance"), ("n_places", "--n-places"), ("step", "--step")):
+        value = getattr(args, key, None)
+        if value is not None:
+            put(key, value, f"{flag} {value}")
     for item in getattr(args, "opt", None) or []:
         key, sep, value = item.partition("=")
         if not sep or not key.strip():
             raise ValueError(f"--opt {item!r} is not KEY=VALUE (e.g. --opt query=winter)")
-        opts[key.strip()] = _parse_value(value.strip())
+        if key.strip() == "root":
+            raise ValueError(f"--opt {item!r}: the dataset folder is --root, not a loader option")
+        put(key.strip(), _parse_value(value.strip()), f"--opt {item}")
     return opts
 
 
@@ -86,12 +104,110 @@ def _device(text: str) -> str:
     return text
 
 
+#: Where a parsed namespace records the options given so far (:class:`_Once`); removed by
+#: :func:`given_once` after parsing.
+_GIVEN = "_given"
+
+
+class _Once(argparse.Action):
+    """``store``, refusing an option given twice (``--tolerance 1 --tolerance 2``): argparse
+    would keep the last one silently."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        given = namespace.__dict__.setdefault(_GIVEN, {})
+        shown = " ".join(map(str, values)) if isinstance(values, list) else str(values)
+        now = f"{option_string} {shown}".strip()
+        if self.dest in given:
+            raise argparse.ArgumentError(
+                self, f"given twice ({given[self.dest]}, {now}); give it once"
+            )
+        given[self.dest] = now
+        setattr(namespace, self.dest, values)
+
+
+def given_once(args: argparse.Namespace) -> argparse.Namespace:
+    """``args`` without the record :class:`_Once` keeps while parsing."""
+    vars(args).pop(_GIVEN, None)
+    return args
+
+
+def backbone_help() -> str:
+    """``--backbone``'s help: every registered backbone, each that cannot run in this install
+    marked with what it needs (a weights file that is absent here)."""
+    names = []
+    for name in available_backbones():
+        try:
+            found = weights_sha256(name)
+        except (FileNotFoundError, OSError):
+            found = "missing"
+        names.append(
+            f"{name} (needs a weights file, none found here: --weights FILE)"
+            if found == "missing"
+            else name
+        )
+    return (
+        "landmark descriptor: a name, or NAME:OPTION=VALUE,... (e.g. efficientnet_lite0:stage=4,"
+        f"input_size=96), of: {', '.join(names)} (default: efficientnet_lite0, ImageNet weights "
+        "shipped)"
+    )
+
+
+class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Examples kept as written; each option's default named (``(default: X)``) where its help
+    does not already say it; ``--backbone`` lists the backbones of this install (read only
+    when help is shown)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if action.dest == "backbone":
+            return backbone_help().replace("%", "%%")
+        default = action.default
+        if (
+            action.option_strings
+            and "default" not in text
+            and default not in (None, False, argparse.SUPPRESS)
+            and not isinstance(action, argparse._HelpAction)
+        ):
+            value = " ".join(map(str, default)) if isinstance(default, list) else str(default)
+            text += f" (default: {value})".replace("%", "%%")
+        return text
+
+
+#: ``vpr-study eval --help``'s examples and where it writes.
+EVAL_EPILOG = """examples:
+  vpr-study eval --dataset synthetic --method dense classical
+      the paper's two methods on the built-in synthetic set (no download)
+  vpr-study eval --dataset synthetic --method dense --weighting both
+      with and without each database weighting, and the paired differences
+  vpr-study eval --dataset folder --root ~/photos/route --method dense
+      your own images: a folder holding query/ and reference/ image folders
+  vpr-study eval --dataset synthetic --method dense --peer MyNet=sim.npy
+      your own method's (queries x references) similarity matrix beside ours
+  vpr-study eval --study --dataset synthetic --method dense classical
+      the study's own call (make study): its committed figures/ and results/
+
+where it writes: user/figures/<label>/ and user/results/<label>/ of the
+checkout (git-ignored; outside a checkout, the current folder); --out ROOT:
+ROOT/figures/<label>/ and ROOT/results/<label>/; --study: the study's
+figures/ and results/. A label holds letters, digits, '_', '-', '.', '+'.
+"""
+
+#: ``vpr-study run --help``'s examples.
+RUN_EPILOG = """examples:
+  vpr-study run --dataset synthetic            # the whole study (make study)
+  vpr-study run --dataset synthetic --quick    # the small headless run of the tests
+  vpr-study run --dataset synthetic --notebooks 06_comparison --force
+
+the study writes its figures/ and results/ (and runs/<label>/, the executed notebooks).
+"""
+
+
 #: ``vpr-study --help``'s description.
 DESCRIPTION = """vpr-study eval: methods on a dataset; run: the study; findings: claims vs results.
 
 Examples::
 
-    vpr-study eval --dataset synthetic --method dense
+    vpr-study eval --dataset synthetic --method dense   # writes under user/
     vpr-study eval --dataset gardens_point --root ~/data/gardens_point --method classical
     vpr-study eval --dataset nordland --root ../shared/data/nordland_64x32 --method dense \\
         --pooling roi --shortlist 25             # all 3,576 x 3,576 places
@@ -110,26 +226,44 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
     )
     sub = p.add_subparsers(dest="command", required=True)
 
+    def command(name: str, text: str, epilog: str | None = None) -> argparse.ArgumentParser:
+        sp = sub.add_parser(name, help=text, epilog=epilog, formatter_class=_HelpFormatter)
+        sp.register("action", None, _Once)
+        sp.register("action", "store", _Once)
+        return sp
+
     def common(sp: argparse.ArgumentParser) -> None:
         sp.add_argument("--dataset", default="synthetic", help=" | ".join(DATASETS))
-        sp.add_argument("--root", type=_folder, default=None, help="dataset folder (real datasets)")
+        sp.add_argument(
+            "--root",
+            type=_folder,
+            default=None,
+            help="dataset folder (real datasets; default: none, synthetic needs none)",
+        )
         sp.add_argument(
             "--backbone",
             default="efficientnet_lite0",
-            help="landmark descriptor: efficientnet_lite0 (default, ImageNet "
-            "weights shipped), efficientnet_lite1/2, alexnet_conv3 (the "
-            "paper's; needs a weights file), hog, sift",
+            help="landmark descriptor (the list is read when help is shown)",
         )
         sp.add_argument(
             "--out",
             default=None,
             help="output root: figures/, results/, runs/ (and .cache/ unless "
             "VPR_CACHE_DIR is set) go under it; default $VPR_OUTPUT_DIR, else the "
-            "project checkout holding the current folder, else the current folder",
+            "project checkout holding the current folder (eval: its git-ignored user/), else "
+            "the current folder",
         )
-        sp.add_argument("--step", type=int, default=None, help="nordland: keep every step-th place")
         sp.add_argument(
-            "--tolerance", type=int, default=None, help="ground-truth tolerance (frames)"
+            "--step",
+            type=int,
+            default=None,
+            help="nordland: keep every step-th place (default: all)",
+        )
+        sp.add_argument(
+            "--tolerance",
+            type=int,
+            default=None,
+            help="ground-truth tolerance (frames; default: the dataset's own)",
         )
         sp.add_argument(
             "--opt",
@@ -138,8 +272,14 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
             help="any other loader option, e.g. --opt query=winter (repeatable)",
         )
 
-    e = sub.add_parser("eval", help="evaluate one or more methods on a dataset")
+    e = command("eval", "evaluate one or more methods on a dataset", EVAL_EPILOG)
     common(e)
+    e.add_argument(
+        "--study",
+        action="store_true",
+        help="write the study's committed outputs, figures/<label>/ and results/<label>/ of "
+        "the checkout (make study's call), instead of user/",
+    )
     e.add_argument(
         "--method",
         nargs="+",
@@ -149,8 +289,8 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
     e.add_argument(
         "--label",
         default=None,
-        help="output subfolder and the dataset's name in tables and titles "
-        "(default: the root folder's name for folder datasets, else the "
+        help="output subfolder and the dataset's name in tables and titles: letters, digits, "
+        "'_', '-', '.', '+' (default: the root folder's name for folder datasets, else the "
         "dataset name)",
     )
     e.add_argument(
@@ -162,7 +302,12 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
     e.add_argument(
         "--seed", type=_int_at_least(0), default=0, help="seed of the random projection (default 0)"
     )
-    e.add_argument("--weights", default=None, help="AlexNet weights file (alexnet_conv3)")
+    e.add_argument(
+        "--weights",
+        default=None,
+        help="the backbone's weights file (default: alexnet_conv3: $VPR_ALEXNET_WEIGHTS or the "
+        "torch hub cache; EfficientNet-Lite: the shipped ImageNet weights)",
+    )
     e.add_argument(
         "--pooling",
         default="crop",
@@ -257,10 +402,15 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
         choices=("cosine", "l2"),
         help="metric of --peer descriptor folders (default cosine)",
     )
-    e.add_argument("--n-places", type=int, default=None, help="synthetic: number of places")
+    e.add_argument(
+        "--n-places",
+        type=int,
+        default=None,
+        help="synthetic: number of places (default: the generator's)",
+    )
     e.set_defaults(func=handlers["eval"])
 
-    r = sub.add_parser("run", help="execute the study notebooks and regenerate figures/")
+    r = command("run", "execute the study notebooks and regenerate figures/", RUN_EPILOG)
     common(r)
     r.add_argument("--quick", action="store_true", help="small synthetic set (used by tests)")
     r.add_argument("--notebooks", nargs="*", help="subset of notebooks (file stems)")
@@ -308,7 +458,7 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
     )
     r.set_defaults(func=handlers["run"])
 
-    f = sub.add_parser("findings", help="the paper's claims vs results/<dataset>/ (Markdown)")
+    f = command("findings", "the paper's claims vs results/<dataset>/ (Markdown)")
     f.add_argument("--labels", nargs="*", help="result folders (default: all but *_quick)")
     f.add_argument("--write", action="store_true", help="also write results/findings.md")
     f.add_argument("--out", default=None, help="output root (default: as for eval and run)")
@@ -316,9 +466,18 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
     return p
 
 
-def check_names(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
-    """Unknown methods and backbones are reported before any dataset is generated or read."""
+def command_parser(parser: argparse.ArgumentParser, command: str) -> argparse.ArgumentParser:
+    """The parser of subcommand ``command`` (its errors print its own usage)."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return action.choices[command]
+    return parser
 
+
+def check_names(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Unknown methods and backbones, bad labels and loader options given twice are reported
+    before any dataset is generated or read, with the subcommand's usage."""
+    parser = command_parser(parser, args.command)
     if args.command == "eval":
         bad = [m for m in args.method if m not in available_methods()]
         if bad:
@@ -331,6 +490,11 @@ def check_names(parser: argparse.ArgumentParser, args: argparse.Namespace) -> No
                 "--protocol multi_match ranks all query-reference pairs together, so it has no "
                 "bootstrap over queries: add --n-bootstrap 0"
             )
+        if args.study and args.out:
+            parser.error(
+                "--study writes the study's figures/ and results/ of the checkout, --out "
+                f"{args.out} another root: give one of them"
+            )
         try:
             settings.scheduler_timeout()
         except ValueError as exc:
@@ -340,6 +504,11 @@ def check_names(parser: argparse.ArgumentParser, args: argparse.Namespace) -> No
             paths.check_label(args.label)
         except ValueError as exc:
             parser.error(f"--{exc}")
+    if args.command in ("eval", "run"):
+        try:
+            dataset_options(args)
+        except ValueError as exc:
+            parser.error(str(exc))
     if getattr(args, "backbone", None) is None:
         return
     try:

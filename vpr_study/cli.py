@@ -6,31 +6,34 @@ from __future__ import annotations
 import argparse
 import errno
 import itertools
+import logging
 import os
 import shutil
 import signal
 import sys
 import textwrap
+import threading
 import time
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+
+import pandas as pd
 
 from vpr_core import paths, settings
 from vpr_core.baselines import find_vprbench_peers, peer_from_descriptors, peer_from_matrix
 from vpr_core.datasets import load_dataset
 from vpr_core.datasets.ground_truth import ground_truth_text
-from vpr_core.evaluation import (
-    compact_text,
-    compare,
-    compare_pairs,
-    ground_truth_coverage,
-)
+from vpr_core.evaluation import compact, compare, compare_pairs, ground_truth_coverage
 from vpr_core.evaluation.spec import check_bootstrap_memory
 from vpr_core.matching import SPATIAL_OPTIONS, WEIGHTING_OPTIONS
+from vpr_core.notices import VPRWarning
 from vpr_core.pipeline import peer_result, run_method
 from vpr_core.utils import configure_logging, short_hash, tune_allocator
 from vpr_core.viz import plot_pr_curves
 from vpr_core.viz.base import save_all
-from vpr_study.arguments import check_names, dataset_options, parser
+from vpr_study.arguments import check_names, command_parser, dataset_options, given_once, parser
 from vpr_study.findings import findings_markdown, result_labels
 from vpr_study.runner import run_study, study_datasets
 
@@ -38,33 +41,98 @@ INTERRUPTED = "interrupted; cached work is kept, rerun to resume"
 
 
 def say(text: str, width: int) -> None:
-    """Print prose wrapped to the terminal's ``width`` (tables are sized by compact_text)."""
-    print("\n".join(textwrap.fill(p, width) if p else p for p in text.split("\n")))
+    """Print prose wrapped to the terminal's ``width`` (tables: :func:`fit_text`); a word
+    longer than the width (a path) stands whole on its own line."""
+    wrap = textwrap.TextWrapper(width, break_long_words=False, break_on_hyphens=False)
+    print("\n".join(wrap.fill(p) if p else p for p in text.split("\n")))
 
 
-def format_table(rows: list[dict], columns: list[str] | None = None, floatfmt: str = ".3f") -> str:
-    """Plain-text table (no extra dependency) of a list of dict rows."""
+#: The columns a narrow terminal shows first, as :func:`fit_text` orders them: AUC and R@1
+#: with their paired differences (always shown, in further blocks when the width needs them),
+#: then R@100P, its difference and R@5 where they fit; a ``note`` (a run identical to
+#: another) is always shown.
+HEADLINE = ("AUC", "dAUC", "R@1", "dR@1", "note")
+_PRIORITY = (*HEADLINE, "R@100P", "dR@100P", "R@5")
+
+
+def _metric(column: str) -> str:
+    return column.split()[0].split("(")[0] if column.strip() else column  # "AUC(ratio)"
+
+
+def _block(view: pd.DataFrame, columns: list[str], width: int) -> list[str]:
+    """The rows of ``view`` with ``columns`` side by side (labels left, values right), or, for
+    one column too wide beside the labels, one wrapped ``label  value`` line per row."""
+    labels = [str(i) for i in view.index]
+    label_w = max(len(str(view.index.name or "")), *map(len, labels))
+    widths = {c: max(len(c), *(len(v) for v in view[c])) for c in columns}
+    if len(columns) == 1 and label_w + 2 + widths[columns[0]] > width:
+        col = columns[0]
+        lines = [col]
+        for label, value in zip(labels, view[col], strict=True):
+            if value:
+                lines += textwrap.wrap(
+                    f"{label}  {value}", width, initial_indent="  ", subsequent_indent="    "
+                )
+        return lines
+    head = str(view.index.name or "").ljust(label_w) + "".join(
+        "  " + c.rjust(widths[c]) for c in columns
+    )
+    rows = [
+        label.ljust(label_w) + "".join("  " + view.at[i, c].rjust(widths[c]) for c in columns)
+        for label, i in zip(labels, view.index, strict=True)
+        if any(view.at[i, c] for c in columns)  # a block of differences: not the baseline's
+    ]
+    return [line.rstrip() for line in (head, *rows)]
+
+
+def fit_text(
+    view: pd.DataFrame, width: int, keep: tuple[str, ...] | None = None, wide: bool = False
+) -> str:
+    """``view`` (strings; the index names the rows) as text with no line over ``width``.
+
+    Columns go side by side while they fit; a column of ``keep`` (metric names such as
+    ``"R@1"``, ``"dAUC"``; None: every column) that does not fit starts a further block of the
+    same rows; the other columns are shown only where they fit, the ones left out named in a
+    last line. ``wide``: every column in one block, however long the lines.
+    """
+    columns = sorted(
+        view.columns,
+        key=lambda c: _PRIORITY.index(_metric(c)) if _metric(c) in _PRIORITY else len(_PRIORITY),
+    )
+    if wide:
+        return "\n".join(_block(view, list(columns), sys.maxsize))
+    labels = [str(view.index.name or ""), *map(str, view.index)]
+    label_w = max(map(len, labels))
+    blocks: list[list[str]] = [[]]
+    left: list[str] = []
+    used = label_w
+    for col in columns:
+        w = 2 + max(len(col), *(len(v) for v in view[col]))
+        kept = keep is None or _metric(col) in keep
+        if not left and used + w <= width:
+            blocks[-1].append(col)
+            used += w
+        elif kept:
+            blocks.append([col])
+            used = label_w + w
+        else:
+            left.append(col)
+    lines: list[str] = []
+    for cols in filter(None, blocks):
+        lines += ([""] if lines else []) + _block(view, cols, width)
+    if left:
+        note = f"not shown at {width} columns: {', '.join(left)} (--wide: all; the CSV)"
+        lines += textwrap.wrap(note, width)
+    return "\n".join(lines)
+
+
+def format_table(rows: list[dict], width: int = sys.maxsize) -> str:
+    """Plain-text table of dict rows (their first key names the rows) within ``width``."""
     if not rows:
         return "(no rows)"
-    columns = columns or list(rows[0])
-    cells = [
-        [
-            (f"{r[c]:{floatfmt}}" if isinstance(r.get(c), float) else str(r.get(c, "")))
-            for c in columns
-        ]
-        for r in rows
-    ]
-    widths = [max(len(c), *(len(row[k]) for row in cells)) for k, c in enumerate(columns)]
-    line = "  ".join(c.ljust(w) for c, w in zip(columns, widths, strict=False))
-    sep = "  ".join("-" * w for w in widths)
-    body = [
-        "  ".join(
-            v.rjust(w) if k else v.ljust(w)
-            for k, (v, w) in enumerate(zip(row, widths, strict=False))
-        )
-        for row in cells
-    ]
-    return "\n".join([line, sep, *body])
+    view = pd.DataFrame(rows).fillna("").astype(str)
+    view = view.set_index(view.columns[0])
+    return fit_text(view, width)
 
 
 def _peer_results(args: argparse.Namespace, dataset) -> list:
@@ -118,12 +186,16 @@ def _user_peers(args: argparse.Namespace, dataset) -> list:
     return out
 
 
-def _cost_rows(table, results: list, wall: dict[str, float]) -> tuple[list[dict], list[dict]]:
+def _cost_rows(
+    table, results: list, computed: dict[str, bool], wall: dict[str, float]
+) -> tuple[list[dict], list[dict]]:
     """``(ours, peers)``: each run's landmark count and costs (not in the committed CSV).
 
-    Ours are the seconds recorded when the stages computed; ``measured`` says whether that was
-    in this run, or ``from cache`` when they exceed the run's wall time here (an earlier run
-    measured them). Peers: VPR-Bench's stored encode and match times, from its machine.
+    Ours are the seconds recorded when each stage was computed (a stage read from the cache
+    keeps the seconds of the run that computed it), ``wall s`` this call's seconds for the
+    run; ``measured`` says ``this run`` when this
+    call computed the run's similarity matrix (``computed``), ``earlier run`` when it read it
+    from the cache. Peers: VPR-Bench's stored encode and match times, from its machine.
     """
     cols = {
         "landmarks/img": "lm/img",
@@ -140,19 +212,68 @@ def _cost_rows(table, results: list, wall: dict[str, float]) -> tuple[list[dict]
         if r.method.startswith("peer:"):
             peers.append({"peer": r.label, **cells})
             continue
-        n_img = sum(r.similarity.shape)
-        t = r.timings
-        spent = (t["landmarks_s_per_image"] + t["features_s_per_image"]) * n_img + t[
-            "matching_s_per_pair"
-        ] * t.get("pairs", 0)
-        here = wall[r.label]
-        source = "this run" if spent <= here else "earlier run"
-        ours.append({"method": r.label, **cells, "wall s": f"{here:.1f}", "measured": source})
+        source = "this run" if computed.get(r.label, True) else "earlier run"
+        ours.append(
+            {"method": r.label, **cells, "wall s": f"{wall[r.label]:.1f}", "measured": source}
+        )
     return ours, peers
 
 
+def _matrix_entries() -> dict[str, tuple[int, int, int]]:
+    """``{file: (inode, mtime ns, size)}`` of the cached similarity matrices (``results/`` of
+    the cache): a run that wrote or rewrote one computed its matrix in this call."""
+    folder = paths.cache_root() / "results"
+    found = {}
+    for path in folder.rglob("*.npz") if folder.is_dir() else []:
+        try:
+            st = path.stat()
+        except OSError:  # removed meanwhile (another run healing it)
+            continue
+        found[str(path)] = (st.st_ino, st.st_mtime_ns, st.st_size)
+    return found
+
+
+#: Outside a terminal: a line when each stage of ``eval`` starts, and one every this many
+#: seconds while it runs (:class:`StageLines`).
+PROGRESS_INTERVAL_S = 10.0
+
+
+class StageLines:
+    """Progress without a terminal: one ``[vpr-study] <stage>`` line on stderr when a stage
+    starts and a ``still running`` line every :data:`PROGRESS_INTERVAL_S` seconds while it
+    runs; nothing on a terminal (its progress bars show live)."""
+
+    def __init__(self) -> None:
+        self.enabled = not getattr(sys.stderr, "isatty", lambda: False)()
+
+    def _say(self, text: str) -> None:
+        print(f"[vpr-study] {text}", file=sys.stderr, flush=True)
+
+    @contextmanager
+    def stage(self, what: str, detail: str = "") -> Iterator[None]:
+        """Within the block, stage ``what`` runs (its line, with ``detail``, printed first)."""
+        if not self.enabled:
+            yield
+            return
+        t0 = time.perf_counter()
+        self._say(what + detail)
+        stop = threading.Event()
+
+        def beat() -> None:
+            while not stop.wait(PROGRESS_INTERVAL_S):
+                self._say(f"{what}: still running, {time.perf_counter() - t0:.0f} s")
+
+        thread = threading.Thread(target=beat, name="vpr-study-progress", daemon=True)
+        thread.start()
+        try:
+            yield
+        finally:
+            stop.set()
+            thread.join()
+
+
 #: ``eval`` arguments that do not change a number (where and how the run is done).
-_NOT_SETTINGS = ("command", "func", "out", "label", "scheduler", "wide")
+_NOT_SETTINGS = ("command", "func", "out", "label", "scheduler", "wide", "study")
 
 
 def eval_settings(args: argparse.Namespace) -> dict:
@@ -161,7 +282,9 @@ def eval_settings(args: argparse.Namespace) -> dict:
     weights) as absolute paths. Hashed into the output file names."""
     found = {}
     for key, value in sorted(vars(args).items()):
-        if key in _NOT_SETTINGS or value is None or value is False or value == []:
+        if key in _NOT_SETTINGS or key.startswith("_") or value is None or value is False:
+            continue
+        if value == []:
             continue
         if key in ("root", "peers", "weights"):
             value = str(Path(value).expanduser().resolve())
@@ -210,11 +333,20 @@ def eval_stem(args: argparse.Namespace, label: str) -> str:
     return "".join(c if c.isalnum() or c in "-_.+=" else "_" for c in stem)
 
 
+def default_label(name: str) -> str:
+    """A dataset's name as an output label (:func:`vpr_core.paths.check_label`): each other
+    character becomes ``_`` (a folder dataset is named by its folder, e.g. ``my photos``)."""
+    label = "".join(c if c.isalpha() or c.isdecimal() or c in "_-.+" else "_" for c in name)
+    return label.lstrip(".")[: paths.MAX_LABEL_BYTES // 4] or "dataset"
+
+
 def cmd_eval(args: argparse.Namespace) -> int:
     check_bootstrap_memory(args.n_bootstrap, "--n-bootstrap")
     tune_allocator()  # process-wide, here at the boundary: crop features ~1.7x faster
-    dataset = load_dataset(args.dataset, root=args.root, **dataset_options(args))
-    label = paths.check_label(args.label or dataset.name)
+    lines = StageLines()
+    with lines.stage(f"loading {args.dataset}"):
+        dataset = load_dataset(args.dataset, root=args.root, **dataset_options(args))
+    label = paths.check_label(args.label or default_label(dataset.name))
     n_gt, n_q = ground_truth_coverage(dataset.ground_truth)
     truth = ground_truth_text(
         dataset.ground_truth, dataset.tolerance, bool(dataset.meta.get("ground_truth_file"))
@@ -232,29 +364,38 @@ def cmd_eval(args: argparse.Namespace) -> int:
     spatial = [None, *SPATIAL_OPTIONS] if args.spatial == "both" else [args.spatial]
     choices: dict[str, list[str | None]] = {"none": [None], "both": [None, *WEIGHTING_OPTIONS]}
     weighting = choices.get(args.weighting, [args.weighting])
-    results, wall, run_of = [], {}, {}
-    for m, s, w in itertools.product(args.method, spatial, weighting):
-        t0 = time.perf_counter()
-        r = run_method(
-            m,
-            dataset,
-            backbone=args.backbone,
-            dim=args.dim,
-            seed=args.seed,
-            weights=args.weights,
-            pooling=args.pooling,
-            device=args.device,
-            shortlist=args.shortlist,
-            scheduler=scheduler,
-            n_bootstrap=args.n_bootstrap,
-            protocol=args.protocol,
-            spatial=s,
-            weighting=w,
-        )
+    results, computed, wall, run_of = [], {}, {}, {}
+    todo = list(itertools.product(args.method, spatial, weighting))
+    for n, (m, s, w) in enumerate(todo, 1):
+        options = ", ".join(f"{k} {v}" for k, v in (("spatial", s), ("weighting", w)) if v)
+        before, t0 = _matrix_entries(), time.perf_counter()
+        with lines.stage(
+            f"{m}{f' ({options})' if options else ''} on {label}",
+            f" ({n} of {len(todo)}): landmarks, features, Eq. (1) matrix, metrics",
+        ):
+            r = run_method(
+                m,
+                dataset,
+                backbone=args.backbone,
+                dim=args.dim,
+                seed=args.seed,
+                weights=args.weights,
+                pooling=args.pooling,
+                device=args.device,
+                shortlist=args.shortlist,
+                scheduler=scheduler,
+                n_bootstrap=args.n_bootstrap,
+                protocol=args.protocol,
+                spatial=s,
+                weighting=w,
+            )
         results.append(r)
         run_of[m, s, w] = r
+        computed[r.label] = _matrix_entries() != before
         wall[r.label] = time.perf_counter() - t0
-    results += _peer_results(args, dataset) + _user_peers(args, dataset)
+    if args.peers or args.peer_dataset or args.peer:
+        with lines.stage("peers"):
+            results += _peer_results(args, dataset) + _user_peers(args, dataset)
     say(
         f"backbone: {results[0].encoder.get('backbone')} "
         f"(weights: {results[0].encoder.get('weights')}, pooling: {args.pooling}, {mode}; "
@@ -267,23 +408,26 @@ def cmd_eval(args: argparse.Namespace) -> int:
             f"{results[0].label}; a finding only where the interval excludes 0",
             width,
         )
-    table = compare(results, n_bootstrap=args.n_bootstrap)
-    print(compact_text(table, width, wide=args.wide))
-    ours, peers = _cost_rows(table, results, wall)
+    with lines.stage(f"comparing {len(results)} runs ({args.n_bootstrap} bootstrap resamples)"):
+        table = compare(results, n_bootstrap=args.n_bootstrap)
+    print(fit_text(compact(table), width, HEADLINE, wide=args.wide))
+    ours, peers = _cost_rows(table, results, computed, wall)
     say(
-        "cost (lm: landmarks, feat: features): seconds recorded when computed, in 'this run' or "
-        "an 'earlier run' (read from the cache: more seconds than this run's wall time):",
+        "cost (lm: landmarks, feat: features), seconds recorded when each stage was computed "
+        "(wall s: this call's); measured: 'this run' where this call computed the run, "
+        "'earlier run' where it read it from the cache:",
         width,
     )
-    print(format_table(ours))
+    print(format_table(ours, width))
     if peers:
         say("peers' costs as stored with them (VPR-Bench: its machine; not comparable):", width)
-        print(format_table(peers))
+        print(format_table(peers, width))
     stem = eval_stem(args, label)
     readable, _ = changed_settings(args)
     shown = [f"{k.replace('_', ' ')} {v}" for k, v in readable.items() if k not in _IN_DATASET_LINE]
     title = f"vpr-study eval on {label}" + (f" ({', '.join(shown)})" if shown else "")
-    fig = plot_pr_curves(results, title=title)
+    with lines.stage("plotting"):
+        fig = plot_pr_curves(results, title=title)
     items: list = [(stem, table), (stem, fig)]
     if args.spatial == "both":
         pairs = [
@@ -293,7 +437,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         ]
         geometry = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
         say("\n(not in the paper) geometry-aware score, each method with minus without:", width)
-        print(compact_text(geometry, width, wide=args.wide))
+        print(fit_text(compact(geometry), width, HEADLINE, wide=args.wide))
         items.append((f"{stem}_geometry", geometry))
     if args.weighting == "both":
         pairs = [
@@ -303,12 +447,15 @@ def cmd_eval(args: argparse.Namespace) -> int:
         ]
         weighted = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
         say("\n(not in the paper) database weighting, each method with minus without:", width)
-        print(compact_text(weighted, width, wide=args.wide))
+        print(fit_text(compact(weighted), width, HEADLINE, wide=args.wide))
         items.append((f"{stem}_weighting", weighted))
-    written = save_all(items, label, out=args.out)
+    with lines.stage("writing the figure and tables"):
+        written = save_all(items, label, out=args.out)
     root = paths.figures_root() if args.out is None else Path(args.out).expanduser().resolve()
     say(f"wrote under {root}:", width)
-    print("\n".join(f"  {p.relative_to(root)}" for p in written))
+    for folder in dict.fromkeys(p.parent for p in written):
+        print(f"{folder.relative_to(root)}/")
+        print("\n".join(f"  {p.name}" for p in written if p.parent == folder))
     return 0
 
 
@@ -354,18 +501,67 @@ def _terminated(signum, frame):
     raise _Terminated()
 
 
+class _Once(logging.Filter):
+    """Pass each distinct warning record once (a notice raised by a run and again by the
+    comparison of its runs prints one line)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.seen: set[str] = set()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.levelno < logging.WARNING:
+            return True
+        text = record.getMessage()
+        if text in self.seen:
+            return False
+        self.seen.add(text)
+        return True
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning that is not a logged notice, as one line without its source line."""
+    print(f"vpr-study: {category.__name__}: {message}", file=sys.stderr)
+
+
+@contextmanager
+def _notices_once() -> Iterator[None]:
+    """Within the block each notice prints once: a :class:`~vpr_core.notices.VPRWarning` is
+    already logged by ``notice()`` (so Python does not print it again, with its source line),
+    a repeated log warning is dropped, and any other warning prints as one line."""
+    logger = logging.getLogger("vpr_core")
+    once = _Once()
+    logger.addFilter(once)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", VPRWarning)
+            warnings.showwarning = _show_warning
+            yield
+    finally:
+        logger.removeFilter(once)
+
+
+def _writes_to(args: argparse.Namespace):
+    """Where a command's figures and tables go: ``eval`` under the checkout's ``user/`` unless
+    ``--study`` (the study's ``figures/`` and ``results/``) or ``--out``; ``run`` and
+    ``findings``: the study's folders."""
+    if args.command == "eval" and not args.study:
+        return paths.using_output_root(None)  # paths.figures_root: user/ of the checkout
+    return paths.study_outputs()
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``vpr-study``; returns the exit code (2 on a user error, 130 on Ctrl-C)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = given_once(parser.parse_args(argv))
+    prog = command_parser(parser, args.command).prog  # "vpr-study eval"
     previous = signal.getsignal(signal.SIGTERM)
     signal.signal(signal.SIGTERM, _terminated)
     check_names(parser, args)
     configure_logging()
     try:
-        # --out applies to this command only; the runner hands it to its kernels. The CLI
-        # writes the study's figures/ and results/, never the user's area (paths.figures_root)
-        with paths.using_output_root(args.out or None), paths.study_outputs():
+        # --out applies to this command only; the runner hands it to its kernels
+        with paths.using_output_root(args.out or None), _writes_to(args), _notices_once():
             return args.func(args)
     except KeyboardInterrupt:
         print(INTERRUPTED, file=sys.stderr)
@@ -377,7 +573,7 @@ def main(argv: list[str] | None = None) -> int:
         if exc.errno == errno.ENOSPC and not exc.filename:
             where = Path(args.out).expanduser().resolve() if args.out else paths.output_root()
             exc = OSError(exc.errno, f"{exc.strerror} while writing under {where} or its cache")
-        print(f"vpr-study: error: {exc}", file=sys.stderr)
+        print(f"{prog}: error: {exc}", file=sys.stderr)
         return 2
     except (
         ValueError,
@@ -386,7 +582,7 @@ def main(argv: list[str] | None = None) -> int:
         RuntimeError,
         ImportError,
     ) as exc:
-        print(f"vpr-study: error: {exc}", file=sys.stderr)
+        print(f"{prog}: error: {exc}", file=sys.stderr)
         return 2
     finally:
         signal.signal(signal.SIGTERM, previous)

@@ -181,19 +181,39 @@ def _run_label(
 BACKGROUND_NICE = 10
 
 
+def _failed(chains: Sequence[tuple[str, Sequence[Path], dict]], errors: list) -> None:
+    """Raise one RuntimeError naming every label whose chain failed and the ones that ran
+    (nothing when none failed)."""
+    failed = [(label, e) for (label, _, _), e in zip(chains, errors, strict=True) if e is not None]
+    if not failed:
+        return
+    ran = [label for (label, _, _), e in zip(chains, errors, strict=True) if e is None]
+    raise RuntimeError(
+        f"{len(failed)} of {len(chains)} dataset labels failed: "
+        + "; ".join(f"{label}: {e}" for label, e in failed)
+        + (f". These ran to their end: {', '.join(ran)}" if ran else "")
+    ) from failed[0][1]
+
+
 def run_labels(
     chains: Sequence[tuple[str, Sequence[Path], dict]], kernel: str, force: bool, jobs: int
 ) -> list[str]:
     """:func:`_run_label` of each ``(label, notebooks, parameters)``, ``jobs`` labels at once
-    (the first, longest chain starts first); every chain runs to its end before the first
-    error is raised, but a Ctrl-C starts no further chain. Returns the expected figures not
-    written."""
+    (the first, longest chain starts first). Every label runs, also after another failed;
+    then one RuntimeError names each label that failed (its error) and those that ran. A
+    Ctrl-C starts no further label. Returns the expected figures not written."""
     if jobs <= 1 or len(chains) <= 1:
-        return [
-            m
-            for label, nbs, params in chains
-            for m in _run_label(label, nbs, params, kernel, force)
-        ]
+        missing: list[str] = []
+        errors: list[Exception | None] = []
+        for label, nbs, params in chains:
+            try:
+                missing += _run_label(label, nbs, params, kernel, force)
+            except Exception as exc:  # the next labels still run; Ctrl-C stops them all
+                errors.append(exc)
+            else:
+                errors.append(None)
+        _failed(chains, errors)
+        return missing
     with ThreadPoolExecutor(min(jobs, len(chains)), thread_name_prefix="label") as pool:
         futures = [
             pool.submit(
@@ -202,11 +222,12 @@ def run_labels(
             for n, (label, nbs, params) in enumerate(chains)
         ]
         try:
-            errors = [f.exception() for f in futures]
+            done = [f.exception() for f in futures]
         except BaseException:  # Ctrl-C: the running kernels got it too; start no other label
             pool.shutdown(cancel_futures=True)
             raise
-    for error in errors:
-        if error is not None:
-            raise error
+    for error in done:
+        if error is not None and not isinstance(error, Exception):
+            raise error  # KeyboardInterrupt or SystemExit in a label's thread
+    _failed(chains, [e if isinstance(e, Exception) else None for e in done])
     return [m for f in futures for m in f.result()]

@@ -227,8 +227,9 @@ def run_study(
     and ``shortlist`` go to every ``run_method`` of the notebooks. A notebook whose inputs and
     recorded outputs are unchanged is not executed again unless ``force``
     (:mod:`vpr_study.memo`). ``jobs``: dataset labels executed at once, each in its own kernel
-    (the outputs are the same for any count). RuntimeError names a failed notebook (and the
-    executed copy to open) or the missing figures.
+    (the outputs are the same for any count); every label runs, also after another failed.
+    RuntimeError names each failed label with its failed notebook (and the executed copy to
+    open), or the missing figures.
     """
     if isinstance(root, Path):
         root = str(root)
