@@ -45,7 +45,7 @@ study-check: study
 	@out="$$(git status --porcelain -- figures results)"; if [ -n "$$out" ]; then \
 		echo "$$out"; echo "study-check: regenerated outputs differ from the committed ones" \
 		"(on another CPU family than the one that made them, a sixth decimal and a few PNGs" \
-		"can differ: README, on make study; git diff shows which)"; \
+		"can differ: docs/MEASUREMENTS.md, Across CPU families; git diff shows which)"; \
 		exit 1; fi; echo "study-check: every committed figure and table is byte-identical"
 
 # Notebooks 05-06 on 716 Nordland places (every 5th of nordland_64x32, winter vs summer), roi

@@ -5,7 +5,7 @@ distinguishable. This benchmark takes two backbone specs and asks the question w
 queries and a paired test: both run on the same Nordland places (winter vs summer), and the
 difference ``a - b`` of ratio-protocol AUC, R@1 and R@5 gets a 95% interval and a p-value from
 the same 1,000 query resamples (:func:`vpr_core.evaluation.paired_bootstrap`, seed 0). A
-difference is a finding only when its interval excludes 0.
+difference is higher or lower only when its interval excludes 0, else inconclusive.
 
 Run (each row appends to / replaces its row in ``results/benchmarks/descriptor_paired.csv``)::
 

@@ -7,7 +7,7 @@ writes ``results/benchmarks/nordland_shortlist.csv`` (under the output root,
 see :mod:`vpr_core.paths`).
 
 Columns: ratio-protocol AUC and R@1 with 95% bootstrap intervals over queries, the paired
-difference to exhaustive (interval; a finding only when it excludes 0), the share of queries
+difference to exhaustive (interval; higher or lower only when it excludes 0), the share of queries
 whose correct reference is in the shortlist, and ``run s``: wall seconds of the ``run_method``
 call. Run it on an empty cache (``VPR_CACHE_DIR=/tmp/empty``): the exhaustive run then includes
 computing the landmark features, the first shortlist run the whole-image descriptors, and the

@@ -116,7 +116,7 @@ def test_run_is_deterministic(tiny, isolated_cache):
 
 def test_dense_efficientnet_on_real_gardens_point_mini(gardens_point_mini_root):
     """Issue 3: dense + efficientnet_lite0 on 10 real day/night pairs, exact ground truth:
-    R@1 >= 0.3 (three times chance, 0.1). Measured: see README."""
+    R@1 >= 0.3 (three times chance, 0.1). Measured: see docs/MEASUREMENTS.md."""
     ds = load_dataset("folder", root=gardens_point_mini_root)
     r = pipeline.run_method("dense", ds)
     assert r.similarity.shape == (10, 10)

@@ -17,9 +17,7 @@ from vpr_study.figures import FIGURES, NOTEBOOKS
 
 #: Figures a notebook writes that :data:`~vpr_study.figures.FIGURES` does not list yet
 #: (``{notebook stem: (figure stems)}``).
-EXTRA_FIGURES: dict[str, tuple[str, ...]] = {
-    "05_dense_sampling_parameters": ("own_scheme_and_backbone",),
-}
+EXTRA_FIGURES: dict[str, tuple[str, ...]] = {}
 
 #: The tables each notebook saves (``results/<label>/<stem>.csv``). ``table5_cost`` holds only
 #: one machine's timings: it is written as the git-ignored ``table5_cost.timings.csv`` alone.

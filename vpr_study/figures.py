@@ -52,6 +52,7 @@ FIGURES: tuple[FigureSpec, ...] = (
     FigureSpec("fig10_scale_levels", _NB5, "Fig. 10 / Table 2"),
     FigureSpec("fig11_landmarks_per_scale", _NB5, "Fig. 11 / Table 3"),
     FigureSpec("fig12_normalized_scales", _NB5, "Fig. 12 / Table 4"),
+    FigureSpec("own_scheme_and_backbone", _NB5, "not in the paper: a user scheme and backbone"),
     FigureSpec("fig13_comparison", _NB6, "Fig. 13"),
     FigureSpec("disagreements_dense_classical", _NB6, "not in the paper: per-query view"),
     FigureSpec("geometry_dense", _NB6, "not in the paper: geometry-aware score"),

@@ -63,7 +63,7 @@ def _hog(weights: Weights, seed: int) -> nn.Module:
 
 
 _REGISTRY: dict[str, _Entry] = {
-    # 8x8x112 = 7,168-d; chosen on real data (README "Which descriptor?")
+    # 8x8x112 = 7,168-d; chosen on real data (docs/MEASUREMENTS.md "Which descriptor?")
     "efficientnet_lite0": _Entry(_lite("lite0"), 128, {"stage": 5}, _lite_file("lite0")),
     # 10x10x80 = 8,000-d, same cost as stage 5 at 128
     "efficientnet_lite0_stage4": _Entry(_lite("lite0"), 160, {"stage": 4}, _lite_file("lite0")),
