@@ -76,7 +76,7 @@ def _result(label, sim, gt, auc=None):
     )
 
 
-def test_pr_curves_legend_outside_identical_curves_said_and_dataset_named():
+def test_pr_curves_legend_below_identical_curves_said_and_dataset_named():
     import numpy as np
     from matplotlib.colors import to_hex
 
@@ -93,18 +93,24 @@ def test_pr_curves_legend_outside_identical_curves_said_and_dataset_named():
     ]
     fig = plot_pr_curves(results, title="Fig. T")
     ax = fig.axes[0]
-    texts = [t.get_text() for t in ax.get_legend().get_texts()]
-    assert texts[0] == "dense (AUC 0.500 [0.250, 0.750])"
-    assert texts[1].startswith("x (AUC ") and "[" not in texts[1]
-    assert texts[2].startswith("y (= dense")  # same matrix: drawn once, said in the legend
+    legend = ax.get_legend()
+    texts = [t.get_text() for t in legend.get_texts()]
+    assert texts[0] == "dense  0.500 [0.250, 0.750]"  # the metric is named in the title
+    assert legend.get_title().get_text().startswith("AUC [95% CI]")
+    assert texts[1].startswith("x  0.") and "[" not in texts[1]
+    assert texts[2].startswith("y  ") and texts[2].endswith(", same curve as dense")
     drawn = [ln for ln in ax.lines if len(ln.get_xdata())]
     curves = [ln for ln in drawn if ln.get_linestyle() != "--"]  # "--": the chance level
     assert len(curves) == 2 and len(drawn) == 3
     assert to_hex(ax.lines[0].get_color()) == to_hex(METHOD_COLORS["dense"])
+    # the same curve's entry has the line sample of the curve it repeats
+    handles = legend.legend_handles
+    assert to_hex(handles[2].get_color()) == to_hex(METHOD_COLORS["dense"])
     assert "toy: 6 of 6 queries with ground truth, tolerance 0" in ax.get_title(loc="left")
     fig.canvas.draw()
-    legend = ax.get_legend().get_window_extent()
-    assert legend.x0 >= ax.get_window_extent().x1  # beside the axes, never over the curves
+    box = legend.get_window_extent()
+    assert box.y1 <= ax.get_window_extent().y0  # below the axes, never over the curves
+    assert viz.layout_problems(fig) == []
 
 
 def test_pr_curves_same_curve_is_said_and_colours_never_repeat():
@@ -126,7 +132,7 @@ def test_pr_curves_same_curve_is_said_and_colours_never_repeat():
     fig = plot_pr_curves(results)
     ax = fig.axes[0]
     texts = [t.get_text() for t in ax.get_legend().get_texts()]
-    assert texts[1].startswith("s2 (= classical")
+    assert texts[1].startswith("s2  ") and texts[1].endswith("same curve as classical")
     drawn = [
         to_hex(ln.get_color())
         for ln in ax.lines

@@ -9,13 +9,14 @@ import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.colors import to_hex
+from matplotlib.lines import Line2D
 
 from ..datasets.ground_truth import ground_truth_text
 from ..evaluation import auc_pr, chance, ground_truth_coverage
 from ..evaluation.chance import chance_precision
 from ..evaluation.compare import identical_to
 from ..paper import SCALE_LABELS
-from .base import METHOD_COLORS, curve_note
+from .base import METHOD_COLORS, SAVE_DPI, curve_note
 
 __all__ = [
     "dataset_line",
@@ -110,15 +111,20 @@ def dataset_line(results) -> str:
 
 
 #: PR figure geometry in inches: the axes keep this size whatever the legend holds.
-PR_AXES = (4.6, 3.0)
-#: Width (inches) of the legend column beside the axes; entries wrap at :data:`LEGEND_CHARS`.
-PR_LEGEND_WIDTH = 3.3
-LEGEND_CHARS = 46
-_LEFT, _BOTTOM, _GAP, _LINE = 0.62, 0.5, 0.18, 0.165
+PR_AXES = (6.2, 3.2)
+#: Width (inches) of a PR figure: at the inline backend's 100 dpi it shows unscaled in a
+#: JupyterLab output column (about 760 px), so its 9-point text reads as 9 points.
+PR_WIDTH = 7.6
+#: Text size (points) of the PR figures' legend and heading.
+PR_FONT = 9
+_LEFT, _GAP, _LINE, _MARGIN, _XLABEL = 0.72, 0.12, 0.18, 0.1, 0.58
 
 
-def _wrap(text: str) -> str:
-    return "\n".join(textwrap.wrap(text, LEGEND_CHARS, subsequent_indent="  "))
+def _heading(text: str) -> str:
+    """``text`` with each line wrapped at the width from the axes' left edge to the figure's
+    right edge (:data:`PR_WIDTH`)."""
+    chars = int((PR_WIDTH - _LEFT - _MARGIN) * 72 / (0.56 * PR_FONT))  # <= 0.56 em a character
+    return "\n".join(w for line in text.split("\n") for w in textwrap.wrap(line, chars) or [""])
 
 
 def _from_last_zero(recall: np.ndarray, precision: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -132,22 +138,26 @@ def _from_last_zero(recall: np.ndarray, precision: np.ndarray) -> tuple[np.ndarr
 def plot_pr_curves(
     results, title: str | None = None, colors: dict | None = None
 ) -> matplotlib.figure.Figure:
-    """Precision (y) against recall (x) of several results; the legend, in a column of fixed
-    width beside the axes (never over the curves; long entries wrapped, the axes keep
-    :data:`PR_AXES`), gives each AUC with its 95% bootstrap interval. A dashed grey line is the
-    chance level: the precision a random ranking of the same ground truth keeps
-    (:func:`~vpr_core.evaluation.chance.chance_precision`), with its AUC
+    """Precision (y) against recall (x) of several results; the legend, below the axes in as
+    many columns as fit the figure's width (never over the curves, never beside them: the
+    axes keep :data:`PR_AXES` and the figure :data:`PR_WIDTH`; a longer legend makes the figure
+    taller), gives each run's AUC with its 95% bootstrap interval on one line with the run's
+    line sample (``dense  0.446 [0.106, 0.803]``; the legend's title names the metric). A
+    dashed grey line is the chance level: the precision a random ranking of the same ground
+    truth keeps (:func:`~vpr_core.evaluation.chance.chance_precision`), with its AUC
     (:func:`~vpr_core.evaluation.chance`) in the legend. Each curve starts at its last point at
     recall 0 (the thresholds before it accept no correct match and add no area; the legend
     says so): the area under the drawn curve is its AUC.
 
     A result whose similarity matrix equals an earlier one's has the same curve: it is drawn
-    once and its legend entry reads ``= <earlier label>``.
+    once and its legend entry, with the earlier one's line sample, says ``same curve as
+    <earlier label>``.
 
     Args:
         results: :class:`~vpr_core.pipeline.MethodResult` objects (``.label``, ``.curve()``,
             ``.intervals``, ``.similarity``, ``.ground_truth``, ``.dataset``, ``.tolerance``).
-        title: the figure's title; the dataset line (:func:`dataset_line`) goes below it.
+        title: the figure's title; the dataset line (:func:`dataset_line`) goes below it
+            (lines longer than the figure wrapped).
         colors: ``{label: colour}``; default :data:`METHOD_COLORS` by method, then the cycle.
 
     Returns:
@@ -158,24 +168,33 @@ def plot_pr_curves(
     if not results:
         raise ValueError("plot_pr_curves needs at least one result")
     head = f"{title}\n" if title else ""
-    heading = head + dataset_line(results)
+    heading = _heading(head + dataset_line(results))
     top = _GAP + _LINE * (heading.count("\n") + 1)
-    width = _LEFT + PR_AXES[0] + 0.2 + PR_LEGEND_WIDTH
-    fig = plt.figure()
+    fig = plt.figure(figsize=(PR_WIDTH, 6.0))
     ax = fig.add_axes((0, 0, 1, 1))
-    _place(fig, ax, width, _BOTTOM + PR_AXES[1] + top, _BOTTOM)
     colors = dict(colors or {})
     spare = iter([f"C{i}" for i in range(10)] + [plt.cm.tab20(i) for i in range(20)])
     used: set[str] = set()
+    drawn: dict[str, Line2D] = {}
+    handles: list[Line2D] = []
     for r, twin in zip(results, identical_to(results), strict=False):
         iv = getattr(r, "intervals", {}).get("auc")
         auc = (
-            f"AUC {iv[0]:.3f} [{iv[1]:.3f}, {iv[2]:.3f}]"
+            f"{iv[0]:.3f} [{iv[1]:.3f}, {iv[2]:.3f}]"
             if iv is not None
-            else f"AUC {auc_pr(r.curve()):.3f}"
+            else f"{auc_pr(r.curve()):.3f}"
         )
-        if twin is not None:  # same matrix: same curve; say so instead of hiding it
-            ax.plot([], [], lw=0, label=_wrap(f"{r.label} (= {twin}, {auc})"))
+        if twin is not None and twin in drawn:  # same matrix: same curve, drawn once
+            like = drawn[twin]
+            handles.append(
+                Line2D(
+                    [],
+                    [],
+                    color=like.get_color(),
+                    lw=like.get_linewidth(),
+                    label=f"{r.label}  {auc}, same curve as {twin}",
+                )
+            )
             continue
         color = colors.get(r.label) or METHOD_COLORS.get(r.label)
         if color is None or to_hex(color) in used:
@@ -183,51 +202,85 @@ def plot_pr_curves(
         used.add(to_hex(color))
         curve = r.curve()
         note = curve_note(curve.recall, curve.precision)  # an AUC-0 curve lies on the axis
-        ax.plot(
+        (line,) = ax.plot(
             *_from_last_zero(curve.recall, curve.precision),
             lw=1.6,
             color=color,
-            label=_wrap(f"{r.label} ({auc}{note})"),
+            label=f"{r.label}  {auc}{note}",
         )
+        drawn[r.label] = line
+        handles.append(line)
     protocol = getattr(results[0], "protocol", "ratio")
     level = chance_precision(
         results[0].ground_truth, protocol, soft=getattr(results[0], "soft_only", None)
     )
     chance_auc = chance(results[0].ground_truth, protocol, ks=(1,))["auc"]
-    ax.axhline(
-        level,
-        color="0.45",
-        ls="--",
-        lw=1.0,
-        label=_wrap(f"chance (random ranking): precision {level:.3f}, AUC {chance_auc:.3f}"),
+    handles.append(
+        ax.axhline(
+            level,
+            color="0.45",
+            ls="--",
+            lw=1.0,
+            label=f"chance (random ranking)  {chance_auc:.3f}; precision {level:.3f}",
+        )
     )
     ax.set_xlim(0.0, 1.0)
     ax.set_ylim(0.0, 1.02)
     ax.set_xlabel("recall")
     ax.set_ylabel("precision")
     ax.grid(alpha=0.3)
-    legend = ax.legend(
-        loc="upper left",
-        bbox_to_anchor=(1.04, 1.0),
-        fontsize=8,
-        frameon=False,
-        title="AUC with 95% CI; curves start at their\nlast point at recall 0 (area = AUC)",
-        title_fontsize=8,
+    ax.set_title(heading, fontsize=PR_FONT, loc="left")
+    legend, wide, height = _legend_below(fig, ax, handles)
+    width = max(PR_WIDTH, _LEFT + wide)
+    bottom = _MARGIN + height + _XLABEL
+    fig.set_size_inches(width, bottom + PR_AXES[1] + top)
+    ax.set_position(
+        (
+            _LEFT / width,
+            bottom / (bottom + PR_AXES[1] + top),
+            PR_AXES[0] / width,
+            PR_AXES[1] / (bottom + PR_AXES[1] + top),
+        )
     )
-    legend._legend_box.align = "left"  # type: ignore[attr-defined]
-    ax.set_title(heading, fontsize=9, loc="left")
-    # the axes keep PR_AXES (inches); a legend taller than them makes the figure taller
-    fig.draw_without_rendering()
-    below = max(0.0, 0.05 - legend.get_window_extent().y0 / fig.dpi)
-    if below:
-        _place(fig, ax, width, _BOTTOM + below + PR_AXES[1] + top, _BOTTOM + below)
+    legend.set_bbox_to_anchor((_LEFT - 0.1, _MARGIN + height), transform=fig.dpi_scale_trans)
     return fig
 
 
-def _place(fig, ax, width: float, height: float, bottom: float) -> None:
-    """Size the figure (inches) and put the axes at ``bottom`` with the size :data:`PR_AXES`."""
-    fig.set_size_inches(width, height)
-    ax.set_position((_LEFT / width, bottom / height, PR_AXES[0] / width, PR_AXES[1] / height))
+def _legend_below(fig, ax, handles: list) -> tuple[matplotlib.legend.Legend, float, float]:
+    """The legend of ``handles`` below ``ax`` in the most columns (3 at most) that fit the
+    axes' width, one line per entry; ``(legend, its width and height in inches)``, measured at the
+    saving resolution (text extents do not scale exactly with the resolution)."""
+    legend = None
+    dpi = fig.get_dpi()
+    fig.set_dpi(SAVE_DPI)
+    try:
+        for ncol in range(min(3, len(handles)), 0, -1):
+            if legend is not None:
+                legend.remove()
+            legend = ax.legend(
+                handles=handles,
+                loc="upper left",
+                bbox_to_anchor=(_LEFT - 0.1, 0.0),
+                bbox_transform=fig.dpi_scale_trans,
+                ncol=ncol,
+                fontsize=PR_FONT,
+                frameon=False,
+                title="AUC [95% CI]; each curve starts at its last point at recall 0 (area = AUC)",
+                title_fontsize=PR_FONT,
+                borderaxespad=0.0,
+                borderpad=0.2,
+                columnspacing=1.6,
+                handlelength=1.8,
+            )
+            legend._legend_box.align = "left"  # type: ignore[attr-defined]
+            fig.draw_without_rendering()
+            if legend.get_window_extent().width / SAVE_DPI <= PR_WIDTH - _LEFT:
+                break
+        assert legend is not None
+        bb = legend.get_window_extent()
+        return legend, bb.width / SAVE_DPI, bb.height / SAVE_DPI
+    finally:
+        fig.set_dpi(dpi)
 
 
 def plot_metric_bars(
