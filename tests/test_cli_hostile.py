@@ -74,7 +74,10 @@ def test_eval_help_has_examples_and_names_the_defaults(capsys):
         (["run", "--label", "a b"], "usage: vpr-study run"),
     ],
 )
-def test_an_error_prints_the_subcommands_usage(capsys, argv, usage):
+def test_an_error_prints_the_subcommands_usage(monkeypatch, capsys, argv, usage):
+    from vpr_core import datasets
+
+    monkeypatch.setattr(datasets, "load_dataset", lambda *a, **k: pytest.fail("loaded"))
     with pytest.raises(SystemExit) as stop:
         cli.main(argv)
     assert stop.value.code == 2
