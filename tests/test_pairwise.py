@@ -237,6 +237,16 @@ def test_reference_refuses_a_weighting_naming_the_block_engine():
             match_pair(d, b, d, b, Matching(weighting=w))
 
 
+def test_no_descriptor_dimension_scores_zero_like_the_engine():
+    d, b = np.ones((3, 4)), np.ones((3, 4))
+    for a in (np.ones((3, 0)), np.zeros((0, 4))):
+        r = match_landmarks(a, np.ones((len(a), 4)), d, b)
+        engine = similarity_matrix([a], [np.ones((len(a), 4))], [d], [b], compute=QUIET)
+        assert r.similarity == engine[0, 0] == 0.0 and r.matches.shape == (0, 2)
+        assert (r.n_a, r.n_b) == (len(a), 3)
+        assert match_landmarks(d, b, a, np.ones((len(a), 4))).similarity == 0.0
+
+
 def test_reference_by_hand():
     """Eq. (1)-(2) by hand on two landmarks: one exact match, one at cosine 0.8 and double width."""
     a = np.array([[1.0, 0.0], [0.0, 1.0]])

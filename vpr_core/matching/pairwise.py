@@ -74,7 +74,8 @@ def cosine_similarity(desc_a: np.ndarray, desc_b: np.ndarray) -> np.ndarray:
 
 def nearest(cos: np.ndarray, axis: int) -> np.ndarray:
     """Each row's (``axis=1``) or column's (``axis=0``) nearest neighbour: the lowest index whose
-    cosine is within ``TIE_TOL`` (1e-9) of the best, so that float rounding never decides a tie."""
+    cosine is within ``TIE_TOL`` (1e-9) of the best, so that float rounding never decides a tie
+    (the block engine decides near-ties so too: :func:`~.reciprocal.resolve_ties`)."""
     best = cos.max(axis=axis, keepdims=True)
     return np.argmax(cos >= best - TIE_TOL, axis=axis)
 
@@ -150,7 +151,7 @@ def match_pair(
             "similarity_pairs), the block engine"
         )
     n_a, n_b = len(desc_a), len(desc_b)
-    if n_a == 0 or n_b == 0 or desc_a.shape[1] == 0:  # nothing to match: S = 0
+    if min(n_a, n_b, desc_a.shape[1], desc_b.shape[1]) == 0:  # nothing to match: S = 0
         e = np.zeros(0)
         return MatchResult(np.zeros((0, 2), np.int64), e, e, e, 0.0, e, n_a, n_b, e)
 

@@ -46,10 +46,12 @@ def similarity_matrix(
 ) -> np.ndarray:
     """Eq. (1) similarity of every query x reference image pair (optionally with Algorithm 4).
 
-    One matmul per block of ``compute.batch_size`` queries x ``compute.ref_batch_size``
-    references; near-ties are re-decided in float64 (:func:`~.reciprocal.resolve_ties`), so the
-    matches equal the float64 definition exactly and values agree with it to ~1e-6. On the CPU
-    the blocks run on ``torch.get_num_threads()`` worker threads (same bits for any count).
+    The block engine (:mod:`.core`): one matmul per block of ``compute.batch_size`` queries x
+    ``compute.ref_batch_size`` references; near-ties are re-decided in float64
+    (:func:`~.reciprocal.resolve_ties`), so the matches equal those of the one-pair reference
+    (:mod:`.pairwise`: Eq. (1)-(2) on one page) exactly and values agree with it to ~1e-6. On
+    the CPU the blocks run on ``torch.get_num_threads()`` worker threads (same bits for any
+    count).
 
     Args:
         query_desc: sequence of ``(K_q, D)`` arrays, or one ``(Nq, K, D)`` array.
