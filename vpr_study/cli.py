@@ -501,7 +501,7 @@ def _terminated(signum, frame):
     raise _Terminated()
 
 
-class _Once(logging.Filter):
+class _EachOnce(logging.Filter):
     """Pass each distinct warning record once (a notice raised by a run and again by the
     comparison of its runs prints one line)."""
 
@@ -530,7 +530,7 @@ def _notices_once() -> Iterator[None]:
     already logged by ``notice()`` (so Python does not print it again, with its source line),
     a repeated log warning is dropped, and any other warning prints as one line."""
     logger = logging.getLogger("vpr_core")
-    once = _Once()
+    once = _EachOnce()
     logger.addFilter(once)
     try:
         with warnings.catch_warnings():
