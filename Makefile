@@ -36,7 +36,7 @@ git-filter:
 
 study: $(STAMP)
 	MPLBACKEND=Agg $(VENV)/bin/vpr-study run --dataset synthetic
-	MPLBACKEND=Agg $(VENV)/bin/vpr-study eval --dataset synthetic --method dense classical
+	MPLBACKEND=Agg $(VENV)/bin/vpr-study eval --study --dataset synthetic --method dense classical
 
 # `make study`, then fail when a committed figure or table is not byte-identical to the one just
 # regenerated (or a new one appeared): the outputs-identical check of issue 35. Too slow for the

@@ -309,13 +309,14 @@ def test_eval_tables_fit_80_and_160_columns_one_row_per_method(tmp_path, monkeyp
     out = _eval(monkeypatch, capsys, tmp_path, 80)
     assert max(len(line) for line in out.splitlines()) <= 80, out
     rows = [ln for ln in out.splitlines() if ln.startswith(("dense ", "global "))]
-    assert len(rows) == 4  # the metrics table and the cost table: one row per method each
+    assert len(rows) == 6  # the AUC block, the R@1 block, the cost table: one row per method each
     assert re.search(
-        r"^global +\d\.\d{3} \[.*\] +[-+]\d\.\d{3} \[.*\] (higher|lower|inconclusive)$",
+        r"^global +\d\.\d{3} \[.*\] +[-+]\d\.\d{3} \[.*\] (higher|lower|inconclusive)",
         out,
         re.MULTILINE,
     )  # the difference on the method's row
-    assert "not shown at 80 columns: R@1" in out
+    assert re.search(r"^method +R@1 ", out, re.MULTILINE)  # R@1 kept at 80 columns
+    assert "not shown at 80 columns: R@100P" in out
     # the cost table says where its seconds come from: measured now, then read from the cache
     assert re.search(r"^dense .* this run$", out, re.MULTILINE)
     stem = "eval_synthetic_dense+global_backbone-hog_n-places-6"
