@@ -4,6 +4,7 @@ and a database weighting gets right, each match drawn in the colour of its weigh
 from __future__ import annotations
 
 import dataclasses
+import textwrap
 from typing import Any
 
 import matplotlib
@@ -15,6 +16,13 @@ from ..datasets.ground_truth import ground_truth_references
 from ..evaluation import per_query
 from ..matching import weighted_matches
 from .curves import dataset_line
+
+#: Width (inches) of the figure: at the inline backend's 100 dpi it shows unscaled in a
+#: JupyterLab output column (about 950 px), so its captions read at :data:`FONT` points.
+FIG_WIDTH = 9.5
+
+#: Size (points) of every caption of the figure.
+FONT = 9
 
 
 def _matches(run: Any, pairs: list[tuple[int, int]], weighting: str) -> list:
@@ -52,7 +60,35 @@ def _pair_panel(ax, images: tuple, boxes: tuple, match, colour, title: str) -> N
                 matplotlib.patches.Rectangle((x + dx, y), bw, bh, fill=False, ec=color, lw=lw)
             )
     ax.set_axis_off()
-    ax.set_title(title, fontsize=8)
+    ax.set_title(title, fontsize=FONT)
+
+
+def _grid(ds: Any, shown: list[int], head: str):
+    """``(figure, (rows, 2) axes, colour-bar axes)`` of :data:`FIG_WIDTH`, placed by hand:
+    each row's two pairs of images at the height their width allows, a 3-line title above
+    each, ``head`` on top, the colour bar at the right."""
+    h, w = ds.load_image("query", shown[0]).shape[:2] if shown else (1, 2)
+    margin, gap, bar_w = 0.1, 0.25, 0.9  # the colour bar, its ticks and label
+    pair_w = (FIG_WIDTH - 2 * margin - gap - bar_w) / 2
+    image_h = pair_w * h / (2 * w)
+    title = 3 * FONT * 1.25 / 72 + 0.1
+    top = (head.count("\n") + 1) * FONT * 1.25 / 72 + 0.2
+    rows = max(1, len(shown))
+    height = top + rows * (title + image_h) + 0.1
+    fig = plt.figure(figsize=(FIG_WIDTH, height))
+    axes = np.empty((rows, 2), dtype=object)
+    y = height - top
+    for k in range(rows):
+        y -= title + image_h
+        for c in range(2):
+            x = margin + c * (pair_w + gap)
+            axes[k, c] = fig.add_axes(
+                (x / FIG_WIDTH, y / height, pair_w / FIG_WIDTH, image_h / height)
+            )
+    x = margin + 2 * pair_w + gap + 0.15
+    body = height - top - 0.1 - title
+    bar = fig.add_axes((x / FIG_WIDTH, 0.1 / height, 0.15 / FIG_WIDTH, body / height))
+    return fig, axes, bar
 
 
 def plot_weighted_matches(
@@ -89,19 +125,20 @@ def plot_weighted_matches(
     shown = [int(q) for q in fixed[: int(n)]]
     table = table[table["query"].isin(shown)].reset_index(drop=True)
     gt = np.asarray(ds.ground_truth, dtype=bool)
-    fig, axes = plt.subplots(
-        max(1, len(shown)), 2, figsize=(13.0, 2.6 * max(1, len(shown)) + 0.9), squeeze=False
-    )
     head = (
         f"(not in the paper) {plain.label} wrong, {weighted.label} right: {len(fixed)} of "
         f"{len(ok)} queries{f' ({len(shown)} shown)' if len(fixed) > len(shown) else ''}\n"
-        f"{dataset_line([plain])}; boxes: each reciprocal match coloured by its {weighting} "
+        f"{dataset_line([plain])}\nboxes: each reciprocal match coloured by its {weighting} "
         "weight, grey = 0"
     )
+    chars = int((FIG_WIDTH - 0.2) * 72 / (0.56 * FONT))
+    head = "\n".join(w for ln in head.split("\n") for w in textwrap.wrap(ln, chars) or [""])
+    fig, axes, bar = _grid(ds, shown, head)
     if not shown:
         for ax in axes[0]:
             ax.set_axis_off()
-        fig.suptitle(head, fontsize=9, x=0.01, ha="left")
+        bar.set_axis_off()
+        fig.suptitle(head, fontsize=FONT, x=0.01, y=0.98, ha="left", va="top")
         return fig, table
     sim_p = np.asarray(plain.similarity)
     sim_w = np.asarray(weighted.similarity)
@@ -127,14 +164,20 @@ def plot_weighted_matches(
                 (b["query"][q], b["reference"][r]),
                 m,
                 lambda w: cmap(norm(w)),
-                f"query {q} vs {what} r{r}: S {sim_p[q, r]:.3f} plain, {sim_w[q, r]:.3f} "
+                f"query {q} vs {what} r{r}\nS {sim_p[q, r]:.3f} plain, {sim_w[q, r]:.3f} "
                 f"weighted\n{len(m.matches)} matches, {carried} with weight > 0",
             )
-    fig.suptitle(head, fontsize=9, x=0.01, y=0.995, ha="left", va="top")
-    fig.colorbar(
-        matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap),
-        ax=axes.ravel().tolist(),
-        fraction=0.02,
-        label=f"{weighting} weight",
+    fig.suptitle(
+        head,
+        fontsize=FONT,
+        x=0.1 / FIG_WIDTH,
+        y=1 - 0.08 / fig.get_figheight(),
+        ha="left",
+        va="top",
     )
+    fig.colorbar(
+        matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap), cax=bar, label=f"{weighting} weight"
+    )
+    bar.yaxis.label.set_fontsize(FONT)
+    bar.tick_params(labelsize=FONT)
     return fig, table
