@@ -212,8 +212,8 @@ def check_label(label: object) -> str:
 
 
 #: Longest file stem given to ``save()``, in UTF-8 bytes: 255 less the longest suffix added
-#: (``.timings.csv``) and the temporary file's prefix and suffix.
-MAX_NAME_BYTES = 200
+#: (``.timings.csv``) and the temporary file's prefix and suffix (``.``, ``.XXXXXXXX.tmp``).
+MAX_NAME_BYTES = 225
 
 
 def check_name(name: object) -> str:
