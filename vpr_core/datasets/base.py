@@ -4,13 +4,15 @@ truth). Image files are read and listed by :mod:`vpr_core.datasets.images`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import re
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..checks import check_int
 from ..utils import file_fingerprint
+from .ground_truth import check_tolerance, frame_aligned
 from .images import read_image
 
 SIDES = ("query", "reference")
@@ -33,7 +35,9 @@ class PlaceDataset:
         homographies: ``float64 (Nq, 3, 3)`` or None. ``homographies[i]`` maps query-``i``
             pixel coordinates ``(x, y, 1)`` to reference-``i`` pixel coordinates (known on
             ``synthetic`` only; None on real data).
-        meta: Free-form details (layout, traverse names, generator parameters, ...).
+        meta: Free-form details (layout, traverse names, generator parameters, ...);
+            ``meta["frame_aligned"]``: True when ``ground_truth`` is ``|q - r| <= tolerance``
+            (the loaders that say so; :meth:`with_tolerance` needs it).
         ground_truth_soft: ``bool (Nq, Nr)`` or None: VPR_Tutorial's GTsoft, a superset of
             ``ground_truth`` (GThard). Pairs that are soft but not hard positives are neither right
             nor wrong: an evaluation ignores them, e.g. with :meth:`ignore_soft`.
@@ -186,6 +190,36 @@ class PlaceDataset:
             meta={**self.meta, "subset": (nq, nr)},
             ground_truth_soft=soft,
         )
+
+    def with_tolerance(self, tolerance: int) -> PlaceDataset:
+        """This dataset with its frame-aligned ground truth at ``tolerance`` frames
+        (``|q - r| <= tolerance``), as loading it with ``tolerance=`` gives; the images are the
+        same, so a run reuses every cached landmark, descriptor and Eq. (1) matrix.
+
+        Refused, naming the fix, for ground truth that is not frame-aligned (a file's, widened
+        when it was loaded; a distance rule; soft): load the dataset again with ``tolerance=``.
+        """
+        if not self.meta.get("frame_aligned") or self.ground_truth_soft is not None:
+            rule = self.meta.get("ground_truth_rule", "not frame-aligned")
+            raise ValueError(
+                f"{self.name!r}.with_tolerance({tolerance!r}): its ground truth is {rule}, not "
+                "frame-aligned (|q - r| <= tolerance), so it cannot be rebuilt here; load the "
+                f"dataset again with tolerance={tolerance!r} (load_dataset(name, root, "
+                f"tolerance={tolerance!r})): the Eq. (1) matrices are reused from the cache"
+            )
+        t = check_tolerance(tolerance)
+        meta = dict(self.meta)
+        if "ground_truth_rule" in meta:
+            meta["ground_truth_rule"] = re.sub(r"<=\d+", f"<={t}", meta["ground_truth_rule"])
+        out = replace(
+            self,
+            ground_truth=frame_aligned(self.n_query, self.n_reference, t),
+            tolerance=t,
+            meta=meta,
+        )
+        out._keys.update(self._keys)  # same files: their content keys and sizes carry over
+        out._sizes.update(self._sizes)
+        return out
 
     def gt_pairs(self) -> list[tuple[int, int]]:
         """All ``(q, r)`` with ``ground_truth[q, r]`` True, row-major order."""

@@ -94,6 +94,6 @@ def load_folder(
             )
         check_frame_pairs(qp, rp, "folder", strict=False)
         gt = frame_aligned(len(qp), len(rp), tolerance)
-        meta["ground_truth_rule"] = f"frame-aligned |q-r|<={tolerance}"
+        meta.update(ground_truth_rule=f"frame-aligned |q-r|<={tolerance}", frame_aligned=True)
     meta["loader"] = "folder"
     return PlaceDataset(data_name(root), qp, rp, gt, tolerance, root=root, meta=meta)

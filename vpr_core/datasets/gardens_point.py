@@ -63,6 +63,7 @@ def load_gardens_point(
         "query_traverse": query,
         "reference_traverse": reference,
         "ground_truth_rule": f"frame-aligned |q-r|<={tolerance}",
+        "frame_aligned": True,
         "layout": GARDENS_POINT_LAYOUT,
     }
     meta["loader"] = "gardens_point"

@@ -107,45 +107,6 @@ def widen(gt: np.ndarray, tolerance: int) -> np.ndarray:
     return out
 
 
-def ground_truth_at(dataset: Any, tolerance: int | None) -> np.ndarray:
-    """``dataset``'s ``bool (Nq, Nr)`` ground truth at ``tolerance`` frames (None: as loaded).
-
-    Frame-aligned ground truth is rebuilt at ``tolerance``; any other (a file's, widened by
-    the loaded tolerance) is widened further. Refused, naming the fix: a distance rule or soft
-    ground truth (no frames to count), less widening than the file was loaded with, and
-    widening a :meth:`~vpr_core.datasets.PlaceDataset.subset` of a file's.
-    """
-    gt = np.asarray(dataset.ground_truth, dtype=bool)
-    loaded = dataset.tolerance
-    if tolerance is None or tolerance == loaded:
-        return gt
-    if not isinstance(loaded, int) or dataset.ground_truth_soft is not None:
-        rule = f"by distance ({loaded})" if isinstance(loaded, str) else "not by frames"
-        if dataset.ground_truth_soft is not None:
-            rule = "soft (GTsoft beside GThard)"
-        raise ValueError(
-            f"tolerance={tolerance}: the ground truth of {dataset.name!r} is {rule}, so a "
-            "tolerance in frames does not apply; leave tolerance=None and set its rule when "
-            "loading it (e.g. load_dataset('utm', root, positive_dist_threshold=...))"
-        )
-    nq, nr = gt.shape
-    if np.array_equal(gt, frame_aligned(nq, nr, loaded)):
-        return frame_aligned(nq, nr, tolerance)
-    if tolerance > loaded and "subset" not in dataset.meta:
-        return widen(gt, tolerance - loaded)
-    if tolerance > loaded:  # pairs beyond the cut would widen into it: not what loading gives
-        raise ValueError(
-            f"tolerance={tolerance}: {dataset.name!r} is a subset of a ground-truth file's "
-            "dataset, and widening the cut matrix would miss the pairs beyond the cut; load it "
-            f"with tolerance={tolerance}, then take the subset"
-        )
-    raise ValueError(
-        f"tolerance={tolerance}: {dataset.name!r} was loaded with its ground truth widened by "
-        f"{loaded} frames, which cannot be narrowed again; load it with tolerance={tolerance} "
-        "(or 0) and pass a tolerance at or above that"
-    )
-
-
 # ----------------------------------------------------------------------------------------------
 # Coverage
 # ----------------------------------------------------------------------------------------------

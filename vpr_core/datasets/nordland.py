@@ -98,6 +98,7 @@ def load_nordland(
         "seasons_found": seasons,
         "layout": NORDLAND_LAYOUT,
         "ground_truth_rule": f"same file name, |i-j|<={tolerance} kept places",
+        "frame_aligned": True,
     }
     meta["loader"] = "nordland"
     return PlaceDataset(data_name(root), qp, rp, gt, tolerance, root=root, meta=meta)

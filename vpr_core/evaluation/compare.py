@@ -95,25 +95,31 @@ def _context(r: Any) -> dict:
 
 def _check_same_dataset(results: Sequence[Any], base: Any) -> np.ndarray:
     """The baseline's ground truth; refuses results of another dataset (their fingerprints where
-    both are recorded, and the ground truth), naming both."""
+    both are recorded, and the ground truth), naming both, and both tolerances where they
+    differ (one dataset loaded at two tolerances: its fingerprints differ too)."""
     fp = getattr(base, "dataset_fingerprint", None)
     gt = np.asarray(base.ground_truth, dtype=bool)
     for r in results:
         other = getattr(r, "dataset_fingerprint", None)
-        if fp and other and other != fp:  # unset ("" or None): the ground truth decides
+        tol, base_tol = getattr(r, "tolerance", None), getattr(base, "tolerance", None)
+        other_data = bool(fp and other and other != fp)  # unset ("" or None): the truth decides
+        other_truth = not _same(np.asarray(r.ground_truth, dtype=bool), gt)
+        if tol != base_tol and (other_truth or (other_data and r.dataset == base.dataset)):
+            raise ValueError(
+                f"compare(): {r.label!r} was scored at tolerance {tol} and {base.label!r} at "
+                f"tolerance {base_tol} (another ground truth); load the dataset at one "
+                "tolerance and run both on it (the Eq. (1) matrices are reused from the cache)"
+            )
+        if other_data:
             raise ValueError(
                 f"compare(): {r.label!r} ran on dataset {r.dataset!r} (fingerprint {other}) and "
                 f"{base.label!r} on {base.dataset!r} (fingerprint {fp}): query i of one is not "
                 "query i of the other; compare runs of one dataset only"
             )
-        if not _same(np.asarray(r.ground_truth, dtype=bool), gt):
-            tol, base_tol = getattr(r, "tolerance", None), getattr(base, "tolerance", None)
-            fix = "compare runs of one dataset only"
-            if tol != base_tol:
-                fix = f"(tolerance {tol} vs {base_tol}); score them at one tolerance"
+        if other_truth:
             raise ValueError(
                 f"compare(): {r.label!r} was evaluated on another ground truth than "
-                f"{base.label!r}; {fix}"
+                f"{base.label!r}; compare runs of one dataset only"
             )
     return gt
 

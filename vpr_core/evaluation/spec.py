@@ -1,6 +1,6 @@
-"""How a run is evaluated, as a value: :class:`Evaluation` (protocol, ground-truth tolerance,
-bootstrap resamples), checked once when it is made, so a run that cannot be evaluated is refused
-before any work."""
+"""How a run is evaluated, as a value: :class:`Evaluation` (protocol, bootstrap resamples),
+checked once when it is made, so a run that cannot be evaluated is refused before any work. The
+ground truth (and its tolerance) is the dataset's, set when loading it."""
 
 from __future__ import annotations
 
@@ -8,7 +8,6 @@ import dataclasses
 import os
 
 from ..checks import check_choice, check_int
-from ..datasets.ground_truth import check_tolerance
 
 __all__ = [
     "BOOTSTRAP_BYTES_PER_RESAMPLE",
@@ -18,6 +17,7 @@ __all__ = [
     "Evaluation",
     "as_evaluation",
     "check_bootstrap_memory",
+    "refuse_tolerance",
 ]
 
 #: The PR protocols (docs/DEFINITIONS.md).
@@ -50,24 +50,18 @@ def check_bootstrap_memory(n: int, name: str = "n_bootstrap") -> None:
 
 @dataclasses.dataclass(frozen=True)
 class Evaluation:
-    """The PR protocol of AUC and R@100P (:data:`~vpr_core.evaluation.PROTOCOLS`), the
-    ground-truth ``tolerance`` in frames and the bootstrap resamples of the intervals (0: none).
+    """The PR protocol of AUC and R@100P (:data:`~vpr_core.evaluation.PROTOCOLS`) and the
+    bootstrap resamples of the intervals (0: none).
 
-    ``tolerance=None`` scores against the dataset's ground truth as loaded
-    (``load_dataset(..., tolerance=N)``); ``N`` re-derives it at ``N`` frames without loading
-    again (:func:`~vpr_core.datasets.ground_truth.ground_truth_at`: what a dataset's rule
-    allows, else a clear error). It is applied where a run reads its dataset
-    (:func:`~vpr_core.pipeline.run_method`, :func:`~vpr_core.pipeline.peer_result`); the
-    functions given a ground-truth matrix score that matrix."""
+    No tolerance: a run is scored against its dataset's ground truth as loaded
+    (``load_dataset(..., tolerance=N)``, or ``ds.with_tolerance(N)`` for frame-aligned truth);
+    the Eq. (1) matrix cache does not depend on it, so a tolerance sweep reuses every matrix."""
 
     protocol: str = "ratio"
-    tolerance: int | None = None
     n_bootstrap: int = N_BOOTSTRAP
 
     def __post_init__(self) -> None:
         check_choice(self.protocol, "protocol", PROTOCOLS)
-        if self.tolerance is not None:
-            object.__setattr__(self, "tolerance", check_tolerance(self.tolerance))
         n = check_int(self.n_bootstrap, "n_bootstrap (resamples; 0: no intervals)", 0)
         object.__setattr__(self, "n_bootstrap", n)
         check_bootstrap_memory(n)
@@ -87,3 +81,17 @@ def as_evaluation(evaluation: Evaluation | str) -> Evaluation:
     return Evaluation(
         evaluation, n_bootstrap=N_BOOTSTRAP if evaluation in BOOTSTRAP_PROTOCOLS else 0
     )
+
+
+def refuse_tolerance(options: dict, where: str) -> None:
+    """Refuse a ``tolerance`` among a run's keyword ``options`` (TypeError naming the fix): the
+    ground truth is the dataset's, so a tolerance is given when loading it. ``where``: the
+    function named in the message."""
+    if "tolerance" in options:
+        t = options["tolerance"]
+        raise TypeError(
+            f"{where}(tolerance={t!r}): the tolerance belongs to the dataset's ground truth, "
+            f"not to a run; load the dataset with tolerance={t!r} "
+            f"(load_dataset(name, root, tolerance={t!r})), or ds.with_tolerance({t!r}) for a "
+            "frame-aligned dataset; the Eq. (1) matrices are reused from the cache"
+        )

@@ -32,6 +32,7 @@ __all__ = [
     "ForeignEntryError",
     "atomic_savez",
     "dataset_fingerprint",
+    "images_fingerprint",
     "load_npz",
     "n_images",
 ]
@@ -227,3 +228,10 @@ def dataset_fingerprint(dataset) -> str:
     keys = [dataset.image_key(s, i) for s in SIDES for i in range(n_images(dataset, s))]
     gt = np.asarray(dataset.ground_truth, dtype=bool)
     return short_hash([dataset.name, keys, short_hash(gt.tobytes().hex()), list(gt.shape)])
+
+
+def images_fingerprint(dataset) -> str:
+    """Short hash of a dataset's name and the contents of its images in order, not its ground
+    truth: the folder of its Eq. (1) matrices, which a tolerance sweep shares."""
+    keys = [dataset.image_key(s, i) for s in SIDES for i in range(n_images(dataset, s))]
+    return short_hash([dataset.name, keys])

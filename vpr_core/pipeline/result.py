@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from ..baselines import peer_similarity_for
-from ..datasets.ground_truth import ground_truth_at, ground_truth_text
+from ..datasets.ground_truth import ground_truth_text
 from ..evaluation import (
     Evaluation,
     bootstrap_metrics,
@@ -19,6 +19,7 @@ from ..evaluation import (
     ground_truth_coverage,
     pr_curve,
 )
+from ..evaluation.spec import refuse_tolerance
 from ..methods import Method, run_key
 from .cache import dataset_fingerprint
 
@@ -59,9 +60,9 @@ class MethodResult:
             of image pairs scored by Eq. (1).
         shortlist: None (exhaustive) or the k of shortlist + re-rank.
         queries_with_gt: ``(queries with ground truth, all queries)``.
-        tolerance, root: the ground-truth tolerance the run was scored at (the dataset's, or
-            its :class:`~vpr_core.evaluation.Evaluation`'s) and the dataset's folder (tables and
-            titles print them beside every number).
+        tolerance, root: the dataset's ground-truth tolerance, recorded when it was loaded, and
+            its folder (tables and titles print them beside every number; ``compare`` names
+            both tolerances of runs scored against different ground truths).
         dataset_title: the dataset as titles print it (:attr:`PlaceDataset.title
             <vpr_core.datasets.PlaceDataset.title>`: the name and a subset such as "every 50th
             place").
@@ -163,13 +164,16 @@ def peer_result(
     Args:
         peer: a loaded peer (:func:`~vpr_core.baselines.load_vprbench_precomputed`).
         dataset: the :class:`~vpr_core.datasets.PlaceDataset` it was computed on.
-        evaluation: protocol, ground-truth tolerance and bootstrap resamples (as
-            :func:`~vpr_core.pipeline.run_method`; its fields given as keywords change it).
+        evaluation: protocol and bootstrap resamples (as
+            :func:`~vpr_core.pipeline.run_method`; its fields given as keywords change it). The
+            ground truth is ``dataset``'s as loaded (``tolerance=`` here is refused, naming the
+            fix).
         label: its name in tables and legends (default ``"<name> (VPR-Bench)"``).
     """
+    refuse_tolerance(overrides, "peer_result")
     evaluation = dataclasses.replace(evaluation or Evaluation(), **overrides)
     protocol = evaluation.protocol
-    gt = ground_truth_at(dataset, evaluation.tolerance)
+    gt = np.asarray(dataset.ground_truth, dtype=bool)
 
     sim = dataset.ignore_soft(peer_similarity_for(dataset, peer))  # soft: neither right nor wrong
     nq, nr = gt.shape
@@ -199,7 +203,7 @@ def peer_result(
             else {}
         ),
         queries_with_gt=ground_truth_coverage(gt),
-        tolerance=dataset.tolerance if evaluation.tolerance is None else evaluation.tolerance,
+        tolerance=dataset.tolerance,
         root=None if dataset.root is None else str(dataset.root),
         ground_truth_from_file=bool(dataset.meta.get("ground_truth_file")),
         dataset_title=dataset.title,

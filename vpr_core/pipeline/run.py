@@ -13,7 +13,6 @@ from typing import Any, ParamSpec
 
 import numpy as np
 
-from ..datasets.ground_truth import ground_truth_at
 from ..engine.blocks import similarity_blocks_distributed, similarity_pairs_distributed
 from ..engine.client import get_client
 from ..engine.shortlist import rerank, shortlist_pairs, split_whole_image, with_whole_image_boxes
@@ -24,6 +23,7 @@ from ..evaluation import (
     ground_truth_coverage,
     saturation_notice,
 )
+from ..evaluation.spec import refuse_tolerance
 from ..features import Encoder
 from ..landmarks.edge_boxes import edge_model_id
 from ..landmarks.schemes import CandidateScheme, LandmarkScheme
@@ -31,7 +31,14 @@ from ..matching import similarity_matrix
 from ..methods import Matching, Method, as_method, method_label
 from ..notices import VPRWarning, notice
 from ..utils import array_sha256, cache_dir, code_version, config_slug, logger
-from .cache import SIDES, atomic_savez, dataset_fingerprint, load_npz, n_images
+from .cache import (
+    SIDES,
+    atomic_savez,
+    dataset_fingerprint,
+    images_fingerprint,
+    load_npz,
+    n_images,
+)
 from .feature_stage import extract_features, get_encoder
 from .landmark_stage import extract_landmarks
 from .result import MethodResult
@@ -189,7 +196,9 @@ def _values(
 ) -> tuple[Method, Encoder, Evaluation]:
     """``run_method``'s arguments parsed once into its three values: the keyword overrides
     that are :class:`~vpr_core.features.Encoder` or :class:`~vpr_core.evaluation.Evaluation`
-    fields change those values (given or default); the rest are the method's options."""
+    fields change those values (given or default); the rest are the method's options. A
+    ``tolerance`` is refused naming the fix (it is the dataset's)."""
+    refuse_tolerance(overrides, "run_method")
     parts: dict[type, dict[str, Any]] = {Encoder: {}, Evaluation: {}}
     for cls, found in parts.items():
         names = {f.name for f in dataclasses.fields(cls)}
@@ -228,11 +237,13 @@ def run_method(
         encoder: the landmark encoder (default ``Encoder()``: ``efficientnet_lite0``, ``crop``
             pooling, the paper's projection); ``backbone=``, ``weights=``, ``pooling=``,
             ``input_size=``, ``device=``, ``dim=``, ``seed=`` given as keywords change it.
-        evaluation: the PR protocol, ground-truth tolerance and bootstrap resamples (default
-            ``Evaluation()``: the paper's ``ratio`` protocol, the dataset's ground truth as
-            loaded, ``N_BOOTSTRAP`` resamples); ``protocol=``, ``tolerance=`` and
-            ``n_bootstrap=`` given as keywords change it. R@K is protocol-free; the similarity
-            matrix does not depend on the tolerance (a sweep over it reuses the cache).
+        evaluation: the PR protocol and bootstrap resamples (default ``Evaluation()``: the
+            paper's ``ratio`` protocol, ``N_BOOTSTRAP`` resamples); ``protocol=`` and
+            ``n_bootstrap=`` given as keywords change it. R@K is protocol-free. The ground truth
+            is the dataset's as loaded (its ``tolerance``): the Eq. (1) matrix cache is keyed by
+            the images, landmarks, descriptors and ``Matching``, not by the ground truth, so a
+            tolerance sweep (the dataset loaded again, or ``ds.with_tolerance(N)``) reuses every
+            matrix; ``tolerance=`` here is refused naming that fix.
         shortlist: None (exhaustive, the paper's) or k: each query's top-k references by the
             cosine of whole-image descriptors (same backbone and pooling) are re-ranked by
             Eq. (1); all other pairs are NaN ("not ranked"; the ratio protocol's S2 is the
@@ -251,12 +262,12 @@ def run_method(
     """
     conf, spec, evaluation = _values(method, encoder, evaluation, overrides)
     protocol = evaluation.protocol
-    gt = ground_truth_at(dataset, evaluation.tolerance)  # a tolerance it cannot take: refused now
-    tolerance = dataset.tolerance if evaluation.tolerance is None else evaluation.tolerance
+    gt = np.asarray(dataset.ground_truth, dtype=bool)
     nq, nr = n_images(dataset, "query"), n_images(dataset, "reference")
     k = _check_shortlist(shortlist, nr)
     landmark_encoder = get_encoder(spec)
     fingerprint = dataset_fingerprint(dataset)
+    images = images_fingerprint(dataset)  # the matrix cache's folder: not the ground truth
     weights_sha256 = str(landmark_encoder.config.get("weights_sha256", ""))
     edge_model = edge_model_id() if isinstance(conf.landmarks, CandidateScheme) else "none"
     client = None
@@ -265,7 +276,8 @@ def run_method(
     try:
         boxes = extract_landmarks(conf.landmarks, dataset)
         feats, glob = _features(boxes, dataset, landmark_encoder, k, client)
-        # keyed by what goes in: the boxes and descriptors (content), the Matching value
+        # keyed by what goes in: the images (folder), the boxes and descriptors (content), the
+        # Matching value; not the ground truth, so another tolerance reuses the matrix
         inputs = [
             a for side in SIDES for pair in zip(boxes[side], feats[side], strict=True) for a in pair
         ]
@@ -277,7 +289,7 @@ def run_method(
             "shortlist": k,
             "code": code_version("matching"),
         }
-        folder = cache_dir("results", f"{dataset.name}-{fingerprint}")
+        folder = cache_dir("results", f"{dataset.name}-{images}")
         path = folder / f"{config_slug(conf.name, key)}.npz"
         identity = f"results {path.parent.name} {path.stem}"
 
@@ -362,7 +374,7 @@ def run_method(
         intervals=intervals,
         shortlist=k,
         queries_with_gt=ground_truth_coverage(gt),
-        tolerance=tolerance,
+        tolerance=dataset.tolerance,
         root=None if dataset.root is None else str(dataset.root),
         ground_truth_from_file=bool(dataset.meta.get("ground_truth_file")),
         dataset_title=dataset.title,

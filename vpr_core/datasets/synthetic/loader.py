@@ -190,6 +190,7 @@ def load_synthetic(
         params,
         n_places=n_places,
         ground_truth_rule=f"frame-aligned |q-r|<={tolerance}",
+        frame_aligned=True,
         exact_geometry=True,
     )
     return PlaceDataset("synthetic", qp, rp, gt, tolerance, root=out, homographies=homs, meta=meta)
