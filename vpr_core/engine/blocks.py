@@ -192,7 +192,7 @@ def similarity_pairs_distributed(
     rfut = [client.scatter(_Part(rd[s : s + br], rb[s : s + br]), hash=False) for s in rstarts]
     sample = None
     if matching.weighting is not None:
-        ids = weighting_sample(len(rd)).tolist()
+        ids = weighting_sample(len(rd), matching.weighting).tolist()
         part = _Part([rd[j] for j in ids], [rb[j] for j in ids])
         sample = client.scatter(part, broadcast=True, hash=False)
     futures, rows_of = [], []

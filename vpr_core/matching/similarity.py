@@ -19,7 +19,7 @@ from .core import BLOCK_BYTES, Problem, shape_terms
 from .pairwise import MatchResult, match_pair
 from .sides import LandmarkSets, rescale_rows, unit_rows
 from .spec import Compute, Matching, as_matching
-from .weighting import weighting_sample
+from .weighting import sample_matches, weighting_sample
 
 __all__ = [
     "check_pairs",
@@ -124,7 +124,7 @@ def similarity_pairs(
             references ``sample``.
         compute: as :func:`similarity_matrix` (``batch_size`` unused: one query at a time).
         sample: indices of the references whose cosines give the weighting statistics
-            (default: :func:`~.weighting.weighting_sample`, all of them up to 256).
+            (default: :func:`~.weighting.weighting_sample`: ``contrast`` 16, ``idf`` 256).
 
     Returns:
         ``(P,)`` float64 similarities, in the order of ``pairs``.
@@ -134,7 +134,9 @@ def similarity_pairs(
     )
     q, r = prob.q, prob.r
     pr = check_pairs(pairs, q.n, r.n)
-    ids = weighting_sample(r.n) if sample is None else _check_sample(sample, r.n)
+    ids = (
+        weighting_sample(r.n, matching.weighting) if sample is None else _check_sample(sample, r.n)
+    )
     out = np.zeros(pr.shape[0], dtype=np.float64)
     if prob.empty or pr.shape[0] == 0:
         return out
@@ -151,7 +153,7 @@ def similarity_pairs(
             qs = slice(qi, qi + 1)
             ridx = torch.from_numpy(pr[rows, 1]).to(prob.dev)
             m = prob.chunked(qs, ridx, br)
-            stats = (prob.chunked(qs, samp, br), samp)
+            stats = (sample_matches(prob, qs, samp, br), samp)
             out[rows] = prob.weighted(qs, ridx, m, stats)[0][0].cpu().numpy()
             return
         for c0 in range(0, rows.shape[0], br):
@@ -257,7 +259,7 @@ def weighted_matches(
 
     The same core and statistics as :func:`similarity_pairs` (``similarity`` equals its value);
     ``weights`` holds each match's weight. An exhaustive run's statistics cover every reference:
-    pass ``sample=np.arange(Nr)`` to see its weights when ``Nr > 256``.
+    pass ``sample=np.arange(Nr)`` to see its weights when ``Nr`` exceeds the shortlist's sample.
 
     Args:
         query_desc, query_boxes, reference_desc, reference_boxes, pairs, sample: as
@@ -275,7 +277,10 @@ def weighted_matches(
     )
     q, r = prob.q, prob.r
     pr = check_pairs(pairs, q.n, r.n)
-    samp = torch.from_numpy(weighting_sample(r.n) if sample is None else _check_sample(sample, r.n))
+    ids = (
+        weighting_sample(r.n, matching.weighting) if sample is None else _check_sample(sample, r.n)
+    )
+    samp = torch.from_numpy(ids)
     br = max(1, BLOCK_BYTES // (4 * q.k * r.k))
     stats: dict[int, tuple] = {}
     out = []
@@ -287,7 +292,7 @@ def weighted_matches(
             continue
         qs, ridx = slice(qi, qi + 1), torch.tensor([rj])
         if qi not in stats:
-            stats[qi] = (prob.chunked(qs, samp, br), samp)
+            stats[qi] = (sample_matches(prob, qs, samp, br), samp)
         sim, p = prob.weighted(qs, ridx, prob.matches(qs, ridx), stats[qi], keep_pairs=True)
         out.append(_result(p, float(sim[0, 0]), na, nb, weights=True))
     return out

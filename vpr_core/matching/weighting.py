@@ -9,35 +9,73 @@ from typing import TYPE_CHECKING
 import numpy as np
 import torch
 
+from .sides import PAD, Selection
+
 if TYPE_CHECKING:
-    from .core import Matches
+    from .core import Matches, Problem
 
 __all__ = [
+    "CONTRAST_SAMPLE",
     "CONTRAST_SIGMA_MIN",
     "WEIGHTING_SAMPLE",
     "database_weights",
+    "sample_matches",
     "weighting_sample",
     "weighting_stats",
 ]
 
-#: (Not in the paper.) References (a seed-0 sample) whose cosines give the weighting statistics
+#: (Not in the paper.) References (a seed-0 sample) whose matches give the ``idf`` statistics
 #: of a shortlist run; every reference when there are at most this many.
 WEIGHTING_SAMPLE = 256
+#: (Not in the paper.) References (a seed-0 sample) whose best cosines give the ``contrast``
+#: statistics of a shortlist run; every reference when there are at most this many. 16 keeps
+#: the statistics' cost near a tenth of the matching of a 25-reference shortlist (issue 46;
+#: their precision: docs/DEFINITIONS.md).
+CONTRAST_SAMPLE = 16
 #: (Not in the paper.) A contrast standard deviation at or below this counts as 0 (the float32
 #: cosines cannot tell the references apart): the landmark's weight is 0.
 CONTRAST_SIGMA_MIN = 1e-6
 
 
-def weighting_sample(n_references: int) -> np.ndarray:
+def weighting_sample(n_references: int, weighting: str | None = None) -> np.ndarray:
     """Sorted indices of the references whose cosines give a shortlist's weighting statistics.
 
-    Every reference when there are at most :data:`WEIGHTING_SAMPLE`, else that many drawn
-    without replacement by ``np.random.default_rng(0)`` (docs/DEFINITIONS.md).
+    ``size`` = :data:`CONTRAST_SAMPLE` for ``weighting="contrast"``, else
+    :data:`WEIGHTING_SAMPLE`: every reference when there are at most ``size``, else ``size``
+    drawn without replacement by ``np.random.default_rng(0)`` (docs/DEFINITIONS.md).
     """
-    if n_references <= WEIGHTING_SAMPLE:
+    size = CONTRAST_SAMPLE if weighting == "contrast" else WEIGHTING_SAMPLE
+    if n_references <= size:
         return np.arange(n_references, dtype=np.int64)
-    pick = np.random.default_rng(0).choice(n_references, WEIGHTING_SAMPLE, replace=False)
+    pick = np.random.default_rng(0).choice(n_references, size, replace=False)
     return np.sort(pick).astype(np.int64)
+
+
+def sample_matches(prob: Problem, qsel: Selection, refs: torch.Tensor, size: int) -> Matches:
+    """The matches of the images ``qsel`` x the references ``refs`` that the statistics read.
+
+    ``contrast`` reads only the best cosines ``b_i(r)``: each the maximum of one row of a
+    matmul of ``qsel``'s landmarks x ``size`` references' landmarks (matmul dtype, padded
+    landmarks never win), with no reciprocal test (``nn`` -1, ``recip`` False). ``idf`` needs
+    the reciprocal matches: :meth:`.core.Problem.chunked`.
+    """
+    if prob.matching.weighting != "contrast":
+        return prob.chunked(qsel, refs, size)
+    from .core import Matches  # core imports this module
+
+    q, r = prob.q, prob.r
+    a = q.images(qsel)
+    nq = a.shape[0] // q.k
+    parts = []
+    for c0 in range(0, int(refs.numel()), size):
+        sel = refs[c0 : c0 + size]
+        s = (a @ r.images(sel).T).view(nq, q.k, sel.numel(), r.k)
+        if r.padded:
+            s.masked_fill_(~r.mask[sel][None, None], PAD)
+        parts.append(s.amax(3))
+    best = torch.cat(parts, 2).permute(0, 2, 1).to(torch.float64)  # (nq, ns, Kq)
+    nn = torch.full(best.shape, -1, dtype=torch.int64, device=best.device)
+    return Matches(best, nn, torch.zeros(best.shape, dtype=torch.bool, device=best.device), None)
 
 
 def weighting_stats(
