@@ -22,6 +22,7 @@ from .matches import (
 )
 from .recall import plot_recall_at_n
 from .statistics import plot_asl, plot_cls, plot_cmr, plot_scale_statistics
+from .weighting import plot_carried_landmarks
 from .widgets import label_widget, pair_label_widget
 
 __all__ = [
@@ -32,6 +33,7 @@ __all__ = [
     "label_widget",
     "layout_problems",
     "plot_asl",
+    "plot_carried_landmarks",
     "plot_cls",
     "plot_cmr",
     "plot_coverage",

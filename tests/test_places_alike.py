@@ -1,0 +1,120 @@
+"""Notebook 07 (not in the paper): ``plot_carried_landmarks``, the landmarks that carried a top-1
+the contrast weighting changed, and the silenced ones."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pytest
+
+from vpr_core import viz
+from vpr_core.matching import weighted_matches
+from vpr_core.viz.weighting import CARRIED_COLUMNS, FIG_WIDTH, SILENT_WEIGHT
+
+
+@pytest.fixture(scope="module")
+def runs():
+    """A repetitive 6-place synthetic set where contrast fixes one query and breaks another."""
+    from vpr_core.datasets import load_dataset
+    from vpr_core.pipeline import run_method
+
+    ds = load_dataset("synthetic", n_places=6, image_size=(64, 112), repetition=0.9)
+    kw = {"dim": 64, "n_bootstrap": 0, "keep_descriptors": True, "per_scale": 4}
+    plain = run_method("dense", ds, **kw)
+    weighted = run_method("dense", ds, weighting="contrast", **kw)
+    return ds, plain, weighted
+
+
+def _terms(ds, weighted, q, r):
+    d, b = weighted.descriptors, weighted.boxes
+    sample = np.arange(len(d["reference"]))
+    (m,) = weighted_matches(
+        d["query"], b["query"], d["reference"], b["reference"], [(q, r)],
+        weighted.config.matching, sample,
+    )  # fmt: skip
+    return m
+
+
+def test_carried_are_the_k_largest_terms_and_silenced_weigh_zero(runs):
+    ds, plain, weighted = runs
+    fig, table = viz.plot_carried_landmarks(ds, plain, weighted, n_queries=2, k=3)
+    assert tuple(table.columns) == CARRIED_COLUMNS
+    assert set(table["case"]) == {"fixed", "broken"}  # one query fixed, one broken
+    gt = np.asarray(ds.ground_truth, dtype=bool)
+    for q, rows in table.groupby("query"):
+        carried = rows[rows["role"] == "carried"]
+        (r,) = set(carried["reference"])
+        assert r == np.nanargmax(weighted.similarity[q])  # the weighted top-1
+        m = _terms(ds, weighted, q, r)
+        want = np.sort(m.scores)[::-1][:3]
+        np.testing.assert_allclose(carried["weighted term"], want, rtol=1e-6)
+        assert list(carried["rank"]) == [1, 2, 3]
+        silenced = rows[rows["role"] == "silenced"]
+        assert len(silenced) >= 1 and (silenced["weight"] <= SILENT_WEIGHT).all()
+        (rp,) = set(silenced["reference"])
+        assert rp == np.nanargmax(plain.similarity[q])  # the plain top-1
+        mp = _terms(ds, weighted, q, rp)
+        plain_terms = (mp.raw_scores * mp.spatial_weights)[mp.weights <= SILENT_WEIGHT]
+        want = np.sort(plain_terms)[::-1][: len(silenced)]
+        np.testing.assert_allclose(silenced["plain term"], want, rtol=1e-6)
+        assert (silenced["weighted term"] == 0).all()
+        assert bool(gt[q, r]) == (rows["case"].iloc[0] == "fixed")
+        # the place it also matches: another reference, with a cosine of that landmark
+        assert (rows["also matches"] != rows["reference"]).all()
+        assert rows["its cosine"].between(-1, 1).all()
+    plt.close(fig)
+
+
+def test_captions_read_at_the_displayed_size(runs):
+    ds, plain, weighted = runs
+    fig, table = viz.plot_carried_landmarks(ds, plain, weighted, n_queries=2, k=5)
+    assert len(table)
+    shown_at = min(1.0, 9.5 / fig.get_figwidth())
+    assert fig.get_figwidth() == FIG_WIDTH
+    texts = [t for t in fig.texts if t.get_text()] + [fig._suptitle]
+    assert len(texts) > 10 and all(t.get_fontsize() * shown_at >= 9 for t in texts)
+    assert "carried the score" in fig._suptitle.get_text()
+    assert viz.layout_problems(fig) == []
+    # a crop pair per landmark and a context panel per row
+    assert len(fig.axes) == len(table) + 2 * table["query"].nunique()
+    plt.close(fig)
+
+
+def test_refuses_runs_it_cannot_explain(runs):
+    from vpr_core.datasets import load_dataset
+    from vpr_core.pipeline import run_method
+
+    ds, plain, weighted = runs
+    with pytest.raises(ValueError, match="has no weighting"):
+        viz.plot_carried_landmarks(ds, plain, plain)
+    with pytest.raises(ValueError, match="must be the paper's Eq. \\(1\\)"):
+        viz.plot_carried_landmarks(ds, weighted, weighted)
+    bare = dataclasses.replace(weighted, descriptors=None)
+    with pytest.raises(ValueError, match="keep_descriptors=True"):
+        viz.plot_carried_landmarks(ds, plain, bare)
+    with pytest.raises(ValueError, match="k must be an integer >= 1"):
+        viz.plot_carried_landmarks(ds, plain, weighted, k=0)
+    with pytest.raises(ValueError, match="n_queries must be"):
+        viz.plot_carried_landmarks(ds, plain, weighted, n_queries=True)
+    other = load_dataset("synthetic", n_places=5, image_size=(64, 112), repetition=0.9)
+    kw = {"dim": 64, "n_bootstrap": 0, "per_scale": 4}
+    with pytest.raises(ValueError, match="did not run on this dataset"):
+        viz.plot_carried_landmarks(other, plain, weighted)
+    other_plain = run_method("dense", other, **kw)
+    with pytest.raises(ValueError, match="did not run on this dataset"):
+        viz.plot_carried_landmarks(ds, other_plain, weighted)
+    classical = run_method("dense", ds, spatial="consistency", **kw)
+    with pytest.raises(ValueError, match="differ in more than the weighting"):
+        viz.plot_carried_landmarks(ds, classical, weighted)
+
+
+def test_no_changed_top1_says_so(runs):
+    ds, plain, weighted = runs
+    same = dataclasses.replace(weighted, similarity=np.asarray(plain.similarity).copy())
+    fig, table = viz.plot_carried_landmarks(ds, plain, same)
+    assert table.empty and tuple(table.columns) == CARRIED_COLUMNS
+    assert any("changed no query's top-1" in t.get_text() for t in fig.texts)
+    assert "(0 of 6 queries; 0 shown)" in fig._suptitle.get_text().replace("\n", " ")
+    plt.close(fig)
