@@ -41,13 +41,14 @@ TABLES: dict[str, tuple[str, ...]] = {
         "weighting_dense",
         "weighting_classical",
     ),
+    "07_places_alike": ("places_alike", "places_alike_carried"),
 }
 
 #: Tables of timings only (``<stem>.timings.csv``, git-ignored; no ``<stem>.csv``).
 TIMINGS_ONLY: dict[str, tuple[str, ...]] = {"06_comparison": ("table5_cost",)}
 
 #: The notebooks run for each label of the committed study: ``make study`` runs every notebook on
-#: ``synthetic`` and notebooks 03-06 on each real dataset beside the project
+#: ``synthetic`` and notebooks 03-07 on each real dataset beside the project
 #: (:func:`vpr_study.runner.study_datasets`); ``make study-nordland`` runs 05-06 on
 #: ``nordland_step5``; ``nordland_step50_k25`` is the same shortlist on the 72-place subset
 #: (:data:`ONE_OFF`).

@@ -24,8 +24,9 @@ NOTEBOOKS = (
     "04_overlap",
     "05_dense_sampling_parameters",
     "06_comparison",
+    "07_places_alike",
 )
-_NB1, _NB2, _NB3, _NB4, _NB5, _NB6 = NOTEBOOKS
+_NB1, _NB2, _NB3, _NB4, _NB5, _NB6, _NB7 = NOTEBOOKS
 
 #: Every figure the notebooks write, in notebook order.
 FIGURES: tuple[FigureSpec, ...] = (
@@ -60,6 +61,8 @@ FIGURES: tuple[FigureSpec, ...] = (
     FigureSpec("fig14_coverage_comparison", _NB6, "Fig. 14"),
     FigureSpec("weighting_dense", _NB6, "not in the paper: database weighting"),
     FigureSpec("weighting_classical", _NB6, "not in the paper: database weighting"),
+    FigureSpec("places_alike_pr", _NB7, "beyond the paper: each method with each weighting"),
+    FigureSpec("places_alike_carried", _NB7, "beyond the paper: landmarks that carried a top-1"),
 )
 
 

@@ -34,7 +34,7 @@ NORDLAND_STUDY = {"dataset": "nordland", "options": {"step": 50, "tolerance": 0}
 
 def study_datasets() -> dict[str, dict]:
     """``{label: {"dataset", "root", "options", "pooling"}}`` of the real datasets beside the
-    project for notebooks 03-06: ``../shared/data/gardens_point_mini`` (crop pooling) and
+    project for notebooks 03-07: ``../shared/data/gardens_point_mini`` (crop pooling) and
     ``nordland_64x32`` (:data:`NORDLAND_STUDY`) when present, and any ``VPR_DATASETS`` entries."""
     found: dict[str, dict] = {}
     checkout = source_checkout()
@@ -190,7 +190,7 @@ def _print_summary(table: pd.DataFrame, label: str, backbone: str) -> None:
 
 
 #: The comparison notebooks that ``make study`` also runs on the real datasets beside the
-#: project (:func:`study_datasets`).
+#: project (:func:`study_datasets`): 03-07 (07: places that look alike, beyond the paper).
 REAL_DATA_NOTEBOOKS = NOTEBOOKS[2:]
 
 

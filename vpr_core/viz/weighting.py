@@ -488,7 +488,14 @@ def plot_carried_landmarks(
             mark = "correct" if gt[q, r] else "wrong"
             text(margin + ctx_w / 2, y - 0.03, f"query {q} | r{r}\n({mark})", ha="center", va="top")
             if not shown:
-                text(margin + ctx_w + gap, y + image_h / 2, "none", va="center")
+                sw = [float(x.similarity[q, rw]) for x in (plain, weighted)]
+                none = (
+                    f"none: every match kept a weight > 0; the weighting lifted r{rw} more\n"
+                    f"(S {sw[0]:.3f} -> {sw[1]:.3f}) than r{r} (S {s_p:.3f} -> {s_w:.3f})"
+                    if role == "silenced"
+                    else "none: no match with a weighted term > 0"
+                )
+                text(margin + ctx_w + gap, y + image_h / 2, none, va="center")
             for s, row in enumerate(shown):
                 x = margin + ctx_w + gap + s * slot_w
                 ax = fig.add_axes(
