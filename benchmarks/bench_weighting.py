@@ -6,6 +6,15 @@ place (72, the study's set), Nordland every 5th place (716, roi, shortlist 25 as
 metrics with 95% intervals, each weighting's paired difference against the same method without
 it, and the matching time. Writes ``results/benchmarks/weighting.csv`` (rows of the sets run
 replace their old rows). Run: ``.venv/bin/python benchmarks/bench_weighting.py [--sets ...]``.
+
+``--statistics STEP ...`` (issue 46.1) measures instead the shortlist ``contrast`` statistics on
+Nordland every STEP-th place (5: 716 places, 1: all 3,576; dense, roi, top-25): the Eq. (1)
+seconds of ``similarity_pairs`` (features and pairs given) without a weighting and with the
+statistics over samples of 8, 16 (the default, ``CONTRAST_SAMPLE``), 32, 64 and 256 references
+(256: the references of the statistics before issue 46), each one's ratio to the unweighted
+matching, its AUC and R@1 and the paired difference against the 256-reference statistics;
+and the precision of the 16-reference statistics against those over every reference (on 64
+queries). Writes ``results/benchmarks/weighting_statistics.csv``.
 """
 
 from __future__ import annotations
@@ -16,12 +25,32 @@ import statistics
 import time
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
+import torch
 
 from vpr_core.datasets import load_dataset
-from vpr_core.evaluation import compare_pairs
-from vpr_core.matching import WEIGHTING_OPTIONS, Compute, Matching, similarity_matrix
+from vpr_core.engine.shortlist import shortlist_pairs, split_whole_image, with_whole_image_boxes
+from vpr_core.evaluation import compare_pairs, evaluate, paired_bootstrap
+from vpr_core.features import Encoder
+from vpr_core.matching import (
+    WEIGHTING_OPTIONS,
+    Compute,
+    Matching,
+    similarity_matrix,
+    similarity_pairs,
+)
+from vpr_core.matching.core import Problem
+from vpr_core.matching.weighting import (
+    CONTRAST_SAMPLE,
+    WEIGHTING_SAMPLE,
+    sample_matches,
+    weighting_sample,
+)
+from vpr_core.methods import get_method
 from vpr_core.pipeline import run_method
+from vpr_core.pipeline.feature_stage import extract_features, get_encoder
+from vpr_core.pipeline.landmark_stage import extract_landmarks
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data"
@@ -120,6 +149,127 @@ def _rows(name: str, repeat: int, methods: tuple[str, ...] = METHODS) -> list[di
     return rows
 
 
+STAT_OUT = ROOT / "results" / "benchmarks" / "weighting_statistics.csv"
+#: References of the shortlist contrast statistics compared (256: before issue 46).
+SAMPLE_SIZES = (8, CONTRAST_SAMPLE, 32, 64, WEIGHTING_SAMPLE)
+
+
+def _shortlist_inputs(step: int):
+    """Nordland every ``step``-th place: dense roi landmarks, descriptors, top-25 pairs, gt."""
+    ds = load_dataset("nordland", DATA / "nordland_64x32", step=step, tolerance=0)
+    boxes = extract_landmarks(get_method("dense").landmarks, ds)
+    enc = get_encoder(Encoder(pooling="roi"))
+    feats, glob = split_whole_image(extract_features(with_whole_image_boxes(boxes, ds), ds, enc))
+    pairs, _ = shortlist_pairs(glob["query"], glob["reference"], 25)
+    args = (feats["query"], boxes["query"], feats["reference"], boxes["reference"])
+    return args, pairs, np.asarray(ds.ground_truth, dtype=bool)
+
+
+def _precision(args, n_queries: int = 64) -> dict[str, float]:
+    """Errors of the 16-reference statistics against those over every reference.
+
+    On ``n_queries`` evenly spaced queries, over their landmarks: the median and 90th percentile
+    of ``|mu_16 - mu_all| / sigma_all`` and of ``|sigma_16 / sigma_all - 1|``.
+    """
+    prob = Problem.build(*args, Matching(weighting="contrast"), Compute(show_progress=False))
+    nr = prob.r.n
+    qs = np.linspace(0, prob.q.n - 1, n_queries).round().astype(int)
+    has = prob.r.count > 0
+    err_mu, err_sd = [], []
+    for qi in qs:
+        sel = slice(int(qi), int(qi) + 1)
+        valid = prob.q.mask[qi]
+        full = sample_matches(prob, sel, torch.arange(nr), 64).best[0][has]  # (N, Kq)
+        part_ids = torch.from_numpy(weighting_sample(nr, "contrast"))
+        part = sample_matches(prob, sel, part_ids, 64).best[0][has[part_ids]]
+        full, part = full.clamp(-1, 1)[:, valid], part.clamp(-1, 1)[:, valid]
+        mu, sd = full.mean(0), full.std(0, correction=0)
+        mu_s, sd_s = part.mean(0), part.std(0, correction=0)
+        ok = sd > 1e-6
+        err_mu.append(((mu_s - mu).abs() / sd)[ok])
+        err_sd.append((sd_s / sd - 1).abs()[ok])
+    em, es = torch.cat(err_mu).numpy(), torch.cat(err_sd).numpy()
+    return {
+        "mu err median": float(np.median(em)),
+        "mu err p90": float(np.percentile(em, 90)),
+        "sigma err median": float(np.median(es)),
+        "sigma err p90": float(np.percentile(es, 90)),
+    }
+
+
+def _statistics_rows(step: int, repeat: int, sizes: tuple[int, ...]) -> list[dict]:
+    """The shortlist contrast statistics' cost and metrics for each sample size (module doc)."""
+    args, pairs, gt = _shortlist_inputs(step)
+    nq, nr = len(args[0]), len(args[2])
+    compute = Compute(show_progress=False)
+    plain, contrast = Matching(), Matching(weighting="contrast")
+    rng_ids = {n: weighting_sample(nr, "contrast" if n == CONTRAST_SAMPLE else None) for n in sizes}
+    for n in sizes:
+        if n not in (CONTRAST_SAMPLE, WEIGHTING_SAMPLE) and n < nr:
+            pick = np.random.default_rng(0).choice(nr, n, replace=False)
+            rng_ids[n] = np.sort(pick).astype(np.int64)
+    times: dict = {None: [], **{n: [] for n in sizes}}
+    sims: dict = {}
+    for _ in range(repeat):  # interleaved
+        for key in times:
+            t0 = time.perf_counter()
+            if key is None:
+                v = similarity_pairs(*args, pairs, plain, compute)
+            else:
+                v = similarity_pairs(*args, pairs, contrast, compute, sample=rng_ids[key])
+            times[key].append(time.perf_counter() - t0)
+            sim = np.full((nq, nr), np.nan)
+            sim[pairs[:, 0], pairs[:, 1]] = v
+            sims[key] = sim
+    base = statistics.median(times[None])
+    ref = sims.get(WEIGHTING_SAMPLE)
+    rows = []
+    for key, ts in times.items():
+        m = evaluate(sims[key], gt)
+        row = {
+            "places": nq,
+            "weighting": "none" if key is None else "contrast",
+            "sample": key,
+            "default": key == CONTRAST_SAMPLE,
+            "matching s": statistics.median(ts),
+            "x none": statistics.median(ts) / base,
+            "AUC": m["auc"],
+            "R@1": m["r@1"],
+        }
+        if key is not None and ref is not None and key != WEIGHTING_SAMPLE:
+            d = paired_bootstrap(sims[key], ref, gt)
+            for k, col in (("auc", "dAUC"), ("r@1", "dR@1")):
+                v, lo, hi, _ = d[k]
+                verdict = "higher" if lo > 0 else "lower" if hi < 0 else "inconclusive"
+                row.update({col: v, f"{col} lo": lo, f"{col} hi": hi, f"{col} verdict": verdict})
+        rows.append(row)
+        print(
+            f"{nq} places, {row['weighting']:8s} sample {str(key):4s}: "
+            f"{row['matching s']:7.2f} s = x{row['x none']:.2f} unweighted; "
+            f"AUC {row['AUC']:.4f} R@1 {row['R@1']:.4f}"
+            + (
+                f"; vs 256-reference statistics dAUC {row['dAUC']:+.4f} "
+                f"[{row['dAUC lo']:+.4f}, {row['dAUC hi']:+.4f}] ({row['dAUC verdict']}), "
+                f"dR@1 {row['dR@1']:+.4f} [{row['dR@1 lo']:+.4f}, {row['dR@1 hi']:+.4f}] "
+                f"({row['dR@1 verdict']})"
+                if "dAUC" in row
+                else ""
+            ),
+            flush=True,
+        )
+    if nq <= 1000:
+        prec = _precision(args)
+        print(
+            f"{nq} places: the {CONTRAST_SAMPLE}-reference statistics against every reference's: "
+            + ", ".join(f"{k} {v:.3f}" for k, v in prec.items()),
+            flush=True,
+        )
+        for row in rows:
+            if row["default"]:
+                row.update(prec)
+    return rows
+
+
 def main() -> None:
     """Run the chosen sets and merge their rows into ``weighting.csv``."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -127,8 +277,33 @@ def main() -> None:
     p.add_argument("--repeat", type=int, default=5, help="timed runs of the exhaustive matching")
     p.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
     p.add_argument("--out", type=Path, default=OUT)
+    p.add_argument(
+        "--statistics",
+        nargs="+",
+        type=int,
+        metavar="STEP",
+        help="measure the shortlist contrast statistics on Nordland every STEP-th place instead",
+    )
+    p.add_argument(
+        "--sizes", nargs="+", type=int, default=list(SAMPLE_SIZES), help="with --statistics"
+    )
     args = p.parse_args()
     os.environ.setdefault("TQDM_DISABLE", "1")
+    if args.statistics:
+        rows = [
+            row
+            for step in args.statistics
+            for row in _statistics_rows(step, args.repeat, tuple(args.sizes))
+        ]
+        out = STAT_OUT if args.out == OUT else args.out
+        new = pd.DataFrame(rows)
+        if out.is_file():
+            old = pd.read_csv(out)
+            new = pd.concat([old[~old["places"].isin(new["places"])], new], ignore_index=True)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        new.sort_values(["places"], kind="stable").to_csv(out, index=False, float_format="%.4f")
+        print(f"wrote {out}")
+        return
     methods = tuple(args.methods)
     new = pd.DataFrame([row for name in args.sets for row in _rows(name, args.repeat, methods)])
     if args.out.is_file():

@@ -19,7 +19,13 @@ from vpr_core.matching import (
     similarity_pairs,
     weighted_matches,
 )
-from vpr_core.matching.weighting import WEIGHTING_SAMPLE, weighting_sample
+from vpr_core.matching.core import Problem
+from vpr_core.matching.weighting import (
+    CONTRAST_SAMPLE,
+    WEIGHTING_SAMPLE,
+    sample_matches,
+    weighting_sample,
+)
 from vpr_core.methods import Matching, as_method, get_method, method_label, run_key
 
 #: The values these tests pass again and again: float64 blocks, each weighting.
@@ -96,6 +102,114 @@ def test_weighting_sample_is_fixed_and_all_references_up_to_256():
     assert len(s) == WEIGHTING_SAMPLE == 256 and np.all(np.diff(s) > 0) and s.max() < 716
     np.testing.assert_array_equal(s, weighting_sample(716))  # seeded
     assert len(np.setdiff1d(s, np.arange(256))) > 100  # spread over the route
+    # contrast: 16 references, the same seeded draw
+    c = weighting_sample(716, "contrast")
+    assert len(c) == CONTRAST_SAMPLE == 16 and np.all(np.diff(c) > 0)
+    want = np.sort(np.random.default_rng(0).choice(716, 16, replace=False))
+    np.testing.assert_array_equal(c, want)
+    np.testing.assert_array_equal(weighting_sample(16, "contrast"), np.arange(16))
+    np.testing.assert_array_equal(weighting_sample(716, "idf"), s)
+
+
+def _stats_oracle(qd, rd, sample):
+    """DEFINITIONS.md's shortlist contrast statistics in float64 NumPy: per query landmark, the
+    mean and population std of its best cosine over the sampled references with landmarks."""
+    out = []
+    for q in qd:
+        b = [oracle.cosine_similarity(q, rd[j]).max(axis=1) for j in sample if len(rd[j])]  # b_i(r)
+        b = np.stack(b, axis=1) if len(q) else np.zeros((0, 1))
+        out.append((b.mean(axis=1), b.std(axis=1)))
+    return out
+
+
+def test_shortlist_contrast_statistics_are_16_sampled_references_row_maxima():
+    qd, qb, rd, rb = _sets(21, nq=5, nr=40, dim=24)
+    rd[7], rb[7] = np.zeros((0, 24), np.float32), np.zeros((0, 4))  # no landmark: not counted
+    sample = weighting_sample(40, "contrast")
+    assert len(sample) == 16
+    # the best cosines of sample_matches are the float64 oracle's row maxima (float32 matmul)
+    prob = Problem.build(qd, qb, rd, rb, CONTRAST, Compute())
+    for qi in range(4):
+        m = sample_matches(prob, slice(qi, qi + 1), torch.from_numpy(sample), 5)
+        got = m.best[0][:, : len(qd[qi])].numpy()  # (16, Kq)
+        want = [
+            oracle.cosine_similarity(qd[qi], rd[j]).max(axis=1) if len(rd[j]) else None
+            for j in sample
+        ]
+        for row, w in zip(got, want, strict=True):
+            if w is not None:
+                np.testing.assert_allclose(row, w, atol=1e-6, rtol=0)
+    # similarity_pairs' default statistics are those of the 16 sampled references (oracle)
+    pairs = np.array([[0, 1], [1, 2], [2, 30], [0, 5], [3, 39], [4, 0]])
+    got = similarity_pairs(qd, qb, rd, rb, pairs, matching=CONTRAST)
+    want = oracle.similarity_matrix(qd, qb, rd, rb, weighting="contrast", sample=sample)
+    np.testing.assert_allclose(got, want[pairs[:, 0], pairs[:, 1]], atol=1e-6, rtol=0)
+    every = oracle.similarity_matrix(qd, qb, rd, rb, weighting="contrast")
+    assert not np.allclose(got, every[pairs[:, 0], pairs[:, 1]], atol=1e-4)  # not all 40
+    # and weighted_matches reports the weights of those statistics
+    stats = _stats_oracle(qd, rd, sample)
+    for (i, _), res in zip(pairs, weighted_matches(qd, qb, rd, rb, pairs, CONTRAST), strict=True):
+        mu, sd = stats[i]
+        c = 1.0 - res.distances
+        k = res.matches[:, 0]
+        w = np.where(sd[k] > 1e-6, np.maximum(0, (c - mu[k]) / np.where(sd[k] > 0, sd[k], 1)), 0)
+        np.testing.assert_allclose(res.weights, w, atol=1e-5, rtol=0)
+
+
+def test_shortlist_contrast_is_deterministic_and_keyed_by_content():
+    qd, qb, rd, rb = _sets(23, nq=6, nr=30, dim=24)
+    pairs = np.array([[0, 3], [0, 17], [1, 2], [2, 29], [3, 3], [4, 11], [4, 12]])
+    threads = torch.get_num_threads()
+    try:
+        runs = []
+        for n in (1, 2, 1):
+            torch.set_num_threads(n)
+            runs.append(similarity_pairs(qd, qb, rd, rb, pairs, matching=CONTRAST))
+    finally:
+        torch.set_num_threads(threads)
+    for other in runs[1:]:
+        np.testing.assert_array_equal(runs[0], other)  # same bits, any thread count
+    # a pair's value depends on the descriptors only: not on the other listed pairs, their
+    # order, or where the query sits among the queries
+    alone = similarity_pairs(qd, qb, rd, rb, pairs[:1], matching=CONTRAST)
+    assert alone[0] == runs[0][0]
+    perm = np.array([5, 4, 3, 2, 1, 0])  # query i moves to position perm^-1(i)
+    inv = np.argsort(perm)
+    qd2, qb2 = [qd[i] for i in perm], [qb[i] for i in perm]
+    moved = np.stack([inv[pairs[:, 0]], pairs[:, 1]], axis=1)[::-1]
+    got = similarity_pairs(qd2, qb2, rd, rb, moved, matching=CONTRAST)[::-1]
+    np.testing.assert_array_equal(got, runs[0])
+    # new statistics, new cache entries: run_method's key carries the matching code's hash,
+    # which covers this module
+    from vpr_core.utils import STAGE_SOURCES
+
+    assert "matching" in STAGE_SOURCES["matching"]
+
+
+def test_exhaustive_contrast_unchanged_by_the_shortlist_statistics():
+    """similarity_matrix's contrast values are bit for bit those of the code before issue 46
+    (these hex values were computed by it): its statistics still cover every reference."""
+    rng = np.random.default_rng(46)
+    qd, qb = _random_sets(rng, 5, 1, 12, 32)
+    rd, rb = _random_sets(rng, 6, 1, 12, 32)
+    got = similarity_matrix(qd, qb, rd, rb, matching=CONTRAST, compute=Compute(batch_size=2))
+    want = [
+        "0x1.28a4bc1c5edd8p-6",
+        "0x0.0p+0",
+        "-0x1.4865a04ac1a2ap-6",
+        "0x1.9a6d6a10e156fp-4",
+        "0x1.ebdde3c72d435p-6",
+        "-0x1.15eb8d3373873p-7",
+        "-0x1.23b53f6a7d498p-5",
+        "-0x1.2870aeed57cffp-8",
+        "-0x1.21b8f478e2e9cp-7",
+    ]
+    assert [float(x).hex() for x in got[:3, :3].ravel()] == want
+    assert float(got.sum()).hex() == "0x1.0db2b61fd1473p-3"
+    # and the old formula (statistics over all 6 references) in float64 agrees
+    np.testing.assert_allclose(
+        got, oracle.similarity_matrix(qd, qb, rd, rb, weighting="contrast"), atol=1e-6, rtol=0
+    )
 
 
 def _contrast_case():
