@@ -118,3 +118,14 @@ def test_no_changed_top1_says_so(runs):
     assert any("changed no query's top-1" in t.get_text() for t in fig.texts)
     assert "(0 of 6 queries; 0 shown)" in fig._suptitle.get_text().replace("\n", " ")
     plt.close(fig)
+
+
+def test_notebook_07_runs_on_every_study_label():
+    from vpr_study import catalogue, runner
+    from vpr_study.figures import expected_figures
+
+    assert "07_places_alike" in runner.REAL_DATA_NOTEBOOKS
+    for label in ("synthetic", "gardens_point_mini", "nordland_step50"):
+        assert "07_places_alike" in catalogue.LABEL_NOTEBOOKS[label], label
+    assert expected_figures()["07_places_alike"] == ["places_alike_pr", "places_alike_carried"]
+    assert catalogue.TABLES["07_places_alike"] == ("places_alike", "places_alike_carried")
