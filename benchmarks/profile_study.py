@@ -1,6 +1,6 @@
 """Where the seconds of ``make study`` go: per dataset label, notebook and category, cold and warm.
 
-Runs the study as ``make study`` does (the runner's notebooks on ``synthetic``, notebooks 03-06 on
+Runs the study as ``make study`` does (the runner's notebooks on ``synthetic``, notebooks 03-07 on
 every real dataset of :func:`vpr_study.runner.study_datasets`, then the closing ``vpr-study eval``)
 into a temporary output root and an empty temporary cache, twice: cold, then warm (same cache).
 

@@ -432,7 +432,7 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
         dest="real_data",
         action="store_true",
         default=None,
-        help="also run notebooks 03-06 on the real datasets beside the project "
+        help="also run notebooks 03-07 on the real datasets beside the project "
         "(default for the full synthetic study)",
     )
     r.add_argument(
