@@ -301,6 +301,7 @@ def main() -> None:
             old = pd.read_csv(out)
             new = pd.concat([old[~old["places"].isin(new["places"])], new], ignore_index=True)
         out.parent.mkdir(parents=True, exist_ok=True)
+        new["sample"] = new["sample"].astype("Int64")
         new.sort_values(["places"], kind="stable").to_csv(out, index=False, float_format="%.4f")
         print(f"wrote {out}")
         return
