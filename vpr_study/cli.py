@@ -405,7 +405,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
     if len(results) > 1:
         say(
             f"paired bootstrap (same resampled queries): dAUC and dR@1 = method - "
-            f"{results[0].label}; a finding only where the interval excludes 0",
+            f"{results[0].label}; higher or lower only where the interval excludes 0, else "
+            "inconclusive",
             width,
         )
     with lines.stage(f"comparing {len(results)} runs ({args.n_bootstrap} bootstrap resamples)"):
