@@ -31,6 +31,7 @@ ALLOWED_PATTERNS = [
     # the paper's numbered items: Table 1, Tables 2-4, Fig. 13, Alg. 3-4, Eq. (1), Scheme 2 ...
     r"\b(?:Tables?|Figs?\.|Alg\.|Algorithms?|Eq\.|Observation|Scheme) \(?\d+\)?(?:-\d+)?",
     r"\bR@\d+\b",  # metric names
+    r"\bnotebooks? \d\d(?:-\d\d)?\b",  # notebook numbers
     r"--[a-z][a-z-]* \d+\b",  # command-line settings in the examples (--step 50, --shortlist 25)
 ]
 ALLOWED_TEXT = [
@@ -44,6 +45,7 @@ ALLOWED_TEXT = [
     "tolerance 0",
     "IoU 0.3",  # Fig. 7 thresholds
     "IoU 0.4",
+    "IoU 0.7",
     "at 0.4",
     "128 px",  # descriptor settings
     "1,024-d",
@@ -122,6 +124,16 @@ def quoted() -> list[tuple[str, str]]:
     n = {label: _queries(label) for label in ("synthetic", "gardens_point_mini", step5)}
     n50, nk25 = _queries("nordland_step50"), _queries("nordland_step50_k25")
     fig13 = f"results/{step5}/fig13_comparison.csv: dense, classical"
+    stats = _csv("benchmarks/weighting_statistics.csv")
+    contrast = stats[stats["weighting"] == "contrast"]
+    kept = contrast[contrast["default"]].iloc[0]
+    former = contrast.loc[contrast["sample"].idxmax()]
+    scaling = _csv("benchmarks/weighting_scaling.csv")
+
+    def exponent(matching: str) -> str:
+        rows = scaling[(scaling["matching"] == matching) & (scaling["weighting"] == "none")]
+        return f"{rows['exponent'].iloc[0]:.2f}"
+
     return [
         (f"generated, {n['synthetic']} places", "results/synthetic/*.csv: queries"),
         (f"the embedded set, {n['synthetic']} places", "results/synthetic/*.csv: queries"),
@@ -169,6 +181,20 @@ def quoted() -> list[tuple[str, str]]:
         (
             f"Crop features are {crop:.0f} s of the {total:.0f} s of a cold profile",
             "results/benchmarks/study_profile.csv: ALL crop features, TOTAL (cold_s)",
+        ),
+        (
+            f"statistics now come from {int(kept['sample'])} sampled references, "
+            f"{kept['x none']:.2f}x the unweighted matching time on {int(kept['places'])} places",
+            "results/benchmarks/weighting_statistics.csv: default contrast sample",
+        ),
+        (
+            f"former {int(former['sample'])}-reference shortlist statistics",
+            "results/benchmarks/weighting_statistics.csv: the largest contrast sample",
+        ),
+        (
+            f"as n^{exponent('exhaustive')} exhaustive and n^{exponent('shortlist 25')} with a "
+            "shortlist of 25",
+            "results/benchmarks/weighting_scaling.csv: exponent, unweighted",
         ),
     ]
 
