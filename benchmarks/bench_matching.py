@@ -7,7 +7,8 @@ Prints, from one run (both timed in this process, interleaved, ``--repeat`` time
   similarity_matrix / bare torch matmul ``(n*k, dim) @ (dim, n*k)``, the median of the per-repeat
   ratios (target <= 1.3x), with the median times and the CPU-time ratio (user + sys of the
   process, less sensitive to other processes on a shared machine);
-  the largest difference to `image_similarity` (the one-pair float64 reference, `matching/pairwise.py`) on a few pairs;
+  the largest difference to `image_similarity` (the one-pair float64 reference,
+`matching/pairwise.py`) on a few pairs;
   with ``--nms``: the soft-NMS path (Algorithm 4, t = paper.SOFT_NMS_IOU) per image pair;
   with ``--nordland ROOT``: on the Nordland study (every 50th place, tolerance 0, roi, dense),
   the block engine (``similarity_matrix``) against Eq. (1) pair by pair (``image_similarity``),

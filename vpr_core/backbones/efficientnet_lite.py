@@ -387,7 +387,8 @@ class EfficientNetLiteFeatures(nn.Module):
     """Landmark backbone: a Lite variant truncated after ``stage`` (default 5).
 
     Stage 5 (stride 16) is the mid-level analogue of the paper's AlexNet conv3; 128 px crops were
-    chosen on real data (docs/MEASUREMENTS.md "Which descriptor?", ``benchmarks/bench_descriptors.py``).
+    chosen on real data (docs/MEASUREMENTS.md "Which descriptor?",
+    ``benchmarks/bench_descriptors.py``).
 
     Attributes:
         stage: the stage whose output is the feature.
