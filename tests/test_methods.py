@@ -100,7 +100,7 @@ def test_every_committed_run_key_is_reproduced():
     made |= {run_key(get_method(m, spatial="consistency")) for m in ("dense", "classical")}
     made |= {
         run_key(get_method(m, weighting=w))
-        for m in ("dense", "classical")
+        for m in ("dense", "classical", "selection_scheme1")  # notebooks 06 and 07
         for w in ("contrast", "idf")
     }
     made.add("CentreGrid")  # the scheme class written in notebook 05's "try your own" cell

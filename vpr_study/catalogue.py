@@ -81,7 +81,12 @@ RESULTS_FILES: tuple[str, ...] = (
     "benchmarks/descriptor_paired.csv",
     "benchmarks/study_profile.csv",
     "benchmarks/weighting.csv",
+    "benchmarks/weighting_statistics.csv",
+    "benchmarks/weighting_scaling.csv",
 )
+
+#: Files directly under ``figures/``: the benchmark figures (``benchmarks/bench_*.py``).
+FIGURES_FILES: tuple[str, ...] = ("benchmarks/weighting_scaling.png",)
 
 
 def figure_stems(notebook: str) -> list[str]:
@@ -97,6 +102,7 @@ def study_outputs(labels: dict[str, tuple[str, ...]] | None = None) -> set[str]:
     (``{label: notebooks}``; default :data:`LABEL_NOTEBOOKS`). Timings files (git-ignored,
     one machine's) are not listed: :func:`is_study_output` accepts those of listed tables."""
     out = {f"results/{name}" for name in RESULTS_FILES}
+    out |= {f"figures/{name}" for name in FIGURES_FILES}
     for label, notebooks in (LABEL_NOTEBOOKS if labels is None else labels).items():
         for nb in notebooks:
             out |= {f"figures/{label}/{stem}.png" for stem in figure_stems(nb)}

@@ -14,6 +14,7 @@ import torch
 
 from .reciprocal import TIE_TOL, reciprocal
 from .sides import (
+    PAD,
     LandmarkSets,
     Selection,
     Side,
@@ -415,6 +416,26 @@ class Problem:
         else:
             sels = [refs[c0 : c0 + size] for c0 in range(0, int(refs.numel()), size)]
         return cat_matches([self.matches(qsel, s) for s in sels])
+
+    def best_cosines(self, qsel: Selection, refs: torch.Tensor, size: int) -> Matches:
+        """The best cosines ``b_i(r)`` of ``qsel``'s landmarks over each reference in ``refs``:
+        each the maximum of one row of a matmul of ``qsel``'s landmarks x ``size`` references'
+        landmarks (matmul dtype, padded landmarks never win), with no reciprocal test (``nn``
+        -1, ``recip`` False): what ``contrast``'s statistics read (:mod:`.weighting`)."""
+        q, r = self.q, self.r
+        a = q.images(qsel)
+        nq = a.shape[0] // q.k
+        parts = []
+        for c0 in range(0, int(refs.numel()), size):
+            sel = refs[c0 : c0 + size]
+            s = (a @ r.images(sel).T).view(nq, q.k, sel.numel(), r.k)
+            if r.padded:
+                s.masked_fill_(~r.mask[sel][None, None], PAD)
+            parts.append(s.amax(3))
+        best = torch.cat(parts, 2).permute(0, 2, 1).to(torch.float64)  # (nq, ns, Kq)
+        nn = torch.full(best.shape, -1, dtype=torch.int64, device=best.device)
+        none = torch.zeros(best.shape, dtype=torch.bool, device=best.device)
+        return Matches(best, nn, none, None)
 
     def weighted(
         self,

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import torch
 
-from .sides import PAD, Selection
+from .sides import Selection
 
 if TYPE_CHECKING:
     from .core import Matches, Problem
@@ -61,21 +61,7 @@ def sample_matches(prob: Problem, qsel: Selection, refs: torch.Tensor, size: int
     """
     if prob.matching.weighting != "contrast":
         return prob.chunked(qsel, refs, size)
-    from .core import Matches  # core imports this module
-
-    q, r = prob.q, prob.r
-    a = q.images(qsel)
-    nq = a.shape[0] // q.k
-    parts = []
-    for c0 in range(0, int(refs.numel()), size):
-        sel = refs[c0 : c0 + size]
-        s = (a @ r.images(sel).T).view(nq, q.k, sel.numel(), r.k)
-        if r.padded:
-            s.masked_fill_(~r.mask[sel][None, None], PAD)
-        parts.append(s.amax(3))
-    best = torch.cat(parts, 2).permute(0, 2, 1).to(torch.float64)  # (nq, ns, Kq)
-    nn = torch.full(best.shape, -1, dtype=torch.int64, device=best.device)
-    return Matches(best, nn, torch.zeros(best.shape, dtype=torch.bool, device=best.device), None)
+    return prob.best_cosines(qsel, refs, size)
 
 
 def weighting_stats(
