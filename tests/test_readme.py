@@ -129,6 +129,7 @@ def quoted() -> list[tuple[str, str]]:
     kept = contrast[contrast["default"]].iloc[0]
     former = contrast.loc[contrast["sample"].idxmax()]
     scaling = _csv("benchmarks/weighting_scaling.csv")
+    fc = _csv("benchmarks/nordland_full_contrast.csv").iloc[0]
 
     def exponent(matching: str) -> str:
         rows = scaling[(scaling["matching"] == matching) & (scaling["weighting"] == "none")]
@@ -177,6 +178,11 @@ def quoted() -> list[tuple[str, str]]:
             f"{_timed('study-cold')} from an empty cache, {_timed('study-unchanged')} when "
             "nothing changed",
             "docs/MEASUREMENTS.md: study-cold, study-unchanged",
+        ),
+        (
+            f"with contrast AUC {_iv(fc['AUC'], fc['AUC lo'], fc['AUC hi'], False)} in "
+            f"{_timed('nordland-full-contrast')}",
+            "results/benchmarks/nordland_full_contrast.csv, docs/MEASUREMENTS.md",
         ),
         (
             f"Crop features are {crop:.0f} s of the {total:.0f} s of a cold profile",

@@ -83,6 +83,8 @@ RESULTS_FILES: tuple[str, ...] = (
     "benchmarks/weighting.csv",
     "benchmarks/weighting_statistics.csv",
     "benchmarks/weighting_scaling.csv",
+    "benchmarks/nordland_full.csv",
+    "benchmarks/nordland_full_contrast.csv",
 )
 
 #: Files directly under ``figures/``: the benchmark figures (``benchmarks/bench_*.py``).
