@@ -11,7 +11,8 @@ import pytest
 
 from vpr_core import viz
 from vpr_core.matching import weighted_matches
-from vpr_core.viz.weighting import CARRIED_COLUMNS, FIG_WIDTH, SILENT_WEIGHT
+from vpr_core.viz.carried import CARRIED_COLUMNS, SILENT_WEIGHT
+from vpr_core.viz.weighting import FIG_WIDTH
 
 
 @pytest.fixture(scope="module")

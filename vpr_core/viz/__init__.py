@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from .base import METHOD_COLORS, SAVE_DPI, draw_boxes, layout_problems, save, save_figure
+from .carried import plot_carried_landmarks
 from .curves import dataset_line, plot_metric_bars, plot_pr_curves, plot_scale_distribution
 from .disagreements import plot_disagreements
 from .images import (
@@ -22,7 +23,6 @@ from .matches import (
 )
 from .recall import plot_recall_at_n
 from .statistics import plot_asl, plot_cls, plot_cmr, plot_scale_statistics
-from .weighting import plot_carried_landmarks
 from .widgets import label_widget, pair_label_widget
 
 __all__ = [
