@@ -4,6 +4,7 @@ returns the parsed value or raises one error line naming the argument, the probl
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Iterable
 from typing import Any
 
@@ -12,11 +13,16 @@ import numpy as np
 __all__ = [
     "check_boxes",
     "check_choice",
+    "check_descriptors_kept",
+    "check_finite",
     "check_image",
     "check_image_size",
     "check_int",
+    "check_options",
     "check_range",
     "check_shape",
+    "is_int",
+    "is_number",
 ]
 
 
@@ -159,3 +165,55 @@ def check_choice(x: Any, name: str, choices: Iterable[Any]) -> Any:
     if x not in valid:
         raise ValueError(f"unknown {name} {x!r}; valid: {', '.join(map(str, valid))}")
     return x
+
+
+def check_finite(x: Any, name: str = "x") -> np.ndarray:
+    """Return ``x`` as an array if every entry is finite; else name the first bad row."""
+    arr = np.asarray(x)
+    finite = np.isfinite(arr)
+    if not finite.all():
+        row = int(np.argwhere(~finite)[0][0]) if arr.ndim else 0
+        raise ValueError(f"{name} contains NaN or inf (first at row {row}); fix or drop that row")
+    return arr
+
+
+def check_options(given: Iterable[str], valid: Iterable[str], what: str) -> None:
+    """Refuse an unknown option and one given twice.
+
+    ``given`` lists each option name as the caller received it (a name from two sources, e.g. a
+    keyword and a ``--opt`` pair, appears twice); ``what`` names the owner, e.g. ``"encoder"``.
+    """
+    names, valid = list(given), tuple(valid)
+    unknown = sorted({n for n in names if n not in valid})
+    if unknown:
+        raise ValueError(
+            f"unknown {what} option(s) {', '.join(map(repr, unknown))}; valid: {', '.join(valid)}"
+        )
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ValueError(
+            f"{what} option(s) {', '.join(map(repr, twice))} given twice; give each once"
+        )
+
+
+def check_descriptors_kept(result: Any, caller: str) -> dict:
+    """Return ``result.descriptors`` (a run's landmark descriptors), or say how to keep them."""
+    descriptors = getattr(result, "descriptors", None)
+    if descriptors is None or not hasattr(result, "boxes"):
+        label = getattr(result, "label", None)
+        of = f" of {label!r}" if label is not None else ""
+        raise ValueError(
+            f"{caller} needs the landmark descriptors{of}: run it with "
+            "run_method(..., keep_descriptors=True)"
+        )
+    return descriptors
+
+
+def is_int(v: Any) -> bool:
+    """True for an integral number that is not a bool (a parsed-value predicate, no error)."""
+    return isinstance(v, numbers.Integral) and not isinstance(v, bool)
+
+
+def is_number(v: Any) -> bool:
+    """True for a finite real number that is not a bool."""
+    return isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
