@@ -14,6 +14,7 @@ __all__ = [
     "check_boxes",
     "check_choice",
     "check_descriptors_kept",
+    "check_device",
     "check_finite",
     "check_image",
     "check_image_size",
@@ -63,8 +64,7 @@ def check_boxes(
         arr = arr.reshape(0, 4)
     if arr.ndim != 2 or arr.shape[1] != 4:
         raise ValueError(f"{name} must have shape (K, 4) as (x, y, w, h), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} contains NaN or inf")
+    check_finite(arr, name)
     if positive:
         bad = np.flatnonzero((arr[:, 2] <= 0) | (arr[:, 3] <= 0))
         if bad.size:
@@ -217,3 +217,17 @@ def is_int(v: Any) -> bool:
 def is_number(v: Any) -> bool:
     """True for a finite real number that is not a bool."""
     return isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def check_device(device: Any) -> Any:
+    """Return ``device`` as a ``torch.device`` that this machine has (CUDA only when torch sees a
+    GPU)."""
+    import torch  # here: checks.py is imported by modules that never need torch
+
+    try:
+        dev = torch.device(device)
+    except (RuntimeError, TypeError):
+        raise ValueError(f"device={device!r} is not a torch device; use 'cpu' or 'cuda'") from None
+    if dev.type == "cuda" and not torch.cuda.is_available():
+        raise ValueError(f"device={device!r} but torch sees no CUDA GPU; use device='cpu'")
+    return dev
