@@ -10,18 +10,29 @@ whose only body is a ``raise``) over code lines; the anchors (hloc, LightGlue, k
 It also counts how values flow (DESIGN.md habit 5): the functions with more than 8 explicit
 parameters, and in how many signatures each option the issue names appears (target: 3).
 
+Issue 47 adds what a reader meets: the public face (functions and classes a module outside the
+package faces offers: top-level, no leading underscore, in a file that is neither ``__init__.py``
+nor a package-private ``_name.py``), the modules without ``__all__``, the underscore names imported
+across modules, and the rules raised from more than one site (raise statements grouped by their
+message with the placeholders blanked; target 0), with the near-duplicate messages (shared words,
+for reading) beside them. ``--names`` prints the public names per module as docs/ARCHITECTURE.md
+lists them.
+
 Usage::
 
     .venv/bin/python benchmarks/code_size.py            # per package, then the total
     .venv/bin/python benchmarks/code_size.py --files    # per file
     .venv/bin/python benchmarks/code_size.py --root vpr_study   # the study's tooling
+    .venv/bin/python benchmarks/code_size.py --rules    # every rule raised from > 1 site
+    .venv/bin/python benchmarks/code_size.py --names    # public names per module (markdown)
 """
 
 from __future__ import annotations
 
 import argparse
 import ast
-from collections import Counter
+import re
+from collections import Counter, defaultdict
 from pathlib import Path
 
 KINDS = ("code", "docstring", "comment", "blank")
@@ -103,12 +114,126 @@ def signatures(root: Path) -> tuple[list[tuple[int, str]], Counter]:
     return sorted(wide, reverse=True), options
 
 
+def module_name(path: Path, root: Path) -> str:
+    """``vpr_core.matching.core`` for ``<root>/matching/core.py`` (``root`` named ``vpr_core``)."""
+    parts = path.relative_to(root.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def declared_all(tree: ast.Module) -> list[str] | None:
+    """The literal ``__all__`` of a module, or None."""
+    for node in tree.body:
+        targets = node.targets if isinstance(node, ast.Assign) else []
+        if isinstance(node, ast.AnnAssign):
+            targets = [node.target]
+        if any(isinstance(t, ast.Name) and t.id == "__all__" for t in targets):
+            return [e.value for e in getattr(node.value, "elts", []) if isinstance(e, ast.Constant)]
+    return None
+
+
+def face(root: Path) -> dict:
+    """What issue 47 counts: ``public`` ``[(module, name)]`` (functions and classes outside the
+    package faces), ``no_all`` (modules without ``__all__``), ``underscore`` (``(module,
+    imported from, name)`` of underscore names imported across modules) and ``all`` (each
+    module's ``__all__``)."""
+    out: dict = {"public": [], "no_all": [], "underscore": [], "all": {}}
+    for path in sorted(root.rglob("*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        mod = module_name(path, root)
+        names = declared_all(tree)
+        if names is None:
+            out["no_all"].append(mod)
+        out["all"][mod] = names or []
+        if path.name != "__init__.py" and not path.name.startswith("_"):
+            out["public"] += [
+                (mod, n.name)
+                for n in tree.body
+                if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef))
+                and not n.name.startswith("_")
+            ]
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom):
+                out["underscore"] += [
+                    (mod, node.module or ".", a.name)
+                    for a in node.names
+                    if a.name.startswith("_") and not a.name.startswith("__")
+                ]
+    return out
+
+
+def _message(node: ast.expr | None) -> str | None:
+    """The text of a raised exception's first argument, placeholders as ``{}``."""
+    if isinstance(node, ast.Call):
+        return _message(node.args[0]) if node.args else None
+    if isinstance(node, ast.Constant) and isinstance(node.value, str):
+        return node.value
+    if isinstance(node, ast.JoinedStr):
+        return "".join(v.value if isinstance(v, ast.Constant) else "{}" for v in node.values)
+    if isinstance(node, ast.BinOp):
+        return (_message(node.left) or "{}") + (_message(node.right) or "{}")
+    return None
+
+
+def rule_sites(root: Path) -> dict[str, list[str]]:
+    """``{message: ["file:line", ...]}`` over every ``raise`` with a message in ``root``."""
+    sites: dict[str, list[str]] = defaultdict(list)
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Raise):
+                text = _message(node.exc)
+                if text:
+                    where = f"{path.relative_to(root)}:{node.lineno}"
+                    sites[" ".join(text.split())].append(where)
+    return dict(sites)
+
+
+_STOP = {"the", "and", "must", "got", "not", "with", "for", "its", "from", "this", "that", "are"}
+
+
+def near_duplicates(sites: dict[str, list[str]], share: float = 0.6) -> list[list[str]]:
+    """Groups of different messages sharing at least ``share`` of their words (for reading)."""
+    words = {
+        m: {w for w in re.findall(r"[a-z][a-z0-9_]+", m.lower()) if len(w) > 2} - _STOP
+        for m in sites
+    }
+    keys = list(sites)
+    parent = {k: k for k in keys}
+
+    def top(k: str) -> str:
+        while parent[k] != k:
+            k = parent[k]
+        return k
+
+    for i, a in enumerate(keys):
+        for b in keys[i + 1 :]:
+            wa, wb = words[a], words[b]
+            if wa and wb and len(wa & wb) / len(wa | wb) >= share:
+                parent[top(a)] = top(b)
+    groups: dict[str, list[str]] = defaultdict(list)
+    for k in keys:
+        groups[top(k)].append(k)
+    return [g for g in groups.values() if len(g) > 1]
+
+
+def names_markdown(root: Path) -> str:
+    """The public names of each module (its ``__all__``), one markdown row per module."""
+    rows = ["| module | public names (`__all__`) |", "|---|---|"]
+    for mod, names in face(root)["all"].items():
+        rows.append(f"| `{mod}` | {', '.join(f'`{n}`' for n in names) or '(none)'} |")
+    return "\n".join(rows)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--root", default=str(Path(__file__).resolve().parents[1] / "vpr_core"))
     parser.add_argument("--files", action="store_true", help="one row per file")
+    parser.add_argument("--rules", action="store_true", help="list rules raised from > 1 site")
+    parser.add_argument("--names", action="store_true", help="public names per module")
     args = parser.parse_args()
     root = Path(args.root)
+    if args.names:
+        print(names_markdown(root))
+        return
     groups: dict[str, Counter] = {}
     for path in sorted(root.rglob("*.py")):
         rel = path.relative_to(root)
@@ -128,6 +253,25 @@ def main() -> None:
     for n_params, where in wide:
         print(f"  {n_params:3d}  {where}")
     print("signatures per option: " + ", ".join(f"{o} {options[o]}" for o in OPTIONS))
+    f = face(root)
+    print(f"public functions and classes outside the package faces: {len(f['public'])}")
+    print(f"modules without __all__: {len(f['no_all'])}")
+    print(f"underscore names imported across modules: {len(f['underscore'])}")
+    sites = rule_sites(root)
+    repeated = {m: w for m, w in sites.items() if len(w) > 1}
+    near = near_duplicates(sites)
+    print(f"raise sites: {sum(map(len, sites.values()))}, rules (distinct messages): {len(sites)}")
+    print(f"rules raised from more than one site: {len(repeated)} (target 0)")
+    print(f"groups of near-duplicate messages (60% shared words; read them): {len(near)}")
+    if args.rules:
+        for message, where in sorted(repeated.items()):
+            print(f"  {len(where)}x {message[:90]!r}: {', '.join(where)}")
+        for group in near:
+            print("  near: " + " | ".join(f"{m[:60]!r} {sites[m]}" for m in group))
+        for mod, src, name in f["underscore"]:
+            print(f"  underscore import: {mod} <- {src}.{name}")
+        for mod in f["no_all"]:
+            print(f"  no __all__: {mod}")
 
 
 if __name__ == "__main__":
