@@ -45,6 +45,24 @@ def test_one_result_instead_of_a_list_says_to_pass_a_list(runs):
     assert list(compare([runs[0]], n_bootstrap=20).index) == ["dense"]
 
 
+def test_compare_and_per_query_share_one_rule_for_what_results_are(runs):
+    # check_results: one wording, the caller named, for compare, per_query (and plots)
+    from vpr_core.evaluation import per_query
+    from vpr_core.evaluation.compare import check_results
+
+    for fn, name in ((compare, "compare"), (per_query, "per_query")):
+        with pytest.raises(ValueError, match=rf"{name}\(\) needs at least one result"):
+            fn([])
+        with pytest.raises(TypeError, match=rf"{name}\(\): results\[1\] is a str, not a result"):
+            fn([runs[0], "classical"])
+        with pytest.raises(ValueError, match=rf"{name}\(\): labels must be unique.*'dense'"):
+            fn([runs[0], runs[0]])
+    assert check_results(iter(runs), "plot") == runs  # any iterable of results
+    assert check_results([runs[0], runs[0]], "plot") == [runs[0], runs[0]]  # labels not asked
+    with pytest.raises(TypeError, match=r"plot\(\): results is one result \('dense'\)"):
+        check_results(runs[0], "plot")
+
+
 @pytest.mark.parametrize("seed", ["x", 1.5, -1, True, None])
 def test_a_bad_seed_names_seed(runs, seed):
     with pytest.raises(TypeError, match=rf"seed={seed!r} .*integer >= 0"):

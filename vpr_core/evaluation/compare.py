@@ -26,6 +26,7 @@ __all__ = [
     "DIFFERENCES",
     "METRICS",
     "ComparisonTable",
+    "check_results",
     "compact",
     "compact_text",
     "compare",
@@ -139,27 +140,36 @@ def _is_result(obj: Any) -> bool:
     return all(hasattr(obj, a) for a in ("label", "similarity", "ground_truth"))
 
 
-def _check_results(results: Any) -> list:
-    """``results`` as a list, refused naming the fix when it is one result or not a sequence of
-    results."""
+def check_results(results: Any, caller: str, unique_labels: bool = False) -> list:
+    """``results`` as a non-empty list of results (what ``run_method`` and ``peer_result``
+    return: ``.label``, ``.similarity``, ``.ground_truth``), refused naming the fix when it is one
+    result, not a sequence, empty, or holds something else; ``unique_labels``: refuse a label
+    given twice. ``caller``: the function the message names, e.g. ``"compare"``."""
     if _is_result(results):
         raise TypeError(
-            f"compare(): results is one result ({getattr(results, 'label', '?')!r}), not a list "
-            "of them: pass compare([result]) for its metrics, or compare([baseline, other, ...])"
+            f"{caller}(): results is one result ({getattr(results, 'label', '?')!r}), not a list "
+            f"of them: pass {caller}([result]) for one, or {caller}([a, b, ...]) for several"
         )
     if isinstance(results, (str, bytes, dict)) or not hasattr(results, "__iter__"):
         raise TypeError(
-            f"compare(): results must be a list of results (run_method or peer_result), "
+            f"{caller}(): results must be a list of results (run_method or peer_result), "
             f"got {type(results).__name__}"
         )
     out = list(results)
     if not out:
-        raise ValueError("compare() needs at least one result")
+        raise ValueError(f"{caller}() needs at least one result (run_method or peer_result)")
     bad = [i for i, r in enumerate(out) if not _is_result(r)]
     if bad:
         raise TypeError(
-            f"compare(): results[{bad[0]}] is a {type(out[bad[0]]).__name__}, not a result: pass "
-            "what run_method or peer_result return"
+            f"{caller}(): results[{bad[0]}] is a {type(out[bad[0]]).__name__}, not a result: "
+            "pass what run_method or peer_result return"
+        )
+    labels = [r.label for r in out]
+    dup = sorted({x for x in labels if labels.count(x) > 1})
+    if unique_labels and dup:
+        raise ValueError(
+            f"{caller}(): labels must be unique, repeated: {dup}; pass label=... to "
+            "run_method to tell the runs apart"
         )
     return out
 
@@ -206,19 +216,13 @@ def compare(
             "compare(): the second argument is the baseline, and a result was given: pass the "
             "results as one list, compare([a, b, ...]), and baseline=<label> if not the first"
         )
-    results = _check_results(results)
+    results = check_results(results, "compare", unique_labels=True)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise TypeError(
             f"compare(): seed={seed!r} is not a seed of the resampling: pass an integer >= 0 "
             "(e.g. seed=0, the default)"
         )
     labels = [r.label for r in results]
-    dup = sorted({x for x in labels if labels.count(x) > 1})
-    if dup:
-        raise ValueError(
-            f"compare(): labels must be unique, repeated: {dup}; pass label=... to "
-            "run_method to tell the runs apart"
-        )
     if baseline is None:
         base = results[0]
     elif isinstance(baseline, bool) or not isinstance(baseline, (str, int, np.integer)):

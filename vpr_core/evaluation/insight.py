@@ -11,7 +11,7 @@ import pandas as pd
 
 from ..matching import Matching, match_landmarks, weighted_matches
 from ..notices import notice
-from .compare import _check_same_dataset
+from .compare import _check_same_dataset, check_results
 from .curves import _best_two, _query_scores, _ranked
 from .ranks import _true_rank
 
@@ -149,12 +149,9 @@ def per_query(results: Any | Sequence[Any], contrast: bool = False) -> pd.DataFr
     Raises:
         ValueError: no results, duplicate labels, or runs of different datasets.
     """
-    runs: list[Any] = [results] if hasattr(results, "similarity") else list(results)
-    if not runs:
-        raise ValueError("per_query() needs at least one result")
+    one = hasattr(results, "similarity")
+    runs = check_results([results] if one else results, "per_query", unique_labels=True)
     labels = [r.label for r in runs]
-    if len(set(labels)) < len(labels):
-        raise ValueError(f"per_query(): labels must be unique, got {labels}")
     gt = _check_same_dataset(runs, runs[0])
     queries = np.flatnonzero(gt.any(axis=1))
     table = pd.concat([_one_run(r, gt, queries, contrast) for r in runs], ignore_index=True)
