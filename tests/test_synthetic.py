@@ -12,7 +12,7 @@ import pytest
 from vpr_core import datasets as D
 from vpr_core.datasets import load_dataset
 from vpr_core.datasets import synthetic as S
-from vpr_core.datasets.synthetic import exact as X
+from vpr_core.datasets.synthetic import _exact as X
 
 SMALL = (64, 112)  # (H, W) for fast generator tests
 
@@ -80,7 +80,7 @@ def test_synthetic_homography_matches_default_dataset(tiny_synthetic):
 @pytest.mark.parametrize("difficulty", ["easy", "default", "hard"])
 def test_synthetic_homography_is_the_view_geometry(difficulty):
     """H equals a NumPy (LAPACK) solution for the view corners (query -> canvas -> ref)."""
-    from vpr_core.datasets.synthetic.camera import _place_views
+    from vpr_core.datasets.synthetic._camera import _place_views
 
     def dlt(src, dst):
         a, b = [], []
@@ -147,7 +147,7 @@ def test_synthetic_cache_reuse_and_regeneration(tmp_path, monkeypatch):
         calls.append(i)
         return real(seed, i, size, difficulty)
 
-    monkeypatch.setattr(D.synthetic.render, "render_synthetic_place", spy)
+    monkeypatch.setattr(D.synthetic._loader, "render_synthetic_place", spy)
     ds2 = load_dataset("synthetic", n_places=2, image_size=SMALL)
     assert calls == [1]  # only the missing place is regenerated
     assert ds2.query_paths[1].read_bytes() == before  # byte-identical
@@ -272,8 +272,17 @@ def test_difficulty_presets_and_errors(tmp_path):
         S.resolve_difficulty(3)
     with pytest.raises(ValueError, match="zoom"):
         S.SyntheticDifficulty(zoom=(1.2, 0.9))
-    with pytest.raises(ValueError, match="probability"):
+    with pytest.raises(ValueError, match=r"SyntheticDifficulty.repeat_facades must be in \[0, 1\]"):
         S.SyntheticDifficulty(repeat_facades=1.5)
+    with pytest.raises(ValueError, match=r"SyntheticDifficulty.glow must be in \[0, inf\]"):
+        S.SyntheticDifficulty(glow=-0.1)
+    with pytest.raises(ValueError, match="facade_pool must be a positive integer"):
+        S.SyntheticDifficulty(facade_pool=0)
+    with pytest.raises(ValueError, match=r"night_gamma must be in \(0, inf\]"):
+        S.SyntheticDifficulty(night_gamma=0.0)
+    for bad in ({"n_places": 0}, {"n_places": 2.5}, {"seed": -1}, {"seed": True}):
+        with pytest.raises(ValueError, match=r"synthetic: (n_places|seed) must be"):
+            load_dataset("synthetic", root=tmp_path, image_size=SMALL, **bad)
 
 
 def test_difficulty_in_cache_key_and_manifest(tmp_path, monkeypatch):
@@ -295,13 +304,13 @@ def test_difficulty_in_cache_key_and_manifest(tmp_path, monkeypatch):
 
 def test_repeated_facades_alias_places():
     """With repeat_facades=1 every building comes from the shared pool: places share facades."""
-    from vpr_core.datasets.synthetic.world import _render_world
+    from vpr_core.datasets.synthetic._world import render_world
 
     alias = S.SyntheticDifficulty(repeat_facades=1.0, facade_pool=1, style_share=1.0)
-    w0 = _render_world(0, 0, 93, 202, 64.0, alias)
-    w1 = _render_world(0, 1, 93, 202, 64.0, alias)
-    e0 = _render_world(0, 0, 93, 202, 64.0, S.DIFFICULTIES["easy"])
-    e1 = _render_world(0, 1, 93, 202, 64.0, S.DIFFICULTIES["easy"])
+    w0 = render_world(0, 0, 93, 202, 64.0, alias)
+    w1 = render_world(0, 1, 93, 202, 64.0, alias)
+    e0 = render_world(0, 0, 93, 202, 64.0, S.DIFFICULTIES["easy"])
+    e1 = render_world(0, 1, 93, 202, 64.0, S.DIFFICULTIES["easy"])
     band = slice(10, 60)  # facades, above the street furniture
     same_alias = (w0.img[band] == w1.img[band]).all(axis=2).mean()
     same_easy = (e0.img[band] == e1.img[band]).all(axis=2).mean()

@@ -3,9 +3,16 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
+from ...checks import check_choice, check_int, check_range
+
+__all__ = ["DIFFICULTIES", "SyntheticDifficulty", "resolve_difficulty"]
+
 Range = tuple[float, float]
+#: The settings that are probabilities (in [0, 1]).
+_PROBABILITIES = ("day_occluder", "style_share", "repeat_facades", "lit_windows")
 
 
 @dataclass(frozen=True)
@@ -54,20 +61,17 @@ class SyntheticDifficulty:
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
+            v, name = getattr(self, f.name), f"SyntheticDifficulty.{f.name}"
             if isinstance(v, tuple):
                 if len(v) != 2 or not v[0] <= v[1] or min(v) < 0:
                     raise ValueError(
-                        f"SyntheticDifficulty.{f.name} must be a (low, high) pair with "
-                        f"0 <= low <= high, got {v!r}."
+                        f"{name} must be a (low, high) pair with 0 <= low <= high, got {v!r}."
                     )
-            elif v < 0:
-                raise ValueError(f"SyntheticDifficulty.{f.name} must be >= 0, got {v!r}.")
-        for name in ("day_occluder", "style_share", "repeat_facades", "lit_windows"):
-            if getattr(self, name) > 1:
-                raise ValueError(f"SyntheticDifficulty.{name} is a probability (<= 1).")
-        if self.zoom[0] <= 0 or self.facade_pool < 1 or self.night_gamma <= 0:
-            raise ValueError("SyntheticDifficulty: zoom > 0, facade_pool >= 1, night_gamma > 0.")
+            else:
+                check_range(v, name, 0, 1 if f.name in _PROBABILITIES else math.inf)
+        check_range(self.zoom[0], "SyntheticDifficulty.zoom (low)", 0, low_open=True)
+        check_int(self.facade_pool, "SyntheticDifficulty.facade_pool", minimum=1)
+        check_range(self.night_gamma, "SyntheticDifficulty.night_gamma", 0, low_open=True)
 
     def as_dict(self) -> dict:
         """Plain JSON-able dict (for cache keys and manifests)."""
@@ -136,12 +140,7 @@ def resolve_difficulty(difficulty: str | SyntheticDifficulty) -> tuple[str, Synt
                 return name, preset
         return "custom", difficulty
     if isinstance(difficulty, str):
-        key = difficulty.strip().lower()
-        if key not in DIFFICULTIES:
-            raise ValueError(
-                f"synthetic: unknown difficulty {difficulty!r}; valid names: "
-                f"{', '.join(DIFFICULTIES)} (or pass a SyntheticDifficulty)."
-            )
+        key = check_choice(difficulty.strip().lower(), "synthetic difficulty", DIFFICULTIES)
         return key, DIFFICULTIES[key]
     raise TypeError(
         f"synthetic: difficulty must be a name ({', '.join(DIFFICULTIES)}) or a "

@@ -5,12 +5,14 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .canvas import _World
-from .exact import normal
-from .textures import _tex_patch
+from ._canvas import World
+from ._exact import normal
+from ._textures import tex_patch
+
+__all__ = ["draw_lamp", "draw_traffic_sign", "draw_tree"]
 
 
-def _draw_tree(world: _World, x: int, ground: int, rng: np.random.Generator) -> None:
+def draw_tree(world: World, x: int, ground: int, rng: np.random.Generator) -> None:
     """A trunk and a crown of overlapping discs with a leaf texture, standing at ``x``."""
     u = world.unit
     img = world.img
@@ -30,14 +32,14 @@ def _draw_tree(world: _World, x: int, ground: int, rng: np.random.Generator) -> 
         cyy = int(cy - y0 + normal(rng, -0.3 * r0, 0.45 * r0))
         cv2.circle(mask, (cx, cyy), int(r0 * rng.uniform(0.55, 0.95)), 1, -1)
     green = np.array([rng.uniform(40, 80), rng.uniform(100, 150), rng.uniform(30, 60)], np.float64)
-    t = _tex_patch("grass", 0.5 * u / 360.0, y1 - y0, x1 - x0, rng)
+    t = tex_patch("grass", 0.5 * u / 360.0, y1 - y0, x1 - x0, rng)
     leaves = np.clip(green[None, None, :] * (1.0 + 0.35 * t[..., None]), 0, 255).astype(np.uint8)
     m = mask.astype(bool)
     img[y0:y1, x0:x1][m] = leaves[m]
     world.sky[y0:y1, x0:x1][m] = False
 
 
-def _draw_lamp(world: _World, x: int, ground: int, rng: np.random.Generator) -> None:
+def draw_lamp(world: World, x: int, ground: int, rng: np.random.Generator) -> None:
     """A street lamp (its head becomes a glare source at night)."""
     u = world.unit
     h = int(rng.uniform(0.5, 0.7) * u)
@@ -61,7 +63,7 @@ def _draw_lamp(world: _World, x: int, ground: int, rng: np.random.Generator) -> 
     world.lamps.append((head[0], head[1], float(rng.uniform(0.06, 0.11) * u)))
 
 
-def _draw_traffic_sign(world: _World, x: int, ground: int, rng: np.random.Generator) -> None:
+def draw_traffic_sign(world: World, x: int, ground: int, rng: np.random.Generator) -> None:
     """A pole with a prohibition, direction or warning sign."""
     u = world.unit
     h = int(rng.uniform(0.3, 0.42) * u)

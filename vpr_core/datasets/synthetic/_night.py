@@ -1,5 +1,5 @@
 """Night illumination of the canvas: exposure, gamma, colour cast, lit windows, lamp glare, in
-exact arithmetic only (:mod:`.exact`)."""
+exact arithmetic only (:mod:`._exact`)."""
 
 from __future__ import annotations
 
@@ -8,9 +8,11 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-from .canvas import _World
-from .difficulty import SyntheticDifficulty
-from .exact import gaussian_blur, resize_bilinear, to_grid
+from ._canvas import World
+from ._difficulty import SyntheticDifficulty
+from ._exact import gaussian_blur, resize_bilinear, to_grid
+
+__all__ = ["to_night", "vignette"]
 
 _CASTS = ((1.0, 0.78, 0.5), (0.62, 0.75, 1.0), (0.9, 0.85, 1.0), (1.0, 0.9, 0.7))
 
@@ -31,7 +33,7 @@ def _block_mean4(a: np.ndarray) -> np.ndarray:
     return acc / 16.0
 
 
-def _night(world: _World, rng: np.random.Generator, diff: SyntheticDifficulty) -> np.ndarray:
+def to_night(world: World, rng: np.random.Generator, diff: SyntheticDifficulty) -> np.ndarray:
     """Night version of the canvas: ``float64 (Hc, Wc, 3)`` in [0, 1] (before noise).
 
     Args:
@@ -69,7 +71,7 @@ def _night(world: _World, rng: np.random.Generator, diff: SyntheticDifficulty) -
 
 
 @lru_cache(maxsize=8)
-def _vignette(h: int, w: int) -> np.ndarray:
+def vignette(h: int, w: int) -> np.ndarray:
     """Radial fall-off ``1 - 0.175 r^2`` (``r`` = 1 at the edge midpoints): ``float64 (h, w)``."""
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float64)
     dx, dy = (xx - w / 2) / (w / 2), (yy - h / 2) / (h / 2)

@@ -5,10 +5,12 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .difficulty import SyntheticDifficulty
+from ._difficulty import SyntheticDifficulty
+
+__all__ = ["draw_occluders"]
 
 
-def _draw_occluders(
+def draw_occluders(
     img: np.ndarray, rng: np.random.Generator, night: bool, diff: SyntheticDifficulty
 ) -> None:
     """Pedestrian / car silhouettes in image coordinates.

@@ -5,9 +5,11 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .canvas import _fill_textured, _paste_poster, _put_text_fit, _World
-from .exact import normal
-from .textures import _WALL_TEXTURES
+from ._canvas import World, fill_textured, paste_poster, put_text_fit
+from ._exact import normal
+from ._textures import WALL_TEXTURES
+
+__all__ = ["draw_building", "random_style", "style_bank"]
 
 _SHOP_WORDS = (
     "CAFE",
@@ -43,13 +45,13 @@ _SHOP_WORDS = (
 )
 
 
-def _style_bank(seed: int, n: int = 6) -> list[dict]:
+def style_bank(seed: int, n: int = 6) -> list[dict]:
     """Facade styles shared by all places of one seed (the source of perceptual aliasing)."""
     rng = np.random.default_rng([seed, 999_983])
-    return [_random_style(rng) for _ in range(n)]
+    return [random_style(rng) for _ in range(n)]
 
 
-def _random_style(rng: np.random.Generator) -> dict:
+def random_style(rng: np.random.Generator) -> dict:
     """One facade style: colour, wall texture, window grid, frames, shutters, roof."""
     base = rng.choice(
         [
@@ -67,7 +69,7 @@ def _random_style(rng: np.random.Generator) -> dict:
     )
     return {
         "color": tuple(int(c) for c in np.clip(base + normal(rng, 0, 12, 3), 30, 250)),
-        "texture": str(rng.choice(_WALL_TEXTURES, p=[0.4, 0.2, 0.3, 0.1])),
+        "texture": str(rng.choice(WALL_TEXTURES, p=[0.4, 0.2, 0.3, 0.1])),
         "tex_scale": float(rng.uniform(0.35, 0.8)),
         "tex_gain": float(rng.uniform(0.08, 0.2)),
         "win_w": float(rng.uniform(0.06, 0.11)),  # units of view height
@@ -90,8 +92,8 @@ def _random_style(rng: np.random.Generator) -> dict:
     }
 
 
-def _draw_building(
-    world: _World,
+def draw_building(
+    world: World,
     x0: int,
     x1: int,
     top: int,
@@ -106,13 +108,13 @@ def _draw_building(
         world: Canvas to draw on (its ``lit`` list receives the night light sources).
         x0, x1: Horizontal extent (canvas pixels).
         top, base: Roof line and ground line (canvas pixels).
-        style: A :func:`_random_style` dict.
+        style: A :func:`random_style` dict.
         rng: Random stream of this building.
         lit_windows: Probability that a window is lit at night.
     """
     u = world.unit
     color = np.clip(np.asarray(style["color"], float) + normal(rng, 0, 6, 3), 20, 250)
-    _fill_textured(
+    fill_textured(
         world,
         (x0, top, x1, base),
         color,
@@ -133,11 +135,11 @@ def _draw_building(
         bh2 = int(bw2 * rng.uniform(0.6, 1.0))
         bx = int(rng.uniform(x0 + 0.05 * bw, max(x0 + 0.05 * bw + 1, x1 - bw2 - 0.05 * bw)))
         by = int(rng.uniform(top + 0.06 * u, max(top + 0.06 * u + 1, gf_top - bh2 - 0.05 * u)))
-        _paste_poster(world, bx, by, bw2, bh2, rng)
+        paste_poster(world, bx, by, bw2, bh2, rng)
 
 
 def _draw_roof(
-    world: _World,
+    world: World,
     x0: int,
     x1: int,
     top: int,
@@ -179,7 +181,7 @@ def _draw_roof(
 
 
 def _draw_windows(
-    world: _World,
+    world: World,
     upper: tuple[int, int, int, int],
     style: dict,
     dark: tuple,
@@ -237,7 +239,7 @@ def _draw_windows(
 
 
 def _draw_ground_floor(
-    world: _World, x0: int, x1: int, base: int, gf_top: int, floor_h: int, rng: np.random.Generator
+    world: World, x0: int, x1: int, base: int, gf_top: int, floor_h: int, rng: np.random.Generator
 ) -> None:
     """Door, shop window with its (often lit) sign, and posters on the free wall."""
     u, img = world.unit, world.img
@@ -286,7 +288,7 @@ def _draw_ground_floor(
             word = str(rng.choice(_SHOP_WORDS))
             if rng.random() < 0.4:
                 word += f" {int(rng.integers(1, 99))}"
-            _put_text_fit(img, word, a, s_top, b, s_bot, txt_col)
+            put_text_fit(img, word, a, s_top, b, s_bot, txt_col)
             if rng.random() < 0.6:
                 world.lit.append((a, s_top, b, s_bot, (255, 255, 245), 1.0))
     for a, b in free:
@@ -294,4 +296,4 @@ def _draw_ground_floor(
             pw = int(min(b - a, rng.uniform(0.1, 0.2) * u))
             ph = int(min(0.65 * floor_h, pw * rng.uniform(1.0, 1.5)))
             px = int(rng.uniform(a, max(a + 1, b - pw)))
-            _paste_poster(world, px, base - ph - int(0.08 * u), pw, ph, rng)
+            paste_poster(world, px, base - ph - int(0.08 * u), pw, ph, rng)

@@ -9,6 +9,21 @@ from collections.abc import Sequence
 
 import numpy as np
 
+__all__ = [
+    "GRID_BITS",
+    "Matrix3",
+    "gaussian_blur",
+    "mat3_mul",
+    "normal",
+    "normalise_h",
+    "resize_area",
+    "resize_bilinear",
+    "solve_homography",
+    "to_grid",
+    "to_uint8",
+    "warp_perspective",
+]
+
 Matrix3 = tuple[tuple[float, float, float], tuple[float, float, float], tuple[float, float, float]]
 
 #: Grid of :func:`to_grid` (``2**-GRID_BITS``).
@@ -31,7 +46,7 @@ def normal(rng: np.random.Generator, loc=0.0, scale=1.0, size=None):
     return np.asarray(loc, np.float64) + np.asarray(scale, np.float64) * z
 
 
-def reflect101(idx: np.ndarray, n: int) -> np.ndarray:
+def _reflect101(idx: np.ndarray, n: int) -> np.ndarray:
     """Indices reflected into ``[0, n)`` without repeating the edge (OpenCV's BORDER_REFLECT101)."""
     if n == 1:
         return np.zeros_like(idx)
@@ -41,13 +56,13 @@ def reflect101(idx: np.ndarray, n: int) -> np.ndarray:
 
 
 def _sample_bilinear(src: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
-    """Bilinear samples of ``src (H, W[, C])`` at float64 coordinates ``(h, w)`` (reflect101)."""
+    """Bilinear samples of ``src (H, W[, C])`` at float64 coordinates ``(h, w)`` (_reflect101)."""
     hs, ws = src.shape[:2]
     x0, y0 = np.floor(xs), np.floor(ys)
     fx, fy = xs - x0, ys - y0
     x0i, y0i = x0.astype(np.int64), y0.astype(np.int64)
-    xa, xb = reflect101(x0i, ws), reflect101(x0i + 1, ws)
-    ya, yb = reflect101(y0i, hs), reflect101(y0i + 1, hs)
+    xa, xb = _reflect101(x0i, ws), _reflect101(x0i + 1, ws)
+    ya, yb = _reflect101(y0i, hs), _reflect101(y0i + 1, hs)
     if src.ndim == 3:
         fx, fy = fx[..., None], fy[..., None]
     p00 = src[ya, xa].astype(np.float64)
@@ -60,7 +75,7 @@ def _sample_bilinear(src: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndar
 
 
 def warp_perspective(src: np.ndarray, dst_to_src: Matrix3, size: tuple[int, int]) -> np.ndarray:
-    """Inverse-mapped perspective warp with bilinear interpolation and reflect101 borders.
+    """Inverse-mapped perspective warp with bilinear interpolation and _reflect101 borders.
 
     Args:
         src: ``(Hs, Ws)`` or ``(Hs, Ws, C)`` image (any real dtype).
@@ -116,7 +131,7 @@ def resize_area(src: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     return s.astype(np.float64) / count
 
 
-def gaussian_kernel(sigma: float) -> list[float]:
+def _gaussian_kernel(sigma: float) -> list[float]:
     """Half of a normalised 1-D Gaussian (taps ``0..r``, ``r = ceil(3 sigma)``), grid-rounded."""
     r = max(1, math.ceil(3.0 * sigma))
     raw = [to_grid(math.exp(-0.5 * (k / sigma) ** 2)) for k in range(r + 1)]
@@ -125,15 +140,15 @@ def gaussian_kernel(sigma: float) -> list[float]:
 
 
 def gaussian_blur(img: np.ndarray, sigma: float) -> np.ndarray:
-    """Separable Gaussian blur in float64 with reflect101 borders: same shape, ``float64``."""
+    """Separable Gaussian blur in float64 with _reflect101 borders: same shape, ``float64``."""
     if sigma <= 0:
         return img.astype(np.float64)
-    kern = gaussian_kernel(float(sigma))
+    kern = _gaussian_kernel(float(sigma))
     out = img.astype(np.float64)
     for axis in (0, 1):
         n = out.shape[axis]
         r = len(kern) - 1
-        idx = reflect101(np.arange(-r, n + r), n)
+        idx = _reflect101(np.arange(-r, n + r), n)
         pad = np.take(out, idx, axis=axis)
 
         def tap(o: int, pad=pad, axis=axis, n=n) -> np.ndarray:

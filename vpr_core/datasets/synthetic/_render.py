@@ -1,16 +1,18 @@
 """Render one place: the day reference and the night query with their homography; every step is
-exact (:mod:`.exact`, docs/SYNTHETIC.md), down to the ``floor(255 x + 0.5)`` quantisation."""
+exact (:mod:`._exact`, docs/SYNTHETIC.md), down to the ``floor(255 x + 0.5)`` quantisation."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from .camera import _place_geometry, canvas_size
-from .difficulty import SyntheticDifficulty, resolve_difficulty
-from .exact import gaussian_blur, normal, normalise_h, to_uint8, warp_perspective
-from .night import _night, _vignette
-from .occluders import _draw_occluders
-from .world import _render_world
+from ._camera import canvas_size, place_geometry
+from ._difficulty import SyntheticDifficulty, resolve_difficulty
+from ._exact import gaussian_blur, normal, normalise_h, to_uint8, warp_perspective
+from ._night import to_night, vignette
+from ._occluders import draw_occluders
+from ._world import render_world
+
+__all__ = ["render_synthetic_place"]
 
 
 def render_synthetic_place(
@@ -36,19 +38,19 @@ def render_synthetic_place(
     seed, i = int(seed), int(i)
     h, w = (int(v) for v in image_size)
     hc, wc = canvas_size((h, w))
-    world = _render_world(seed, i, hc, wc, float(h), diff)
-    canvas_from_ref, canvas_from_qry, qry_to_ref = _place_geometry(seed, i, (h, w), diff)
+    world = render_world(seed, i, hc, wc, float(h), diff)
+    canvas_from_ref, canvas_from_qry, qry_to_ref = place_geometry(seed, i, (h, w), diff)
     fx = np.random.default_rng([seed, i, 3])
     # day reference: mild exposure jitter + light sensor noise, occasionally a passer-by
     ref = warp_perspective(world.img, canvas_from_ref, (h, w)) / 255.0
     ref = np.clip(ref * fx.uniform(0.9, 1.1) + fx.uniform(-0.03, 0.03), 0, 1)
-    _draw_occluders(ref, fx, night=False, diff=diff)
+    draw_occluders(ref, fx, night=False, diff=diff)
     ref = ref + normal(fx, 0.0, 0.008, ref.shape)
     # night query
-    night = _night(world, fx, diff)
+    night = to_night(world, fx, diff)
     qry = warp_perspective(night, canvas_from_qry, (h, w))
-    _draw_occluders(qry, fx, night=True, diff=diff)
+    draw_occluders(qry, fx, night=True, diff=diff)
     qry = gaussian_blur(qry, fx.uniform(*diff.blur) * h / 360.0)
     qry = qry + normal(fx, 0.0, float(fx.uniform(*diff.noise)), qry.shape)
-    qry = qry * _vignette(h, w)[..., None]
+    qry = qry * vignette(h, w)[..., None]
     return to_uint8(ref), to_uint8(qry), normalise_h(qry_to_ref)

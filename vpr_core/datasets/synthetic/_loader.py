@@ -10,13 +10,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ...checks import check_int
 from ...utils import cache_dir, logger, progress, short_hash
 from ..base import PlaceDataset
-from ..ground_truth import check_tolerance as _check_tolerance
-from ..ground_truth import frame_aligned as _frame_aligned
-from . import render
-from .camera import synthetic_homography
-from .difficulty import SyntheticDifficulty, resolve_difficulty
+from ..ground_truth import check_tolerance, frame_aligned
+from ._camera import synthetic_homography
+from ._difficulty import SyntheticDifficulty, resolve_difficulty
+from ._render import render_synthetic_place
+
+__all__ = ["REPETITION_POOL", "SYNTHETIC_VERSION", "load_synthetic"]
 
 #: Generator version: part of every cache key. 6: exact arithmetic (same pixels on every CPU)
 #: and difficulty settings.
@@ -105,12 +107,10 @@ def load_synthetic(
         ValueError: bad ``n_places``, ``seed``, ``image_size``, ``tolerance`` or an unknown
             difficulty name (the message lists the valid ones).
     """
-    tolerance = _check_tolerance(tolerance)
+    tolerance = check_tolerance(tolerance)
     diff_name, diff = resolve_difficulty(difficulty)
-    if isinstance(n_places, bool) or not isinstance(n_places, (int, np.integer)) or n_places < 1:
-        raise ValueError(f"synthetic: n_places must be an int >= 1, got {n_places!r}.")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"synthetic: seed must be an int >= 0, got {seed!r}.")
+    n_places = check_int(n_places, "synthetic: n_places", minimum=1)
+    seed = check_int(seed, "synthetic: seed")
     try:
         size = tuple(int(v) for v in image_size)
     except (TypeError, ValueError):
@@ -126,7 +126,6 @@ def load_synthetic(
         or not (0 <= repetition <= 1)
     ):
         raise ValueError(f"synthetic: repetition must be a number in [0, 1], got {repetition!r}.")
-    n_places, seed = int(n_places), int(seed)
     if repetition > 0:
         diff = dataclasses.replace(
             diff, repeat_facades=float(repetition), facade_pool=REPETITION_POOL, style_share=1.0
@@ -166,7 +165,7 @@ def load_synthetic(
             out,
         )
     for i in progress(missing, desc="synthetic places", total=len(missing)):
-        ref, qry, _ = _render(seed, i, size, diff)
+        ref, qry, _ = render_synthetic_place(seed, i, size, diff)
         _write_png(rp[i], ref)
         _write_png(qp[i], qry)
     for i in range(n_places):
@@ -185,7 +184,7 @@ def load_synthetic(
             },
         )
         _write_atomic(manifest_path, json.dumps(manifest, indent=1).encode())
-    gt = _frame_aligned(n_places, n_places, tolerance)
+    gt = frame_aligned(n_places, n_places, tolerance)
     meta = dict(
         params,
         n_places=n_places,
@@ -194,8 +193,3 @@ def load_synthetic(
         exact_geometry=True,
     )
     return PlaceDataset("synthetic", qp, rp, gt, tolerance, root=out, homographies=homs, meta=meta)
-
-
-def _render(seed: int, i: int, size: tuple[int, int], diff: SyntheticDifficulty):
-    """Call ``render.render_synthetic_place`` through its module (replaceable in tests)."""
-    return render.render_synthetic_place(seed, i, size, diff)

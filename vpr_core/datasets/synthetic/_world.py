@@ -5,18 +5,20 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .canvas import _fill_textured, _World
-from .difficulty import SyntheticDifficulty
-from .facade import _draw_building, _random_style, _style_bank
-from .street import _draw_lamp, _draw_traffic_sign, _draw_tree
+from ._canvas import World, fill_textured
+from ._difficulty import SyntheticDifficulty
+from ._facade import draw_building, random_style, style_bank
+from ._street import draw_lamp, draw_traffic_sign, draw_tree
+
+__all__ = ["render_world"]
 
 #: Stream key of the route-wide shared buildings (perceptual aliasing between places).
 _POOL_KEY = 7_919
 
 
-def _render_world(
+def render_world(
     seed: int, i: int, hc: int, wc: int, unit: float, diff: SyntheticDifficulty
-) -> _World:
+) -> World:
     """The day canvas of place ``i``: sky, buildings, sidewalk, road, trees, lamps, signs.
 
     Args:
@@ -26,11 +28,11 @@ def _render_world(
         diff: Difficulty (style sharing, repeated buildings, lit windows).
 
     Returns:
-        The :class:`_World` with its ``uint8 (hc, wc, 3)`` image, sky mask and light sources.
+        The :class:`World` with its ``uint8 (hc, wc, 3)`` image, sky mask and light sources.
     """
     rng = np.random.default_rng([seed, i, 2])
-    bank = _style_bank(seed)
-    world = _World(hc, wc, unit)
+    bank = style_bank(seed)
+    world = World(hc, wc, unit)
     img = world.img
     base = int(0.70 * hc)
     # sky: vertical gradient + a few soft clouds
@@ -50,14 +52,14 @@ def _render_world(
         if b_rng.random() < diff.style_share:
             style = bank[int(b_rng.integers(len(bank)))]
         else:
-            style = _random_style(b_rng)
+            style = random_style(b_rng)
         x1 = min(wc, x + bw)
         world.sky[top:base, max(0, x) : x1] = False
-        _draw_building(world, x, x1, top, base, style, b_rng, diff.lit_windows)
+        draw_building(world, x, x1, top, base, style, b_rng, diff.lit_windows)
         x = x1 + (int(rng.uniform(0.02, 0.12) * unit) if rng.random() < 0.3 else 0)
     # sidewalk and road
     side_h = int(0.1 * hc)
-    _fill_textured(world, (0, base, wc, base + side_h), (165, 160, 150), ("gravel", 0.5, 0.12), rng)
+    fill_textured(world, (0, base, wc, base + side_h), (165, 160, 150), ("gravel", 0.5, 0.12), rng)
     for k in range(0, wc, max(8, int(0.18 * unit))):  # paving joints
         cv2.line(img, (k, base), (k - int(0.05 * unit), base + side_h), (135, 130, 125), 1)
     cv2.rectangle(
@@ -67,7 +69,7 @@ def _render_world(
         (200, 200, 195),
         -1,
     )
-    _fill_textured(
+    fill_textured(
         world,
         (0, base + side_h + max(2, int(0.015 * unit)), wc, hc),
         (70, 70, 75),
@@ -87,9 +89,9 @@ def _render_world(
     # street furniture in front of the facades
     ground = base + int(0.06 * hc)
     for _ in range(int(rng.integers(0, 3))):
-        _draw_tree(world, int(rng.uniform(0.05, 0.95) * wc), ground, rng)
+        draw_tree(world, int(rng.uniform(0.05, 0.95) * wc), ground, rng)
     for _ in range(int(rng.integers(1, 3))):
-        _draw_lamp(world, int(rng.uniform(0.05, 0.95) * wc), ground, rng)
+        draw_lamp(world, int(rng.uniform(0.05, 0.95) * wc), ground, rng)
     if rng.random() < 0.6:
-        _draw_traffic_sign(world, int(rng.uniform(0.1, 0.9) * wc), ground, rng)
+        draw_traffic_sign(world, int(rng.uniform(0.1, 0.9) * wc), ground, rng)
     return world

@@ -1,5 +1,5 @@
 """View geometry: the day reference and night query cameras of a place, and their homography, in
-scalar Python floats (grid-rounded rotations, :func:`.exact.solve_homography`; no LAPACK, no
+scalar Python floats (grid-rounded rotations, :func:`._exact.solve_homography`; no LAPACK, no
 OpenCV), so the matrices are identical on every CPU."""
 
 from __future__ import annotations
@@ -8,8 +8,10 @@ import math
 
 import numpy as np
 
-from .difficulty import DIFFICULTIES, SyntheticDifficulty, resolve_difficulty
-from .exact import Matrix3, mat3_mul, normalise_h, solve_homography, to_grid
+from ._difficulty import SyntheticDifficulty, resolve_difficulty
+from ._exact import Matrix3, mat3_mul, normalise_h, solve_homography, to_grid
+
+__all__ = ["canvas_size", "place_geometry", "synthetic_homography"]
 
 _CANVAS_SCALE = (1.45, 1.8)  # world canvas size in units of the view (H, W)
 
@@ -61,7 +63,7 @@ def _place_views(
     return ref, qry
 
 
-def _place_geometry(
+def place_geometry(
     seed: int, i: int, image_size: tuple[int, int], diff: SyntheticDifficulty
 ) -> tuple[Matrix3, Matrix3, Matrix3]:
     """View->canvas maps of the reference and the query, and the query->reference map."""
@@ -94,7 +96,4 @@ def synthetic_homography(
     """
     _, diff = resolve_difficulty(difficulty)
     size = (int(image_size[0]), int(image_size[1]))
-    return normalise_h(_place_geometry(int(seed), int(i), size, diff)[2])
-
-
-__all__ = ["DIFFICULTIES", "canvas_size", "synthetic_homography"]
+    return normalise_h(place_geometry(int(seed), int(i), size, diff)[2])

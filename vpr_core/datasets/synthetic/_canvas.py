@@ -1,5 +1,5 @@
 """The world canvas of one place and its fill / paste / text primitives: integer-coordinate
-OpenCV ``LINE_8`` drawing and elementwise float64 fills (:mod:`.exact`)."""
+OpenCV ``LINE_8`` drawing and elementwise float64 fills (:mod:`._exact`)."""
 
 from __future__ import annotations
 
@@ -9,11 +9,13 @@ from typing import cast
 import cv2
 import numpy as np
 
-from .exact import resize_area
-from .textures import _tex_patch, _texture_sources
+from ._exact import resize_area
+from ._textures import tex_patch, texture_sources
+
+__all__ = ["World", "fill_textured", "paste_poster", "put_text_fit"]
 
 
-class _World:
+class World:
     """One place's world canvas (day RGB) plus the light sources used for its night version."""
 
     def __init__(self, hc: int, wc: int, unit: float) -> None:
@@ -26,8 +28,8 @@ class _World:
         self.lamps: list[tuple[int, int, float]] = []  # glare centres + radius
 
 
-def _fill_textured(
-    world: _World,
+def fill_textured(
+    world: World,
     rect: tuple[int, int, int, int],
     color: Sequence[float],
     texture: tuple[str, float, float],
@@ -40,20 +42,18 @@ def _fill_textured(
     x0, x1, y0, y1 = max(0, x0), min(wc, x1), max(0, y0), min(hc, y1)
     if x1 <= x0 or y1 <= y0:
         return
-    t = _tex_patch(tex, scale * world.unit / 360.0, y1 - y0, x1 - x0, rng)
+    t = tex_patch(tex, scale * world.unit / 360.0, y1 - y0, x1 - x0, rng)
     c = np.asarray(color, np.float64)
     region = c[None, None, :] * (1.0 + gain * t[..., None])
     world.img[y0:y1, x0:x1] = np.clip(region, 0, 255).astype(np.uint8)
 
 
-def _paste_poster(
-    world: _World, x0: int, y0: int, w: int, h: int, rng: np.random.Generator
-) -> None:
+def paste_poster(world: World, x0: int, y0: int, w: int, h: int, rng: np.random.Generator) -> None:
     """Paste a random crop of a bundled image, framed, into ``(x0, y0, w, h)`` (if it fits)."""
     hc, wc = world.img.shape[:2]
     if w < 6 or h < 6 or x0 < 0 or y0 < 0 or x0 + w > wc or y0 + h > hc:
         return
-    posters = cast(list[np.ndarray], _texture_sources()["posters"])
+    posters = cast(list[np.ndarray], texture_sources()["posters"])
     src = posters[int(rng.integers(len(posters)))]
     sh, sw = src.shape[:2]
     aspect = w / h
@@ -70,7 +70,7 @@ def _paste_poster(
     world.img[y0 + b : y0 + h - b, x0 + b : x0 + w - b] = np.floor(small + 0.5).astype(np.uint8)
 
 
-def _put_text_fit(
+def put_text_fit(
     img: np.ndarray,
     text: str,
     x0: int,

@@ -1,5 +1,5 @@
 """Wall and poster textures from scikit-image's bundled images (no downloads), kept as ``uint8``,
-normalised with integer statistics and resampled with the exact primitives of :mod:`.exact`."""
+normalised with integer statistics and resampled with the exact primitives of :mod:`._exact`."""
 
 from __future__ import annotations
 
@@ -10,9 +10,11 @@ from typing import cast
 import numpy as np
 import skimage.data as skd
 
-from .exact import gaussian_blur, resize_area, resize_bilinear
+from ._exact import gaussian_blur, resize_area, resize_bilinear
 
-_WALL_TEXTURES = ("brick", "gravel", "plaster", "grass")
+__all__ = ["WALL_TEXTURES", "tex_patch", "texture_sources"]
+
+WALL_TEXTURES = ("brick", "gravel", "plaster", "grass")
 
 
 def _int_stats(v: np.ndarray) -> tuple[float, float]:
@@ -23,7 +25,7 @@ def _int_stats(v: np.ndarray) -> tuple[float, float]:
 
 
 @lru_cache(maxsize=1)
-def _texture_sources() -> dict[str, object]:
+def texture_sources() -> dict[str, object]:
     """Bundled scikit-image images: ``uint8`` grey textures with ``(mean, std)``, RGB posters."""
     grey = {"brick": skd.brick(), "gravel": skd.gravel(), "grass": skd.grass()}
     grey["plaster"] = np.floor(gaussian_blur(skd.gravel(), 3.0)).astype(np.uint8)
@@ -49,7 +51,7 @@ def _texture_sources() -> dict[str, object]:
 @lru_cache(maxsize=64)
 def _texture(name: str, scale: float) -> np.ndarray:
     """Texture ``name`` resampled by ``scale``: ``float64 (h, w)``, zero mean, unit std."""
-    entry = cast(tuple[np.ndarray, tuple[float, float]], _texture_sources()[name])
+    entry = cast(tuple[np.ndarray, tuple[float, float]], texture_sources()[name])
     src, (mean, std) = entry
     if abs(scale - 1.0) > 1e-3:
         size = (max(8, round(src.shape[0] * scale)), max(8, round(src.shape[1] * scale)))
@@ -59,7 +61,7 @@ def _texture(name: str, scale: float) -> np.ndarray:
     return (res - mean) / (std + 1e-6)
 
 
-def _tex_patch(name: str, scale: float, h: int, w: int, rng: np.random.Generator) -> np.ndarray:
+def tex_patch(name: str, scale: float, h: int, w: int, rng: np.random.Generator) -> np.ndarray:
     """A ``float64 (h, w)`` zero-mean unit-std texture crop (tiled when needed)."""
     t = _texture(name, round(scale, 2))
     th, tw = t.shape
