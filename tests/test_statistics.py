@@ -381,7 +381,7 @@ BAD_STATISTICS_CALLS = {
     "record: scores": (
         lambda: MatchRecord([1, 2], [0.5], None, True),
         ValueError,
-        r"scales \(2\) and scores \(1\) must have one entry per match",
+        r"scores \(1\) must have one entry per match \(2\)",
     ),
     "record: labels": (
         lambda: MatchRecord([1, 2], [0.5, 0.1], [True], True),

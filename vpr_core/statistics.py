@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .checks import check_boxes, check_image_size
+from .checks import check_boxes, check_descriptors_kept, check_image_size
 from .datasets.ground_truth import (
     ground_truth_references,
     ground_truth_text,
@@ -21,14 +21,14 @@ from .datasets.ground_truth import (
 from .evaluation.bootstrap import N_BOOTSTRAP
 from .labels import (
     LabelUnavailableError,
-    _label_parsed,
     as_label_rule,
     dataset_image_size,
     label_matches,
+    label_matches_parsed,
     read_label_file,
     resolve_label_method,
 )
-from .landmarks.scales import _box_scale_index
+from .landmarks.scales import scale_index_parsed
 from .matching import match_landmarks
 from .methods import Matching
 from .paper import N_SCALES, SCALE_RANGE_LABELS
@@ -37,12 +37,21 @@ from .utils import progress
 __all__ = [
     "MatchRecord",
     "ScaleStats",
+    "check_per_match",
     "label_matches",
     "scale_statistics",
     "scale_statistics_from_matches",
 ]
 
 logger = logging.getLogger("vpr_core")
+
+
+def check_per_match(values: np.ndarray, n_matches: int, name: str) -> np.ndarray:
+    """Return ``values`` (parsed, one per match, e.g. labels or scores) if it has one entry per
+    match of the ``n_matches``; else name both lengths."""
+    if len(values) != n_matches:
+        raise ValueError(f"{name} ({len(values)}) must have one entry per match ({n_matches})")
+    return values
 
 
 @dataclass
@@ -62,20 +71,12 @@ class MatchRecord:
     def __post_init__(self) -> None:
         self.scales = np.asarray(self.scales, dtype=np.int64).reshape(-1)
         self.scores = np.asarray(self.scores, dtype=np.float64).reshape(-1)
-        if len(self.scales) != len(self.scores):
-            raise ValueError(
-                f"scales ({len(self.scales)}) and scores ({len(self.scores)}) "
-                "must have one entry per match"
-            )
+        check_per_match(self.scores, len(self.scales), "scores")
         if len(self.scales) and ((self.scales < 1) | (self.scales > N_SCALES)).any():
             raise ValueError("scales must be Table-1 indices 1..9")
         if self.labels is not None:
             self.labels = np.asarray(self.labels, dtype=bool).reshape(-1)
-            if len(self.labels) != len(self.scales):
-                raise ValueError(
-                    f"labels ({len(self.labels)}) must have one entry per match "
-                    f"({len(self.scales)})"
-                )
+            check_per_match(self.labels, len(self.scales), "labels")
 
 
 def _nan10() -> np.ndarray:
@@ -272,7 +273,7 @@ def _query_records(
     ``(r, is_gt)`` of ``pairs``; a ground-truth pair the labeller cannot label stays unlabelled."""
     bq, desc_q = query
     boxes_r, desc_r = references
-    sc_q = _box_scale_index(bq, size_q)
+    sc_q = scale_index_parsed(bq, size_q)
     records = []
     for r, is_gt in pairs:
         br = boxes_r[r]
@@ -281,7 +282,7 @@ def _query_records(
         lab = None
         if is_gt:
             try:
-                lab = _label_parsed(dataset, q, r, bq, br, mt, **label_options)
+                lab = label_matches_parsed(dataset, q, r, bq, br, mt, **label_options)
             except LabelUnavailableError as e:
                 logger.warning("scale_statistics: pair (%d, %d) unlabelled: %s", q, r, e)
         records.append(
@@ -314,12 +315,7 @@ def scale_statistics(
     ``n_irrelevant`` query-irrelevant references sampled with ``seed``. Queries without ground
     truth are skipped; ``image_sizes`` per query ``(H, W)`` (default: asked from the dataset).
     """
-    descriptors = getattr(run, "descriptors", None)
-    if descriptors is None or not hasattr(run, "boxes"):
-        raise ValueError(
-            "scale_statistics needs the run's landmark descriptors: "
-            "run_method(..., keep_descriptors=True)"
-        )
+    descriptors = check_descriptors_kept(run, "scale_statistics")
     boxes_q, boxes_r = run.boxes["query"], run.boxes["reference"]
     desc_q, desc_r = descriptors["query"], descriptors["reference"]
     config = getattr(run, "config", None)
