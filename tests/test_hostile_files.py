@@ -252,9 +252,9 @@ def test_an_edge_model_overwritten_in_place_is_loaded_again(tmp_path):
     assert edge_model_id(path) != id_a
     # ... and the detector is B's, not the one loaded from this path before
     np.testing.assert_array_equal(_structured_edges(image, path)[0], edges_b)
-    from vpr_core.landmarks.edge_boxes import model_cache_key
+    from vpr_core.landmarks.edge_boxes import _model_cache_key
 
-    assert edge_model_id(path) == f"sha256:{model_cache_key(path)[0]}"  # one identity
+    assert edge_model_id(path) == f"sha256:{_model_cache_key(path)[0]}"  # one identity
 
 
 # -- 4. result cache entries ---------------------------------------------------------------------

@@ -315,7 +315,7 @@ def _no_descriptors(fake, tmp_path):
 
 def _no_ground_truth_reference(fake, tmp_path):
     fake.ground_truth = np.zeros((3, 3), dtype=bool)
-    pair_matches(fake, SimpleNamespace(descriptors={}, label="dense"), query=1)
+    pair_matches(fake, SimpleNamespace(descriptors={}, boxes={}, label="dense"), query=1)
 
 
 #: id -> (call(fake, tmp_path), exception, message)
@@ -362,15 +362,15 @@ BAD_LABEL_CALLS = {
     ),
     "exact: option": (
         lambda f, t: label_matches(f, 0, 0, B1, B1, [[0, 0]], method="exact", on_unmatched="warn"),
-        TypeError,
-        "unexpected options for method='exact'",
+        ValueError,
+        "unknown exact label option\\(s\\) 'on_unmatched'; valid: image_size_r",
     ),
     "file: option": (
         lambda f, t: label_matches(
             f, 0, 0, B1, B1, [[0, 0]], method="file", labels="x.csv", model="points"
         ),
-        TypeError,
-        "unexpected options for method='file'",
+        ValueError,
+        "unknown file label option\\(s\\) 'model'; valid: on_unmatched",
     ),
     "exact: tolerance pair": (_tolerance_pair, LabelUnavailableError, "homography is known for"),
     "exact: no homographies": (
@@ -395,8 +395,8 @@ BAD_LABEL_CALLS = {
     ),
     "geometric: unknown option": (
         lambda f, t: label_matches(f, 0, 1, B3, B3, [[0, 0]], method="geometric", ratios=0.7),
-        TypeError,
-        r"unknown geometric-verification option\(s\) \['ratios'\]; valid: contrast_threshold",
+        ValueError,
+        r"unknown geometric label option\(s\) 'ratios'; valid: images, geometry, .*, ratio,",
     ),
     "geometric: option twice": (
         lambda f, t: label_matches(
@@ -488,7 +488,7 @@ BAD_LABEL_CALLS = {
     "pair: no descriptors": (
         _no_descriptors,
         ValueError,
-        "run_method\\(..., keep_descriptors=True",
+        "pair_matches needs the landmark descriptors of 'dense': run it with run_method",
     ),
     "pair: no reference": (
         _no_ground_truth_reference,

@@ -7,6 +7,8 @@ import numpy as np
 
 from .checks import check_boxes
 
+__all__ = ["box_iou", "box_iou_parsed", "paired_iou", "paired_iou_parsed"]
+
 
 def _iou_from_corners(*c: np.ndarray) -> np.ndarray:
     """IoU from ``(ax0, ay0, ax1, ay1, a_area, bx0, by0, bx1, by1, b_area)``, broadcast."""
@@ -30,11 +32,11 @@ def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     Returns:
         ``(Ka, Kb)`` float64 IoU in ``[0, 1]``.
     """
-    return _box_iou(check_boxes(a, "a"), check_boxes(b, "b"))
+    return box_iou_parsed(check_boxes(a, "a"), check_boxes(b, "b"))
 
 
-def _box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """:func:`box_iou` of parsed float64 ``(K, 4)`` boxes (no checks)."""
+def box_iou_parsed(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """:func:`box_iou` of boxes a caller already parsed (float64 ``(K, 4)``; no checks)."""
     return _iou_from_corners(
         a[:, 0:1],
         a[:, 1:2],
@@ -65,11 +67,11 @@ def paired_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         raise ValueError(
             f"paired_iou needs as many boxes in a as in b, got {a.shape[0]} and {b.shape[0]}"
         )
-    return _paired_iou(a, b)
+    return paired_iou_parsed(a, b)
 
 
-def _paired_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """:func:`paired_iou` of parsed float64 ``(P, 4)`` boxes (no checks)."""
+def paired_iou_parsed(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """:func:`paired_iou` of boxes a caller already parsed (float64 ``(P, 4)`` each; no checks)."""
     return _iou_from_corners(
         a[:, 0],
         a[:, 1],

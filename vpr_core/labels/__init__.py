@@ -8,26 +8,27 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import check_boxes, check_choice
+from ..checks import check_boxes, check_choice, check_descriptors_kept, check_options
 from ..datasets.ground_truth import ground_truth_references
 from ..matching import match_landmarks
 from .exact import (
     LabelRule,
     LabelUnavailableError,
-    _label_exact,
     as_label_rule,
     check_matches,
     dataset_image_size,
     is_ground_truth,
+    label_pair_exact,
     map_boxes,
 )
-from .file import LABEL_COLUMNS, _label_file, append_labels, read_label_file
+from .file import LABEL_COLUMNS, append_labels, label_pair_file, read_label_file
 from .geometric import (
+    GEOMETRIC_OPTIONS,
     PairGeometry,
     Verification,
-    _label_pair_geometric,
     estimate_pair_geometry,
     label_matches_geometric,
+    label_pair_geometric,
 )
 
 __all__ = [
@@ -45,6 +46,7 @@ __all__ = [
     "is_ground_truth",
     "label_matches",
     "label_matches_geometric",
+    "label_matches_parsed",
     "map_boxes",
     "pair_matches",
     "read_label_file",
@@ -53,6 +55,9 @@ __all__ = [
 
 #: Names :func:`label_matches` accepts.
 LABEL_METHODS = ("auto", "exact", "geometric", "file")
+
+#: The options each labeller takes beside ``rule`` and the file method's ``labels``.
+_OPTIONS = {"exact": ("image_size_r",), "file": ("on_unmatched",), "geometric": GEOMETRIC_OPTIONS}
 
 
 def resolve_label_method(dataset: Any, method: str, labels: Any) -> str:
@@ -90,10 +95,10 @@ def label_matches(
     m = check_matches(matches, len(bq), len(br))
     method = resolve_label_method(dataset, method, options.get("labels"))
     rule = as_label_rule(options, method)
-    return _label_parsed(dataset, q, r, bq, br, m, method, rule, **options)
+    return label_matches_parsed(dataset, q, r, bq, br, m, method, rule, **options)
 
 
-def _label_parsed(
+def label_matches_parsed(
     dataset: Any,
     q: int,
     r: int,
@@ -104,17 +109,15 @@ def _label_parsed(
     rule: LabelRule,
     **options: Any,
 ) -> np.ndarray:
-    """:func:`label_matches` of parsed boxes and matches and a resolved ``method`` (no checks)."""
+    """:func:`label_matches` of boxes, matches, a resolved ``method`` and a :class:`LabelRule` a
+    caller already parsed; the labeller's option names are checked here."""
     labels = options.pop("labels", None)  # the file method's CSV
-    allowed = {"exact": {"image_size_r"}, "file": {"on_unmatched"}}.get(method)
-    unknown = set(options) - allowed if allowed is not None else set()
-    if unknown:
-        raise TypeError(f"unexpected options for method={method!r}: {sorted(unknown)}")
+    check_options(options, _OPTIONS[method], f"{method} label")
     if method == "exact":
-        return _label_exact(dataset, q, r, bq, br, m, rule, **options)
+        return label_pair_exact(dataset, q, r, bq, br, m, rule, **options)
     if method == "file":
-        return _label_file(labels, q, r, bq, br, m, **options)
-    return _label_pair_geometric(dataset, q, r, bq, br, m, rule, **options)
+        return label_pair_file(labels, q, r, bq, br, m, **options)
+    return label_pair_geometric(dataset, q, r, bq, br, m, rule, **options)
 
 
 @dataclass(frozen=True)
@@ -149,11 +152,7 @@ def pair_matches(
 ) -> PairMatches:
     """Match and label the landmarks of one pair of a run with ``keep_descriptors=True`` (the
     data of Fig. 1-3 and 8); ``reference`` None: the query's ground-truth reference."""
-    if result.descriptors is None:
-        raise ValueError(
-            f"pair_matches needs the descriptors of {result.label!r}: run it with "
-            "run_method(..., keep_descriptors=True)"
-        )
+    descriptors = check_descriptors_kept(result, "pair_matches")
     gt = np.asarray(dataset.ground_truth, dtype=bool)
     q = int(query)
     if reference is None:
@@ -163,7 +162,7 @@ def pair_matches(
         reference = refs[0]
     r = int(reference)
     bq, br = result.boxes["query"][q], result.boxes["reference"][r]
-    m = match_landmarks(result.descriptors["query"][q], bq, result.descriptors["reference"][r], br)
+    m = match_landmarks(descriptors["query"][q], bq, descriptors["reference"][r], br)
     note = ""
     if gt[q, r]:
         try:

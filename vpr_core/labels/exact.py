@@ -8,8 +8,20 @@ from typing import Any
 
 import numpy as np
 
-from ..boxes import _paired_iou
+from ..boxes import paired_iou_parsed
 from ..checks import check_choice, check_int, check_range, check_shape
+
+__all__ = [
+    "RULE_FIELDS",
+    "LabelRule",
+    "LabelUnavailableError",
+    "as_label_rule",
+    "check_matches",
+    "dataset_image_size",
+    "is_ground_truth",
+    "label_pair_exact",
+    "map_boxes",
+]
 
 
 class LabelUnavailableError(ValueError):
@@ -58,10 +70,9 @@ def check_matches(matches: Any, n_q: int, n_r: int) -> np.ndarray:
     if np.size(matches) == 0:
         return np.zeros((0, 2), dtype=np.int64)
     m = check_shape(matches, "P 2", "matches").astype(np.int64)
-    if (m[:, 0] < 0).any() or (m[:, 0] >= n_q).any():
-        raise ValueError(f"matches reference query boxes outside 0..{n_q - 1}")
-    if (m[:, 1] < 0).any() or (m[:, 1] >= n_r).any():
-        raise ValueError(f"matches reference reference boxes outside 0..{n_r - 1}")
+    for col, side, n in ((0, "query", n_q), (1, "reference", n_r)):
+        if (m[:, col] < 0).any() or (m[:, col] >= n).any():
+            raise ValueError(f"matches reference {side} boxes outside 0..{n - 1}")
     return m
 
 
@@ -111,7 +122,7 @@ def map_boxes(
     return out
 
 
-def _label_exact(
+def label_pair_exact(
     dataset: Any,
     q: int,
     r: int,
@@ -121,7 +132,8 @@ def _label_exact(
     rule: LabelRule,
     image_size_r: tuple[int, int] | None = None,
 ) -> np.ndarray:
-    """``method="exact"`` of :func:`vpr_core.labels.label_matches` on parsed boxes and matches.
+    """``method="exact"`` of :func:`vpr_core.labels.label_matches` on boxes, matches and a rule
+    a caller already parsed (no checks).
 
     Raises:
         LabelUnavailableError: no homographies, or a ground-truth pair (q, r) with ``r != q``
@@ -147,4 +159,4 @@ def _label_exact(
         image_size_r if image_size_r is not None else dataset_image_size(dataset, "reference", r)
     )
     mapped = map_boxes(bq[m[:, 0]], np.asarray(Hs, dtype=np.float64)[q], size_r)
-    return _paired_iou(mapped, br[m[:, 1]]) >= rule.iou_threshold
+    return paired_iou_parsed(mapped, br[m[:, 1]]) >= rule.iou_threshold

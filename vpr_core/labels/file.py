@@ -14,6 +14,8 @@ import pandas as pd
 
 from ..checks import check_choice
 
+__all__ = ["LABEL_COLUMNS", "append_labels", "label_pair_file", "read_label_file"]
+
 #: Columns of a manual-label CSV, in order.
 LABEL_COLUMNS = ("query", "reference", "query_box_index", "reference_box_index", "correct")
 
@@ -49,12 +51,11 @@ def _validate_label_frame(df: Any, source: str = "labels") -> Any:
         )
     out = df[list(LABEL_COLUMNS)].copy()
     for c in LABEL_COLUMNS[:4]:
-        col = out[c]
         try:
-            num = col.astype(np.float64)
-        except (TypeError, ValueError) as e:
-            raise ValueError(f"label file {source}: column {c!r} must hold integers") from e
-        if num.isna().any() or (num != np.round(num)).any():
+            num = out[c].astype(np.float64)
+        except (TypeError, ValueError):
+            num = None
+        if num is None or num.isna().any() or (num != np.round(num)).any():
             raise ValueError(f"label file {source}: column {c!r} must hold integers")
         out[c] = num.astype(np.int64)
     out["correct"] = _parse_bool(out["correct"])
@@ -86,7 +87,7 @@ def _pair_table(df: Any, q: int, r: int, n_q: int, n_r: int) -> dict[tuple[int, 
     return table
 
 
-def _label_file(
+def label_pair_file(
     labels: Any,
     q: int,
     r: int,
@@ -95,8 +96,9 @@ def _label_file(
     m: np.ndarray,
     on_unmatched: str = "warn",
 ) -> np.ndarray:
-    """``method="file"`` of :func:`vpr_core.labels.label_matches` on parsed boxes and matches;
-    ``labels``: a CSV path or DataFrame; ``on_unmatched``: a labelled pair not among the matches."""
+    """``method="file"`` of :func:`vpr_core.labels.label_matches` on boxes and matches a caller
+    already parsed; ``labels``: a CSV path or DataFrame; ``on_unmatched``: a labelled pair not
+    among the matches."""
     check_choice(on_unmatched, "on_unmatched", ("warn", "ignore", "error"))
     if labels is None:
         raise ValueError(

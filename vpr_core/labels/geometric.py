@@ -10,9 +10,18 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..boxes import _paired_iou
+from ..boxes import paired_iou_parsed
 from ..checks import check_boxes, check_choice
 from .exact import LabelRule, LabelUnavailableError, check_matches, is_ground_truth, map_boxes
+
+__all__ = [
+    "GEOMETRIC_OPTIONS",
+    "PairGeometry",
+    "Verification",
+    "estimate_pair_geometry",
+    "label_matches_geometric",
+    "label_pair_geometric",
+]
 
 
 @dataclass
@@ -98,16 +107,21 @@ class Verification:
         check_choice(self.robust, "robust estimator", ("ransac", "magsac"))
 
 
-def as_verification(options: dict[str, Any]) -> Verification:
-    """A :class:`Verification` from ``verification=`` or its fields as keywords (not both)."""
+#: The options of ``method="geometric"`` (:func:`label_pair_geometric`): where the geometry comes
+#: from, and the :class:`Verification` as a value or as its fields.
+GEOMETRIC_OPTIONS = (
+    "images",
+    "geometry",
+    "geometry_cache",
+    "verification",
+    *(f.name for f in dataclasses.fields(Verification)),
+)
+
+
+def _as_verification(options: dict[str, Any]) -> Verification:
+    """A :class:`Verification` from ``verification=`` or its fields as keywords (not both); the
+    option names were checked against :data:`GEOMETRIC_OPTIONS`."""
     value = options.pop("verification", None)
-    names = {f.name for f in dataclasses.fields(Verification)}
-    unknown = set(options) - names
-    if unknown:
-        raise TypeError(
-            f"unknown geometric-verification option(s) {sorted(unknown)}; valid: "
-            f"{', '.join(sorted(names))}, verification"
-        )
     if value is None:
         return Verification(**options)
     if options:
@@ -236,7 +250,7 @@ def _geometric_labels(
         if geometry.homography is None:
             raise LabelUnavailableError("homography rule requested but the pair has no homography")
         mapped = map_boxes(bq[m[:, 0]], geometry.homography, geometry.image_size_r)
-        return _paired_iou(mapped, br[m[:, 1]]) >= rule.iou_threshold
+        return paired_iou_parsed(mapped, br[m[:, 1]]) >= rule.iou_threshold
     in_q = _inside(geometry.points_q, bq[m[:, 0]])  # (P, N)
     in_r = _inside(geometry.points_r, br[m[:, 1]])
     n_q = in_q.sum(1)
@@ -247,7 +261,7 @@ def _geometric_labels(
     return (n_qr >= rule.min_points) & (piou >= rule.point_iou)
 
 
-def _label_pair_geometric(
+def label_pair_geometric(
     dataset: Any,
     q: int,
     r: int,
@@ -257,7 +271,8 @@ def _label_pair_geometric(
     rule: LabelRule,
     **options: Any,
 ) -> np.ndarray:
-    """``method="geometric"`` of :func:`vpr_core.labels.label_matches` (parsed inputs).
+    """``method="geometric"`` of :func:`vpr_core.labels.label_matches` on boxes, matches, a rule
+    and options (:data:`GEOMETRIC_OPTIONS`) a caller already parsed (no checks).
 
     The geometry comes from ``geometry=``, else ``geometry_cache[(q, r)]``, else is estimated
     from ``images=(img_q, img_r)`` or the dataset's images (and cached); the other options are
@@ -266,7 +281,7 @@ def _label_pair_geometric(
     images = options.pop("images", None)
     geometry = options.pop("geometry", None)
     cache = options.pop("geometry_cache", None)
-    verification = as_verification(options)
+    verification = _as_verification(options)
     if not is_ground_truth(dataset, q, r):
         return np.zeros(len(m), dtype=bool)
     if geometry is None and cache is not None:

@@ -8,6 +8,8 @@ import numpy as np
 
 from ..checks import check_boxes, check_image_size
 
+__all__ = ["landmark_coverage"]
+
 
 def landmark_coverage(boxes: np.ndarray, image_size: Sequence[int]) -> np.ndarray:
     """``(H, W)`` count of boxes covering each pixel (Fig. 14): pixel ``(r, c)`` is covered when

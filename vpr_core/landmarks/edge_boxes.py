@@ -18,8 +18,7 @@ import cv2
 import numpy as np
 
 from .. import settings
-from ..checks import check_image
-from ..checks import check_int as check_count
+from ..checks import check_image, check_int, check_options
 from ..notices import notice
 from ..paper import N_LANDMARKS
 from ..utils import file_sha256
@@ -266,7 +265,7 @@ def _check_model(path: Path, copy: Path | None = None, raw: bytes | None = None)
         raise _bad_model(path, f"'edgeBins' must lie in [0, {n_bins})")
 
 
-def model_cache_key(path: Path) -> tuple[str, bytes]:
+def _model_cache_key(path: Path) -> tuple[str, bytes]:
     """``(sha256 hex, bytes)`` of a structured-edge model file, read now: the key of the loaded
     detector, so a file overwritten in place is loaded again (never keyed by path or mtime)."""
     raw = path.read_bytes()
@@ -277,7 +276,7 @@ def _detector(path: Path) -> Any:
     """The structured-edge detector of the model file's current bytes (cached by their sha256:
     the same identity as :func:`edge_model_id`). It is loaded from a private copy of the bytes
     that were hashed, so a file replaced while it loads cannot give the detector another key."""
-    digest, raw = model_cache_key(path)
+    digest, raw = _model_cache_key(path)
     sed = _SED_CACHE.get(digest)
     if sed is None:
         with tempfile.TemporaryDirectory(prefix="vpr-sed-") as tmp:
@@ -439,13 +438,8 @@ def edge_boxes(
         ValueError: the model file is not a readable structured-edge model.
     """
     image = check_image(image, allow_gray=True, min_size=2)
-    max_boxes = check_count(max_boxes, "max_boxes")
-    unknown = set(params) - set(EDGE_BOXES_DEFAULTS)
-    if unknown:
-        raise ValueError(
-            f"unknown edge_boxes parameter(s) {sorted(unknown)}; "
-            f"valid: {sorted(EDGE_BOXES_DEFAULTS)}"
-        )
+    max_boxes = check_int(max_boxes, "max_boxes")
+    check_options(params, EDGE_BOXES_DEFAULTS, "edge_boxes")
     p = {**EDGE_BOXES_DEFAULTS, **params}
     model_path = _resolve_model(model)
     if max_boxes == 0:

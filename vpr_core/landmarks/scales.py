@@ -11,6 +11,14 @@ import pandas as pd
 from ..checks import check_boxes, check_image_size
 from ..paper import N_SCALES, SCALE_EDGES, SCALE_LABELS
 
+__all__ = [
+    "normalized_scale",
+    "scale_distribution",
+    "scale_histogram",
+    "scale_index",
+    "scale_index_parsed",
+]
+
 
 def normalized_scale(boxes: np.ndarray, image_size: Sequence[int]) -> np.ndarray:
     """Normalized scale (Eq. 3) ``(K,)``: box area / image area, not clipped."""
@@ -27,8 +35,8 @@ def _bin(ratios: np.ndarray) -> np.ndarray:
     return np.searchsorted(np.asarray(SCALE_EDGES), ratios, side="right").astype(np.int64) + 1
 
 
-def _box_scale_index(b: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
-    """:func:`scale_index` of parsed boxes and ``(H, W)`` (no checks)."""
+def scale_index_parsed(b: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """``(K,)`` :func:`scale_index` of boxes and ``(H, W)`` a caller already parsed (no checks)."""
     return _bin(_normalized_scale(b, image_size))
 
 
@@ -38,7 +46,7 @@ def scale_index(
     """Table-1 scale index (1..9) ``(K,)`` of ``(K, 4)`` boxes (with ``image_size``) or of
     ``(K,)`` normalized scales (ratios above 1 give 9; a scalar ratio gives an int)."""
     if image_size is not None:
-        return _box_scale_index(check_boxes(boxes_or_ratios), check_image_size(image_size))
+        return scale_index_parsed(check_boxes(boxes_or_ratios), check_image_size(image_size))
     ratios = np.asarray(boxes_or_ratios, dtype=np.float64)
     if ratios.ndim == 2 and ratios.shape[1] == 4:
         raise ValueError("scale_index got (K, 4) boxes without image_size; pass image_size=(H, W)")

@@ -6,10 +6,12 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
-from typing import Any, Protocol, cast, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from ..boxes import box_iou_parsed
+from ..checks import check_int, is_int, is_number
 from ..paper import (
     DENSE_PER_SCALE,
     DENSE_SCALES,
@@ -21,9 +23,8 @@ from ..paper import (
     SCALE_PRIORITY_ORDER,
 )
 from ..utils import code_version
-from .dense import dense_sampling
 from .edge_boxes import edge_boxes
-from .selection import reduce_overlap, select_min_scale, select_scale_priority
+from .scales import scale_index_parsed
 
 __all__ = [
     "CandidateScheme",
@@ -38,7 +39,6 @@ __all__ = [
     "check_scheme",
     "option_text",
     "scheme_identity",
-    "scheme_version",
 ]
 
 
@@ -53,14 +53,20 @@ class CandidateScheme:
     """Base of the schemes that choose among an image's ``n_candidates`` Edge Box proposals.
 
     The pipeline computes (and caches) the proposals once per image and calls :meth:`select`,
-    so every such scheme shares them; a subclass defines ``n_candidates`` and ``select``.
+    so every such scheme shares them; a subclass defines ``n_candidates`` and :meth:`indices`
+    (or :meth:`select`).
     """
 
     n_candidates: int
 
+    def indices(self, candidates: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+        """``(N,)`` int64 indices of the kept ``candidates`` (float64 ``(M, 4)``, proposal order)
+        of an ``(H, W)`` image; both come parsed (the pipeline's, or a public function's)."""
+        raise NotImplementedError
+
     def select(self, candidates: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
         """The landmarks kept from ``candidates (M, 4)`` (proposal order) of an ``(H, W)`` image."""
-        raise NotImplementedError
+        return candidates[self.indices(candidates, image_size)]
 
     def boxes(self, image: np.ndarray) -> np.ndarray:
         """The landmarks of one image: its Edge Box proposals, then :meth:`select`."""
@@ -85,23 +91,13 @@ class SizeScheme:
 # ---------------------------------------------------------------------------------------------
 
 
-def _is_int(v: Any) -> bool:
-    return isinstance(v, numbers.Integral) and not isinstance(v, bool)
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
-
-
 def _is_sequence(v: Any) -> bool:
     return isinstance(v, (list, tuple)) and len(v) > 0
 
 
 def _bad(obj: object, key: str, expected: str) -> ValueError:
-    value = getattr(obj, key)
-    return ValueError(
-        f"{type(obj).__name__}: option {key}={value!r} is not valid; expected {expected}"
-    )
+    """The one wording of a scheme option's refusal: names the class, the option and the fix."""
+    return ValueError(f"{type(obj).__name__}.{key} must be {expected}, got {getattr(obj, key)!r}")
 
 
 def _set(obj: object, key: str, value: Any) -> None:
@@ -109,15 +105,12 @@ def _set(obj: object, key: str, value: Any) -> None:
 
 
 def _count(obj: object, key: str) -> None:
-    value = getattr(obj, key)
-    if not (_is_int(value) and value >= 1):
-        raise _bad(obj, key, "a positive integer (at least 1)")
-    _set(obj, key, int(value))
+    _set(obj, key, check_int(getattr(obj, key), f"{type(obj).__name__}.{key}", 1))
 
 
 def _fraction(obj: object, key: str) -> None:
     value = getattr(obj, key)
-    if not (_is_number(value) and 0 <= value <= 1):
+    if not (is_number(value) and 0 <= value <= 1):
         raise _bad(obj, key, "a number in [0, 1]")
     _set(obj, key, float(value))
 
@@ -138,9 +131,9 @@ class EdgeBoxesTop(CandidateScheme):
         _count(self, "n")
         _count(self, "n_candidates")
 
-    def select(self, candidates: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    def indices(self, candidates: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
         """The first ``n`` candidates."""
-        return np.array(candidates[: self.n], dtype=np.float64)
+        return np.arange(min(self.n, len(candidates)), dtype=np.int64)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -154,15 +147,14 @@ class MinScale(CandidateScheme):
     def __post_init__(self) -> None:
         _count(self, "n")
         _count(self, "n_candidates")
-        if not (_is_int(self.min_index) and 1 <= self.min_index <= N_SCALES):
-            raise _bad(self, "min_index", f"a Table-1 scale index 1..{N_SCALES}, e.g. 4")
+        if not (is_int(self.min_index) and 1 <= self.min_index <= N_SCALES):
+            raise _bad(self, "min_index", f"a Table-1 scale index 1..{N_SCALES} (e.g. 4)")
         _set(self, "min_index", int(self.min_index))
 
-    def select(self, candidates: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
-        """Algorithm 1 on ``candidates``."""
-        return cast(
-            np.ndarray, select_min_scale(candidates, image_size, n=self.n, min_index=self.min_index)
-        )
+    def indices(self, candidates: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+        """Algorithm 1: the first ``n`` candidates whose Table-1 scale index is >= ``min_index``."""
+        scale = scale_index_parsed(candidates, image_size)
+        return np.flatnonzero(scale >= self.min_index)[: self.n].astype(np.int64)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -179,22 +171,30 @@ class ScalePriority(CandidateScheme):
         order = self.order
         if (
             not _is_sequence(order)
-            or not all(_is_int(v) and 1 <= v <= N_SCALES for v in order)
+            or not all(is_int(v) and 1 <= v <= N_SCALES for v in order)
             or len(set(order)) != len(order)
         ):
             raise _bad(
                 self,
                 "order",
-                "a non-empty sequence of distinct Table-1 scale indices 1..9, "
-                "e.g. (5, 6, 7, 8, 9, 4)",
+                "a non-empty sequence of distinct Table-1 scale indices 1..9 "
+                "(e.g. (5, 6, 7, 8, 9, 4))",
             )
         _set(self, "order", tuple(int(v) for v in order))
 
-    def select(self, candidates: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
-        """Algorithm 2 on ``candidates``."""
-        return cast(
-            np.ndarray, select_scale_priority(candidates, image_size, n=self.n, order=self.order)
-        )
+    def indices(self, candidates: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+        """Algorithm 2: all candidates of scale ``order[0]``, then all of ``order[1]``, ...,
+        until ``n`` are kept; scales absent from ``order`` never are."""
+        scale = scale_index_parsed(candidates, image_size)
+        picked: list[np.ndarray] = []
+        total = 0
+        for s in self.order:
+            if total >= self.n:
+                break
+            cand = np.flatnonzero(scale == s)[: self.n - total]
+            picked.append(cand)
+            total += cand.size
+        return np.concatenate(picked).astype(np.int64)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -210,11 +210,26 @@ class ReduceOverlap(CandidateScheme):
         _count(self, "n_candidates")
         _fraction(self, "iou_threshold")
 
-    def select(self, candidates: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
-        """Algorithm 3 on ``candidates``."""
-        return cast(
-            np.ndarray, reduce_overlap(candidates, n=self.n, iou_threshold=self.iou_threshold)
-        )
+    def indices(
+        self, candidates: np.ndarray, image_size: tuple[int, int] | None = None
+    ) -> np.ndarray:
+        """Algorithm 3: the first candidate is kept, then each one whose IoU with every kept box
+        is ``<= iou_threshold``, until ``n`` are kept. Each kept box's IoU with the later
+        candidates is folded into a running maximum: a candidate's test is one compare."""
+        b, t = candidates, self.iou_threshold
+        kept: list[int] = []
+        max_iou = np.zeros(b.shape[0], dtype=np.float64)  # max IoU with the boxes kept so far
+        for i in range(b.shape[0]):
+            if len(kept) >= self.n:
+                break
+            if i == 0 or max_iou[i] <= t:
+                kept.append(i)
+                np.maximum(
+                    max_iou[i + 1 :],
+                    box_iou_parsed(b[i : i + 1], b[i + 1 :])[0],
+                    out=max_iou[i + 1 :],
+                )
+        return np.asarray(kept, dtype=np.int64)
 
     def note(self) -> str:
         """Its legend text: the IoU threshold."""
@@ -223,7 +238,8 @@ class ReduceOverlap(CandidateScheme):
 
 @dataclasses.dataclass(frozen=True)
 class Dense(SizeScheme):
-    """Sec. 4: ``per_scale`` boxes on a grid at each normalised scale (area ratio) of ``scales``.
+    """Sec. 4: ``per_scale`` boxes on a grid at each normalised scale (area ratio) of ``scales``
+    (docs/DEFINITIONS.md).
 
     ``per_scale`` is a perfect square, or one per scale (Table 3).
     """
@@ -233,35 +249,57 @@ class Dense(SizeScheme):
 
     def __post_init__(self) -> None:
         scales = self.scales
-        if isinstance(scales, (str, bytes)) or not isinstance(scales, (list, tuple)):
+        if not (
+            isinstance(scales, (list, tuple))
+            and scales
+            and all(is_number(s) and 0 < s <= 1 for s in scales)
+        ):
             raise _bad(
-                self, "scales", "a sequence of normalised scales in (0, 1], e.g. (0.16, 0.25)"
+                self,
+                "scales",
+                "a non-empty sequence of normalised scales (area ratios) in (0, 1], "
+                "e.g. (0.16, 0.25)",
             )
-        if not scales or not all(_is_number(s) and 0 < s <= 1 for s in scales):
-            raise _bad(self, "scales", "a non-empty sequence of numbers in (0, 1]")
         _set(self, "scales", tuple(float(s) for s in scales))
         counts: Any = self.per_scale
-        if _is_int(counts) and counts > 0:
-            _set(self, "per_scale", int(counts))
-        elif _is_sequence(counts) and all(_is_int(v) and v > 0 for v in counts):
-            if len(counts) != len(scales):
-                raise _bad(self, "per_scale", f"one count per scale ({len(scales)}) or one int")
-            _set(self, "per_scale", tuple(int(v) for v in counts))
-        else:
-            raise _bad(self, "per_scale", "a positive integer (a square, e.g. 25) or one per scale")
-        each = counts if isinstance(counts, (list, tuple)) else (counts,)
-        if any(math.isqrt(int(c)) ** 2 != c for c in each):
+        many = isinstance(counts, (list, tuple))
+        each = [check_int(c, "Dense.per_scale", 1) for c in (counts if many else (counts,))]
+        if many and len(each) != len(scales):
+            raise _bad(self, "per_scale", f"one count per scale ({len(scales)}) or one int")
+        if any(math.isqrt(c) ** 2 != c for c in each):
             raise _bad(self, "per_scale", "perfect squares (a g x g grid: 9, 16, 25, 36, 49)")
+        _set(self, "per_scale", tuple(each) if many else each[0])
 
     def for_size(self, image_size: tuple[int, int]) -> np.ndarray:
-        """The dense grid of an ``(H, W)`` image (:func:`~vpr_core.landmarks.dense_sampling`)."""
-        return dense_sampling(image_size, scales=self.scales, per_scale=self.per_scale)
+        """The dense grid of an ``(H, W)`` image: ``(sum(per_scale), 4)`` boxes, scale by
+        scale, row by row, by increasing ``x`` (:func:`~vpr_core.landmarks.dense_sampling`)."""
+        H, W = image_size
+        counts = self.per_scale
+        each = counts if isinstance(counts, tuple) else (counts,) * len(self.scales)
+        blocks = [
+            _grid_boxes(a, math.isqrt(c), H, W) for a, c in zip(self.scales, each, strict=True)
+        ]
+        return np.concatenate(blocks, axis=0)
 
     def note(self) -> str:
         """Its legend text: ``"0.25/0.49 x 49"``, empty at the paper's setting."""
         if self == Dense():
             return ""
         return f"{option_text(self.scales)} x {option_text(self.per_scale)}"
+
+
+def _grid_boxes(area_ratio: float, g: int, H: int, W: int) -> np.ndarray:
+    """``(g*g, 4)`` boxes of one scale on a ``g x g`` grid, row by row."""
+    s = math.sqrt(float(area_ratio))
+    w, h = s * W, s * H
+    if g == 1:
+        xs = np.array([(W - w) / 2.0])
+        ys = np.array([(H - h) / 2.0])
+    else:
+        xs = np.arange(g) * ((W - w) / (g - 1))
+        ys = np.arange(g) * ((H - h) / (g - 1))
+    yy, xx = np.meshgrid(ys, xs, indexing="ij")  # row-major: y outer, x inner
+    return np.stack([xx.ravel(), yy.ravel(), np.full(g * g, w), np.full(g * g, h)], axis=1)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -326,7 +364,7 @@ def _plain(value: Any) -> bool:
     return value is None or isinstance(value, (str, bool, numbers.Number))
 
 
-def scheme_version(scheme: Any) -> str | None:
+def _scheme_version(scheme: Any) -> str | None:
     """The version a scheme's stored boxes are keyed by, or None: not stored.
 
     The package's schemes: the landmark code's version
@@ -348,11 +386,11 @@ def scheme_identity(scheme: Any) -> dict[str, Any]:
 
     Returns:
         ``{"scheme": "<module>.<qualified name>", "params": dataclasses.asdict(scheme),
-        "version": scheme_version(scheme)}`` (JSON-able; ``version`` None: not stored).
+        "version": ...}`` (JSON-able; ``version`` None: not stored).
     """
     cls = type(check_scheme(scheme))
     return {
         "scheme": f"{cls.__module__}.{cls.__qualname__}",
         "params": dataclasses.asdict(scheme),
-        "version": scheme_version(scheme),
+        "version": _scheme_version(scheme),
     }
