@@ -595,7 +595,7 @@ def test_gradient_edge_map_is_the_same_bits_on_every_simd_path():
     turning OpenCV's optimised paths off changes no bit. Same operator as cv2's, to float32."""
     import cv2
 
-    from vpr_core.landmarks import edge_map as eb
+    from vpr_core.landmarks import _edge_map as eb
 
     rng = np.random.default_rng(3)
     img = cv2.GaussianBlur(rng.integers(0, 256, (90, 160, 3), dtype=np.uint8), (0, 0), 3)

@@ -22,7 +22,7 @@ from ..checks import check_image, check_int, check_options
 from ..notices import notice
 from ..paper import N_LANDMARKS
 from ..utils import file_sha256
-from .edge_map import gradient_edges
+from ._edge_map import gradient_edges
 
 __all__ = ["EDGE_BOXES_DEFAULTS", "EdgeBoxes", "edge_boxes", "edge_model_id"]
 
