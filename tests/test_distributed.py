@@ -173,10 +173,13 @@ def test_unreachable_scheduler_names_address_and_fix():
         get_client("tcp://127.0.0.1:1", timeout=2)
 
 
+_D2, _B4 = [np.ones((1, 2))], [np.ones((1, 4))]
+
+
 def test_feature_arguments_validated(small_set):
     with pytest.raises(ValueError, match="one boxes array per image"):
         extract_features_distributed(None, small_set, "query", ENCODER, boxes=[np.zeros((0, 4))])
-    with pytest.raises(ValueError, match="side must be"):
+    with pytest.raises(ValueError, match="unknown side 'left'"):
         extract_features_distributed(None, small_set, "left", ENCODER)
     with pytest.raises(ValueError, match="block_queries must be"):
         similarity_blocks_distributed(
@@ -187,6 +190,25 @@ def test_feature_arguments_validated(small_set):
             [np.ones((1, 4))],
             block_queries=0,
         )
+
+
+@pytest.mark.parametrize(
+    ("sides", "message"),
+    [
+        ((_D2 + _D2, _B4, _D2, _B4), "query_desc has 2 images but query_boxes has 1"),
+        ((_D2, _B4, [], []), "reference_desc is empty"),
+    ],
+)
+def test_block_lists_refused_as_in_process(sides, message):
+    """The Dask engine checks the lists by the in-process rule (one site, one wording) before a
+    task is sent: the client is never touched."""
+    for call in (
+        lambda: similarity_blocks_distributed(object(), *sides),
+        lambda: similarity_pairs_distributed(object(), *sides, np.zeros((0, 2), np.int64)),
+        lambda: similarity_matrix(*sides),
+    ):
+        with pytest.raises(ValueError, match=message):
+            call()
 
 
 def _serve(handler, seconds: float = 30.0):

@@ -617,9 +617,9 @@ def test_scheduler_without_workers_says_what_to_check():
 
 
 def test_lost_workers_say_what_to_check():
-    from vpr_core.engine.client import cluster_lost
+    from vpr_core.engine.client import _cluster_lost
 
-    text = str(cluster_lost(None, "features (dask)", "no worker left for 15 s"))
+    text = str(_cluster_lost(None, "features (dask)", "no worker left for 15 s"))
     assert "check that its `dask worker` processes run" in text
 
 

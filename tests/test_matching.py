@@ -346,7 +346,11 @@ _D, _B = [np.ones((3, 8))], [np.ones((3, 4))]
         ((_D, [np.ones((2, 4))], _D, _B), {}, r"query_boxes\[0\] has 2 boxes"),
         ((_D, [np.ones((3, 3))], _D, _B), {}, r"\(K, 4\)"),
         (([np.full((3, 8), np.nan)], _B, _D, _B), {}, "query_desc contains NaN"),
-        (([np.ones((3, 8)), np.ones((3, 7))], _B + _B, _D, _B), {}, "mixes"),
+        (
+            ([np.ones((3, 8)), np.ones((3, 7))], _B + _B, _D, _B),
+            {},
+            r"dimensions differ: query_desc\[0\] D=8, query_desc\[1\] D=7",
+        ),
         ((_D, _B, _D, _B), {"soft_nms_iou": 1.5}, "soft_nms_iou"),
         ((_D, _B, _D, _B), {"soft_nms_iou": 0.5, "sigma": 0}, "sigma"),
         (([], [], _D, _B), {}, "query_desc is empty"),
@@ -362,6 +366,7 @@ def test_similarity_matrix_bad_inputs(args, kwargs, message):
     [
         (lambda: Compute(matmul_dtype="float16"), "unknown matmul_dtype 'float16'"),
         (lambda: Compute(batch_size=0), "batch_size must be a positive integer"),
+        (lambda: Compute(device="gpu0"), "device='gpu0' is not a torch device"),
         (lambda: Matching(soft_nms_iou=True), "soft_nms_iou=True is not valid"),
         (lambda: Matching(spatial="ransac"), "spatial='ransac' is not valid"),
         (
@@ -394,10 +399,10 @@ def test_matching_values_refuse_bad_fields(build, message):
             "boxes_a has 3 boxes",
         ),
         (shape_penalty, (np.array([[0, 0, -1, 2.0]]), np.ones((1, 4))), "boxes_a has negative"),
-        (reciprocal_matches, (np.ones(3), np.ones((2, 3))), r"desc_a must be \(K, D\)"),
+        (reciprocal_matches, (np.ones(3), np.ones((2, 3))), r"desc_a must have shape \(K, D\)"),
         (reciprocal_matches, (np.ones((2, 3)), np.full((2, 3), np.inf)), "desc_b contains NaN"),
         (cosine_distance, (np.ones((2, 3)), np.ones((2, 4))), "dimensions differ"),
-        (cosine_distance, (np.ones(3), np.ones((2, 3))), r"desc_a must be a \(K, D\)"),
+        (cosine_distance, (np.ones(3), np.ones((2, 3))), r"desc_a must have shape \(K, D\)"),
     ],
 )
 def test_one_pair_bad_inputs(fn, args, message):
@@ -436,9 +441,9 @@ def test_soft_nms_sigma_default_is_the_papers():
 
 @pytest.mark.skipif(torch.cuda.is_available(), reason="checks the no-GPU message")
 def test_cuda_without_gpu_is_a_clear_error():
-    d, bx = [np.ones((3, 8))], [np.ones((3, 4))]
-    with pytest.raises(ValueError, match="no CUDA GPU"):
-        similarity_matrix(d, bx, d, bx, compute=Compute(device="cuda"))
+    """Refused where the value is made (checks.check_device), before any matching call."""
+    with pytest.raises(ValueError, match="device='cuda' but torch sees no CUDA GPU"):
+        Compute(device="cuda")
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")

@@ -230,11 +230,11 @@ def test_one_pair_functions_are_the_reference(monkeypatch):
     assert len(calls) == 2
 
 
-def test_reference_refuses_a_weighting_naming_the_block_engine():
+def test_one_pair_refuses_a_weighting_naming_the_block_engine():
     d, b = np.ones((3, 4)), np.ones((3, 4))
     for w in ("contrast", "idf"):
         with pytest.raises(ValueError, match="weighted_matches .* the block engine"):
-            match_pair(d, b, d, b, Matching(weighting=w))
+            match_landmarks(d, b, d, b, Matching(weighting=w))
 
 
 def test_no_descriptor_dimension_scores_zero_like_the_engine():

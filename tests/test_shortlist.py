@@ -65,7 +65,7 @@ def test_shortlist_k_clipped_and_validated():
             shortlist_pairs(q, r, bad)
     with pytest.raises(ValueError, match="dimensions differ"):
         shortlist_pairs(q, rng.standard_normal((5, 3)), 2)
-    with pytest.raises(ValueError, match=r"global_query\[1\] contains NaN"):
+    with pytest.raises(ValueError, match=r"global_query contains NaN or inf \(first at row 1\)"):
         shortlist_pairs(np.r_[q[:1], [[np.nan] * 4], q[2:]], r, 2)
     with pytest.raises(ValueError, match=r"\(N, D\)"):
         shortlist_pairs(q[0], r, 2)

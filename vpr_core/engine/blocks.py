@@ -10,13 +10,17 @@ import numpy as np
 
 from ..checks import check_int
 from ..matching import Compute, Matching, check_pairs, similarity_matrix, similarity_pairs
+from ..matching.sides import landmark_lists
 from ..matching.weighting import weighting_sample
 from .client import gather_in_order
 
-__all__ = ["similarity_blocks_distributed", "similarity_pairs_distributed"]
+__all__ = ["QUERY_BATCH", "similarity_blocks_distributed", "similarity_pairs_distributed"]
 
 #: Query batch of :func:`vpr_core.matching.similarity_matrix` (its ``batch_size`` default).
 QUERY_BATCH = 8
+#: The tasks' block settings (no progress bar on a worker).
+_MATRIX_TASK = Compute(batch_size=QUERY_BATCH, show_progress=False)
+_PAIRS_TASK = Compute(show_progress=False)
 
 
 @dataclass(frozen=True)
@@ -26,16 +30,6 @@ class _Part:
 
     desc: list
     boxes: list
-
-
-def _check_lists(desc: Any, boxes: Any, side: str) -> tuple[list, list]:
-    """One array per image on both lists, equal lengths (a stacked array is split)."""
-    dl, bl = list(desc), list(boxes)
-    if len(dl) != len(bl):
-        raise ValueError(f"{side}_desc has {len(dl)} images but {side}_boxes has {len(bl)}")
-    if not dl:
-        raise ValueError(f"{side}_desc is empty")
-    return dl, bl
 
 
 def _block_size(n: Any, name: str) -> int:
@@ -55,9 +49,8 @@ def _query_part(qd: list, qb: list, q0: int, q1: int, wide: int) -> _Part:
 
 def _matrix_task(qpart: _Part, refs: _Part, matching: Matching) -> np.ndarray:
     """Task: Eq. (1) of a query block x all references; ``(bq, Nr)`` (extra row dropped)."""
-    compute = Compute(batch_size=QUERY_BATCH, show_progress=False)
     out = similarity_matrix(
-        qpart.desc, qpart.boxes, refs.desc, refs.boxes, matching=matching, compute=compute
+        qpart.desc, qpart.boxes, refs.desc, refs.boxes, matching=matching, compute=_MATRIX_TASK
     )
     return out[:-1]
 
@@ -93,8 +86,8 @@ def similarity_blocks_distributed(
         return similarity_matrix(
             query_desc, query_boxes, reference_desc, reference_boxes, matching=matching
         )
-    qd, qb = _check_lists(query_desc, query_boxes, "query")
-    rd, rb = _check_lists(reference_desc, reference_boxes, "reference")
+    qd, qb = landmark_lists(query_desc, query_boxes, "query")
+    rd, rb = landmark_lists(reference_desc, reference_boxes, "reference")
     wide = _widest(qd)
     refs = client.scatter(_Part(rd, rb), broadcast=True, hash=False)
     starts = list(range(0, len(qd), bq))
@@ -140,7 +133,7 @@ def _pairs_task(
         rb + wide_ref.boxes,
         local_pairs,
         matching,
-        Compute(show_progress=False),
+        _PAIRS_TASK,
         local_sample,
     )
 
@@ -181,8 +174,8 @@ def similarity_pairs_distributed(
         return similarity_pairs(
             query_desc, query_boxes, reference_desc, reference_boxes, pairs, matching
         )
-    qd, qb = _check_lists(query_desc, query_boxes, "query")
-    rd, rb = _check_lists(reference_desc, reference_boxes, "reference")
+    qd, qb = landmark_lists(query_desc, query_boxes, "query")
+    rd, rb = landmark_lists(reference_desc, reference_boxes, "reference")
     pr = check_pairs(pairs, len(qd), len(rd))
     if pr.shape[0] == 0:
         return np.zeros(0, dtype=np.float64)

@@ -14,14 +14,7 @@ from .. import settings
 from ..settings import SCHEDULER_ENV
 from ..utils import logger, progress
 
-__all__ = [
-    "SCHEDULER_ENV",
-    "cluster_lost",
-    "gather_in_order",
-    "get_client",
-    "probe_scheduler",
-    "scheduler_address",
-]
+__all__ = ["POLL_S", "SCHEDULER_ENV", "gather_in_order", "get_client", "scheduler_address"]
 
 _ADDRESS = re.compile(r"(tcp|tls|inproc|ucx)://(\[[^\]]+\]|[^:/\[\]]+):(\d{1,5})")
 #: A Dask handshake message is a few hundred bytes; anything near this is not Dask speaking.
@@ -61,7 +54,7 @@ def scheduler_address(scheduler: str | None = None) -> str | None:
     return addr
 
 
-def probe_scheduler(addr: str, timeout: float) -> None:
+def _probe_scheduler(addr: str, timeout: float) -> None:
     """Check, within ``timeout`` seconds, that a Dask scheduler answers at a ``tcp://`` address.
 
     A Dask server sends its handshake as soon as a connection opens: the probe reads its 8-byte
@@ -131,7 +124,7 @@ def get_client(scheduler: str | None = None, timeout: float | None = None):
     if addr is None:
         return None
     timeout = settings.scheduler_timeout() if timeout is None else float(timeout)
-    probe_scheduler(addr, timeout)
+    _probe_scheduler(addr, timeout)
     try:
         from distributed import Client
     except ImportError as e:  # pragma: no cover - dask[distributed] is a dependency
@@ -162,7 +155,7 @@ def get_client(scheduler: str | None = None, timeout: float | None = None):
     return client
 
 
-def cluster_lost(client, desc: str, why: object) -> ConnectionError:
+def _cluster_lost(client, desc: str, why: object) -> ConnectionError:
     """The one-line error of a cluster fault during ``desc``: it names the scheduler's address,
     says that cached work is kept, and how to go on."""
     addr = getattr(getattr(client, "scheduler", None), "address", None) or "the scheduler"
@@ -184,7 +177,7 @@ def gather_in_order(client, futures: list, desc: str) -> list:
 
     A task's own exception is re-raised as it is. A cluster fault (the scheduler killed, every
     worker lost for longer than :func:`vpr_core.settings.scheduler_timeout`, tasks cancelled)
-    becomes one :class:`ConnectionError` (:func:`cluster_lost`).
+    becomes one :class:`ConnectionError` (:func:`_cluster_lost`).
     """
     from distributed import KilledWorker
     from distributed.comm.core import CommClosedError
@@ -212,12 +205,12 @@ def gather_in_order(client, futures: list, desc: str) -> list:
                 if client.scheduler_info().get("workers"):
                     seen = now
                 elif now - seen >= patience:
-                    raise cluster_lost(client, desc, f"no worker left for {now - seen:.0f} s")
+                    raise _cluster_lost(client, desc, f"no worker left for {now - seen:.0f} s")
             pending = still
             if pending:
                 time.sleep(0.05)
         return client.gather(futures)
     except faults as exc:
-        raise cluster_lost(client, desc, f"{type(exc).__name__}: {exc}") from exc
+        raise _cluster_lost(client, desc, f"{type(exc).__name__}: {exc}") from exc
     finally:
         bar.close()

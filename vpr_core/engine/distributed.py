@@ -17,7 +17,8 @@ from torch import nn
 from ..backbones import weights_sha256
 from ..backbones.checkpoint import state_dict_sha256
 from ..backbones.module import architecture_sha256
-from ..checks import check_int
+from ..checks import check_choice, check_int
+from ..datasets.base import SIDES
 from ..features import LandmarkEncoder
 from ..features.encoder import as_encoder
 from ..utils import progress
@@ -148,10 +149,8 @@ def extract_features_distributed(
         ValueError: bad side/kind/shard size, boxes missing or of the wrong length.
         RuntimeError: a worker's encoder config differs from the client's (package versions).
     """
-    if side not in ("query", "reference"):
-        raise ValueError(f"side must be 'query' or 'reference', got {side!r}")
-    if kind not in ("landmarks", "global"):
-        raise ValueError(f"kind must be 'landmarks' or 'global', got {kind!r}")
+    check_choice(side, "side", SIDES)
+    check_choice(kind, "kind", ("landmarks", "global"))
     shard_size = check_int(shard_size, "shard_size", 1)
     n_side = len(dataset.paths(side))
     idx = list(range(n_side)) if indices is None else [int(i) for i in indices]

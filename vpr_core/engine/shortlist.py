@@ -5,18 +5,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..checks import check_int
+from ..checks import check_finite, check_int
 from ..datasets.base import SIDES
 from ..matching import check_pairs
-from ..matching.sides import rescale_rows
+from ..matching.sides import check_same_dim, rescale_rows
 
 __all__ = [
+    "CHUNK_QUERIES",
     "global_cosine",
     "rerank",
     "shortlist_pairs",
     "split_whole_image",
     "topk_lowest_index",
-    "whole_image_box",
     "with_whole_image_boxes",
 ]
 
@@ -40,14 +40,7 @@ def _check_global(x: np.ndarray, name: str) -> np.ndarray:
         )
     if not np.issubdtype(arr.dtype, np.number):
         raise ValueError(f"{name} must be numeric, got dtype {arr.dtype}")
-    arr = arr.astype(np.float64, copy=False)
-    if not np.isfinite(arr).all():
-        bad = int(np.flatnonzero(~np.isfinite(arr).all(1))[0])
-        raise ValueError(
-            f"{name}[{bad}] contains NaN or inf: recompute that image's global "
-            "descriptor (a corrupt feature cache can be deleted and rebuilt)"
-        )
-    return arr
+    return check_finite(arr.astype(np.float64, copy=False), name)
 
 
 def _unit(x: np.ndarray) -> np.ndarray:
@@ -73,11 +66,7 @@ def global_cosine(global_query: np.ndarray, global_reference: np.ndarray) -> np.
     """
     q = _unit(_check_global(global_query, "global_query"))
     r = _unit(_check_global(global_reference, "global_reference"))
-    if q.shape[1] != r.shape[1]:
-        raise ValueError(
-            f"global descriptor dimensions differ: query D={q.shape[1]}, "
-            f"reference D={r.shape[1]} (use the same encoder for both sides)"
-        )
+    check_same_dim([("global_query", q.shape[1]), ("global_reference", r.shape[1])])
     out = np.empty((q.shape[0], r.shape[0]), dtype=np.float64)
     for q0 in range(0, q.shape[0], CHUNK_QUERIES):
         np.matmul(q[q0 : q0 + CHUNK_QUERIES], r.T, out=out[q0 : q0 + CHUNK_QUERIES])
@@ -167,10 +156,7 @@ def rerank(similarity_pairs_values: np.ndarray, pairs: np.ndarray, nq: int, nr: 
             f"similarity_pairs_values must have shape ({pr.shape[0]},) (one value "
             f"per pair), got {vals.shape}"
         )
-    if not np.isfinite(vals).all():
-        raise ValueError(
-            "similarity_pairs_values contains NaN or inf; Eq. (1) values are finite: recompute them"
-        )
+    check_finite(vals, "similarity_pairs_values")
     out = np.full((nq, nr), np.nan, dtype=np.float64)
     out[pr[:, 0], pr[:, 1]] = vals
     if not np.array_equal(out[pr[:, 0], pr[:, 1]], vals):
@@ -178,7 +164,7 @@ def rerank(similarity_pairs_values: np.ndarray, pairs: np.ndarray, nq: int, nr: 
     return out
 
 
-def whole_image_box(image_size: tuple[int, int]) -> np.ndarray:
+def _whole_image_box(image_size: tuple[int, int]) -> np.ndarray:
     """``(1, 4)`` float64 box ``(0, 0, W, H)`` of an image of size ``(H, W)``."""
     h, w = image_size
     return np.array([[0.0, 0.0, float(w), float(h)]])
@@ -204,7 +190,7 @@ def with_whole_image_boxes(boxes: dict, dataset) -> dict:
             np.concatenate(
                 [
                     np.asarray(b, dtype=np.float64).reshape(-1, 4),
-                    whole_image_box(dataset.image_size(side, i)),
+                    _whole_image_box(dataset.image_size(side, i)),
                 ]
             )
             for i, b in enumerate(boxes[side])

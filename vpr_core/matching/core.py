@@ -10,21 +10,22 @@ import threading
 from dataclasses import dataclass
 from typing import NamedTuple
 
+import numpy as np
 import torch
 
+from ..boxes import box_iou
 from .reciprocal import TIE_TOL, reciprocal
 from .sides import (
     PAD,
     LandmarkSets,
     Selection,
     Side,
-    iou_stack,
+    check_same_dim,
     prepare_side,
     selection_index,
     selection_size,
 )
 from .spec import Compute, Matching
-from .weighting import database_weights, weighting_stats
 
 __all__ = [
     "BLOCK_BYTES",
@@ -36,7 +37,6 @@ __all__ = [
     "score_block",
     "shape_terms",
     "soft_nms",
-    "spatial_weights",
 ]
 
 #: Soft-NMS: current pair scores closer than this to the best are ties (lowest pair index wins).
@@ -63,7 +63,7 @@ def shape_terms(
     return torch.exp(0.5 * (term(wa, wb) + term(ha, hb)))
 
 
-class SoftNMS(NamedTuple):
+class _SoftNMS(NamedTuple):
     """Algorithm 4's settings and every image's box IoUs ``(N, K, K)`` per side."""
 
     iou_q: torch.Tensor
@@ -77,7 +77,7 @@ def soft_nms(
     alive: torch.Tensor,
     oq: torch.Tensor,
     orf: torch.Tensor,
-    nms: SoftNMS,
+    nms: _SoftNMS,
 ) -> torch.Tensor:
     """Algorithm 4 (soft-NMS, overlap Scheme 2) on G image pairs in lockstep.
 
@@ -117,7 +117,7 @@ def _nms_block(
     m: Matches,
     iou_q: torch.Tensor,
     iou_r: torch.Tensor,
-    nms: SoftNMS,
+    nms: _SoftNMS,
     weight: torch.Tensor | None = None,
     group: int = 1024,
 ) -> torch.Tensor:
@@ -167,7 +167,7 @@ def _nms_block(
 
 
 # ---- (not in the paper) geometry-aware re-scoring -----------------------------------------
-def spatial_weights(
+def _spatial_weights(
     q: Side,
     r: Side,
     qsel: Selection,
@@ -217,7 +217,7 @@ class Matches(NamedTuple):
     cos64: torch.Tensor | None  # float64 cos(i, j) exact to ~1e-15 (Algorithm 4 only)
 
 
-def cat_matches(parts: list[Matches]) -> Matches:
+def _cat_matches(parts: list[Matches]) -> Matches:
     """The matches of several reference blocks side by side (along the reference axis)."""
     cos = None if parts[0].cos64 is None else torch.cat([p.cos64 for p in parts], 1)  # type: ignore[misc]
     return Matches(
@@ -256,12 +256,12 @@ def score_block(
 
     Args:
         prob: both sides and the :class:`~.spec.Matching` (Algorithm 4 when ``prob.nms``; with
-            ``spatial`` set each term is multiplied by its :func:`spatial_weights`, not in the
+            ``spatial`` set each term is multiplied by its :func:`_spatial_weights`, not in the
             paper).
         m: the matches of the images ``qsel`` x ``rsel`` (:meth:`Problem.matches`).
         keep_pairs: also return the reciprocal pairs and their terms.
-        weight: ``(nq, nr, Kq)`` database weights (:func:`database_weights`) or None (not in
-            the paper); they multiply the terms likewise.
+        weight: ``(nq, nr, Kq)`` database weights (:mod:`.weighting`) or None (not in the
+            paper); they multiply the terms likewise.
 
     Returns:
         ``((nq, nr) float64 similarities, BlockPairs or None)``.
@@ -277,7 +277,7 @@ def score_block(
     raw = 1.0 - (1.0 - cos) * shp  # 1 - d * s
     # (not in the paper) weights of the terms: geometry, database
     ones = torch.ones_like(raw)
-    ws = ones if spatial is None else spatial_weights(q, r, qsel, rsel, m.nn, m.recip)[g, rr, i]
+    ws = ones if spatial is None else _spatial_weights(q, r, qsel, rsel, m.nn, m.recip)[g, rr, i]
     wd = ones if weight is None else weight[g, rr, i]
     w = None if spatial is None and weight is None else ws * wd if weight is not None else ws
     score = raw if w is None else raw * w
@@ -311,6 +311,16 @@ def score_block(
 
 
 # ---- one call: both sides prepared, blocks scored ----------------------------------------
+def _iou_stack(side: Side, device: torch.device) -> torch.Tensor:
+    """``(N, K, K)`` float64 per-image IoU matrices (zero padded), for Algorithm 4."""
+    out = np.zeros((side.n, side.k, side.k), dtype=np.float64)
+    for i, b in enumerate(side.boxes):
+        c = b.shape[0]
+        if c:
+            out[i, :c, :c] = box_iou(b, b)
+    return torch.from_numpy(out).to(device)
+
+
 _LOCAL = threading.local()
 
 
@@ -336,7 +346,7 @@ class Problem:
     dev: torch.device
     mm_dtype: torch.dtype
     margin: float
-    nms: SoftNMS | None
+    nms: _SoftNMS | None
     empty: bool
 
     @classmethod
@@ -355,27 +365,21 @@ class Problem:
         Args:
             sides: names of the two sides in messages (``("a", "b")`` for one image pair).
         """
-        dev = torch.device(compute.device)
-        if dev.type == "cuda" and not torch.cuda.is_available():
-            raise ValueError(f"device={compute.device!r} but torch sees no CUDA GPU; use 'cpu'")
+        dev = torch.device(compute.device)  # checked by Compute
         mm_dtype = torch.float32 if compute.matmul_dtype == "float32" else torch.float64
         q = prepare_side(query_desc, query_boxes, sides[0], mm_dtype, dev)
         r = prepare_side(reference_desc, reference_boxes, sides[1], mm_dtype, dev)
-        if q.dim and r.dim and q.dim != r.dim:
-            raise ValueError(
-                f"descriptor dimensions differ: {q.name} D={q.dim}, {r.name} D={r.dim}"
-            )
-        dim = max(q.dim, r.dim)
+        dim = check_same_dim([(s.name, s.dim) for s in (q, r) if s.dim])
         # matmul dot of unit vectors: |error| <= D * unit (+ rounding); two entries' difference
         # is off by at most twice that. Entries within `margin` of a max are re-decided in
-        # float64 by resolve_ties.
+        # float64 by reciprocal._resolve_ties.
         unit = 2.0**-24 if mm_dtype == torch.float32 else 2.0**-53
         margin = 2.5 * dim * unit + 4 * unit + TIE_TOL
         empty = q.dim == 0 or r.dim == 0
         nms = None
         if matching.soft_nms_iou is not None and not empty:
-            nms = SoftNMS(
-                iou_stack(q, dev), iou_stack(r, dev), matching.soft_nms_iou, matching.sigma
+            nms = _SoftNMS(
+                _iou_stack(q, dev), _iou_stack(r, dev), matching.soft_nms_iou, matching.sigma
             )
         if not empty:
             q.build_caches(unit64=nms is not None)
@@ -415,7 +419,7 @@ class Problem:
             ]
         else:
             sels = [refs[c0 : c0 + size] for c0 in range(0, int(refs.numel()), size)]
-        return cat_matches([self.matches(qsel, s) for s in sels])
+        return _cat_matches([self.matches(qsel, s) for s in sels])
 
     def best_cosines(self, qsel: Selection, refs: torch.Tensor, size: int) -> Matches:
         """The best cosines ``b_i(r)`` of ``qsel``'s landmarks over each reference in ``refs``:
@@ -436,24 +440,3 @@ class Problem:
         nn = torch.full(best.shape, -1, dtype=torch.int64, device=best.device)
         none = torch.zeros(best.shape, dtype=torch.bool, device=best.device)
         return Matches(best, nn, none, None)
-
-    def weighted(
-        self,
-        qsel: Selection,
-        rsel: Selection,
-        m: Matches,
-        stats_from: tuple[Matches, Selection],
-        keep_pairs: bool = False,
-    ) -> tuple[torch.Tensor, BlockPairs | None]:
-        """Eq. (1) with database-weighted terms of ``qsel`` x ``rsel`` (matches ``m``).
-
-        Args:
-            stats_from: the matches of ``qsel`` x the references that define the statistics,
-                and those references.
-        """
-        weighting = self.matching.weighting
-        assert weighting is not None
-        ms, ssel = stats_from
-        stats = weighting_stats(weighting, ms, self.r.count[ssel] > 0)
-        w = database_weights(weighting, m.best, stats)
-        return score_block(self, m, qsel, rsel, keep_pairs, w)

@@ -26,7 +26,14 @@ from .reciprocal import TIE_TOL
 from .sides import normalised_centres, rescale_rows
 from .spec import Matching
 
-__all__ = ["MatchResult", "match_pair"]
+__all__ = [
+    "MatchResult",
+    "cosine_similarity",
+    "match_pair",
+    "reciprocal_pairs",
+    "shape_similarity",
+    "soft_nms",
+]
 
 
 @dataclass
@@ -72,10 +79,10 @@ def cosine_similarity(desc_a: np.ndarray, desc_b: np.ndarray) -> np.ndarray:
     return np.clip(unit(desc_a) @ unit(desc_b).T, -1.0, 1.0)
 
 
-def nearest(cos: np.ndarray, axis: int) -> np.ndarray:
+def _nearest(cos: np.ndarray, axis: int) -> np.ndarray:
     """Each row's (``axis=1``) or column's (``axis=0``) nearest neighbour: the lowest index whose
     cosine is within ``TIE_TOL`` (1e-9) of the best, so that float rounding never decides a tie
-    (the block engine decides near-ties so too: :func:`~.reciprocal.resolve_ties`)."""
+    (the block engine decides near-ties so too: :mod:`.reciprocal`)."""
     best = cos.max(axis=axis, keepdims=True)
     return np.argmax(cos >= best - TIE_TOL, axis=axis)
 
@@ -85,8 +92,8 @@ def reciprocal_pairs(cos: np.ndarray) -> np.ndarray:
     ka, kb = cos.shape
     if ka == 0 or kb == 0:
         return np.zeros((0, 2), dtype=np.int64)
-    j_of_i = nearest(cos, axis=1)
-    i_of_j = nearest(cos, axis=0)
+    j_of_i = _nearest(cos, axis=1)
+    i_of_j = _nearest(cos, axis=0)
     i = np.arange(ka)
     mutual = i_of_j[j_of_i] == i
     return np.stack([i[mutual], j_of_i[mutual]], axis=1).astype(np.int64)
@@ -100,7 +107,7 @@ def shape_similarity(wh_a: np.ndarray, wh_b: np.ndarray) -> np.ndarray:
     return np.exp(0.5 * (ratio[:, 0] + ratio[:, 1]))  # Eq. (2)
 
 
-def consistency_weights(boxes_a: np.ndarray, boxes_b: np.ndarray, m: np.ndarray) -> np.ndarray:
+def _consistency_weights(boxes_a: np.ndarray, boxes_b: np.ndarray, m: np.ndarray) -> np.ndarray:
     """(Not in the paper) ``spatial="consistency"``: ``exp(-|delta - median delta|^2 / (2 tau^2))``
     of each match's displacement ``delta`` (box centres in units of each image's landmark extent;
     the median per coordinate, over this pair's matches)."""
@@ -141,15 +148,10 @@ def match_pair(
     ``matching.soft_nms_iou`` is set and (not in the paper) ``spatial`` weights.
 
     Inputs are parsed (the public :func:`~.similarity.match_landmarks` checks them): ``desc_*``
-    ``(K, D)`` float arrays of one ``D``, ``boxes_*`` ``(K, 4)`` float64 ``(x, y, w, h)``.
-    A ``weighting`` is refused: its statistics come from every reference.
+    ``(K, D)`` float arrays of one ``D``, ``boxes_*`` ``(K, 4)`` float64 ``(x, y, w, h)``;
+    ``matching`` without a weighting (its statistics come from every reference).
     """
-    if matching.weighting is not None:
-        raise ValueError(
-            f"weighting={matching.weighting!r} needs statistics over every reference, which one "
-            "image pair does not have: use weighted_matches (or similarity_matrix / "
-            "similarity_pairs), the block engine"
-        )
+    assert matching.weighting is None
     n_a, n_b = len(desc_a), len(desc_b)
     if min(n_a, n_b, desc_a.shape[1], desc_b.shape[1]) == 0:  # nothing to match: S = 0
         e = np.zeros(0)
@@ -164,7 +166,7 @@ def match_pair(
     raw = 1.0 - d * s  # the summand of Eq. (1)
 
     # (not in the paper) geometry-aware weight of each term
-    w = np.ones(len(m)) if matching.spatial is None else consistency_weights(boxes_a, boxes_b, m)
+    w = np.ones(len(m)) if matching.spatial is None else _consistency_weights(boxes_a, boxes_b, m)
     scores = raw * w
 
     # Algorithm 4 (soft-NMS) rescales the terms before the sum

@@ -1,5 +1,5 @@
 """Reciprocal nearest neighbours of a block of image pairs, with near-ties decided in one place
-(:func:`resolve_ties`: float64 cosines, lowest index wins).
+(:func:`_resolve_ties`: float64 cosines, lowest index wins).
 """
 
 from __future__ import annotations
@@ -11,14 +11,14 @@ import torch
 
 from .sides import PAD, Selection, Side, selection_index, selection_size
 
-__all__ = ["TIE_TOL", "cos64", "reciprocal", "resolve_ties"]
+__all__ = ["TIE_TOL", "reciprocal"]
 
 #: Cosine similarities closer than this to the row/column best are ties (lowest index wins).
 TIE_TOL = 1e-9
 
 
 # ---- near-ties: the one place they are decided -------------------------------------------
-def cos64(q: Side, qrows: torch.Tensor, r: Side, rrows: torch.Tensor) -> torch.Tensor:
+def _cos64(q: Side, qrows: torch.Tensor, r: Side, rrows: torch.Tensor) -> torch.Tensor:
     """``(t,)`` float64 cosines ``dot(a, b) / (|a| |b|)`` of flat rows (0 for zero rows)."""
     norms = q.norm64().index_select(0, qrows) * r.norm64().index_select(0, rrows)
     if q.raw.device.type == "cpu":
@@ -32,7 +32,7 @@ def cos64(q: Side, qrows: torch.Tensor, r: Side, rrows: torch.Tensor) -> torch.T
     return torch.linalg.vecdot(x, y) / norms
 
 
-def resolve_ties(vals: torch.Tensor, best: torch.Tensor, margin: float, sim64_fn):
+def _resolve_ties(vals: torch.Tensor, best: torch.Tensor, margin: float, sim64_fn):
     """Nearest neighbour of near-tied rows in float64: within TIE_TOL of the best, lowest index.
 
     Args:
@@ -97,7 +97,7 @@ def _maxima(s: torch.Tensor, margin: float, work: torch.Tensor | None):
     # candidate map times [index, 1] gives every row's (column's) candidate count and, where that
     # count is 1, its argmax -- cheap streaming passes instead of an argmax and a second-best
     # pass. Rows / columns with more than one candidate are the near-ties decided in float64
-    # (resolve_ties). The passes run one query image at a time, so that its slice of `s` (and of
+    # (_resolve_ties). The passes run one query image at a time, so that its slice of `s` (and of
     # the scratch map) stays in the L2 cache from the first pass to the last.
     dt, dev = s.dtype, s.device
     rv = torch.empty((nq, kq, nr), dtype=dt, device=dev)  # best cosine of each query landmark
@@ -136,7 +136,7 @@ def _decide_near_ties(
     maxima: tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor],
     ambiguous: tuple[torch.Tensor, torch.Tensor],
 ) -> torch.Tensor:
-    """Re-decide ambiguous rows and columns by :func:`resolve_ties`.
+    """Re-decide ambiguous rows and columns by :func:`_resolve_ties`.
 
     Args:
         s: ``(nq, Kq, nr, Kr)`` block cosines.
@@ -163,10 +163,10 @@ def _decide_near_ties(
         rbase = selection_index(rsel, ir) * r.k
 
         def f_row(rows, cols):
-            return cos64(q, qrow[rows], r, rbase[rows] + cols)
+            return _cos64(q, qrow[rows], r, rbase[rows] + cols)
 
         if iq.numel():
-            nn, sim = resolve_ties(vals, best, margin, f_row)
+            nn, sim = _resolve_ties(vals, best, margin, f_row)
             ri[iq, ii, ir] = nn
             rv[iq, ii, ir] = sim
     if bool(amb_c.any()):
@@ -182,10 +182,10 @@ def _decide_near_ties(
         rrow = selection_index(rsel, ir) * r.k + ij
 
         def f_col(rows, cols):
-            return cos64(q, qbase[rows] + cols, r, rrow[rows])
+            return _cos64(q, qbase[rows] + cols, r, rrow[rows])
 
         if iq.numel():
-            nn, _ = resolve_ties(vals, best, margin, f_col)
+            nn, _ = _resolve_ties(vals, best, margin, f_col)
             ci[iq, ir, ij] = nn
     return rv
 

@@ -4,15 +4,14 @@ side (:class:`Side`), and the selections of images a block takes from a side.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Union
 
 import numpy as np
 import torch
 
-from ..boxes import box_iou
-from ..checks import check_boxes
+from ..checks import check_boxes, check_finite, check_shape
 
 __all__ = [
     "PAD",
@@ -20,7 +19,8 @@ __all__ = [
     "LandmarkSets",
     "Selection",
     "Side",
-    "iou_stack",
+    "check_same_dim",
+    "landmark_lists",
     "normalised_centres",
     "prepare_side",
     "rescale_rows",
@@ -138,17 +138,47 @@ class Side:
         return self._norm64
 
 
+def check_same_dim(named: Iterable[tuple[str, int]]) -> int:
+    """The one descriptor dimension ``D`` of ``(name, D)`` pairs (0 when there are none); two
+    different ones are refused, naming both (the rule of every matching and shortlist input)."""
+    named = list(named)
+    for name, dim in named[1:]:
+        if dim != named[0][1]:
+            raise ValueError(
+                f"descriptor dimensions differ: {named[0][0]} D={named[0][1]}, {name} D={dim}; "
+                "describe every image with the same encoder"
+            )
+    return named[0][1] if named else 0
+
+
 def _as_list(x: LandmarkSets, name: str, kind: str) -> list[np.ndarray]:
     """One array per image from a sequence or a stacked ``(N, K, kind)`` array."""
     if isinstance(x, (np.ndarray, torch.Tensor)):
         arr = np.asarray(x.detach().cpu() if isinstance(x, torch.Tensor) else x)
-        if arr.ndim != 3:
-            raise ValueError(f"{name} as one array must be (N, K, {kind}), got shape {arr.shape}")
-        return list(arr)
+        return list(check_shape(arr, f"N K {kind}", name))
     try:
         return [np.asarray(v) for v in x]
     except TypeError as e:
         raise ValueError(f"{name} must be a sequence of arrays or one (N, K, ...) array") from e
+
+
+def _check_counts(n: int, n_boxes: int, dname: str, bname: str) -> None:
+    """One boxes array per image, and at least one image."""
+    if n_boxes != n:
+        raise ValueError(f"{dname} has {n} images but {bname} has {n_boxes}")
+    if n == 0:
+        raise ValueError(f"{dname} is empty")
+
+
+def landmark_lists(
+    desc: LandmarkSets, boxes: LandmarkSets, side: str
+) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """One side's descriptors and boxes as one array per image, as many of each, at least one
+    (``side``: ``"query"`` / ``"reference"``, named in messages); the arrays are not checked."""
+    dname, bname = f"{side}_desc", f"{side}_boxes"
+    dl, bl = _as_list(desc, dname, "D"), _as_list(boxes, bname, "4")
+    _check_counts(len(dl), len(bl), dname, bname)
+    return dl, bl
 
 
 def prepare_side(
@@ -186,12 +216,8 @@ def prepare_side(
         n = len(dl)
         dl = [np.zeros((0, 0)) if d.ndim == 1 and d.size == 0 else d for d in dl]
         for i, d in enumerate(dl):
-            if d.ndim != 2:
-                raise ValueError(f"{item(dname, i)} must be (K, D), got shape {d.shape}")
-        dims = sorted({d.shape[1] for d in dl if d.shape[0]})
-        if len(dims) > 1:
-            raise ValueError(f"{dname} mixes descriptor dimensions {dims}")
-        dim = dims[0] if dims else 0
+            check_shape(d, "K D", item(dname, i))
+        dim = check_same_dim([(item(dname, i), d.shape[1]) for i, d in enumerate(dl) if len(d)])
         counts = [d.shape[0] for d in dl]
         k = max(counts + [1])
         dtype = np.float32 if all(d.dtype == np.float32 for d in dl) else np.float64
@@ -200,15 +226,12 @@ def prepare_side(
             if d.shape[0]:
                 stacked[i, : d.shape[0]] = d
     bl = [np.zeros((c, 4)) for c in counts] if boxes is None else _as_list(boxes, bname, "4")
-    if len(bl) != n:
-        raise ValueError(f"{dname} has {n} images but {bname} has {len(bl)}")
-    if n == 0:
-        raise ValueError(f"{dname} is empty")
+    _check_counts(n, len(bl), dname, bname)
     stacked = rescale_rows(stacked)
     raw = torch.from_numpy(np.ascontiguousarray(stacked)).to(device).reshape(n * k, dim)
     d32, norm = unit_rows(raw.to(mm_dtype))
-    if not bool(torch.isfinite(norm).all()):  # NaN / inf anywhere shows in the norm
-        raise ValueError(f"{dname} contains NaN or inf")
+    norms = norm.cpu().numpy()  # NaN / inf anywhere shows in its row's norm
+    check_finite(norms if one else norms.reshape(n, k), dname)  # row: landmark, else image
     wh = np.zeros((n, k, 2), dtype=np.float64)
     xy = np.zeros((n, k, 2), dtype=np.float64)
     mask = np.zeros((n, k), dtype=bool)
@@ -251,13 +274,3 @@ def normalised_centres(boxes: np.ndarray) -> np.ndarray:
     ext = (boxes[:, :2] + boxes[:, 2:]).max(axis=0) - lo
     ext = np.where(ext > 0, ext, 1.0)
     return (boxes[:, :2] + 0.5 * boxes[:, 2:] - lo) / ext
-
-
-def iou_stack(side: Side, device: torch.device) -> torch.Tensor:
-    """``(N, K, K)`` float64 per-image IoU matrices (zero padded)."""
-    out = np.zeros((side.n, side.k, side.k), dtype=np.float64)
-    for i, b in enumerate(side.boxes):
-        c = b.shape[0]
-        if c:
-            out[i, :c, :c] = box_iou(b, b)
-    return torch.from_numpy(out).to(device)

@@ -12,14 +12,14 @@ from functools import partial
 import numpy as np
 import torch
 
-from ..checks import check_boxes
+from ..checks import check_boxes, check_finite, check_shape
 from ..paper import SOFT_NMS_SIGMA
 from ..utils import progress
-from .core import BLOCK_BYTES, Problem, shape_terms
+from .core import BLOCK_BYTES, BlockPairs, Problem, shape_terms
 from .pairwise import MatchResult, match_pair
-from .sides import LandmarkSets, rescale_rows, unit_rows
+from .sides import LandmarkSets, check_same_dim, rescale_rows, unit_rows
 from .spec import Compute, Matching, as_matching
-from .weighting import sample_matches, weighting_sample
+from .weighting import sample_matches, weighted_block, weighting_sample
 
 __all__ = [
     "check_pairs",
@@ -32,6 +32,10 @@ __all__ = [
     "similarity_pairs",
     "weighted_matches",
 ]
+
+#: The block engine's settings in the one-pair functions (a float64 matmul) and weighted_matches.
+_PAIR = Compute(matmul_dtype="float64")
+_DEFAULT = Compute()
 
 
 def similarity_matrix(
@@ -48,7 +52,7 @@ def similarity_matrix(
 
     The block engine (:mod:`.core`): one matmul per block of ``compute.batch_size`` queries x
     ``compute.ref_batch_size`` references; near-ties are re-decided in float64
-    (:func:`~.reciprocal.resolve_ties`), so the matches equal those of the one-pair reference
+    (:mod:`.reciprocal`), so the matches equal those of the one-pair reference
     (:mod:`.pairwise`: Eq. (1)-(2) on one page) exactly and values agree with it to ~1e-6. On
     the CPU the blocks run on ``torch.get_num_threads()`` worker threads (same bits for any
     count).
@@ -92,7 +96,7 @@ def similarity_matrix(
         # (not in the paper) the weights need every reference: one query batch at a time
         qs, rs = slice(q0, min(q0 + bq, q.n)), slice(0, r.n)
         m = prob.chunked(qs, rs, br)
-        out[qs] = prob.weighted(qs, rs, m, (m, rs))[0]
+        out[qs] = weighted_block(prob, qs, rs, m, (m, rs))[0]
 
     if prob.matching.weighting is None:
         tasks = [partial(task, q0, r0) for q0 in range(0, q.n, bq) for r0 in range(0, r.n, br)]
@@ -154,7 +158,7 @@ def similarity_pairs(
             ridx = torch.from_numpy(pr[rows, 1]).to(prob.dev)
             m = prob.chunked(qs, ridx, br)
             stats = (sample_matches(prob, qs, samp, br), samp)
-            out[rows] = prob.weighted(qs, ridx, m, stats)[0][0].cpu().numpy()
+            out[rows] = weighted_block(prob, qs, ridx, m, stats)[0][0].cpu().numpy()
             return
         for c0 in range(0, rows.shape[0], br):
             chunk = rows[c0 : c0 + br]
@@ -230,7 +234,7 @@ def _run(prob: Problem, tasks: Sequence[Callable[[], None]]) -> None:
 
 
 # ---- the matches of listed pairs with their database weights (the block engine) ----------
-def _result(p, sim: float, na: int, nb: int, weights: bool = False) -> MatchResult:
+def _result(p: BlockPairs, sim: float, na: int, nb: int, weights: bool = False) -> MatchResult:
     """A :class:`MatchResult` from the core's pairs of one image pair."""
     return MatchResult(
         matches=torch.stack([p.i, p.j], dim=1).cpu().numpy().astype(np.int64),
@@ -273,7 +277,7 @@ def weighted_matches(
             f"weighted_matches needs Matching(weighting='contrast' or 'idf'), got {matching!r}"
         )
     prob = Problem.build(
-        query_desc, query_boxes, reference_desc, reference_boxes, matching, Compute()
+        query_desc, query_boxes, reference_desc, reference_boxes, matching, _DEFAULT
     )
     q, r = prob.q, prob.r
     pr = check_pairs(pairs, q.n, r.n)
@@ -293,7 +297,8 @@ def weighted_matches(
         qs, ridx = slice(qi, qi + 1), torch.tensor([rj])
         if qi not in stats:
             stats[qi] = (sample_matches(prob, qs, samp, br), samp)
-        sim, p = prob.weighted(qs, ridx, prob.matches(qs, ridx), stats[qi], keep_pairs=True)
+        sim, p = weighted_block(prob, qs, ridx, prob.matches(qs, ridx), stats[qi], keep_pairs=True)
+        assert p is not None
         out.append(_result(p, float(sim[0, 0]), na, nb, weights=True))
     return out
 
@@ -318,6 +323,12 @@ def match_landmarks(
         matching: a :class:`~.spec.Matching` without a weighting (that needs the references:
             :func:`weighted_matches`).
     """
+    if matching.weighting is not None:
+        raise ValueError(
+            f"weighting={matching.weighting!r} needs statistics over every reference, which one "
+            "image pair does not have: use weighted_matches (or similarity_matrix / "
+            "similarity_pairs), the block engine"
+        )
     # the boundary check of every matching call (shapes, NaN / inf, box counts, dimensions)
     prob = Problem.build(
         [np.asarray(desc_a)],
@@ -325,7 +336,7 @@ def match_landmarks(
         [np.asarray(desc_b)],
         None if boxes_b is None else [np.asarray(boxes_b)],
         Matching(),
-        Compute(matmul_dtype="float64"),
+        _PAIR,
         sides=("a", "b"),
     )
     a, b = prob.q, prob.r
@@ -376,16 +387,9 @@ def cosine_distance(desc_a: np.ndarray | Sequence, desc_b: np.ndarray | Sequence
     """
     units = []
     for x, name in ((desc_a, "desc_a"), (desc_b, "desc_b")):
-        d = np.asarray(x, dtype=np.float64)
-        if d.ndim != 2:
-            raise ValueError(f"{name} must be a (K, D) descriptor array, got shape {d.shape}")
+        d = check_shape(x, "K D", name, dtype=np.float64)
         u, norm = unit_rows(torch.from_numpy(rescale_rows(d)))
-        if not bool(torch.isfinite(norm).all()):
-            raise ValueError(f"{name} contains NaN or inf")
+        check_finite(norm.numpy(), name)  # NaN / inf anywhere shows in its row's norm
         units.append(u)
-    if units[0].shape[1] != units[1].shape[1]:
-        raise ValueError(
-            f"descriptor dimensions differ: desc_a D={units[0].shape[1]}, "
-            f"desc_b D={units[1].shape[1]}"
-        )
+    check_same_dim([("desc_a", units[0].shape[1]), ("desc_b", units[1].shape[1])])
     return 1.0 - (units[0] @ units[1].T).clamp(-1.0, 1.0).numpy()

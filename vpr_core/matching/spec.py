@@ -4,11 +4,8 @@
 from __future__ import annotations
 
 import dataclasses
-import math
-import numbers
-from typing import Any
 
-from ..checks import check_choice, check_int
+from ..checks import check_choice, check_device, check_int, is_number
 from ..paper import SOFT_NMS_SIGMA
 
 __all__ = ["SPATIAL_OPTIONS", "WEIGHTING_OPTIONS", "Compute", "Matching", "as_matching"]
@@ -19,10 +16,6 @@ SPATIAL_OPTIONS = ("consistency",)
 #: (Not in the paper.) Names of the database weightings of the Eq. (1) terms (``weighting=``;
 #: docs/DEFINITIONS.md, "(not in the paper) database weighting").
 WEIGHTING_OPTIONS = ("contrast", "idf")
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def _bad(obj: object, key: str, expected: str) -> ValueError:
@@ -52,10 +45,10 @@ class Matching:
     def __post_init__(self) -> None:
         iou, sigma = self.soft_nms_iou, self.sigma
         if iou is not None:
-            if not (_is_number(iou) and 0 <= iou <= 1):
+            if not (is_number(iou) and 0 <= iou <= 1):
                 raise _bad(self, "soft_nms_iou", "a number in [0, 1] or None (off)")
             object.__setattr__(self, "soft_nms_iou", float(iou))
-        if not (_is_number(sigma) and sigma > 0):
+        if not (is_number(sigma) and sigma > 0):
             raise _bad(self, "sigma", "a positive number")
         object.__setattr__(self, "sigma", float(sigma))
         if self.spatial is not None and self.spatial not in SPATIAL_OPTIONS:
@@ -108,7 +101,8 @@ class Compute:
     """How the blocks of a matching call run; it changes the time, not the matches (float32
     similarities agree with ``matmul_dtype="float64"`` to ~1e-6). ``batch_size``: queries per
     block (None: 8); ``ref_batch_size``: references per block (None: ~8 MB of cosines);
-    ``show_progress``: a progress bar over blocks (``TQDM_DISABLE=1`` silences it)."""
+    ``show_progress``: a progress bar over blocks (``TQDM_DISABLE=1`` silences it). ``device``:
+    a torch device this machine has (checked here, once)."""
 
     device: str = "cpu"
     batch_size: int | None = None
@@ -117,7 +111,7 @@ class Compute:
     show_progress: bool = True
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "device", str(self.device))
+        object.__setattr__(self, "device", str(check_device(self.device)))
         for key in ("batch_size", "ref_batch_size"):
             if getattr(self, key) is not None:
                 object.__setattr__(self, key, check_int(getattr(self, key), key, 1))

@@ -1,27 +1,23 @@
 """(Not in the paper.) Database weighting of the Eq. (1) terms, ``weighting=``: each query
 landmark's statistics over the references and the weight of its term (docs/DEFINITIONS.md,
-"(not in the paper) database weighting"); applied inside :func:`.core.score_block`."""
+"(not in the paper) database weighting"); :func:`weighted_block` applies them in
+:func:`.core.score_block`."""
 
 from __future__ import annotations
-
-from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 
+from .core import BlockPairs, Matches, Problem, score_block
 from .sides import Selection
-
-if TYPE_CHECKING:
-    from .core import Matches, Problem
 
 __all__ = [
     "CONTRAST_SAMPLE",
     "CONTRAST_SIGMA_MIN",
     "WEIGHTING_SAMPLE",
-    "database_weights",
     "sample_matches",
+    "weighted_block",
     "weighting_sample",
-    "weighting_stats",
 ]
 
 #: (Not in the paper.) References (a seed-0 sample) whose matches give the ``idf`` statistics
@@ -59,12 +55,12 @@ def sample_matches(prob: Problem, qsel: Selection, refs: torch.Tensor, size: int
     landmarks never win), with no reciprocal test (``nn`` -1, ``recip`` False). ``idf`` needs
     the reciprocal matches: :meth:`.core.Problem.chunked`.
     """
-    if prob.matching.weighting != "contrast":
-        return prob.chunked(qsel, refs, size)
-    return prob.best_cosines(qsel, refs, size)
+    if prob.matching.weighting == "contrast":
+        return prob.best_cosines(qsel, refs, size)
+    return prob.chunked(qsel, refs, size)
 
 
-def weighting_stats(
+def _weighting_stats(
     weighting: str, m: Matches, has: torch.Tensor
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Per query landmark ``(nq, Kq)`` statistics over the references of ``m`` with landmarks.
@@ -89,7 +85,7 @@ def weighting_stats(
     return torch.log((total + 1.0) / (n + 1.0)), total.reshape(1)
 
 
-def database_weights(
+def _database_weights(
     weighting: str, best: torch.Tensor, stats: tuple[torch.Tensor, torch.Tensor]
 ) -> torch.Tensor:
     """``(nq, nr, Kq)`` weight of each query landmark's term (docs/DEFINITIONS.md).
@@ -100,11 +96,35 @@ def database_weights(
 
     Args:
         weighting: a name in :data:`~.spec.WEIGHTING_OPTIONS`; best: ``(nq, nr, Kq)`` ``b_i(r)``;
-            stats: from :func:`weighting_stats`.
+            stats: from :func:`_weighting_stats`.
     """
     a, b = stats
-    if weighting == "idf":
-        return a.unsqueeze(1).expand_as(best)
-    ok = (b > CONTRAST_SIGMA_MIN).unsqueeze(1)
-    z = (best.clamp(-1.0, 1.0) - a.unsqueeze(1)) / torch.where(ok, b.unsqueeze(1), 1.0)
-    return torch.where(ok, z.clamp(min=0.0), 0.0)
+    if weighting == "contrast":
+        ok = (b > CONTRAST_SIGMA_MIN).unsqueeze(1)
+        z = (best.clamp(-1.0, 1.0) - a.unsqueeze(1)) / torch.where(ok, b.unsqueeze(1), 1.0)
+        return torch.where(ok, z.clamp(min=0.0), 0.0)
+    return a.unsqueeze(1).expand_as(best)
+
+
+def weighted_block(
+    prob: Problem,
+    qsel: Selection,
+    rsel: Selection,
+    m: Matches,
+    stats_from: tuple[Matches, Selection],
+    keep_pairs: bool = False,
+) -> tuple[torch.Tensor, BlockPairs | None]:
+    """Eq. (1) with database-weighted terms of the images ``qsel`` x ``rsel`` (matches ``m``):
+    :func:`.core.score_block`'s ``((nq, nr) float64, pairs or None)``.
+
+    Args:
+        prob: the call's :class:`~.core.Problem`, its ``matching.weighting`` set.
+        stats_from: the matches of ``qsel`` x the references that define the statistics
+            (:func:`sample_matches`), and those references.
+    """
+    weighting = prob.matching.weighting
+    assert weighting is not None
+    ms, ssel = stats_from
+    stats = _weighting_stats(weighting, ms, prob.r.count[ssel] > 0)
+    w = _database_weights(weighting, m.best, stats)
+    return score_block(prob, m, qsel, rsel, keep_pairs, w)
