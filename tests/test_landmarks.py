@@ -146,6 +146,16 @@ BAD_LANDMARK_CALLS = {
         lambda: L.dense_sampling(np.zeros((H, W, 3), np.uint8)),
         r"pass image.shape\[:2\]",
     ),
+    "select: min_index": (
+        lambda: L.select_min_scale(BOX, SIZE, min_index=0),
+        "MinScale.min_index must be a Table-1 scale index 1..9 .*, got 0",
+    ),
+    "select: order": (
+        lambda: L.select_scale_priority(BOX, SIZE, order=(5, 5)),
+        "ScalePriority.order must be a non-empty sequence of distinct",
+    ),
+    "select: n": (lambda: L.reduce_overlap(BOX, n=0), "ReduceOverlap.n must be a positive integer"),
+    "select: boxes": (lambda: L.select_min_scale(np.zeros(7), SIZE), r"boxes must have shape"),
     "scale: no size": (lambda: L.scale_index(np.zeros((2, 4))), "pass image_size=\\(H, W\\)"),
     "scale: 2-D ratios": (lambda: L.scale_index(np.zeros((2, 3))), "1-D ratios"),
     "scale: negative": (lambda: L.scale_index(np.array([-0.1])), "finite and >= 0"),

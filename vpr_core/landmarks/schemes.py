@@ -108,6 +108,10 @@ def _count(obj: object, key: str) -> None:
     _set(obj, key, check_int(getattr(obj, key), f"{type(obj).__name__}.{key}", 1))
 
 
+def _is_scale_index(v: Any) -> bool:
+    return is_int(v) and 1 <= v <= N_SCALES
+
+
 def _fraction(obj: object, key: str) -> None:
     value = getattr(obj, key)
     if not (is_number(value) and 0 <= value <= 1):
@@ -147,7 +151,7 @@ class MinScale(CandidateScheme):
     def __post_init__(self) -> None:
         _count(self, "n")
         _count(self, "n_candidates")
-        if not (is_int(self.min_index) and 1 <= self.min_index <= N_SCALES):
+        if not _is_scale_index(self.min_index):
             raise _bad(self, "min_index", f"a Table-1 scale index 1..{N_SCALES} (e.g. 4)")
         _set(self, "min_index", int(self.min_index))
 
@@ -171,7 +175,7 @@ class ScalePriority(CandidateScheme):
         order = self.order
         if (
             not _is_sequence(order)
-            or not all(is_int(v) and 1 <= v <= N_SCALES for v in order)
+            or not all(map(_is_scale_index, order))
             or len(set(order)) != len(order)
         ):
             raise _bad(
