@@ -71,16 +71,22 @@ def test_place_dataset_access_and_errors(tmp_path):
     assert key == ds.image_key("reference", 0) and len(key) == 16
     assert key != ds.image_key("reference", 1)
     assert ds.load_image("reference", 2).shape == (32, 40, 3)
-    with pytest.raises(ValueError, match="side must be 'query' or 'reference'"):
+    with pytest.raises(ValueError, match="unknown side 'ref'; valid: query, reference"):
         ds.load_image("ref", 0)
     with pytest.raises(IndexError, match="out of range"):
         ds.load_image("query", 2)
     with pytest.raises(IndexError, match="out of range"):
         ds.load_image("reference", -1)
-    with pytest.raises(ValueError, match=r"must be \(2, 3\)"):
+    with pytest.raises(
+        ValueError, match=r"of PlaceDataset 't' has shape \(3, 2\).*must be \(2, 3\)"
+    ):
         PlaceDataset("t", qp, rp, np.zeros((3, 2), bool), None)
-    with pytest.raises(TypeError, match="dtype bool"):
-        PlaceDataset("t", qp, rp, np.zeros((2, 3), int), None)
+    with pytest.raises(ValueError, match="must hold bools or 0/1 numbers, got dtype int64"):
+        PlaceDataset("t", qp, rp, np.full((2, 3), 2), None)
+    as_int = PlaceDataset("t", qp, rp, gt.astype(int), None)  # 0/1 numbers are read as bools
+    assert as_int.ground_truth.dtype == bool and as_int.gt_pairs() == [(0, 1), (1, 2)]
+    with pytest.raises(ValueError, match="ground_truth_soft must hold every ground_truth pair"):
+        PlaceDataset("t", qp, rp, gt, None, ground_truth_soft=np.zeros((2, 3), bool))
     with pytest.raises(ValueError, match="homographies"):
         PlaceDataset("t", qp, rp, gt, None, homographies=np.zeros((3, 3, 3)))
 
@@ -131,7 +137,9 @@ def test_registry_and_unknown_name():
 
 
 def test_unknown_option_lists_valid_ones(tmp_path):
-    with pytest.raises(TypeError, match="valid options: .*n_places"):
+    with pytest.raises(
+        ValueError, match=r"unknown dataset 'synthetic' option\(s\) 'n_place'; valid: .*n_places"
+    ):
         load_dataset("synthetic", n_place=3)
 
 

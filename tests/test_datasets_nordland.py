@@ -77,7 +77,9 @@ def test_nordland_mismatched_names(tmp_path, caplog):
     assert [p.name for p in ds.query_paths] == NAMES[1:5]
     assert [p.name for p in ds.reference_paths] == NAMES[1:5]
     assert "keeping the 4 file names present in both" in caplog.text
-    with pytest.raises(ValueError, match="missing must be one of"):
+    with pytest.raises(
+        ValueError, match="unknown nordland missing 'drop'; valid: error, intersect"
+    ):
         load_dataset("nordland", tmp_path, missing="drop")
 
 

@@ -15,7 +15,7 @@ import skimage.data
 
 from vpr_core.datasets import (
     MIN_IMAGE_SIDE,
-    check_ground_truth,
+    check_coverage,
     ground_truth_coverage,
     load_dataset,
     read_image,
@@ -45,7 +45,7 @@ def test_all_false_ground_truth_is_an_error(tmp_path):
     with pytest.raises(ValueError, match=r"ground_truth.npy has no positive pair.*tolerance"):
         load_dataset("folder", tmp_path)
     with pytest.raises(ValueError, match="my rule has no positive pair"):
-        check_ground_truth(np.zeros((2, 4), bool), "my rule")
+        check_coverage(np.zeros((2, 4), bool), "my rule")
 
 
 def test_partial_csv_coverage_warns_with_the_count(tmp_path, caplog):

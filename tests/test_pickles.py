@@ -15,7 +15,7 @@ import pytest
 
 from vpr_core.baselines import load_vprbench_precomputed, peer_from_matrix
 from vpr_core.datasets import load_dataset
-from vpr_core.datasets.safe_pickle import UnsafePickleError, read_npy, restricted_loads
+from vpr_core.datasets.safe_pickle import _restricted_loads, _UnsafePickleError, read_npy
 
 
 class _System:
@@ -65,7 +65,7 @@ def test_hostile_pickles_never_run(tmp_path):
     marker = tmp_path / "MARKER"
     for kind, path in _hostile_files(tmp_path, marker).items():
         with pytest.raises(
-            UnsafePickleError,
+            _UnsafePickleError,
             match=rf"{path.name} is a pickle that asks to run "
             r"(posix\.system|builtins\.open|io\.open)",
         ):
@@ -113,14 +113,14 @@ def test_legitimate_pickles_still_load(tmp_path):
         np.array(["x"], dtype=object),
     ]
     for protocol in (2, 4, 5):
-        out = restricted_loads(pickle.dumps(data, protocol=protocol), "mem")
+        out = _restricted_loads(pickle.dumps(data, protocol=protocol), "mem")
         assert out[:1][0].tolist() == [0, 1, 2] and out[1] == 2.5 and out[2] == 7
         assert out[3:8] == ["s", b"b", None, True, (1, 2.0)]
         assert out[8].dtype == np.float32 and out[9].tolist() == ["x"]
     # numpy 1 / Python 2 files (VPR-Bench's) name numpy.core.multiarray, GLOBAL opcode
     old = pickle.dumps(data[:3], protocol=2).replace(b"numpy._core.", b"numpy.core.")
     assert b"numpy.core.multiarray" in old
-    assert restricted_loads(old, "mem")[1] == 2.5
+    assert _restricted_loads(old, "mem")[1] == 2.5
     path = tmp_path / "plain.npy"
     np.save(path, np.eye(2))
     assert np.array_equal(read_npy(path, "x"), np.eye(2))
@@ -200,7 +200,7 @@ def test_shared_reference_pickle_bomb_is_refused(tmp_path):
     data = _shared_list_bomb()
     assert len(data) < 2_000  # 10^10 leaves from a few hundred bytes
     with pytest.raises(ValueError, match=r"mem would expand to more than .* elements"):
-        restricted_loads(data, "mem")
+        _restricted_loads(data, "mem")
     # the same inside a VPR-Bench ground truth (an object .npy) and as a bare pickle file
     _images(tmp_path / "query", 2)
     _images(tmp_path / "ref", 2)

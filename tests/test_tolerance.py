@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from vpr_core.datasets import PlaceDataset, load_dataset
-from vpr_core.datasets.ground_truth import frame_aligned, widen
+from vpr_core.datasets._layout import widen
+from vpr_core.datasets.ground_truth import frame_aligned
 from vpr_core.evaluation import Evaluation, compare, evaluate
 from vpr_core.pipeline import peer_result, run_method
 from vpr_core.pipeline import run as run_module
@@ -34,13 +35,13 @@ def isolated_cache(tmp_path, monkeypatch):
 def matrices(monkeypatch):
     """The Eq. (1) matrices run_method computes (not read from the cache), counted."""
     computed: list[int] = []
-    real = run_module.match
+    real = run_module._match
 
     def counting(*args, **kwargs):
         computed.append(1)
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(run_module, "match", counting)
+    monkeypatch.setattr(run_module, "_match", counting)
     return computed
 
 

@@ -9,13 +9,18 @@ import os
 from collections.abc import Callable
 from typing import Any
 
-from ..paths import find_input
+from ..checks import check_options
 from .base import PlaceDataset
 from .download import DOWNLOADS, download_dataset
 from .folder import load_folder
 from .freiburg import load_freiburg_across_seasons
 from .gardens_point import load_gardens_point
-from .ground_truth import check_ground_truth, ground_truth_coverage, read_ground_truth
+from .ground_truth import (
+    check_coverage,
+    check_ground_truth,
+    ground_truth_coverage,
+    read_ground_truth,
+)
 from .images import IMAGE_EXTENSIONS, MIN_IMAGE_SIDE, list_images, read_image
 from .mapillary_berlin import load_mapillary_berlin
 from .nordland import load_nordland
@@ -29,6 +34,7 @@ __all__ = [
     "IMAGE_EXTENSIONS",
     "MIN_IMAGE_SIDE",
     "PlaceDataset",
+    "check_coverage",
     "check_ground_truth",
     "download_dataset",
     "ground_truth_coverage",
@@ -65,7 +71,8 @@ def load_dataset(name: str, root: str | os.PathLike | None = None, **options: An
     """Load one of :data:`DATASETS` by name; ``**options`` go to its loader (e.g. ``tolerance``;
     ``synthetic``: ``n_places``, ``seed``, ``image_size``; ``nordland``: ``query``, ``reference``,
     ``step``). A relative ``root`` is read from the cwd, else from the project root
-    (:func:`vpr_core.paths.find_input`); ``synthetic`` generates its set into ``root``.
+    (:func:`vpr_core.paths.find_input`, by each loader); ``synthetic`` generates its set into
+    ``root``.
     Unknown names and options: the error lists valid ones.
     """
     key = str(name).strip().lower().replace("-", "_")
@@ -75,18 +82,9 @@ def load_dataset(name: str, root: str | os.PathLike | None = None, **options: An
             "query/ + reference/ pair of folders."
         )
     loader = DATASETS[key]
-    valid = [p for p in inspect.signature(loader).parameters if p != "root"]
-    bad = sorted(set(options) - set(valid))
-    if bad:
-        raise TypeError(
-            f"dataset {key!r} does not take option(s) {', '.join(bad)}; valid options: "
-            f"{', '.join(valid)}."
-        )
-    # the synthetic set is generated into its root, so a root that does not exist yet is fine
-    if isinstance(root, (str, os.PathLike)) and str(root).strip() and key != "synthetic":
-        try:
-            root = find_input(root)
-        except FileNotFoundError as exc:
-            hint = f"; or fetch it with download_dataset({key!r}, root)" if key in DOWNLOADS else ""
-            raise FileNotFoundError(f"dataset root {exc}{hint}") from None
+    check_options(
+        options,
+        [p for p in inspect.signature(loader).parameters if p != "root"],
+        f"dataset {key!r}",
+    )
     return loader(root=root, **options)

@@ -10,11 +10,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..checks import check_int
+from ..checks import check_choice, check_int, check_shape
 from ..utils import file_fingerprint
-from .ground_truth import check_tolerance, frame_aligned
+from .ground_truth import check_ground_truth, check_tolerance, frame_aligned
 from .images import read_image
 
+__all__ = ["SIDES", "PlaceDataset"]
+
+#: The two traverses of a dataset, as methods name them.
 SIDES = ("query", "reference")
 
 
@@ -24,7 +27,7 @@ class PlaceDataset:
 
     Attributes:
         name: Dataset name: ``"synthetic"``, or a file-based dataset's data folder
-            (``"gardens_point_mini"``; see :func:`~vpr_core.datasets.layout.data_name`).
+            (``"gardens_point_mini"``; see :func:`~vpr_core.datasets._layout.data_name`).
         query_paths: ``Nq`` query image files, in traverse order.
         reference_paths: ``Nr`` reference image files, in traverse order.
         ground_truth: ``bool (Nq, Nr)``; ``ground_truth[q, r]`` is True when reference ``r``
@@ -61,38 +64,20 @@ class PlaceDataset:
         if self.root is not None:
             self.root = Path(self.root)
         nq, nr = len(self.query_paths), len(self.reference_paths)
-        gt = self.ground_truth
-        if not isinstance(gt, np.ndarray) or gt.dtype != np.bool_:
-            raise TypeError(
-                f"PlaceDataset {self.name!r}: ground_truth must be a numpy array of dtype bool, "
-                f"got {getattr(gt, 'dtype', type(gt).__name__)}; pass np.asarray(gt, dtype=bool) "
-                "after checking it only holds 0/1."
-            )
-        if gt.shape != (nq, nr):
-            raise ValueError(
-                f"PlaceDataset {self.name!r}: ground_truth has shape {gt.shape} but there are "
-                f"{nq} query and {nr} reference images, so it must be ({nq}, {nr}); "
-                "fix the ground-truth file or the image folders so they agree."
-            )
-        soft = self.ground_truth_soft
-        if soft is not None and (
-            not isinstance(soft, np.ndarray)
-            or soft.dtype != np.bool_
-            or soft.shape != gt.shape
-            or (gt & ~soft).any()
-        ):
-            raise ValueError(
-                f"PlaceDataset {self.name!r}: ground_truth_soft must be a bool ({nq}, {nr}) array "
-                "holding every ground_truth pair (GTsoft is a superset of GThard), or None."
-            )
-        if self.homographies is not None:
-            h = np.asarray(self.homographies, dtype=np.float64)
-            if h.shape != (nq, 3, 3):
+        where = f"of PlaceDataset {self.name!r}"
+        self.ground_truth = gt = check_ground_truth(self.ground_truth, (nq, nr), where)
+        if self.ground_truth_soft is not None:
+            soft = check_ground_truth(self.ground_truth_soft, (nq, nr), f"(soft) {where}")
+            if (gt & ~soft).any():
                 raise ValueError(
-                    f"PlaceDataset {self.name!r}: homographies must have shape ({nq}, 3, 3), "
-                    f"got {h.shape}; give one 3x3 query->reference mapping per query or None."
+                    f"PlaceDataset {self.name!r}: ground_truth_soft must hold every ground_truth "
+                    "pair (GTsoft is a superset of GThard), or be None."
                 )
-            self.homographies = h
+            self.ground_truth_soft = soft
+        if self.homographies is not None:  # one 3x3 query->reference mapping per query
+            self.homographies = check_shape(
+                self.homographies, f"{nq} 3 3", f"PlaceDataset {self.name!r}: homographies", float
+            )
 
     @property
     def title(self) -> str:
@@ -110,11 +95,8 @@ class PlaceDataset:
 
     def paths(self, side: str) -> list[Path]:
         """The image files of one side (``"query"`` or ``"reference"``)."""
-        if side == "query":
-            return self.query_paths
-        if side == "reference":
-            return self.reference_paths
-        raise ValueError(f"side must be 'query' or 'reference', got {side!r}.")
+        check_choice(side, "side", SIDES)
+        return self.query_paths if side == "query" else self.reference_paths
 
     def _path(self, side: str, i: int) -> Path:
         paths = self.paths(side)

@@ -5,17 +5,12 @@ from __future__ import annotations
 import os
 from typing import Any
 
+from ._layout import check_frame_pairs, check_root, data_name, resolve_file, traverse_dir, widen
 from .base import PlaceDataset
-from .ground_truth import (
-    check_frame_pairs,
-    check_ground_truth,
-    check_tolerance,
-    frame_aligned,
-    read_ground_truth,
-    widen,
-)
+from .ground_truth import check_coverage, check_tolerance, frame_aligned, read_ground_truth
 from .images import list_images, scan_images
-from .layout import check_root, data_name, resolve_file, traverse_dir
+
+__all__ = ["FOLDER_LAYOUT", "load_folder"]
 
 FOLDER_LAYOUT = (
     "<root>/query/*, <root>/reference/*, optional <root>/ground_truth.npy ((Nq, Nr) bool) or "
@@ -71,7 +66,7 @@ def load_folder(
     }
     if gt_file is not None:
         gt = widen(read_ground_truth(gt_file, qp, rp), tolerance)
-        check_ground_truth(gt, str(gt_file))
+        check_coverage(gt, str(gt_file))
         meta.update(ground_truth_file=str(gt_file), ground_truth_rule="file")
     else:
         if len(qp) != len(rp):

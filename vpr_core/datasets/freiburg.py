@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import os
 
+from ._layout import check_root, correspondence_dataset, resolve_file, traverse_dir
 from .base import PlaceDataset
 from .ground_truth import check_tolerance
-from .layout import check_root, correspondence_dataset, resolve_file, traverse_dir
+
+__all__ = ["FREIBURG_LAYOUT", "load_freiburg_across_seasons"]
 
 FREIBURG_LAYOUT = (
     "<root>/summer2015/*.jpg, <root>/winter2012/*.jpg, <root>/ground_truth.csv with rows "

@@ -5,10 +5,13 @@ from __future__ import annotations
 import logging
 import os
 
+from ..checks import check_choice
+from ._layout import check_frame_pairs, check_root, data_name, traverse_dir
 from .base import PlaceDataset
-from .ground_truth import check_frame_pairs, check_tolerance, frame_aligned
+from .ground_truth import check_tolerance, frame_aligned
 from .images import list_images
-from .layout import check_root, data_name, traverse_dir
+
+__all__ = ["GARDENS_POINT_LAYOUT", "GARDENS_POINT_TRAVERSES", "load_gardens_point"]
 
 log = logging.getLogger("vpr_core")
 
@@ -43,11 +46,7 @@ def load_gardens_point(
     tolerance = check_tolerance(tolerance)
     root = check_root(root, "gardens_point", GARDENS_POINT_LAYOUT)
     for t in (query, reference):
-        if t not in GARDENS_POINT_TRAVERSES:
-            raise ValueError(
-                f"gardens_point: unknown traverse {t!r}; "
-                f"valid: {', '.join(GARDENS_POINT_TRAVERSES)}."
-            )
+        check_choice(t, "gardens_point traverse", GARDENS_POINT_TRAVERSES)
     base = root
     if not (root / query).is_dir() and (root / "GardensPointWalking" / query).is_dir():
         base = root / "GardensPointWalking"

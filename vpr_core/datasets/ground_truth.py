@@ -1,5 +1,6 @@
-"""Ground truth: files (:func:`read_ground_truth`), the frame-aligned rule, tolerance widening,
-coverage checks, and the pairs picked from it (ground-truth and query-irrelevant references)."""
+"""Ground truth: its checks (:func:`check_ground_truth`: shape and values; :func:`check_coverage`:
+positive pairs), files (:func:`read_ground_truth`), the frame-aligned rule, and the pairs picked
+from it (ground-truth and query-irrelevant references)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,6 @@ import contextlib
 import csv
 import io
 import os
-import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -17,6 +17,19 @@ import numpy as np
 from ..checks import check_int
 from ..notices import notice
 from .safe_pickle import read_npy
+
+__all__ = [
+    "check_coverage",
+    "check_file_index",
+    "check_ground_truth",
+    "check_tolerance",
+    "frame_aligned",
+    "ground_truth_coverage",
+    "ground_truth_references",
+    "ground_truth_text",
+    "read_ground_truth",
+    "sample_irrelevant_references",
+]
 
 
 def check_tolerance(tolerance: Any) -> int:
@@ -29,82 +42,6 @@ def frame_aligned(nq: int, nr: int, tolerance: int) -> np.ndarray:
     q = np.arange(nq)[:, None]
     r = np.arange(nr)[None, :]
     return np.abs(q - r) <= tolerance
-
-
-def frame_number(path: str | os.PathLike) -> int | None:
-    """The frame number in a file name: its stem's last run of digits (``Image012.jpg`` -> 12)."""
-    digits = re.findall(r"\d+", Path(path).stem)
-    return int(digits[-1]) if digits and len(digits[-1]) <= 18 else None
-
-
-def check_frame_pairs(
-    query: Sequence[Path], reference: Sequence[Path], loader: str, strict: bool = True
-) -> None:
-    """Check that query ``i`` and reference ``i`` carry the same frame number in their names.
-
-    The frame-aligned rule pairs by position; a frame missing on one side (and another on the
-    other) would silently pair different places. ``strict``: every name must carry a number
-    (Gardens Point); else (``folder``) checked only when every name on both sides carries a
-    distinct number and the sides share one. ValueError names the missing frames and files.
-    """
-    qn = [frame_number(p) for p in query]
-    rn = [frame_number(p) for p in reference]
-    fix = " (or give a ground-truth file)." if not strict else "."
-    if None in qn or None in rn:
-        if not strict:
-            return
-        bad = [p for p, n in zip([*query, *reference], [*qn, *rn], strict=True) if n is None]
-        raise ValueError(
-            f"{loader}: pairing is by the frame number in the file name, but {bad[0]} has "
-            "none; restore the dataset's original file names."
-        )
-    twins: list[tuple[Path, Path, int | None]] = []  # (first file, second file, their number)
-    for paths, nums in ((query, qn), (reference, rn)):
-        seen: dict[int | None, Path] = {}
-        for p, n in zip(paths, nums, strict=True):
-            if n in seen:
-                twins.append((seen[n], p, n))
-            seen.setdefault(n, p)
-    if twins and (strict or set(qn) & set(rn)):
-        a, b, n = twins[0]
-        raise ValueError(
-            f"{loader}: pairing is by the frame number in the file name (its stem's last run of "
-            f"digits), but {a} and {b} both read as frame {n}, so which one pairs with frame "
-            f"{n} of the other side is ambiguous; rename or remove one of them" + fix
-        )
-    if twins or (not strict and not set(qn) & set(rn)):
-        return
-    if qn == rn:
-        return
-    q_nums = [n for n in qn if n is not None]  # all numbered here
-    r_nums = [n for n in rn if n is not None]
-    q_files = dict(zip(q_nums, query, strict=True))
-    r_files = dict(zip(r_nums, reference, strict=True))
-    only_q = sorted(set(q_nums) - set(r_nums))
-    only_r = sorted(set(r_nums) - set(q_nums))
-    parts = []
-    for side, only, files in (("query", only_r, r_files), ("reference", only_q, q_files)):
-        if only:
-            listed = ", ".join(f"{n} ({files[n].name})" for n in only[:5])
-            more = " ..." if len(only) > 5 else ""
-            parts.append(f"{side} side lacks frame(s) {listed}{more}")
-    if not parts:
-        parts.append("the two sides list the same frames in a different order")
-    raise ValueError(
-        f"{loader}: query i and reference i must be the same frame, but the "
-        + "; the ".join(parts)
-        + ". Restore the missing images, or remove their counterparts from the other side"
-        + fix
-    )
-
-
-def widen(gt: np.ndarray, tolerance: int) -> np.ndarray:
-    """Widen a ``bool (Nq, Nr)`` match matrix by ``tolerance`` frames along the reference axis."""
-    out = gt.copy()
-    for t in range(1, min(int(tolerance), gt.shape[1]) + 1):
-        out[:, t:] |= gt[:, :-t]
-        out[:, :-t] |= gt[:, t:]
-    return out
 
 
 # ----------------------------------------------------------------------------------------------
@@ -139,7 +76,29 @@ def ground_truth_text(ground_truth: np.ndarray, tolerance: object, from_file: bo
     return text
 
 
-def check_ground_truth(gt: np.ndarray, source: str) -> tuple[int, int]:
+def check_ground_truth(gt: Any, shape: tuple[int, int], source: str) -> np.ndarray:
+    """Return ``gt`` as a ``bool (Nq, Nr)`` match matrix: it must have ``shape = (Nq, Nr)`` (query
+    x reference images) and hold bools or 0/1 numbers. ``source`` names it in the messages (a
+    file, ``"of PlaceDataset 'x'"``)."""
+    arr = np.asarray(gt)
+    nq, nr = shape
+    if arr.shape != (nq, nr):
+        raise ValueError(
+            f"ground truth {source} has shape {arr.shape} but there are {nq} query and {nr} "
+            f"reference images, so it must be ({nq}, {nr}); fix the ground truth or the image "
+            "folders so they agree."
+        )
+    if arr.dtype != np.bool_ and (
+        not np.issubdtype(arr.dtype, np.number) or not np.isin(arr, (0, 1)).all()
+    ):
+        raise ValueError(
+            f"ground truth {source} must hold bools or 0/1 numbers, got dtype {arr.dtype} "
+            "with other values; pass a bool matrix (gt.astype(bool) once it holds only 0/1)."
+        )
+    return arr.astype(bool, copy=False)
+
+
+def check_coverage(gt: np.ndarray, source: str) -> tuple[int, int]:
     """Refuse ground truth without a positive pair; warn when it covers only some queries.
 
     Returns :func:`ground_truth_coverage`; ``source`` (a file or a rule) is named in messages.
@@ -158,6 +117,21 @@ def check_ground_truth(gt: np.ndarray, source: str) -> tuple[int, int]:
             f"{nq - covered} are dropped from every metric"
         )
     return covered, nq
+
+
+def check_file_index(index: int, n: int, side: str, where: str, shown: str, hint: str = "") -> int:
+    """Return ``index`` if a ground-truth file's cell indexes one of the ``n`` ``side`` images.
+
+    ``where`` is the file and its line or row, ``shown`` the cell as written, ``hint`` an extra
+    clue; the ValueError asks to fix the file or the image folder.
+    """
+    if not 0 <= index < n:
+        raise ValueError(
+            f"{where}: {side} index {shown} out of range (there are {n} {side} images, indices "
+            f"0..{n - 1}){hint}; fix the file or the image folder (is it the file of another "
+            "dataset, or are images missing?)."
+        )
+    return index
 
 
 # ----------------------------------------------------------------------------------------------
@@ -181,23 +155,8 @@ def _name_index(paths: Sequence[Path], base: Path | None) -> dict[str, int]:
 
 
 def _read_npy(path: Path, nq: int, nr: int) -> np.ndarray:
-    arr = np.asarray(
-        read_npy(path, f"a ({nq}, {nr}) bool or 0/1 matrix saved with np.save(path, matrix)")
-    )
-    if arr.shape != (nq, nr):
-        raise ValueError(
-            f"ground truth {path} has shape {arr.shape} but the dataset has {nq} query and "
-            f"{nr} reference images, so it must be ({nq}, {nr}); fix the matrix or the image "
-            "folders so they agree."
-        )
-    if arr.dtype != np.bool_ and (
-        not np.issubdtype(arr.dtype, np.number) or not np.isin(arr, (0, 1)).all()
-    ):
-        raise ValueError(
-            f"ground truth {path} must hold bools or 0/1 numbers, got dtype {arr.dtype} "
-            "with other values; save a bool matrix (gt.astype(bool))."
-        )
-    return arr.astype(bool)
+    arr = read_npy(path, f"a ({nq}, {nr}) bool or 0/1 matrix saved with np.save(path, matrix)")
+    return check_ground_truth(arr, (nq, nr), str(path))
 
 
 def _csv_rows(path: Path) -> list[tuple[int, str, str]]:
@@ -257,14 +216,9 @@ def _resolve(
 ) -> int:
     if _is_index(cell):
         j = int(cell) if len(cell) <= 18 else n  # int() refuses > 4,300 digits: out of range
-        if j >= n:
-            hint = " (the cells look 1-based: subtract 1)" if one_based else ""
-            raise ValueError(
-                f"{path}, line {line}: {side} index {cell[:20]}{'...' if len(cell) > 20 else ''} "
-                f"out of range (the dataset has {n} "
-                f"{side} images, indices 0..{n - 1}){hint}; fix the file or the image folder."
-            )
-        return j
+        shown = cell[:20] + ("..." if len(cell) > 20 else "")
+        hint = " (the cells look 1-based: subtract 1)" if one_based else ""
+        return check_file_index(j, n, side, f"{path}, line {line}", shown, hint)
     if cell in names:
         return names[cell]
     raise ValueError(

@@ -22,9 +22,7 @@ __all__ = [
     "IMAGE_EXTENSIONS",
     "MAX_IMAGE_PIXELS",
     "MIN_IMAGE_SIDE",
-    "check_image_file",
     "list_images",
-    "natural_key",
     "read_image",
     "scan_images",
 ]
@@ -83,7 +81,7 @@ def _header_size(path: Path) -> tuple[int, int] | None:
             Image.MAX_IMAGE_PIXELS = limit
 
 
-def check_image_file(path: str | os.PathLike) -> bool:
+def _check_image_file(path: str | os.PathLike) -> bool:
     """Raise if a JPEG or PNG file is truncated or claims too many pixels (no decoding).
 
     A JPEG must hold a start-of-scan marker and, after the last one, the end-of-image marker
@@ -167,7 +165,7 @@ def read_image(path: str | os.PathLike, min_side: int = MIN_IMAGE_SIDE) -> np.nd
     """Read an image file as ``uint8 (H, W, 3)`` RGB (grey images are expanded to 3 channels).
 
     The pixels are OpenCV's (``cv2.imread``, BGR -> RGB); before decoding, JPEG and PNG files are
-    checked for truncation (:func:`check_image_file`), and a JPEG whose decoding makes libjpeg
+    checked for truncation (:func:`_check_image_file`), and a JPEG whose decoding makes libjpeg
     report damaged data (corrupt scan data, a premature end) is refused.
 
     Args:
@@ -181,12 +179,12 @@ def read_image(path: str | os.PathLike, min_side: int = MIN_IMAGE_SIDE) -> np.nd
     Raises:
         FileNotFoundError: the file does not exist.
         ValueError: OpenCV cannot decode it, it is truncated or damaged, too many pixels
-            (:func:`check_image_file`), or it is smaller than ``min_side``.
+            (:func:`_check_image_file`), or it is smaller than ``min_side``.
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"image file not found: {path}")
-    is_jpeg = check_image_file(path)
+    is_jpeg = _check_image_file(path)
     damage = ""
     try:
         if is_jpeg:
@@ -219,7 +217,7 @@ def read_image(path: str | os.PathLike, min_side: int = MIN_IMAGE_SIDE) -> np.nd
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 
-def natural_key(name: str) -> list:
+def _natural_key(name: str) -> list:
     """Sort key that orders digit runs by value: ``2.jpg`` before ``10.jpg`` (runs of any length
     or script: compared as digit strings, never through ``int()``)."""
     key: list = []
@@ -287,7 +285,7 @@ def scan_images(
         )
 
     def key(p):
-        return natural_key(p.name)
+        return _natural_key(p.name)
 
     return sorted(files, key=key), sorted(skipped, key=key)
 

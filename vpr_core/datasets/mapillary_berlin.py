@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import os
 
+from ._layout import check_root, correspondence_dataset, resolve_file, traverse_dir
 from .base import PlaceDataset
 from .ground_truth import check_tolerance
-from .layout import check_root, correspondence_dataset, resolve_file, traverse_dir
+
+__all__ = ["MAPILLARY_BERLIN_LAYOUT", "load_mapillary_berlin"]
 
 MAPILLARY_BERLIN_LAYOUT = (
     "<root>[/<sequence>]/query/*.jpg, <root>[/<sequence>]/reference/*.jpg, "

@@ -7,11 +7,13 @@ from __future__ import annotations
 import logging
 import os
 
-from ..checks import check_int
+from ..checks import check_choice, check_int
+from ._layout import check_root, data_name
 from .base import PlaceDataset
 from .ground_truth import check_tolerance, frame_aligned
 from .images import list_images
-from .layout import check_root, data_name
+
+__all__ = ["NORDLAND_LAYOUT", "load_nordland"]
 
 log = logging.getLogger("vpr_core")
 
@@ -81,8 +83,7 @@ def load_nordland(
     """
     tolerance = check_tolerance(tolerance)
     step = check_int(step, "nordland: step", minimum=1)
-    if missing not in _MISSING:
-        raise ValueError(f"nordland: missing must be one of {_MISSING}, got {missing!r}.")
+    check_choice(missing, "nordland missing", _MISSING)
     root = check_root(root, "nordland", NORDLAND_LAYOUT)
     seasons = sorted(p.name for p in root.iterdir() if p.is_dir() and not p.name.startswith("."))
     q_files = _season_files(root, query, seasons)

@@ -1,5 +1,5 @@
 """Pickled and ``.npy`` inputs read as data, never as code, and never larger than the file allows:
-one restricted, size-bounded unpickler (:class:`RestrictedUnpickler`, :func:`read_npy`) for every
+one restricted, size-bounded unpickler (:class:`_RestrictedUnpickler`, :func:`read_npy`) for every
 pickle we read (VPR-Bench's ``ground_truth_new.npy`` and ``precomputed_data_corrected.npy``)."""
 
 from __future__ import annotations
@@ -14,14 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.lib import format as npy_format
 
-__all__ = [
-    "ALLOWED_GLOBALS",
-    "MAX_PICKLE_DEPTH",
-    "RestrictedUnpickler",
-    "UnsafePickleError",
-    "read_npy",
-    "restricted_loads",
-]
+__all__ = ["ALLOWED_GLOBALS", "MAX_PICKLE_DEPTH", "read_npy"]
 
 #: The only callables a pickle may name: numpy's array / dtype / scalar rebuilders (both the
 #: numpy 1 ``numpy.core`` and numpy 2 ``numpy._core`` spellings) and ``_codecs.encode``, which
@@ -49,7 +42,7 @@ _HEADERS = {
 }
 
 
-class UnsafePickleError(ValueError):
+class _UnsafePickleError(ValueError):
     """A pickle asked to run something other than rebuilding arrays, numbers and strings."""
 
 
@@ -66,7 +59,7 @@ def _too_large(source: str, what: str, n_bytes: int) -> ValueError:
     )
 
 
-class RestrictedUnpickler(pickle._Unpickler):  # the Python unpickler: BUILD can be checked
+class _RestrictedUnpickler(pickle._Unpickler):  # the Python unpickler: BUILD can be checked
     """An unpickler that resolves only :data:`ALLOWED_GLOBALS` and checks every array's size
     against the file's before numpy allocates it.
 
@@ -86,7 +79,7 @@ class RestrictedUnpickler(pickle._Unpickler):  # the Python unpickler: BUILD can
         """Refuse an array of ``shape`` and ``dtype`` larger than the pickle allows."""
         dims = shape if isinstance(shape, (tuple, list)) else (shape,)
         if not all(isinstance(d, int) and d >= 0 for d in dims):
-            raise UnsafePickleError(f"{self.source} asks for an array of shape {shape!r}.")
+            raise _UnsafePickleError(f"{self.source} asks for an array of shape {shape!r}.")
         size = int(np.prod(dims, dtype=object))
         itemsize = np.dtype(dtype).itemsize if dtype is not None else 8
         if size > _element_budget(self.n_bytes) or size * itemsize > 8 * _element_budget(
@@ -101,7 +94,7 @@ class RestrictedUnpickler(pickle._Unpickler):  # the Python unpickler: BUILD can
 
     def _reconstruct(self, subtype: Any, shape: Any, dtype: Any) -> Any:
         if subtype != self._ndarray:  # the pickle's numpy.ndarray, resolved by find_class
-            raise UnsafePickleError(f"{self.source} asks to rebuild a {subtype!r}.")
+            raise _UnsafePickleError(f"{self.source} asks to rebuild a {subtype!r}.")
         self._check_shape(shape, None)
         return np.ndarray(shape, "b")
 
@@ -112,7 +105,7 @@ class RestrictedUnpickler(pickle._Unpickler):  # the Python unpickler: BUILD can
         state = stack[-1]
         if isinstance(stack[-2], np.ndarray):
             if not isinstance(state, tuple) or len(state) not in (4, 5):
-                raise UnsafePickleError(f"{self.source} holds a malformed array state.")
+                raise _UnsafePickleError(f"{self.source} holds a malformed array state.")
             shape, dtype, data = state[-4], state[-3], state[-1]
             self._check_shape(shape, dtype)
             size = int(np.prod(shape, dtype=object))
@@ -143,7 +136,7 @@ class RestrictedUnpickler(pickle._Unpickler):  # the Python unpickler: BUILD can
             if name == "_reconstruct":
                 return self._reconstruct
             return super().find_class(module, name)
-        raise UnsafePickleError(
+        raise _UnsafePickleError(
             f"{self.source} is a pickle that asks to run {module}.{name}; it was not loaded. Only "
             "numpy arrays, lists, tuples, numbers and strings are read from pickled inputs "
             "(restricted unpickler), so this file is damaged, of another format, or hostile: "
@@ -151,7 +144,7 @@ class RestrictedUnpickler(pickle._Unpickler):  # the Python unpickler: BUILD can
         )
 
     def persistent_load(self, pid: Any) -> Any:
-        raise UnsafePickleError(
+        raise _UnsafePickleError(
             f"{self.source} is a pickle with persistent ids; it was not loaded."
         )
 
@@ -197,10 +190,10 @@ def _check_bounded(obj: Any, source: str, n_bytes: int) -> Any:
     return obj
 
 
-def restricted_loads(data: bytes, source: str, encoding: str = "latin1") -> Any:
-    """Unpickle ``data`` with :class:`RestrictedUnpickler`, size-bounded (``source`` is named in
+def _restricted_loads(data: bytes, source: str, encoding: str = "latin1") -> Any:
+    """Unpickle ``data`` with :class:`_RestrictedUnpickler`, size-bounded (``source`` is named in
     errors)."""
-    obj = RestrictedUnpickler(io.BytesIO(data), source, encoding, len(data)).load()
+    obj = _RestrictedUnpickler(io.BytesIO(data), source, encoding, len(data)).load()
     return _check_bounded(obj, source, len(data))
 
 
@@ -220,7 +213,7 @@ def read_npy(
     """Read a ``.npy`` file, object arrays included, without ever running code from it.
 
     A plain ``.npy`` is read by numpy with ``allow_pickle=False`` after checking that its header's
-    shape fits the file; an object array's pickle is rebuilt with :class:`RestrictedUnpickler` and
+    shape fits the file; an object array's pickle is rebuilt with :class:`_RestrictedUnpickler` and
     bounded (elements per byte of the file, depth); a file that is a bare pickle (no ``.npy``
     header) is unpickled the same way.
 
@@ -234,7 +227,7 @@ def read_npy(
         An ``np.ndarray`` (or, for a bare pickle, the object it holds).
 
     Raises:
-        UnsafePickleError: the pickle names anything but arrays, numbers and strings.
+        _UnsafePickleError: the pickle names anything but arrays, numbers and strings.
         ValueError: a ``.npz`` archive or another format, a damaged file, a header claiming more
             than the file holds, a pickle expanding beyond its bound (the message names the file
             and the expected format).
@@ -250,8 +243,7 @@ def read_npy(
             if head != _NPY_MAGIC:
                 if not allow_pickle:
                     raise ValueError("it has no .npy header")
-                obj = RestrictedUnpickler(io.BytesIO(f.read()), str(path), encoding, n_bytes).load()
-                return _check_bounded(obj, str(path), n_bytes)
+                return _restricted_loads(f.read(), str(path), encoding)  # the whole file
             version = npy_format.read_magic(f)
             if version not in _HEADERS:
                 raise ValueError(f".npy format version {version} is not supported")
@@ -262,9 +254,9 @@ def read_npy(
                 return np.load(f, allow_pickle=False)
             if not allow_pickle:
                 raise ValueError("it holds Python objects (an object array), not numbers")
-            obj = RestrictedUnpickler(io.BytesIO(f.read()), str(path), encoding, n_bytes).load()
+            obj = _RestrictedUnpickler(io.BytesIO(f.read()), str(path), encoding, n_bytes).load()
             return _check_bounded(obj, str(path), n_bytes)
-        except UnsafePickleError:
+        except _UnsafePickleError:
             raise
         except (
             OSError,

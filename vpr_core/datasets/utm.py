@@ -8,12 +8,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ._layout import check_root, data_name, listed_paths, traverse_dir
 from .base import PlaceDataset
-from .ground_truth import check_ground_truth
+from .ground_truth import check_coverage
 from .images import IMAGE_EXTENSIONS
-from .layout import check_root, data_name, listed_paths, traverse_dir
 
-__all__ = ["UTM_LAYOUT", "load_utm", "utm_coordinates", "utm_zones"]
+__all__ = ["UTM_LAYOUT", "load_utm"]
 
 UTM_LAYOUT = (
     "<root>/database/**/@<utm_easting>@<utm_northing>@...@.jpg, <root>/queries/**/@...@.jpg, "
@@ -51,7 +51,7 @@ def _paths(folder: Path, what: str) -> list[Path]:
     return paths
 
 
-def utm_coordinates(paths: list[Path]) -> np.ndarray:
+def _utm_coordinates(paths: list[Path]) -> np.ndarray:
     """``float64 (N, 2)`` UTM (easting, northing) of each file, from fields 1 and 2 of its name.
 
     Raises:
@@ -75,7 +75,7 @@ def utm_coordinates(paths: list[Path]) -> np.ndarray:
 _BANDS = "CDEFGHJKLMNPQRSTUVWX"  # latitude bands; C..M south of the equator, N..X north
 
 
-def utm_zones(paths: list[Path]) -> list[str | None]:
+def _utm_zones(paths: list[Path]) -> list[str | None]:
     """The UTM zone of each file from fields 3 and 4 of its name (``@e@n@32@T@...`` -> ``"32N"``:
     zone number and hemisphere, since bands of one hemisphere share the zone's coordinates), or
     None where the name carries no zone.
@@ -101,7 +101,7 @@ def utm_zones(paths: list[Path]) -> list[str | None]:
 
 def _one_zone(query: list[Path], database: list[Path]) -> str | None:
     """The zone every file shares (None: no name carries one); mixed zones are refused."""
-    zones = {"query": utm_zones(query), "database": utm_zones(database)}
+    zones = {"query": _utm_zones(query), "database": _utm_zones(database)}
     seen: dict[str | None, Path] = {}
     for side, paths in (("query", query), ("database", database)):
         for zone, p in zip(zones[side], paths, strict=True):
@@ -192,12 +192,12 @@ def load_utm(
     root = check_root(root, "utm", UTM_LAYOUT)
     qp = _paths(traverse_dir(root, queries, "utm", UTM_LAYOUT), "query")
     rp = _paths(traverse_dir(root, database, "utm", UTM_LAYOUT), "database")
-    uq, ur = utm_coordinates(qp), utm_coordinates(rp)
+    uq, ur = _utm_coordinates(qp), _utm_coordinates(rp)
     zone = _one_zone(qp, rp)
     dist = np.hypot(uq[:, None, 0] - ur[None, :, 0], uq[:, None, 1] - ur[None, :, 1])
     gt = dist <= hard
     rule = f"UTM distance <= {hard:g} m"
-    check_ground_truth(gt, f"utm file names ({rule})")
+    check_coverage(gt, f"utm file names ({rule})")
     meta = {
         "layout": UTM_LAYOUT,
         "loader": "utm",

@@ -11,11 +11,14 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import check_choice
+from ._layout import check_root, data_name, resolve_file, traverse_dir, widen
 from .base import PlaceDataset
-from .ground_truth import check_ground_truth, check_tolerance, widen
+from .ground_truth import check_coverage, check_file_index, check_tolerance
 from .images import list_images
-from .layout import check_root, data_name, resolve_file, traverse_dir
 from .safe_pickle import read_npy
+
+__all__ = ["VPR_BENCH_LAYOUT", "load_vpr_bench", "read_vprbench_ground_truth"]
 
 log = logging.getLogger("vpr_core")
 
@@ -91,20 +94,11 @@ def read_vprbench_ground_truth(path: str | os.PathLike, nq: int, nr: int) -> np.
             )
         q = _as_index(row[0], path, k, "query index")
         refs = _mask_or_index(row[1], path, k, nr)
-        qi = int(q[0]) if q.size == 1 else -1
-        if not 0 <= qi < nq:
-            raise ValueError(
-                f"{path}, row {k}: query index {row[0]!r} out of range (the query folder "
-                f"has {nq} images, indices 0..{nq - 1}); is this the file of another "
-                "dataset, or are images missing?"
-            )
+        where = f"{path}, row {k}"
+        qi = check_file_index(int(q[0]) if q.size == 1 else -1, nq, "query", where, repr(row[0]))
         bad = refs[(refs < 0) | (refs >= nr)]
         if bad.size:
-            raise ValueError(
-                f"{path}, row {k}: reference indices {bad[:5].tolist()} out of range "
-                f"(the ref folder has {nr} images, indices 0..{nr - 1}); is this the "
-                "file of another dataset, or are images missing?"
-            )
+            check_file_index(int(bad[0]), nr, "reference", where, str(bad[0]))
         gt[qi, refs] = True
     return gt
 
@@ -146,8 +140,7 @@ def load_vpr_bench(
     ``tolerance`` widens the listed matches along the reference sequence (frames).
     """
     tolerance = check_tolerance(tolerance)
-    if order not in _ORDERS:
-        raise ValueError(f"vpr_bench: order must be one of {_ORDERS}, got {order!r}.")
+    check_choice(order, "vpr_bench order", _ORDERS)
     root = check_root(root, "vpr_bench", VPR_BENCH_LAYOUT)
     qp = _ordered(
         list_images(
@@ -165,7 +158,7 @@ def load_vpr_bench(
     )
     gt_file = resolve_file(root, ground_truth)
     gt = widen(read_vprbench_ground_truth(gt_file, len(qp), len(rp)), tolerance)
-    check_ground_truth(gt, str(gt_file))
+    check_coverage(gt, str(gt_file))
     meta = {
         "dataset": root.name,
         "query_traverse": query,
