@@ -260,7 +260,7 @@ def _allocating_pickles() -> dict[str, bytes]:
 def test_pickle_asking_for_a_huge_array_is_refused_before_allocating(tmp_path, case):
     import tracemalloc
 
-    from vpr_core.datasets.safe_pickle import read_npy, restricted_loads
+    from vpr_core.datasets.safe_pickle import _restricted_loads, read_npy
 
     data = _allocating_pickles()[case]
     assert len(data) < 120
@@ -271,7 +271,7 @@ def test_pickle_asking_for_a_huge_array_is_refused_before_allocating(tmp_path, c
         with pytest.raises(ValueError, match=r"bomb\.npy .*30,000,000"):
             read_npy(path, "x")
         with pytest.raises(ValueError, match=r"mem .*30,000,000"):
-            restricted_loads(data, "mem")
+            _restricted_loads(data, "mem")
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
@@ -280,14 +280,14 @@ def test_pickle_asking_for_a_huge_array_is_refused_before_allocating(tmp_path, c
 
 def test_array_state_that_does_not_fill_its_shape_is_refused():
     """numpy's ``__setstate__`` reads past an object list shorter than the shape (SIGSEGV)."""
-    from vpr_core.datasets.safe_pickle import restricted_loads
+    from vpr_core.datasets.safe_pickle import _restricted_loads
 
     data = (
         b"\x80\x02cnumpy.core.multiarray\n_reconstruct\ncnumpy\nndarray\nK\x00\x85C\x01b\x87R"
         b"(K\x01M\xe8\x03\x85cnumpy\ndtype\nX\x02\x00\x00\x00O8\x89\x88\x87R\x89]K\x07atb."
     )  # an object array of shape (1000,) whose state lists one item
     with pytest.raises(ValueError, match=r"mem holds an array of shape \(1000,\) whose data"):
-        restricted_loads(data, "mem")
+        _restricted_loads(data, "mem")
 
 
 # ------------------------------------------------------------------------------------------
@@ -563,7 +563,7 @@ def test_jpeg_with_random_bytes_in_its_scan_data_is_refused(tmp_path, gardens_po
 
 
 def test_two_files_with_one_frame_number_are_named(tmp_path):
-    from vpr_core.datasets.ground_truth import check_frame_pairs
+    from vpr_core.datasets._layout import check_frame_pairs
 
     q = [tmp_path / "q" / "Image000_2014.jpg", tmp_path / "q" / "Image2014.jpg"]
     r = [tmp_path / "r" / "Image000.jpg", tmp_path / "r" / "Image001.jpg"]
