@@ -85,7 +85,9 @@ def test_vpr_bench_errors(tmp_path):
     bad = np.empty(2, dtype=object)
     bad[0], bad[1] = [0, [1], 7], [1, [2]]
     np.save(gt, bad, allow_pickle=True)
-    with pytest.raises(ValueError, match=r"row 0: expected \[query index, \[reference indices\]\]"):
+    with pytest.raises(
+        ValueError, match=r"row 0: expected rows \[query index, \[reference indices\]\]"
+    ):
         load_dataset("vpr_bench", tmp_path)
     np.save(gt, np.zeros((2, 3, 4)))
     with pytest.raises(ValueError, match=r"shape \(2, 3, 4\)"):

@@ -58,6 +58,14 @@ def _mask_or_index(value: Any, path: Path, row: int, nr: int) -> np.ndarray:
     return _as_index(value, path, row, "reference indices")
 
 
+def _not_rows(where: str, got: str) -> ValueError:
+    """The error of a ground-truth file that is not rows ``[query index, [reference indices]]``."""
+    return ValueError(
+        f"{where}: expected rows [query index, [reference indices]] as in VPR-Bench's "
+        f"ground_truth_new.npy, got {got}."
+    )
+
+
 def _rows(path: Path) -> list:
     arr = read_npy(
         path,
@@ -67,10 +75,7 @@ def _rows(path: Path) -> list:
     if isinstance(arr, np.ndarray) and arr.dtype == object and arr.ndim == 0:
         arr = arr.item()
     if isinstance(arr, np.ndarray) and arr.ndim not in (1, 2):
-        raise ValueError(
-            f"{path}: expected a list of [query index, [reference indices]] rows, "
-            f"got an array of shape {arr.shape}."
-        )
+        raise _not_rows(str(path), f"an array of shape {arr.shape}")
     return list(arr)
 
 
@@ -89,9 +94,7 @@ def read_vprbench_ground_truth(path: str | os.PathLike, nq: int, nr: int) -> np.
     gt = np.zeros((nq, nr), dtype=bool)
     for k, row in enumerate(_rows(path)):
         if isinstance(row, (str, bytes)) or not hasattr(row, "__len__") or len(row) != 2:
-            raise ValueError(
-                f"{path}, row {k}: expected [query index, [reference indices]], got {row!r}."
-            )
+            raise _not_rows(f"{path}, row {k}", repr(row))
         q = _as_index(row[0], path, k, "query index")
         refs = _mask_or_index(row[1], path, k, nr)
         where = f"{path}, row {k}"
