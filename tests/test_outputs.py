@@ -179,8 +179,10 @@ def test_layout_check_catches_a_cut_subtitle():
 
 
 def test_an_invisible_curve_gets_a_note():
-    assert "no query correctly matched" in base.curve_note(np.zeros(5), np.r_[1.0, np.zeros(4)])
-    assert base.curve_note(np.linspace(0, 1, 5), np.ones(5)) == ""
+    from vpr_core.viz.curves import _curve_note
+
+    assert "no query correctly matched" in _curve_note(np.zeros(5), np.r_[1.0, np.zeros(4)])
+    assert _curve_note(np.linspace(0, 1, 5), np.ones(5)) == ""
 
 
 def test_ground_truth_wording():

@@ -11,8 +11,8 @@ import pytest
 
 from vpr_core import viz
 from vpr_core.matching import weighted_matches
+from vpr_core.viz._shared import FIG_WIDTH
 from vpr_core.viz.carried import CARRIED_COLUMNS, SILENT_WEIGHT
-from vpr_core.viz.weighting import FIG_WIDTH
 
 
 @pytest.fixture(scope="module")
@@ -95,7 +95,7 @@ def test_refuses_runs_it_cannot_explain(runs):
     bare = dataclasses.replace(weighted, descriptors=None)
     with pytest.raises(ValueError, match="keep_descriptors=True"):
         viz.plot_carried_landmarks(ds, plain, bare)
-    with pytest.raises(ValueError, match="k must be an integer >= 1"):
+    with pytest.raises(ValueError, match="k must be a positive integer"):
         viz.plot_carried_landmarks(ds, plain, weighted, k=0)
     with pytest.raises(ValueError, match="n_queries must be"):
         viz.plot_carried_landmarks(ds, plain, weighted, n_queries=True)
@@ -109,6 +109,24 @@ def test_refuses_runs_it_cannot_explain(runs):
     classical = run_method("dense", ds, spatial="consistency", **kw)
     with pytest.raises(ValueError, match="differ in more than the weighting"):
         viz.plot_carried_landmarks(ds, classical, weighted)
+
+
+def test_the_per_query_figures_refuse_in_the_shared_wording(runs):
+    """One wording per rule (issue 47): the count of queries shown, a run without descriptors."""
+    ds, plain, weighted = runs
+    bare = dataclasses.replace(weighted, descriptors=None)
+    for call in (viz.plot_disagreements, viz.plot_weighted_matches):
+        with pytest.raises(ValueError, match=r"n \(queries shown\) must be a positive integer"):
+            call(ds, plain, weighted, n=0)
+    for call, name in (
+        (viz.plot_disagreements, "plot_disagreements"),
+        (viz.plot_weighted_matches, "plot_weighted_matches"),
+        (viz.plot_carried_landmarks, "plot_carried_landmarks"),
+    ):
+        with pytest.raises(ValueError, match=rf"^{name} needs the landmark descriptors of"):
+            call(ds, plain, bare)
+    with pytest.raises(ValueError, match="n_queries must be a positive integer, got 0"):
+        viz.plot_carried_landmarks(ds, plain, weighted, n_queries=0)
 
 
 def test_no_changed_top1_says_so(runs):

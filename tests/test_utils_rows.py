@@ -2,6 +2,7 @@
 
 import pytest
 
+from vpr_core.paths import MAX_LABEL_BYTES, MAX_NAME_BYTES, check_label, check_name
 from vpr_core.utils import code_version, configure_logging, read_rows, write_rows
 
 
@@ -22,10 +23,22 @@ BAD_UTILS_CALLS = {
         ValueError,
         "unknown configure_logging stream 'file'; valid: stderr, stdout",
     ),
+    "long label": (
+        lambda: check_label("\u00e9" * MAX_LABEL_BYTES),
+        ValueError,
+        rf"label '\u00e9{{20}}\.\.\.' is {2 * MAX_LABEL_BYTES} bytes long; give a label of "
+        rf"at most {MAX_LABEL_BYTES} \(it names folders",
+    ),
+    "long name": (
+        lambda: check_name("n" * (MAX_NAME_BYTES + 1)),
+        ValueError,
+        rf"name 'n{{20}}\.\.\.' is {MAX_NAME_BYTES + 1} bytes long; give a name of at most "
+        rf"{MAX_NAME_BYTES} \(the file system",
+    ),
     "stage": (
         lambda: code_version("plots"),
-        KeyError,
-        "unknown stage 'plots'; stages: landmarks, features, matching",
+        ValueError,
+        "unknown stage 'plots'; valid: landmarks, features, matching",
     ),
 }
 
@@ -36,3 +49,8 @@ def test_bad_utils_inputs_raise_one_clear_line(case):
     with pytest.raises(exc, match=match) as info:
         call()
     assert "\n" not in str(info.value)
+
+
+def test_a_label_and_a_name_at_their_byte_limit_pass():
+    assert check_label("a" * MAX_LABEL_BYTES) == "a" * MAX_LABEL_BYTES
+    assert check_name("n" * MAX_NAME_BYTES) == "n" * MAX_NAME_BYTES

@@ -6,4 +6,6 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
-from .utils import make_deterministic  # noqa: F401
+from .utils import make_deterministic
+
+__all__ = ["__version__", "make_deterministic"]

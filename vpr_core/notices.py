@@ -6,6 +6,8 @@ from __future__ import annotations
 import logging
 import warnings
 
+__all__ = ["VPRWarning", "notice"]
+
 logger = logging.getLogger("vpr_core")
 
 

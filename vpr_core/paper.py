@@ -8,6 +8,34 @@ from typing import Any
 
 import pandas as pd
 
+__all__ = [
+    "ALEXNET_CONV3_DIM",
+    "ALEXNET_INPUT",
+    "DENSE_PER_SCALE",
+    "DENSE_SCALES",
+    "FIG7_NMS_THRESHOLDS",
+    "FIG7_SOFT_NMS_THRESHOLDS",
+    "MIN_SCALE_INDEX",
+    "NMS_IOU",
+    "N_CANDIDATES",
+    "N_LANDMARKS",
+    "N_SCALES",
+    "PROJECTION_DIM",
+    "SCALE_EDGES",
+    "SCALE_LABELS",
+    "SCALE_PRIORITY_ORDER",
+    "SCALE_RANGES",
+    "SCALE_RANGE_LABELS",
+    "SOFT_NMS_IOU",
+    "SOFT_NMS_SIGMA",
+    "TABLE2",
+    "TABLE3",
+    "TABLE4",
+    "dense_set_label",
+    "dense_settings",
+    "table1",
+]
+
 # ---- landmark counts (Sec. 2.1, 3.2) ----------------------------------------------------------
 #: Landmarks per image in every scheme.
 N_LANDMARKS: int = 100

@@ -13,6 +13,10 @@ from pathlib import Path
 from . import settings
 
 __all__ = [
+    "LABEL_CHARACTERS",
+    "MAX_LABEL_BYTES",
+    "MAX_NAME_BYTES",
+    "OUT_SETTING",
     "PROJECT_NAME",
     "USER_AREA",
     "cache_root",
@@ -166,7 +170,8 @@ def make_dir(path: Path, setting: str) -> Path:
     return path
 
 
-_OUT_SETTING = "--out / VPR_OUTPUT_DIR (default: the project checkout, else the current folder)"
+#: What chooses the output root, as an error about a folder under it names it (:func:`make_dir`).
+OUT_SETTING = "--out / VPR_OUTPUT_DIR (default: the project checkout, else the current folder)"
 
 
 #: Longest label, in UTF-8 bytes: file names under it add a stem to it (255 bytes at most).
@@ -180,6 +185,19 @@ LABEL_CHARACTERS = "letters, digits, '_', '-', '.' and '+'"
 def _label_character(c: str) -> bool:
     """True for a letter or a decimal digit (any script) or one of ``_ - . +``."""
     return c.isalpha() or c.isdecimal() or c in "_-.+"
+
+
+def _check_bytes(text: str, what: str, limit: int, why: str) -> str:
+    """``text`` if its UTF-8 form is at most ``limit`` bytes (a file-name length rule of
+    :func:`check_label` and :func:`check_name`); ``what`` names it, ``why`` gives the limit's
+    reason."""
+    size = len(text.encode())
+    if size > limit:
+        raise ValueError(
+            f"{what} {text[:20] + '...'!r} is {size} bytes long; give a {what} of at most "
+            f"{limit} ({why})"
+        )
+    return text
 
 
 def check_label(label: object) -> str:
@@ -202,13 +220,12 @@ def check_label(label: object) -> str:
             f"{LABEL_CHARACTERS}, not starting with '.', e.g. 'gardens_point' ({found}); it "
             "names figures/<label>/ and results/<label>/"
         )
-    if len(label.encode()) > MAX_LABEL_BYTES:
-        raise ValueError(
-            f"label {label[:20] + '...'!r} is {len(label.encode())} bytes long; give a label of "
-            f"at most {MAX_LABEL_BYTES} (it names folders and the files in them, whose names "
-            "the file system limits to 255 bytes)"
-        )
-    return label
+    return _check_bytes(
+        label,
+        "label",
+        MAX_LABEL_BYTES,
+        "it names folders and the files in them, whose names the file system limits to 255 bytes",
+    )
 
 
 #: Longest file stem given to ``save()``, in UTF-8 bytes: 255 less the longest suffix added
@@ -241,19 +258,16 @@ def check_name(name: object) -> str:
             "absolute path or control character), e.g. 'fig13_comparison'; it names "
             "<label>/<name>.png or .csv, the label chooses the folder"
         )
-    if len(name.encode()) > MAX_NAME_BYTES:
-        raise ValueError(
-            f"name {name[:20] + '...'!r} is {len(name.encode())} bytes long; give a name of at "
-            f"most {MAX_NAME_BYTES} (the file system limits file names to 255 bytes)"
-        )
-    return name
+    return _check_bytes(
+        name, "name", MAX_NAME_BYTES, "the file system limits file names to 255 bytes"
+    )
 
 
 def _sub(kind: str, label: str | None) -> Path:
     d = (output_root() if kind == "runs" else figures_root()) / kind
     if label:
         d = d / check_label(label)
-    return make_dir(d, _OUT_SETTING)
+    return make_dir(d, OUT_SETTING)
 
 
 def figures_dir(label: str | None = None) -> Path:
@@ -279,5 +293,5 @@ def cache_root() -> Path:
         root,
         "VPR_CACHE_DIR"
         if env
-        else f"{_OUT_SETTING}; the cache defaults to <output root>/.cache, or set VPR_CACHE_DIR",
+        else f"{OUT_SETTING}; the cache defaults to <output root>/.cache, or set VPR_CACHE_DIR",
     )

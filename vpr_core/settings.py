@@ -8,6 +8,33 @@ import math
 import os
 from collections.abc import Mapping
 
+__all__ = [
+    "ALEXNET_ENV",
+    "BENCH_ROOT_ENV",
+    "CACHE_ENV",
+    "DATASETS_ENV",
+    "OUTPUT_ENV",
+    "PROGRESS_ENV",
+    "SCHEDULER_ENV",
+    "SCHEDULER_TIMEOUT_ENV",
+    "SED_MODEL_ENV",
+    "TUNE_MALLOC_ENV",
+    "alexnet_weights",
+    "bench_root",
+    "cache_dir",
+    "child_environment",
+    "dask_scheduler",
+    "efficientnet_weights",
+    "efficientnet_weights_env",
+    "extra_datasets",
+    "output_dir",
+    "progress_disabled",
+    "progress_style",
+    "scheduler_timeout",
+    "sed_model",
+    "tune_malloc",
+]
+
 OUTPUT_ENV = "VPR_OUTPUT_DIR"
 CACHE_ENV = "VPR_CACHE_DIR"
 SCHEDULER_ENV = "VPR_DASK_SCHEDULER"

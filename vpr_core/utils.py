@@ -27,6 +27,30 @@ from . import paths, settings
 from .checks import check_choice
 from .notices import VPRWarning
 
+__all__ = [
+    "ALLOCATOR_KEEP_BYTES",
+    "FORMULA_STARTS",
+    "LINE_INTERVAL_S",
+    "STAGE_SOURCES",
+    "array_sha256",
+    "cache_dir",
+    "code_sha256",
+    "code_version",
+    "config_slug",
+    "configure_logging",
+    "csv_safe",
+    "file_fingerprint",
+    "file_sha256",
+    "logger",
+    "make_deterministic",
+    "progress",
+    "read_rows",
+    "short_hash",
+    "tune_allocator",
+    "write_frame_csv",
+    "write_rows",
+]
+
 logger = logging.getLogger("vpr_core")
 logger.addHandler(logging.NullHandler())  # library convention: the application configures output
 
@@ -39,8 +63,6 @@ def make_deterministic(seed: int = 0) -> None:
     torch.use_deterministic_algorithms(True, warn_only=True)
 
 
-#: Environment variable: ``0`` leaves the C allocator as it is (see :func:`tune_allocator`).
-ALLOCATOR_ENV = "VPR_TUNE_MALLOC"
 #: Free memory glibc keeps at the top of the heap once :func:`tune_allocator` ran (bytes).
 ALLOCATOR_KEEP_BYTES = 1 << 30
 
@@ -197,10 +219,9 @@ def code_version(stage: str) -> str:
     matrix is never reused: it is recomputed. Computed once per process.
 
     Raises:
-        KeyError: unknown stage (the message lists the stages).
+        ValueError: unknown stage (the message lists the stages).
     """
-    if stage not in STAGE_SOURCES:
-        raise KeyError(f"unknown stage {stage!r}; stages: {', '.join(STAGE_SOURCES)}")
+    check_choice(stage, "stage", STAGE_SOURCES)
     if stage not in _CODE_VERSIONS:
         pkg = Path(__file__).resolve().parent
         h = hashlib.sha1()

@@ -23,6 +23,7 @@ from .matches import (
 )
 from .recall import plot_recall_at_n
 from .statistics import plot_asl, plot_cls, plot_cmr, plot_scale_statistics
+from .weighting import plot_weighted_matches
 from .widgets import label_widget, pair_label_widget
 
 __all__ = [
@@ -54,6 +55,7 @@ __all__ = [
     "plot_recall_at_n",
     "plot_scale_distribution",
     "plot_scale_statistics",
+    "plot_weighted_matches",
     "save",
     "save_figure",
 ]

@@ -1,4 +1,5 @@
-"""Shared plotting pieces: the deterministic :func:`save_figure`, box drawing, image canvases."""
+"""Saving figures and tables (the deterministic :func:`save_figure`, :func:`save`), the layout
+check every saved figure passes, the methods' colours and box drawing."""
 
 from __future__ import annotations
 
@@ -13,7 +14,6 @@ from functools import partial
 from pathlib import Path
 
 import matplotlib
-import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -21,6 +21,7 @@ from matplotlib.patches import Rectangle
 
 from ..notices import notice
 from ..paths import (
+    OUT_SETTING,
     USER_AREA,
     check_label,
     check_name,
@@ -36,18 +37,14 @@ __all__ = [
     "DEFAULT_LABEL",
     "SAVE_DPI",
     "TIMING_COLUMN",
-    "curve_note",
     "draw_boxes",
     "layout_problems",
     "save",
     "save_all",
     "save_figure",
-    "split_timings",
 ]
 
 logger = logging.getLogger("vpr_core")
-
-_OUT_SETTING = "--out / VPR_OUTPUT_DIR (default: the project checkout, else the current folder)"
 
 #: The label of a figure or table saved without one (:func:`save`): it goes to
 #: ``<output root>/user/figures/scratch/`` or ``.../results/scratch/``, never among the study's.
@@ -67,7 +64,7 @@ METHOD_COLORS = {
 }
 
 
-def png_metadata(suffix: str) -> dict:
+def _png_metadata(suffix: str) -> dict:
     """Metadata that keeps saved files byte-identical: no software/version or date stamp."""
     return {"Software": None} if suffix == ".png" else {"CreationDate": None, "Producer": None}
 
@@ -93,13 +90,13 @@ def save_figure(
         path = path.with_suffix(path.suffix + ".png") if path.suffix else path.with_suffix(".png")
     if not path.is_absolute():
         path = figures_dir(dataset) / path
-    make_dir(path.parent, _OUT_SETTING)
+    make_dir(path.parent, OUT_SETTING)
     _commit([(_staged(path, partial(_draw, fig, suffix=path.suffix, dpi=dpi)), path)], path.parent)
     return path
 
 
 def _draw(fig: matplotlib.figure.Figure, tmp: Path, suffix: str, dpi: int = SAVE_DPI) -> None:
-    fig.savefig(tmp, dpi=dpi, metadata=png_metadata(suffix), bbox_inches=None, format=suffix[1:])
+    fig.savefig(tmp, dpi=dpi, metadata=_png_metadata(suffix), bbox_inches=None, format=suffix[1:])
 
 
 def _staged(path: Path, write: Callable[[Path], None]) -> Path:
@@ -255,7 +252,7 @@ def layout_problems(fig: matplotlib.figure.Figure) -> list[str]:
 TIMING_COLUMN = re.compile(r"\bs/(img|pair)\b|\(s\)")
 
 
-def split_timings(table: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame | None]:
+def _split_timings(table: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame | None]:
     """``(table without timing columns, timings or None)``; ``root`` cells become the data
     folder's name, so the committed table is the same on every machine.
 
@@ -292,7 +289,7 @@ def save_all(
     inputs, checked by :func:`layout_problems`, whatever the figure's history: shown inline in
     an earlier cell, closed with ``plt.close``); a pandas DataFrame to
     ``results/<label>/<name>.csv`` (floats with 6 decimals, the index kept; timing columns to
-    ``<name>.timings.csv``, :func:`split_timings`; a table of nothing but timings, such as
+    ``<name>.timings.csv``, :func:`_split_timings`; a table of nothing but timings, such as
     Table 5, goes only there). Everything is written to unique temporary
     files first, then renamed under one lock of the output root: concurrent runs never leave
     one run's figure beside another's table. Replacing a file with other content is logged.
@@ -336,11 +333,11 @@ def save_all(
             if isinstance(obj, matplotlib.figure.Figure):
                 for problem in layout_problems(obj):
                     notice(f"layout of {name}: {problem}")
-                path = make_dir(root / "figures" / label, _OUT_SETTING) / f"{name}.png"
+                path = make_dir(root / "figures" / label, OUT_SETTING) / f"{name}.png"
                 staged.append((_staged(path, partial(_draw, obj, suffix=".png")), path))
             elif isinstance(obj, pd.DataFrame):
-                folder = make_dir(root / "results" / label, _OUT_SETTING)
-                table, timings = split_timings(obj)
+                folder = make_dir(root / "results" / label, OUT_SETTING)
+                table, timings = _split_timings(obj)
                 path = folder / f"{name}.csv"
                 if timings is not None and set(table.columns) <= set(timings.columns):
                     # nothing but timings: a measurement of this machine, no committed table
@@ -362,7 +359,7 @@ def save_all(
         for tmp, _ in staged:
             tmp.unlink(missing_ok=True)
         raise
-    _commit(staged, make_dir(root, _OUT_SETTING))
+    _commit(staged, make_dir(root, OUT_SETTING))
     if unlabelled:
         for path in written:
             logger.info(
@@ -398,56 +395,7 @@ def save(obj, name: str, label: str | None = None, out: str | Path | None = None
     return save_all([(name, obj)], label, out)[0]
 
 
-def curve_note(recall: np.ndarray, precision: np.ndarray) -> str:
-    """Why a PR curve cannot be seen in a plot, for its legend entry, or ``""``.
-
-    Args:
-        recall, precision: ``(T + 1,)`` curve points (``recall[0] = 0``).
-
-    Returns:
-        ``"; no curve: no query correctly matched at any threshold"`` when the curve never
-        leaves recall 0 (AUC 0: it lies on the axis), else ``""``.
-    """
-    r = np.asarray(recall, dtype=float)
-    p = np.asarray(precision, dtype=float)
-    seen = np.isfinite(r) & np.isfinite(p) & (r > 0) & (p > 0)
-    return "" if seen.any() else "; no curve: no query correctly matched at any threshold"
-
-
 def draw_boxes(ax, boxes: np.ndarray, color="yellow", lw: float = 1.0, alpha: float = 0.9) -> None:
     """Draw ``(K, 4)`` ``(x, y, w, h)`` boxes on an axes."""
     for x, y, w, h in np.asarray(boxes, dtype=float).reshape(-1, 4):
         ax.add_patch(Rectangle((x, y), w, h, fill=False, edgecolor=color, lw=lw, alpha=alpha))
-
-
-def landmark_canvas(image_or_size) -> tuple[np.ndarray | None, tuple[int, int]]:
-    """``(image or None, (H, W))`` from an image ``(H, W[, 3])`` or an ``(H, W)`` size."""
-    arr = np.asarray(image_or_size) if isinstance(image_or_size, np.ndarray) else None
-    if arr is not None and arr.ndim in (2, 3) and arr.shape[0] > 3:
-        return arr, (int(arr.shape[0]), int(arr.shape[1]))
-    size = tuple(int(v) for v in tuple(image_or_size)[:2])
-    if len(size) != 2 or min(size) <= 0:
-        raise ValueError(f"expected an image (H, W, 3) or a size (H, W), got {image_or_size!r}")
-    return None, size
-
-
-def show_canvas(ax, image: np.ndarray | None, size: tuple[int, int], gray: bool = False) -> None:
-    """Show ``image`` (or a blank ``size`` canvas) on ``ax`` without ticks, pixel-exact limits."""
-    if image is None:
-        ax.imshow(np.full(size + (3,), 235, np.uint8))
-    elif gray and image.ndim == 3:
-        ax.imshow(image.mean(axis=2), cmap="gray", vmin=0, vmax=255)
-    else:
-        ax.imshow(image, cmap="gray" if image.ndim == 2 else None)
-    ax.set_xlim(-0.5, size[1] - 0.5)
-    ax.set_ylim(size[0] - 0.5, -0.5)
-    ax.set_xticks([])
-    ax.set_yticks([])
-
-
-def new_axes(ax, figsize: tuple[float, float]):
-    """``(fig, ax)``: the given axes and its figure, or a new single-panel figure."""
-    if ax is None:
-        fig, ax = plt.subplots(figsize=figsize)
-        return fig, ax
-    return ax.figure, ax

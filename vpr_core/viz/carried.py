@@ -5,7 +5,6 @@ also matches, beside the ones the weighting silenced."""
 from __future__ import annotations
 
 import dataclasses
-import textwrap
 from typing import Any
 
 import matplotlib
@@ -13,10 +12,12 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from ..evaluation.curves import _best_two, _ranked
+from ..checks import check_descriptors_kept, check_int
+from ..evaluation.ranks import best_two as _best_two
+from ..evaluation.ranks import ranked as _ranked
 from ..matching.pairwise import cosine_similarity
+from ._shared import FIG_WIDTH, FONT, run_matches, wrapped
 from .curves import dataset_line
-from .weighting import FIG_WIDTH, FONT, run_matches
 
 __all__ = ["CARRIED_COLUMNS", "CROP_PIXELS", "SILENT_WEIGHT", "plot_carried_landmarks"]
 
@@ -136,11 +137,8 @@ def _side_by_side(a: np.ndarray, b: np.ndarray, grey: bool) -> np.ndarray:
     return out
 
 
-def _check_carried_runs(ds: Any, plain: Any, weighted: Any, n_queries: int, k: int) -> str:
+def _check_carried_runs(ds: Any, plain: Any, weighted: Any) -> str:
     """The weighting of ``weighted``; refuses runs the figure cannot explain."""
-    for name, value in (("n_queries", n_queries), ("k", k)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-            raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
     m_w = getattr(getattr(weighted, "config", None), "matching", None)
     m_p = getattr(getattr(plain, "config", None), "matching", None)
     if m_w is None or not m_w.weighting:
@@ -153,11 +151,7 @@ def _check_carried_runs(ds: Any, plain: Any, weighted: Any, n_queries: int, k: i
             f"`plain` must be the paper's Eq. (1) (no weighting), got "
             f"{getattr(plain, 'label', plain)!r}: run the same method without weighting"
         )
-    if getattr(weighted, "descriptors", None) is None:
-        raise ValueError(
-            f"plot_carried_landmarks needs the descriptors of {weighted.label!r}: run it with "
-            "run_method(..., keep_descriptors=True)"
-        )
+    check_descriptors_kept(weighted, "plot_carried_landmarks")
     gt = np.asarray(ds.ground_truth, dtype=bool)
     fps = {getattr(r, "dataset_fingerprint", None) for r in (plain, weighted)} - {None, ""}
     for run in (plain, weighted):
@@ -216,12 +210,6 @@ def _carried_rows(
     return rows
 
 
-def _wrapped(text: str, width: float) -> str:
-    """``text`` wrapped to ``width`` inches at :data:`FONT` points (each line kept)."""
-    chars = int(width * 72 / (0.56 * FONT))
-    return "\n".join(w for ln in text.split("\n") for w in textwrap.wrap(ln, chars) or [""])
-
-
 def plot_carried_landmarks(
     ds: Any, plain: Any, weighted: Any, n_queries: int = 2, k: int = 5
 ) -> tuple[matplotlib.figure.Figure, pd.DataFrame]:
@@ -250,9 +238,10 @@ def plot_carried_landmarks(
             weighting, ``weighted`` without descriptors, runs of another dataset or that differ
             in more than the weighting.
     """
-    weighting = _check_carried_runs(ds, plain, weighted, n_queries, k)
+    n_queries, k = check_int(n_queries, "n_queries", 1), check_int(k, "k", 1)
+    weighting = _check_carried_runs(ds, plain, weighted)
     gt = np.asarray(ds.ground_truth, dtype=bool)
-    chosen = _changed_queries(plain, weighted, gt, int(n_queries))
+    chosen = _changed_queries(plain, weighted, gt, n_queries)
     tp, tw = _top1(plain), _top1(weighted)
     blocks = []
     for q, case in chosen:
@@ -262,7 +251,7 @@ def plot_carried_landmarks(
     table = pd.DataFrame([r for b in blocks for r in b[4]], columns=list(CARRIED_COLUMNS))
 
     n_changed = int(np.count_nonzero(gt.any(axis=1) & (tp != tw) & (tp >= 0) & (tw >= 0)))
-    head = _wrapped(
+    head = wrapped(
         f"(not in the paper) Which landmarks carried the score where the {weighting} weighting "
         f"changed the top-1 ({n_changed} of {int(gt.any(axis=1).sum())} queries; "
         f"{len(chosen)} shown): {plain.label} without and with it\n{dataset_line([plain])}\n"

@@ -11,19 +11,20 @@ import numpy as np
 from matplotlib.colors import to_hex
 from matplotlib.lines import Line2D
 
+from ..checks import check_choice
 from ..datasets.ground_truth import ground_truth_text
 from ..evaluation import auc_pr, chance, ground_truth_coverage
 from ..evaluation.chance import chance_precision
 from ..evaluation.compare import identical_to
 from ..paper import SCALE_LABELS
-from .base import METHOD_COLORS, SAVE_DPI, curve_note
+from ._shared import wrapped
+from .base import METHOD_COLORS, SAVE_DPI
 
 __all__ = [
     "dataset_line",
     "plot_metric_bars",
     "plot_pr_curves",
     "plot_scale_distribution",
-    "settings_text",
 ]
 
 
@@ -75,7 +76,7 @@ def plot_scale_distribution(
 DEFAULT_SETTINGS = {"backbone": "efficientnet_lite0", "pooling": "crop"}
 
 
-def settings_text(results) -> str:
+def _settings_text(results) -> str:
     """``"backbone hog, pooling roi, shortlist k=25"``: the run settings every result shares that
     differ from :data:`DEFAULT_SETTINGS` (and a shortlist), or ``""``; peers are left out."""
     runs = [r for r in results if isinstance(getattr(r, "encoder", None), dict) and r.encoder]
@@ -93,7 +94,7 @@ def settings_text(results) -> str:
 def dataset_line(results) -> str:
     """``"<dataset>: 18 of 20 queries with ground truth, tolerance 0, protocol ratio"``: the line
     every PR / statistics figure carries under its title, then the non-default run settings
-    (:func:`settings_text`; e.g. ``pooling roi``). For ground truth read from a file,
+    (:func:`_settings_text`; e.g. ``pooling roi``). For ground truth read from a file,
     ``"ground truth from file: 1-5 correct references per query (median 5)"`` on a line of its
     own instead of the tolerance: :func:`~vpr_core.datasets.ground_truth.ground_truth_text`)."""
 
@@ -103,7 +104,7 @@ def dataset_line(results) -> str:
     from_file = getattr(r, "ground_truth_from_file", False)
     truth = ground_truth_text(r.ground_truth, r.tolerance, from_file)
     protocol = f"protocol {getattr(r, 'protocol', 'ratio')}"
-    extra = settings_text(results)
+    extra = _settings_text(results)
     protocol += f", {extra}" if extra else ""
     if from_file:  # the longer wording gets a line of its own
         return f"{name}: {n_gt} of {n_q} queries with ground truth, {protocol};\n{truth}"
@@ -123,8 +124,23 @@ _LEFT, _GAP, _LINE, _MARGIN, _XLABEL = 0.72, 0.12, 0.18, 0.1, 0.58
 def _heading(text: str) -> str:
     """``text`` with each line wrapped at the width from the axes' left edge to the figure's
     right edge (:data:`PR_WIDTH`)."""
-    chars = int((PR_WIDTH - _LEFT - _MARGIN) * 72 / (0.56 * PR_FONT))  # <= 0.56 em a character
-    return "\n".join(w for line in text.split("\n") for w in textwrap.wrap(line, chars) or [""])
+    return wrapped(text, PR_WIDTH - _LEFT - _MARGIN, PR_FONT)
+
+
+def _curve_note(recall: np.ndarray, precision: np.ndarray) -> str:
+    """Why a PR curve cannot be seen in a plot, for its legend entry, or ``""``.
+
+    Args:
+        recall, precision: ``(T + 1,)`` curve points (``recall[0] = 0``).
+
+    Returns:
+        ``"; no curve: no query correctly matched at any threshold"`` when the curve never
+        leaves recall 0 (AUC 0: it lies on the axis), else ``""``.
+    """
+    r = np.asarray(recall, dtype=float)
+    p = np.asarray(precision, dtype=float)
+    seen = np.isfinite(r) & np.isfinite(p) & (r > 0) & (p > 0)
+    return "" if seen.any() else "; no curve: no query correctly matched at any threshold"
 
 
 def _from_last_zero(recall: np.ndarray, precision: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -201,7 +217,7 @@ def plot_pr_curves(
             color = next(c for c in spare if to_hex(c) not in used)
         used.add(to_hex(color))
         curve = r.curve()
-        note = curve_note(curve.recall, curve.precision)  # an AUC-0 curve lies on the axis
+        note = _curve_note(curve.recall, curve.precision)  # an AUC-0 curve lies on the axis
         (line,) = ax.plot(
             *_from_last_zero(curve.recall, curve.precision),
             lw=1.6,
@@ -296,8 +312,7 @@ def plot_metric_bars(
     Returns:
         The figure.
     """
-    if metric not in table.columns:
-        raise ValueError(f"unknown metric {metric!r}; valid: {', '.join(map(str, table.columns))}")
+    check_choice(metric, "metric", table.columns)
     if ax is None:
         fig, ax = plt.subplots(figsize=(max(3.0, 0.8 * len(table) + 1.5), 3.2))
     else:

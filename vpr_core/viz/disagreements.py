@@ -3,7 +3,6 @@ and the correct reference (the figure of :func:`~vpr_core.evaluation.per_query`)
 
 from __future__ import annotations
 
-import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -12,11 +11,13 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
+from ..checks import check_descriptors_kept, check_int
 from ..datasets.ground_truth import ground_truth_references
 from ..evaluation import per_query
 from ..labels import pair_matches
 from ..matching import match_landmarks
 from ..pipeline.cache import dataset_fingerprint
+from ._shared import FIG_WIDTH, FONT, wrapped
 from .curves import dataset_line
 from .matches import GAP, plot_labelled_matches
 
@@ -25,13 +26,6 @@ __all__ = ["plot_disagreements"]
 
 #: Matches drawn per pair: the largest Eq. (1) terms, the ones that decided the score.
 TOP_TERMS = 5
-
-#: Width (inches) of the figure: at the inline backend's 100 dpi it shows unscaled in a
-#: JupyterLab output column (about 950 px), so its captions read at :data:`FONT` points.
-FIG_WIDTH = 9.5
-
-#: Size (points) of every caption of the figure.
-FONT = 9
 
 #: Width ratios of a row's panels: each run's pair, the correct reference (one image of a
 #: pair: the three images of a row have the same height).
@@ -140,21 +134,16 @@ def plot_disagreements(
     Raises:
         ValueError: ``n < 1``, runs without descriptors, or runs of another dataset.
     """
-    if int(n) < 1:
-        raise ValueError(f"n (queries shown) must be >= 1, got {n}")
+    n = check_int(n, "n (queries shown)", 1)
     for run in (run_a, run_b):
-        if getattr(run, "descriptors", None) is None:
-            raise ValueError(
-                f"plot_disagreements needs the descriptors of {run.label!r}: run it with "
-                "run_method(..., keep_descriptors=True)"
-            )
+        check_descriptors_kept(run, "plot_disagreements")
         if getattr(run, "dataset_fingerprint", None) not in (None, dataset_fingerprint(ds)):
             raise ValueError(
                 f"plot_disagreements: {run.label!r} was run on another dataset than {ds.name!r} "
                 "(their fingerprints differ); pass the dataset the runs were computed on"
             )
     full = per_query([run_a, run_b])
-    shown, kind, wins, losses = _pick(full, run_a.label, run_b.label, int(n))
+    shown, kind, wins, losses = _pick(full, run_a.label, run_b.label, n)
     table = full.set_index("query").loc[shown].reset_index()[full.columns]
     n_queries = full["query"].nunique()
     gt = np.asarray(ds.ground_truth, dtype=bool)
@@ -239,5 +228,4 @@ def _heading(
         f"boxes: the {TOP_TERMS} matches with the largest Eq. (1) terms (green correct, red "
         "wrong, yellow unlabelled)"
     )
-    chars = int((FIG_WIDTH - 0.2) * 72 / (0.56 * FONT))
-    return "\n".join(w for ln in text.split("\n") for w in textwrap.wrap(ln, chars) or [""])
+    return wrapped(text, FIG_WIDTH - 0.2)

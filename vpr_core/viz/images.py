@@ -15,7 +15,7 @@ from ..checks import check_boxes
 from ..datasets.ground_truth import ground_truth_text
 from ..landmarks import dense_sampling, landmark_coverage
 from ..paper import DENSE_PER_SCALE, DENSE_SCALES
-from .base import draw_boxes, landmark_canvas, show_canvas
+from .base import draw_boxes
 from .curves import dataset_line
 
 #: matplotlib's ten categorical colours.
@@ -30,6 +30,31 @@ __all__ = [
     "plot_landmark_panels",
     "plot_landmarks",
 ]
+
+
+def _landmark_canvas(image_or_size) -> tuple[np.ndarray | None, tuple[int, int]]:
+    """``(image or None, (H, W))`` from an image ``(H, W[, 3])`` or an ``(H, W)`` size."""
+    arr = np.asarray(image_or_size) if isinstance(image_or_size, np.ndarray) else None
+    if arr is not None and arr.ndim in (2, 3) and arr.shape[0] > 3:
+        return arr, (int(arr.shape[0]), int(arr.shape[1]))
+    size = tuple(int(v) for v in tuple(image_or_size)[:2])
+    if len(size) != 2 or min(size) <= 0:
+        raise ValueError(f"expected an image (H, W, 3) or a size (H, W), got {image_or_size!r}")
+    return None, size
+
+
+def _show_canvas(ax, image: np.ndarray | None, size: tuple[int, int], gray: bool = False) -> None:
+    """Show ``image`` (or a blank ``size`` canvas) on ``ax`` without ticks, pixel-exact limits."""
+    if image is None:
+        ax.imshow(np.full(size + (3,), 235, np.uint8))
+    elif gray and image.ndim == 3:
+        ax.imshow(image.mean(axis=2), cmap="gray", vmin=0, vmax=255)
+    else:
+        ax.imshow(image, cmap="gray" if image.ndim == 2 else None)
+    ax.set_xlim(-0.5, size[1] - 0.5)
+    ax.set_ylim(size[0] - 0.5, -0.5)
+    ax.set_xticks([])
+    ax.set_yticks([])
 
 
 def plot_examples(
@@ -126,12 +151,12 @@ def plot_landmarks(
     Returns the figure (a new one when ``ax`` is None).
     """
     boxes = check_boxes(boxes)
-    img, size = landmark_canvas(image)
+    img, size = _landmark_canvas(image)
     if ax is None:
         fig, ax = plt.subplots(figsize=(6.4, 6.4 * size[0] / size[1] + 0.4))
     else:
         fig = ax.figure
-    show_canvas(ax, img, size)
+    _show_canvas(ax, img, size)
     draw_boxes(ax, boxes, color=color, lw=lw)
     ax.set_title(title if title is not None else f"{len(boxes.reshape(-1, 4))} landmarks")
     return fig
@@ -145,7 +170,7 @@ def plot_dense_scales(image_or_size, scales=DENSE_SCALES, per_scale=DENSE_PER_SC
         scales: normalized scales (area ratios), one panel each.
         per_scale: boxes per scale (int or one per scale), as in ``dense_sampling``.
     """
-    img, size = landmark_canvas(image_or_size)
+    img, size = _landmark_canvas(image_or_size)
     scales = list(np.atleast_1d(np.asarray(scales, dtype=float)))
     counts = [per_scale] * len(scales) if np.ndim(per_scale) == 0 else list(per_scale)
     n = len(scales)
@@ -164,7 +189,7 @@ def plot_dense_scales(image_or_size, scales=DENSE_SCALES, per_scale=DENSE_PER_SC
             ax.axis("off")
             continue
         boxes = dense_sampling(size, (scales[k],), counts[k])
-        show_canvas(ax, img, size)
+        _show_canvas(ax, img, size)
         for j, box in enumerate(boxes):
             draw_boxes(ax, box[None], color=colors[j % len(colors)], lw=1.0)
         ax.set_title(
@@ -189,13 +214,13 @@ def plot_coverage(
 
     The default title gives the share of pixels covered by at least one box.
     """
-    img, size = landmark_canvas(image)
+    img, size = _landmark_canvas(image)
     cov = landmark_coverage(boxes, size)
     if ax is None:
         fig, ax = plt.subplots(figsize=(6.4, 6.4 * size[0] / size[1] + 0.4))
     else:
         fig = ax.figure
-    show_canvas(ax, img, size, gray=True)
+    _show_canvas(ax, img, size, gray=True)
     shown = np.ma.masked_where(cov <= 0, cov)  # uncovered pixels show the plain image
     top = max(1.0, float(cov.max()))
     im = ax.imshow(shown, cmap=cmap, alpha=alpha, vmin=0, vmax=top)
@@ -274,8 +299,8 @@ def plot_landmark_panels(
     palette = _TAB10
     for ax, (name, (image, boxes)) in zip(axes[0], panels.items(), strict=False):
         boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
-        img, size = landmark_canvas(image)
-        show_canvas(ax, img, size)
+        img, size = _landmark_canvas(image)
+        _show_canvas(ax, img, size)
         if colors_by is None:
             draw_boxes(ax, boxes, color="yellow", lw=0.8)
         else:

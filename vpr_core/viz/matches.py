@@ -14,6 +14,15 @@ from ..checks import check_boxes, check_shape
 from ..labels import pair_matches
 from .base import draw_boxes
 
+__all__ = [
+    "GAP",
+    "LINE_WIDTH",
+    "plot_descriptor_matrices",
+    "plot_labelled_matches",
+    "plot_pair",
+    "plot_pair_terms",
+]
+
 #: White pixels between the query and the reference of a match figure; width of its box lines.
 GAP, LINE_WIDTH = 12, 1.2
 

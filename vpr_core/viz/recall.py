@@ -10,6 +10,8 @@ from matplotlib.figure import Figure
 
 from ..evaluation import recall_rate_at_n
 
+__all__ = ["plot_recall_at_n"]
+
 
 def plot_recall_at_n(
     results_or_curves: Sequence | Mapping, title: str | None = None, n_max: int = 20

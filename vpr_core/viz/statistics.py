@@ -8,14 +8,14 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
-from .base import new_axes
+__all__ = ["plot_asl", "plot_cls", "plot_cmr", "plot_scale_statistics"]
 
 _STATS_GT_COLOR = "tab:green"
 _STATS_IRR_COLOR = "tab:gray"
 _PANEL_SIZE = (5.0, 3.4)
 
 
-def stats_line(stats: Any, wrap: bool = False) -> str:
+def _stats_line(stats: Any, wrap: bool = False) -> str:
     """``"<dataset>: 18 of 20 queries with ground truth, tolerance 0; labels exact; 90 ground-truth
     / 450 irrelevant pairs"``: the line every statistics figure carries (``wrap``: the labels on
     a second line; a file-based ground truth's longer wording always gets a line of its own)."""
@@ -31,10 +31,18 @@ def stats_line(stats: Any, wrap: bool = False) -> str:
     )
 
 
+def _new_axes(ax, figsize: tuple[float, float]):
+    """``(fig, ax)``: the given axes and its figure, or a new single-panel figure."""
+    if ax is None:
+        fig, ax = plt.subplots(figsize=figsize)
+        return fig, ax
+    return ax.figure, ax
+
+
 def _standalone(fig: Figure, ax: Any, stats: Any, own: bool) -> None:
     """A panel drawn in its own figure names its data in a suptitle."""
     if own:
-        fig.suptitle(stats_line(stats, wrap=True), fontsize=8)
+        fig.suptitle(_stats_line(stats, wrap=True), fontsize=8)
         fig.tight_layout()
 
 
@@ -55,7 +63,7 @@ def plot_cmr(stats: Any, ax: Any = None, color: str = "tab:blue") -> Figure:
     """Fig. 4a: correct landmark matching rate per scale of a ``ScaleStats`` (bars, empty scales
     blank), each with its 95% bootstrap interval over query images and its labelled matches."""
     own = ax is None
-    fig, ax = new_axes(ax, _PANEL_SIZE)
+    fig, ax = _new_axes(ax, _PANEL_SIZE)
     scales = np.arange(1, 10)
     cmr = np.asarray(stats.cmr, dtype=float)[1:10]
     n = np.asarray(getattr(stats, "n_labelled", stats.n_matches))[1:10]
@@ -118,7 +126,7 @@ def plot_cls(stats: Any, ax: Any = None) -> Figure:
     """Fig. 4b: contribution of each scale to the similarity (CLS), ground-truth vs
     query-irrelevant pairs (grouped bars; each group sums to 1 over the scales)."""
     own = ax is None
-    fig, ax = new_axes(ax, _PANEL_SIZE)
+    fig, ax = _new_axes(ax, _PANEL_SIZE)
     _stats_grouped(ax, stats.cls_gt, stats.cls_irrelevant)
     _stats_scale_axis(ax, stats, "(b) contribution to similarity (CLS)", "share of similarity")
     _standalone(fig, ax, stats, own)
@@ -129,7 +137,7 @@ def plot_asl(stats: Any, ax: Any = None) -> Figure:
     """Fig. 4c: average pair score ``1 - d*s`` of the matched landmarks per scale (ASL),
     ground-truth vs query-irrelevant pairs (grouped bars)."""
     own = ax is None
-    fig, ax = new_axes(ax, _PANEL_SIZE)
+    fig, ax = _new_axes(ax, _PANEL_SIZE)
     _stats_grouped(ax, stats.asl_gt, stats.asl_irrelevant)
     _stats_scale_axis(ax, stats, "(c) average similarity of matches (ASL)", "mean 1 - d*s")
     _standalone(fig, ax, stats, own)
@@ -138,11 +146,11 @@ def plot_asl(stats: Any, ax: Any = None) -> Figure:
 
 def plot_scale_statistics(stats: Any, title: str | None = None) -> Figure:
     """Fig. 4: CMR, CLS and ASL side by side; ``title`` (e.g. the method) above the data line
-    (:func:`stats_line`)."""
+    (:func:`_stats_line`)."""
     fig, axes = plt.subplots(1, 3, figsize=(14.0, 3.9))
     plot_cmr(stats, ax=axes[0])
     plot_cls(stats, ax=axes[1])
     plot_asl(stats, ax=axes[2])
-    fig.suptitle((f"{title}\n" if title else "") + stats_line(stats), fontsize=10)
+    fig.suptitle((f"{title}\n" if title else "") + _stats_line(stats), fontsize=10)
     fig.tight_layout()
     return fig

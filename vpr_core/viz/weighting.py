@@ -4,8 +4,6 @@ and a database weighting gets right, each match drawn in the colour of its weigh
 
 from __future__ import annotations
 
-import dataclasses
-import textwrap
 from typing import Any
 
 import matplotlib
@@ -13,33 +11,13 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
+from ..checks import check_descriptors_kept, check_int
 from ..datasets.ground_truth import ground_truth_references
 from ..evaluation import per_query
-from ..matching import weighted_matches
+from ._shared import FIG_WIDTH, FONT, run_matches, wrapped
 from .curves import dataset_line
 
-#: Width (inches) of the figure: at the inline backend's 100 dpi it shows unscaled in a
-#: JupyterLab output column (about 950 px), so its captions read at :data:`FONT` points.
-FIG_WIDTH = 9.5
-
-#: Size (points) of every caption of the figure.
-FONT = 9
-
-
-def run_matches(run: Any, pairs: list[tuple[int, int]], weighting: str) -> list:
-    """Each pair's matches with the weights the weighted run used."""
-    d, b = run.descriptors, run.boxes
-    sample = None if run.shortlist else np.arange(len(d["reference"]))
-    m = run.config.matching
-    return weighted_matches(
-        d["query"],
-        b["query"],
-        d["reference"],
-        b["reference"],
-        pairs,
-        dataclasses.replace(m, weighting=weighting),
-        sample,
-    )
+__all__ = ["plot_weighted_matches"]
 
 
 def _pair_panel(ax, images: tuple, boxes: tuple, match, colour, title: str) -> None:
@@ -110,20 +88,15 @@ def plot_weighted_matches(
     Raises:
         ValueError: ``n < 1``, no weighting on ``weighted``, or runs without descriptors.
     """
-    if int(n) < 1:
-        raise ValueError(f"n (queries shown) must be >= 1, got {n}")
+    n = check_int(n, "n (queries shown)", 1)
     weighting = getattr(weighted.config, "matching", None) and weighted.config.matching.weighting
     if not weighting:
         raise ValueError(f"{weighted.label!r} has no weighting: run it with weighting='contrast'")
-    if getattr(weighted, "descriptors", None) is None:
-        raise ValueError(
-            f"plot_weighted_matches needs the descriptors of {weighted.label!r}: run it with "
-            "run_method(..., keep_descriptors=True)"
-        )
+    check_descriptors_kept(weighted, "plot_weighted_matches")
     table = per_query([plain, weighted])
     ok = table.pivot(index="query", columns="run", values="top-1 correct")
     fixed = ok.index[~ok[plain.label].astype(bool) & ok[weighted.label].astype(bool)]
-    shown = [int(q) for q in fixed[: int(n)]]
+    shown = [int(q) for q in fixed[:n]]
     table = table[table["query"].isin(shown)].reset_index(drop=True)
     gt = np.asarray(ds.ground_truth, dtype=bool)
     head = (
@@ -132,8 +105,7 @@ def plot_weighted_matches(
         f"{dataset_line([plain])}\nboxes: each reciprocal match coloured by its {weighting} "
         "weight, grey = 0"
     )
-    chars = int((FIG_WIDTH - 0.2) * 72 / (0.56 * FONT))
-    head = "\n".join(w for ln in head.split("\n") for w in textwrap.wrap(ln, chars) or [""])
+    head = wrapped(head, FIG_WIDTH - 0.2)
     fig, axes, bar = _grid(ds, shown, head)
     if not shown:
         for ax in axes[0]:

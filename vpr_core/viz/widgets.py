@@ -12,6 +12,8 @@ import numpy as np
 from ..labels import append_labels, pair_matches
 from .base import draw_boxes
 
+__all__ = ["label_widget", "pair_label_widget"]
+
 
 def label_widget(
     dataset: Any,
