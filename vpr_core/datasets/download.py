@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import math
 import os
 import secrets
 import shutil
@@ -18,6 +19,7 @@ from pathlib import Path
 from tqdm.auto import tqdm
 
 from .. import settings
+from ..checks import check_range
 from ..utils import file_sha256
 
 __all__ = ["DOWNLOADS", "download_dataset"]
@@ -124,8 +126,7 @@ def download_dataset(
             "docstring."
         )
     url = url or str(entry["url"])  # type: ignore[index]
-    if not isinstance(deadline_s, (int, float)) or not 0 < deadline_s < float("inf"):
-        raise ValueError(f"deadline_s must be a finite number of seconds > 0, got {deadline_s!r}.")
+    deadline_s = check_range(deadline_s, "deadline_s (seconds)", 0, math.inf, True, True)
     expected = sha256 or (entry or {}).get("sha256") or None
     expected = expected.lower().strip() if expected else None
     root = Path(root).expanduser()
