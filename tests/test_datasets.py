@@ -350,8 +350,15 @@ def test_empty_and_missing_traverse_folders(tmp_path):
     with pytest.raises(ValueError, match="contains no images"):
         load_dataset("folder", root=tmp_path)
     _write_images(tmp_path / "query", ["0.png"])
-    with pytest.raises(FileNotFoundError, match="traverse folder .* not found"):
+    with pytest.raises(
+        FileNotFoundError, match=r"traverse folder .*refs not found: .*beside it: query, reference"
+    ):
         load_dataset("folder", root=tmp_path, reference="refs")
+    (tmp_path / "gone").symlink_to(tmp_path / "nowhere")  # one rule for the loaders and images
+    with pytest.raises(FileNotFoundError, match="gone not found: it is a dangling symlink"):
+        load_dataset("folder", root=tmp_path, reference="gone")
+    with pytest.raises(FileNotFoundError, match="gone not found: it is a dangling symlink"):
+        D.list_images(tmp_path / "gone")
 
 
 def test_folder_on_gardens_point_mini(gardens_point_mini_root):

@@ -15,7 +15,7 @@ from ..paths import find_input
 from .base import PlaceDataset
 from .download import DOWNLOADS
 from .ground_truth import check_coverage, read_ground_truth
-from .images import list_images
+from .images import check_folder, list_images
 
 __all__ = [
     "check_frame_pairs",
@@ -64,15 +64,12 @@ def data_name(folder: Path) -> str:
 
 
 def traverse_dir(base: Path, sub: str, name: str, layout: str) -> Path:
-    """``base / sub``, which must be a folder (the error lists the sub-folders present)."""
-    d = base / sub
-    if not d.is_dir():
-        found = sorted(p.name for p in base.iterdir() if p.is_dir())
-        raise FileNotFoundError(
-            f"{name}: traverse folder {d} not found (subfolders present: {found or 'none'}). "
-            f"Expected layout: {layout}; or pass the traverse names as options."
-        )
-    return d
+    """``base / sub``, which must be a folder (the error lists the folders present)."""
+    return check_folder(
+        base / sub,
+        f"{name}: traverse folder",
+        f"Expected layout: {layout}; or pass the traverse names as options.",
+    )
 
 
 def resolve_file(base: Path, path: str | os.PathLike) -> Path:

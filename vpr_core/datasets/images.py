@@ -22,6 +22,7 @@ __all__ = [
     "IMAGE_EXTENSIONS",
     "MAX_IMAGE_PIXELS",
     "MIN_IMAGE_SIDE",
+    "check_folder",
     "list_images",
     "read_image",
     "scan_images",
@@ -243,6 +244,22 @@ def _broken_link(p: Path) -> str | None:
     return None
 
 
+def check_folder(folder: Path, what: str, fix: str) -> Path:
+    """Return ``folder`` if it is a folder; else a FileNotFoundError naming ``what``, why (a
+    broken symlink, or the folders beside it) and ``fix``."""
+    if not folder.is_dir():
+        broken = _broken_link(folder)
+        if broken is not None:
+            why = f"it is {broken}"
+        elif folder.parent.is_dir():
+            beside = sorted(p.name for p in folder.parent.iterdir() if p.is_dir())
+            why = f"no such folder (folders beside it: {', '.join(beside) or 'none'})"
+        else:
+            why = f"{folder.parent} does not exist either"
+        raise FileNotFoundError(f"{what} {folder} not found: {why}; {fix}")
+    return folder
+
+
 def scan_images(
     folder: str | os.PathLike, what: str = "image folder"
 ) -> tuple[list[Path], list[Path]]:
@@ -257,15 +274,11 @@ def scan_images(
         ValueError: it holds no image file, or an image name is a broken symlink (named as a
             symlink loop or a dangling symlink).
     """
-    folder = Path(folder)
-    if not folder.is_dir():
-        broken = _broken_link(folder)
-        raise FileNotFoundError(
-            f"{what} not found: {folder} "
-            + (f"is {broken}" if broken else "does not exist or is not a folder")
-            + "; create it and put the images there, or point `root` at the "
-            "folder that contains it."
-        )
+    folder = check_folder(
+        Path(folder),
+        what,
+        "create it and put the images there, or point `root` at the folder that contains it.",
+    )
     files, skipped = [], []
     for p in folder.iterdir():
         if p.name.startswith("."):
