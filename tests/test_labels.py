@@ -24,7 +24,7 @@ from vpr_core.labels import (
     read_label_file,
     resolve_label_method,
 )
-from vpr_core.labels.geometric import _homography_is_sane
+from vpr_core.labels._geometric import _homography_is_sane
 
 # ---------------------------------------------------------------------------------------------
 # A tiny fake dataset with known geometry

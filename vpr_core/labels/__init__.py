@@ -1,4 +1,5 @@
-"""Section 3.1's match labels: exact, geometric or from a CSV (docs/DEFINITIONS.md)."""
+"""Section 3.1's match labels: exact, geometric or from a CSV (docs/DEFINITIONS.md). This face
+is the API; the labellers are the package-private ``_exact``, ``_geometric`` and ``_file``."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import numpy as np
 from ..checks import check_boxes, check_choice, check_descriptors_kept, check_options
 from ..datasets.ground_truth import ground_truth_references
 from ..matching import match_landmarks
-from .exact import (
+from ._exact import (
     LabelRule,
     LabelUnavailableError,
     as_label_rule,
@@ -21,8 +22,8 @@ from .exact import (
     label_pair_exact,
     map_boxes,
 )
-from .file import LABEL_COLUMNS, append_labels, label_pair_file, read_label_file
-from .geometric import (
+from ._file import LABEL_COLUMNS, append_labels, label_pair_file, read_label_file
+from ._geometric import (
     GEOMETRIC_OPTIONS,
     PairGeometry,
     Verification,

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..boxes import paired_iou_parsed
 from ..checks import check_boxes, check_choice
-from .exact import LabelRule, LabelUnavailableError, check_matches, is_ground_truth, map_boxes
+from ._exact import LabelRule, LabelUnavailableError, check_matches, is_ground_truth, map_boxes
 
 __all__ = [
     "GEOMETRIC_OPTIONS",
