@@ -147,7 +147,7 @@ def test_synthetic_cache_reuse_and_regeneration(tmp_path, monkeypatch):
         calls.append(i)
         return real(seed, i, size, difficulty)
 
-    monkeypatch.setattr(D.synthetic._loader, "render_synthetic_place", spy)
+    monkeypatch.setattr(D.synthetic._loader, "render_place", spy)
     ds2 = load_dataset("synthetic", n_places=2, image_size=SMALL)
     assert calls == [1]  # only the missing place is regenerated
     assert ds2.query_paths[1].read_bytes() == before  # byte-identical

@@ -11,7 +11,7 @@ import numpy as np
 from ._difficulty import SyntheticDifficulty, resolve_difficulty
 from ._exact import Matrix3, mat3_mul, normalise_h, solve_homography, to_grid
 
-__all__ = ["canvas_size", "place_geometry", "synthetic_homography"]
+__all__ = ["canvas_size", "place_geometry", "place_homography", "synthetic_homography"]
 
 _CANVAS_SCALE = (1.45, 1.8)  # world canvas size in units of the view (H, W)
 
@@ -96,4 +96,11 @@ def synthetic_homography(
     """
     _, diff = resolve_difficulty(difficulty)
     size = (int(image_size[0]), int(image_size[1]))
-    return normalise_h(place_geometry(int(seed), int(i), size, diff)[2])
+    return place_homography(int(seed), int(i), size, diff)
+
+
+def place_homography(
+    seed: int, i: int, image_size: tuple[int, int], diff: SyntheticDifficulty
+) -> np.ndarray:
+    """:func:`synthetic_homography` on parsed input (ints, a :class:`SyntheticDifficulty`)."""
+    return normalise_h(place_geometry(seed, i, image_size, diff)[2])

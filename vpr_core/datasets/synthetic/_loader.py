@@ -14,9 +14,9 @@ from ...checks import check_int
 from ...utils import cache_dir, logger, progress, short_hash
 from ..base import PlaceDataset
 from ..ground_truth import check_tolerance, frame_aligned
-from ._camera import synthetic_homography
+from ._camera import place_homography
 from ._difficulty import SyntheticDifficulty, resolve_difficulty
-from ._render import render_synthetic_place
+from ._render import render_place
 
 __all__ = ["REPETITION_POOL", "SYNTHETIC_VERSION", "load_synthetic"]
 
@@ -165,11 +165,11 @@ def load_synthetic(
             out,
         )
     for i in progress(missing, desc="synthetic places", total=len(missing)):
-        ref, qry, _ = render_synthetic_place(seed, i, size, diff)
+        ref, qry, _ = render_place(seed, i, size, diff)
         _write_png(rp[i], ref)
         _write_png(qp[i], qry)
     for i in range(n_places):
-        homs[i] = synthetic_homography(seed, i, size, diff)
+        homs[i] = place_homography(seed, i, size, diff)
     if missing:
         manifest_path = out / "manifest.json"
         have = sorted(int(p.stem) for p in (out / "query").glob("[0-9][0-9][0-9][0-9].png"))
@@ -180,7 +180,7 @@ def load_synthetic(
             note="homographies map query pixels to reference pixels; "
             "recomputed from (seed, i) by synthetic_homography",
             homographies={
-                str(i): synthetic_homography(seed, i, size, diff).round(10).tolist() for i in have
+                str(i): place_homography(seed, i, size, diff).round(10).tolist() for i in have
             },
         )
         _write_atomic(manifest_path, json.dumps(manifest, indent=1).encode())

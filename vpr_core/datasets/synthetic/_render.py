@@ -12,7 +12,7 @@ from ._night import to_night, vignette
 from ._occluders import draw_occluders
 from ._world import render_world
 
-__all__ = ["render_synthetic_place"]
+__all__ = ["render_place", "render_synthetic_place"]
 
 
 def render_synthetic_place(
@@ -35,8 +35,14 @@ def render_synthetic_place(
         RGB night query, and ``float64 (3, 3)`` query -> reference pixel homography.
     """
     _, diff = resolve_difficulty(difficulty)
-    seed, i = int(seed), int(i)
-    h, w = (int(v) for v in image_size)
+    return render_place(int(seed), int(i), (int(image_size[0]), int(image_size[1])), diff)
+
+
+def render_place(
+    seed: int, i: int, image_size: tuple[int, int], diff: SyntheticDifficulty
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`render_synthetic_place` on parsed input (ints, a :class:`SyntheticDifficulty`)."""
+    h, w = image_size
     hc, wc = canvas_size((h, w))
     world = render_world(seed, i, hc, wc, float(h), diff)
     canvas_from_ref, canvas_from_qry, qry_to_ref = place_geometry(seed, i, (h, w), diff)
