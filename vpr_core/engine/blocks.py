@@ -9,8 +9,14 @@ from typing import Any
 import numpy as np
 
 from ..checks import check_int
-from ..matching import Compute, Matching, check_pairs, similarity_matrix, similarity_pairs
-from ..matching.sides import landmark_lists
+from ..matching import (
+    Compute,
+    Matching,
+    check_pairs,
+    landmark_lists,
+    similarity_matrix,
+    similarity_pairs,
+)
 from ..matching.weighting import weighting_sample
 from .client import gather_in_order
 

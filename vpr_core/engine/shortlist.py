@@ -7,8 +7,7 @@ import numpy as np
 
 from ..checks import check_finite, check_int
 from ..datasets.base import SIDES
-from ..matching import check_pairs
-from ..matching.sides import check_same_dim, rescale_rows
+from ..matching import check_pairs, check_same_dim, rescale_rows
 
 __all__ = [
     "CHUNK_QUERIES",

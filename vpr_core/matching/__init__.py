@@ -1,10 +1,13 @@
 """Landmark matching: Eq. (1)-(2), reciprocal nearest neighbours and Algorithm 4, for one image
 pair in :mod:`.pairwise` (the float64 reference that reads like the paper) and for blocks of pairs
 in the torch engine (:mod:`.core`, the same numbers); the public functions are in
-:mod:`.similarity`."""
+:mod:`.similarity`. The engine's inputs are parsed in the package-private :mod:`._sides`; its
+rules that :mod:`vpr_core.engine` shares are exported here (``landmark_lists``,
+``check_same_dim``, ``rescale_rows``)."""
 
 from __future__ import annotations
 
+from ._sides import check_same_dim, landmark_lists, rescale_rows
 from .pairwise import MatchResult
 from .similarity import (
     check_pairs,
@@ -26,10 +29,13 @@ __all__ = [
     "MatchResult",
     "Matching",
     "check_pairs",
+    "check_same_dim",
     "cosine_distance",
     "image_similarity",
+    "landmark_lists",
     "match_landmarks",
     "reciprocal_matches",
+    "rescale_rows",
     "shape_penalty",
     "similarity_matrix",
     "similarity_pairs",

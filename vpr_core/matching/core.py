@@ -1,6 +1,6 @@
 """The block engine: Eq. (1) with Eq. (2) and optional Algorithm 4 for blocks of image pairs, the
 same numbers for blocks of pairs (reference: matching/pairwise.py, one pair in float64). Inputs
-prepared in :mod:`.sides`, matches found in :mod:`.reciprocal`, public entry points in
+prepared in :mod:`._sides`, matches found in :mod:`.reciprocal`, public entry points in
 :mod:`.similarity`; definitions in docs/DEFINITIONS.md (Matching)."""
 
 from __future__ import annotations
@@ -14,8 +14,7 @@ import numpy as np
 import torch
 
 from ..boxes import box_iou
-from .reciprocal import TIE_TOL, reciprocal
-from .sides import (
+from ._sides import (
     PAD,
     LandmarkSets,
     Selection,
@@ -25,6 +24,7 @@ from .sides import (
     selection_index,
     selection_size,
 )
+from .reciprocal import TIE_TOL, reciprocal
 from .spec import Compute, Matching
 
 __all__ = [

@@ -21,9 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..boxes import box_iou
+from ._sides import normalised_centres, rescale_rows
 from .core import NMS_TIE_TOL, SPATIAL_TAU
 from .reciprocal import TIE_TOL
-from .sides import normalised_centres, rescale_rows
 from .spec import Matching
 
 __all__ = [

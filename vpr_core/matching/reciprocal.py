@@ -9,7 +9,7 @@ import math
 import numpy as np
 import torch
 
-from .sides import PAD, Selection, Side, selection_index, selection_size
+from ._sides import PAD, Selection, Side, selection_index, selection_size
 
 __all__ = ["TIE_TOL", "reciprocal"]
 

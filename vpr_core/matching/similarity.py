@@ -15,9 +15,9 @@ import torch
 from ..checks import check_boxes, check_finite, check_shape
 from ..paper import SOFT_NMS_SIGMA
 from ..utils import progress
+from ._sides import LandmarkSets, check_same_dim, rescale_rows, unit_rows
 from .core import BLOCK_BYTES, BlockPairs, Problem, shape_terms
 from .pairwise import MatchResult, match_pair
-from .sides import LandmarkSets, check_same_dim, rescale_rows, unit_rows
 from .spec import Compute, Matching, as_matching
 from .weighting import sample_matches, weighted_block, weighting_sample
 

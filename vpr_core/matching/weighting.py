@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from ._sides import Selection
 from .core import BlockPairs, Matches, Problem, score_block
-from .sides import Selection
 
 __all__ = [
     "CONTRAST_SAMPLE",

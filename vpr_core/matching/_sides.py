@@ -1,6 +1,7 @@
-"""Matching inputs: descriptors made safe unit rows and landmark sets padded to one tensor per
-side (:class:`Side`), and the selections of images a block takes from a side.
-"""
+"""The block engine's inputs (package-private): one side's landmark sets parsed and checked once
+(:func:`prepare_side`, the boundary check of every matching call), descriptors made safe unit
+rows, the sets padded to one tensor per side (:class:`Side`), and the selections of images a
+block takes from a side. ``vpr_core.matching`` exports what the engine shares."""
 
 from __future__ import annotations
 
