@@ -405,6 +405,18 @@ BAD_LABEL_CALLS = {
         ValueError,
         "give verification=Verification",
     ),
+    "rule: not a LabelRule": (
+        lambda f, t: label_matches(f, 0, 0, B1, B1, [[0, 0]], method="exact", rule=0.5),
+        TypeError,
+        r"rule must be a LabelRule\(...\), got float",
+    ),
+    "geometric: verification not a Verification": (
+        lambda f, t: label_matches(
+            f, 0, 0, B3, B3, [[0, 0]], method="geometric", verification={"ratio": 0.7}
+        ),
+        TypeError,
+        r"verification must be a Verification\(...\), got dict",
+    ),
     "file: no labels": (
         lambda f, t: label_matches(f, 0, 0, B3, B3, [[0, 0]], method="file"),
         ValueError,

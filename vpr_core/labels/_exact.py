@@ -21,6 +21,7 @@ __all__ = [
     "is_ground_truth",
     "label_pair_exact",
     "map_boxes",
+    "value_or_fields",
 ]
 
 
@@ -58,10 +59,18 @@ def as_label_rule(options: dict[str, Any], method: str = "geometric") -> LabelRu
     names = RULE_FIELDS.get(method, [f.name for f in dataclasses.fields(LabelRule)])
     value = options.pop("rule", None)
     given = {name: options.pop(name) for name in names if name in options}
+    return value_or_fields(LabelRule, "rule", value, given)
+
+
+def value_or_fields(cls: type, name: str, value: Any, fields: dict[str, Any]) -> Any:
+    """Option ``name`` given as a ``cls`` value or as its ``fields`` (not both): the value, or a
+    ``cls`` made of the fields (``LabelRule``, ``Verification``)."""
     if value is None:
-        return LabelRule(**given)
-    if given:
-        raise ValueError("give rule=LabelRule(...) or its fields, not both")
+        return cls(**fields)
+    if fields:
+        raise ValueError(f"give {name}={cls.__name__}(...) or its fields, not both")
+    if not isinstance(value, cls):
+        raise TypeError(f"{name} must be a {cls.__name__}(...), got {type(value).__name__}")
     return value
 
 

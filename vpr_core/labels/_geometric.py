@@ -12,7 +12,14 @@ import numpy as np
 
 from ..boxes import paired_iou_parsed
 from ..checks import check_boxes, check_choice
-from ._exact import LabelRule, LabelUnavailableError, check_matches, is_ground_truth, map_boxes
+from ._exact import (
+    LabelRule,
+    LabelUnavailableError,
+    check_matches,
+    is_ground_truth,
+    map_boxes,
+    value_or_fields,
+)
 
 __all__ = [
     "GEOMETRIC_OPTIONS",
@@ -121,12 +128,7 @@ GEOMETRIC_OPTIONS = (
 def _as_verification(options: dict[str, Any]) -> Verification:
     """A :class:`Verification` from ``verification=`` or its fields as keywords (not both); the
     option names were checked against :data:`GEOMETRIC_OPTIONS`."""
-    value = options.pop("verification", None)
-    if value is None:
-        return Verification(**options)
-    if options:
-        raise ValueError("give verification=Verification(...) or its fields, not both")
-    return value
+    return value_or_fields(Verification, "verification", options.pop("verification", None), options)
 
 
 def _ratio_test_points(
