@@ -483,6 +483,8 @@ def test_irrelevant_sampling_and_gt_references():
     g2 = np.zeros((2, 5), dtype=bool)
     g2[0, [1, 2, 4]] = True
     assert ground_truth_references(g2, 0) == [2] and ground_truth_references(g2, 1) == []
+    with pytest.raises(ValueError, match="unknown gt_pairs 'middle'; valid: center, all"):
+        ground_truth_references(g2, 1, "middle")  # refused even for a query without truth
 
 
 # -- issue 25 item 10: short bodies, slow servers, archive bombs -------------------------------

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import check_int
+from ..checks import check_choice, check_int
 from ..notices import notice
 from .safe_pickle import read_npy
 
@@ -282,13 +282,12 @@ def ground_truth_references(ground_truth: np.ndarray, q: int, mode: str = "cente
     ``mode="center"``: one reference, ``q`` itself when ``ground_truth[q, q]`` (frame-aligned
     datasets), else the middle of the true references; ``"all"``: every true reference.
     """
+    check_choice(mode, "gt_pairs", ("center", "all"))
     row = np.flatnonzero(np.asarray(ground_truth, dtype=bool)[q])
     if len(row) == 0:
         return []
     if mode == "all":
         return [int(x) for x in row]
-    if mode != "center":
-        raise ValueError(f"gt_pairs must be 'center' or 'all', got {mode!r}")
     if q in row:
         return [int(q)]
     return [int(row[(len(row) - 1) // 2])]

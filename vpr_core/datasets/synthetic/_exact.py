@@ -109,8 +109,7 @@ def resize_area(src: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     Output pixel ``j`` averages source pixels ``floor(j * s) .. floor((j + 1) * s) - 1`` with
     ``s = source / output`` size (at least one pixel: nearest-neighbour when enlarging).
     """
-    if not np.issubdtype(src.dtype, np.integer):
-        raise TypeError(f"resize_area needs an integer image, got {src.dtype}")
+    assert np.issubdtype(src.dtype, np.integer), f"resize_area needs an integer image: {src.dtype}"
     h, w = size
     hs, ws = src.shape[:2]
 
@@ -184,8 +183,7 @@ def solve_homography(src: Sequence[Sequence[float]], dst: Sequence[Sequence[floa
     n = 8
     for col in range(n):
         piv = max(range(col, n), key=lambda r: abs(rows[r][col]))
-        if abs(rows[piv][col]) < 1e-12:
-            raise ValueError("degenerate point configuration: no homography")
+        assert abs(rows[piv][col]) >= 1e-12, "degenerate point configuration: no homography"
         rows[col], rows[piv] = rows[piv], rows[col]
         p = rows[col][col]
         rows[col] = [v / p for v in rows[col]]

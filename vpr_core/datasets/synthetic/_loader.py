@@ -33,8 +33,7 @@ def _write_png(path: Path, rgb: np.ndarray) -> None:
     ok, buf = cv2.imencode(
         ".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 1]
     )
-    if not ok:  # pragma: no cover - encoding a uint8 RGB array does not fail
-        raise RuntimeError(f"could not encode {path}")
+    assert ok, f"could not encode {path}"  # encoding a uint8 RGB array does not fail
     _write_atomic(path, buf.tobytes())
 
 
