@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import check_choice, check_int
+from ..checks import check_choice, check_int, check_shape
 from ..notices import notice
 from .safe_pickle import read_npy
 
@@ -51,9 +51,7 @@ def frame_aligned(nq: int, nr: int, tolerance: int) -> np.ndarray:
 
 def ground_truth_coverage(gt: np.ndarray) -> tuple[int, int]:
     """``(queries with at least one true reference, Nq)`` of a ``bool (Nq, Nr)`` ground truth."""
-    gt = np.asarray(gt)
-    if gt.ndim != 2:
-        raise ValueError(f"ground truth must be a (Nq, Nr) matrix, got shape {gt.shape}.")
+    gt = check_shape(gt, "Nq Nr", "ground truth")
     return int(gt.astype(bool).any(axis=1).sum()), int(gt.shape[0])
 
 
