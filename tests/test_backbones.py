@@ -21,7 +21,7 @@ from vpr_core.backbones.efficientnet_lite import (
     VARIANTS,
     EfficientNetLite,
     EfficientNetLiteFeatures,
-    efficientnet_lite_classifier,
+    _efficientnet_lite_classifier,
     load_state_dict,
 )
 from vpr_core.features import Encoder, LandmarkEncoder
@@ -39,7 +39,7 @@ def test_lite_variant_loads_strictly_and_classifies_chelsea_as_cat(variant):
     model = EfficientNetLite(variant)
     assert set(model.state_dict()) == set(state)
     assert all(model.state_dict()[k].shape == v.shape for k, v in state.items())
-    clf = efficientnet_lite_classifier(variant)
+    clf = _efficientnet_lite_classifier(variant)
     size = VARIANTS[variant][2]
     x = torch.from_numpy(chelsea()).permute(2, 0, 1)[None].float() / 255.0
     x = F.interpolate(x, size=(size, size), mode="bilinear", antialias=True, align_corners=False)
@@ -81,7 +81,7 @@ def test_spec_feature_shapes(spec, shape):
 
 def test_lite_stage_features_match_classifier():
     feats = EfficientNetLiteFeatures(stage=5, variant="lite2")
-    clf = efficientnet_lite_classifier("lite2")
+    clf = _efficientnet_lite_classifier("lite2")
     x = torch.randn(2, 3, 96, 96, generator=torch.Generator().manual_seed(0))
     with torch.inference_mode():
         torch.testing.assert_close(
@@ -104,10 +104,14 @@ def test_canonical_spec_and_cache_keys():
 
 
 def test_spec_errors_name_the_valid_choices():
-    with pytest.raises(ValueError, match="valid options.*input_size=128.*stage=5"):
+    with pytest.raises(ValueError, match=r"option\(s\) 'depth'; valid: input_size, stage$"):
         parse_backbone("efficientnet_lite0:depth=3")
-    with pytest.raises(ValueError, match="valid options.*input_size=64"):
+    with pytest.raises(ValueError, match="'stage'; valid: input_size$"):
         parse_backbone("hog:stage=2")
+    with pytest.raises(ValueError, match="'stage' given twice"):
+        parse_backbone("efficientnet_lite0:stage=4,stage=5")
+    with pytest.raises(ValueError, match="has no value; write key=integer, e.g. input_size=128"):
+        parse_backbone("efficientnet_lite0:stage")
     with pytest.raises(ValueError, match="integer"):
         parse_backbone("efficientnet_lite0:stage=five")
     with pytest.raises(ValueError, match="stage must be in 1..7"):
@@ -126,19 +130,19 @@ def test_spec_errors_name_the_valid_choices():
 def test_relu6_padded_equals_pad_of_relu6(shape, pads, channels_last):
     """The fused ReLU6 + "same" padding gives F.pad(clamp(y)) exactly, in y's memory format,
     so the depthwise convolution after it sees the same tensor."""
-    from vpr_core.backbones.efficientnet_lite import relu6_padded
+    from vpr_core.backbones.efficientnet_lite import _relu6_padded
 
     y = torch.randn(*shape, generator=torch.Generator().manual_seed(1)) * 8
     if channels_last:
         y = y.contiguous(memory_format=torch.channels_last)
     ref = F.pad(y.clamp(0.0, 6.0), pads)
-    got = relu6_padded(y, pads)
+    got = _relu6_padded(y, pads)
     assert torch.equal(got, ref) and got.stride() == ref.stride()
     assert got.min() >= 0 and got.max() <= 6
 
 
 def test_stride2_block_fused_path_equals_unfused():
-    """MBConvBlock's stride-2 path (relu6_padded + forward_padded) gives the bits of the plain
+    """MBConvBlock's stride-2 path (_relu6_padded + forward_padded) gives the bits of the plain
     expand -> ReLU6 -> F.pad -> depthwise sequence."""
     from vpr_core.backbones.efficientnet_lite import MBConvBlock
 
@@ -174,13 +178,13 @@ def test_onednn_feature_map_computes_the_module_path(lite0_features, shape):
     """The fused oneDNN convolutions (ReLU6 on the accumulators, stride-2 "same" padding inside the
     call, the extra output row/column sliced off after the 1x1 projection) compute the module
     path's network on odd and even sizes: the same shape, equal to float32 rounding."""
-    from vpr_core.backbones.fused import onednn_feature_map
+    from vpr_core.backbones.fused import _onednn_feature_map
 
     x = torch.randn(*shape, generator=torch.Generator().manual_seed(3)) * 1.5
     x = x.contiguous(memory_format=torch.channels_last)
     with torch.inference_mode():
         ref = lite0_features._module_path(x)
-        got = onednn_feature_map(lite0_features.net, x)
+        got = _onednn_feature_map(lite0_features.net, x)
     assert got.shape == ref.shape == (shape[0], 112, -(-shape[2] // 16), -(-shape[3] // 16))
     # float32 rounding after some 40 convolutions, relative to the map's scale: oneDNN picks other
     # kernels (and summation orders) per CPU; on an AMD EPYC two shapes differ by 2.2e-5 where the
@@ -209,7 +213,7 @@ def test_feature_map_keeps_the_module_path_where_the_fused_one_differs(monkeypat
     from vpr_core.backbones import fused
 
     model = EfficientNetLiteFeatures(stage=5)
-    real = fused.onednn_feature_map
+    real = fused._onednn_feature_map
     calls = []
 
     def off_by_one_ulp(net, x):
@@ -217,7 +221,7 @@ def test_feature_map_keeps_the_module_path_where_the_fused_one_differs(monkeypat
         out = real(net, x)
         return torch.nextafter(out, out + 1)
 
-    monkeypatch.setattr(fused, "onednn_feature_map", off_by_one_ulp)
+    monkeypatch.setattr(fused, "_onednn_feature_map", off_by_one_ulp)
     x = torch.randn(2, 3, 64, 64, generator=torch.Generator().manual_seed(5))
     with torch.inference_mode():
         ref = model._module_path(x.contiguous(memory_format=torch.channels_last))
@@ -239,10 +243,40 @@ def test_feature_map_keeps_the_module_path_where_the_fused_call_fails(monkeypatc
         raise RuntimeError("could not create a primitive descriptor")
 
     model = EfficientNetLiteFeatures(stage=5)
-    monkeypatch.setattr(fused, "onednn_feature_map", unsupported)
+    monkeypatch.setattr(fused, "_onednn_feature_map", unsupported)
     x = torch.randn(2, 3, 32, 32, generator=torch.Generator().manual_seed(6))
     with torch.inference_mode():
         ref = model._module_path(x.contiguous(memory_format=torch.channels_last))
         outs = [model.feature_map(x) for _ in range(2)]
     assert list(model.fused.agrees.values()) == [False]
     assert all(torch.equal(o, ref) for o in outs)
+
+
+def test_an_encoder_parses_its_backbone_once_and_checks_the_variant_once(monkeypatch):
+    """Issue 47: the Encoder parses its spec when it is made; building its network (the weights'
+    identity, the canonical name, the network) takes the parsed value, and the EfficientNet
+    variant is checked once per build."""
+    import vpr_core.backbones as bb
+    from vpr_core.backbones import efficientnet_lite as eff
+    from vpr_core.features import encoder as encoder_module
+    from vpr_core.pipeline import feature_stage
+
+    calls = {"parse": 0, "variant": 0}
+    real_parse, real_variant = bb.parse_backbone, eff._check_variant
+
+    def parse(spec):
+        calls["parse"] += 1
+        return real_parse(spec)
+
+    def variant(name):
+        calls["variant"] += 1
+        return real_variant(name)
+
+    monkeypatch.setattr(bb, "parse_backbone", parse)
+    monkeypatch.setattr(encoder_module, "parse_backbone", parse)
+    monkeypatch.setattr(eff, "_check_variant", variant)
+    feature_stage.get_encoder.cache_clear()
+    enc = feature_stage.get_encoder(Encoder("efficientnet_lite0:stage=4", dim=16))
+    feature_stage.get_encoder.cache_clear()
+    assert calls == {"parse": 1, "variant": 1}
+    assert enc.config["backbone"] == "efficientnet_lite0:stage=4" and enc.config["stage"] == 4

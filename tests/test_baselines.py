@@ -202,7 +202,7 @@ def test_peer_from_descriptors_cosine_and_l2(tmp_path):
     assert np.allclose(l2.similarity, d.max() / d)
     with pytest.raises(ValueError, match="query descriptors are 8-d but database descriptors 4-d"):
         peer_from_descriptors(q, r[:, :4], "x")
-    with pytest.raises(ValueError, match="metric must be 'cosine' or 'l2'"):
+    with pytest.raises(ValueError, match="unknown metric 'dot'; valid: cosine, l2"):
         peer_from_descriptors(q, r, "x", metric="dot")
     with pytest.raises(ValueError, match="all zero"):
         peer_from_descriptors(np.zeros((1, 8)), r, "x")

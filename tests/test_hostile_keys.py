@@ -58,7 +58,7 @@ FIX = {
     "zeros": r"returns all zeros on a real .*torch\.randn\(4, 3, 32, 32\)",
     "constant": r"returns the same (features for every crop|value in every cell).*torch\.randn",
     "constant_always": r"returns the same features for every crop on a random \(2, 3, 32, 32\)",
-    "nan": r"returned NaN or inf .*(check it on real crops|use pooling='crop')",
+    "nan": r"returns NaN or inf .*(check it on real crops|use pooling='crop')",
     "batch2": r"returned \(2, 8, \d+, \d+\) for a \(1, 3, \d+, \d+\) image|keep the batch dim",
 }
 
@@ -139,7 +139,7 @@ def test_roi_nan_names_the_module_not_the_matcher(image):
             return out if x.shape[-1] == 32 else out / 0 * 0
 
     enc = LandmarkEncoder(NanOnImages("ok"), dim=16, input_size=32, pooling="roi")
-    with pytest.raises(ValueError, match=r"module NanOnImages returned NaN.*pooling='crop'"):
+    with pytest.raises(ValueError, match=r"module NanOnImages returns NaN.*pooling='crop'"):
         enc.encode(image, BOXES)
 
 

@@ -20,6 +20,9 @@ ALLOWED_LOCAL = {
     "nbclient",
     "jupytext",
     "IPython",
+    # opt-in scale-out: run_method imports it only for shortlist= / scheduler=
+    # (docs/ARCHITECTURE.md), so the paper's path never loads it
+    "vpr_core.engine",
 }
 MAX_LOCAL = 15
 
@@ -112,7 +115,8 @@ def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
 def test_graph_sees_relative_imports():
     graph = _graph()
     assert "vpr_core.pipeline.result" in graph["vpr_core.pipeline.run"]
-    assert "vpr_core.engine.blocks" in graph["vpr_core.pipeline.run"]
+    assert "vpr_core.landmarks.schemes" in graph["vpr_core.pipeline.run"]
+    assert not any(m.startswith("vpr_core.engine") for m in graph["vpr_core.pipeline.run"])
     assert _cycle({"a": {"b"}, "b": {"a"}}) == ["a", "b", "a"]
 
 
@@ -122,20 +126,26 @@ def test_no_module_level_import_cycle():
 
 
 def _local_imports() -> list[tuple[str, int, str]]:
-    """``(file, line, top-level module)`` of every import inside a function body."""
+    """``(file, line, top-level module)`` of every import inside a function body; a relative
+    import of a ``vpr_core`` subpackage names it (``vpr_core.engine``)."""
     out = []
     for path in sorted(PKG.rglob("*.py")):
+        package = list(path.relative_to(PKG.parent).parent.parts)
         for fn in ast.walk(ast.parse(path.read_text())):
             if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 continue
             for node in ast.walk(fn):
                 if isinstance(node, ast.Import):
-                    names = [a.name for a in node.names]
+                    names = [a.name.split(".")[0] for a in node.names]
+                elif isinstance(node, ast.ImportFrom) and node.level:
+                    anchor = package[: len(package) - (node.level - 1)]
+                    parts = anchor + (node.module or node.names[0].name).split(".")
+                    names = [".".join(parts[:2])]
                 elif isinstance(node, ast.ImportFrom):
-                    names = ["." if node.level else (node.module or "")]
+                    names = [(node.module or "").split(".")[0]]
                 else:
                     continue
-                out += [(path.name, node.lineno, n.split(".")[0]) for n in names]
+                out += [(path.name, node.lineno, n) for n in names]
     return out
 
 

@@ -13,11 +13,11 @@ from vpr_core.methods import (
     METHODS,
     Matching,
     Method,
+    _method_options,
     as_method,
     available_methods,
     get_method,
     method_label,
-    method_options,
     run_key,
 )
 
@@ -131,14 +131,14 @@ def test_overrides_are_routed_to_scheme_and_matching():
 
 
 def test_options_derive_from_the_fields():
-    assert method_options(get_method("selection_scheme1")) == (
+    assert _method_options(get_method("selection_scheme1")) == (
         "n",
         "min_index",
         "n_candidates",
         "spatial",
         "weighting",
     )
-    assert method_options(get_method("overlap_scheme2")) == (
+    assert _method_options(get_method("overlap_scheme2")) == (
         "n",
         "n_candidates",
         "soft_nms_iou",
@@ -146,26 +146,26 @@ def test_options_derive_from_the_fields():
         "spatial",
         "weighting",
     )
-    assert method_options(get_method("global")) == ("spatial", "weighting")
+    assert _method_options(get_method("global")) == ("spatial", "weighting")
 
 
 @pytest.mark.parametrize(
     ("name", "options", "match"),
     [
-        ("edgebox", {}, "Unknown method 'edgebox'. Valid methods: classical, dense"),
-        ("overlap_scheme1", {"threshold": 0.4}, "Unknown option 'threshold'"),
+        ("edgebox", {}, "unknown method 'edgebox'; valid: classical, dense"),
+        ("overlap_scheme1", {"threshold": 0.4}, "unknown method 'overlap_scheme1' option"),
         (
             "dense",
             {"iou_threshold": 0.1},
-            "Options of 'dense': scales, per_scale, spatial, weighting\\.",
+            "'iou_threshold'; valid: scales, per_scale, spatial, weighting$",
         ),
         (
             "classical",
             {"min_index": 7},
-            "Options of 'classical': n, n_candidates, spatial, weighting\\.",
+            "'min_index'; valid: n, n_candidates, spatial, weighting$",
         ),
-        ("classical", {"soft_nms_iou": 0.3}, "'soft_nms_iou' for method 'classical'"),
-        ("global", {"n": 5}, "Options of 'global': spatial, weighting\\."),
+        ("classical", {"soft_nms_iou": 0.3}, "method 'classical' option\\(s\\) 'soft_nms_iou'"),
+        ("global", {"n": 5}, "'n'; valid: spatial, weighting$"),
         ("dense", {"scales": 0.25}, "method 'dense': Dense.scales must be .*, got 0.25"),
         ("overlap_scheme1", {"iou_threshold": 1.5}, "ReduceOverlap.iou_threshold .*, got 1.5"),
         ("dense", {"per_scale": "25"}, "Dense.per_scale must be .*, got '25'"),
@@ -221,7 +221,7 @@ def test_as_method_refuses(value, options, error, match):
 def test_method_refuses_a_bad_name_or_matching():
     with pytest.raises(ValueError, match="name must be a non-empty string"):
         Method("", Dense())
-    with pytest.raises(TypeError, match="matching must be a vpr_core.methods.Matching"):
+    with pytest.raises(TypeError, match="matching must be a vpr_core.matching.Matching"):
         Method("x", Dense(), {"soft_nms_iou": None})  # type: ignore[arg-type]
 
 

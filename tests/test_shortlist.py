@@ -135,7 +135,7 @@ def test_rerank_validates_inputs():
 
 
 def test_match_stage_exhaustive_and_full_shortlist_agree():
-    from vpr_core.pipeline.run import match
+    from vpr_core.pipeline.run import _match as match
 
     rng = np.random.default_rng(4)
     qd, qb = _landmark_sets(rng, 5)

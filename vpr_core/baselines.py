@@ -12,10 +12,21 @@ from typing import Any
 
 import numpy as np
 
+from .checks import check_choice
 from .datasets.safe_pickle import read_npy
 from .settings import BENCH_ROOT_ENV, bench_root
 
 log = logging.getLogger("vpr_core")
+
+__all__ = [
+    "PRECOMPUTED_FILE",
+    "PeerResult",
+    "find_vprbench_peers",
+    "load_vprbench_precomputed",
+    "peer_from_descriptors",
+    "peer_from_matrix",
+    "peer_similarity_for",
+]
 
 PRECOMPUTED_FILE = "precomputed_data_corrected.npy"
 #: The items of a VPR-Bench precomputed file, in order (similarity: higher = more similar; the
@@ -250,9 +261,7 @@ def peer_from_descriptors(
     ``metric``: ``"cosine"`` or ``"l2"`` (similarity ``1 / d`` as :func:`peer_from_matrix`).
     """
     _check_name(name)
-    metric = str(metric).lower()
-    if metric not in ("cosine", "l2"):
-        raise ValueError(f"peer {name!r}: metric must be 'cosine' or 'l2', got {metric!r}.")
+    metric = check_choice(str(metric).lower(), "metric", ("cosine", "l2"))
     q, q_src = _user_array(query_path_or_array, name, "query descriptors", 2)
     r, _ = _user_array(database_path_or_array, name, "database descriptors", 2)
     if q.shape[1] != r.shape[1]:

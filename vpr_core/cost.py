@@ -10,10 +10,13 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
+from .checks import check_int
 from .matching import similarity_matrix
 from .methods import get_method
 from .paper import PROJECTION_DIM
 from .pipeline import get_encoder, landmarks_for_image
+
+__all__ = ["COST_COLUMNS", "cost_table"]
 
 #: Columns of Table 5 as measured here.
 COST_COLUMNS = (
@@ -78,10 +81,7 @@ def cost_table(
     Raises:
         ValueError: ``n_images`` or ``repeats`` below 1.
     """
-    if n_images < 1 or repeats < 1:
-        raise ValueError(
-            f"cost_table needs n_images >= 1 and repeats >= 1, got {n_images} and {repeats}."
-        )
+    n_images, repeats = check_int(n_images, "n_images", 1), check_int(repeats, "repeats", 1)
     encoder = get_encoder(backbone, dim=PROJECTION_DIM, seed=seed, pooling=pooling)
     n = min(n_images, len(dataset.query_paths))
     rows = [{"method": m, **_time_method(m, dataset, encoder, n, repeats)} for m in methods]

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
+from .checks import check_choice, check_options
 from .landmarks.schemes import (
     Dense,
     EdgeBoxesTop,
@@ -17,7 +18,8 @@ from .landmarks.schemes import (
     option_text,
 )
 from .matching import Matching
-from .paper import SOFT_NMS_IOU
+from .matching.spec import as_matching
+from .paper import SOFT_NMS_IOU, SOFT_NMS_SIGMA
 
 __all__ = [
     "METHODS",
@@ -27,7 +29,6 @@ __all__ = [
     "available_methods",
     "get_method",
     "method_label",
-    "method_options",
     "run_key",
 ]
 
@@ -45,11 +46,8 @@ class Method:
         if not isinstance(self.name, str) or not self.name:
             raise ValueError(f"Method: name must be a non-empty string, got {self.name!r}")
         check_scheme(self.landmarks)
-        if not isinstance(self.matching, Matching):
-            raise TypeError(
-                f"Method {self.name!r}: matching must be a vpr_core.methods.Matching, "
-                f"got {self.matching!r}"
-            )
+        # Matching's one rule (None: the paper's Eq. (1)); no soft-NMS given beside it
+        object.__setattr__(self, "matching", as_matching(None, SOFT_NMS_SIGMA, self.matching))
 
 
 #: The paper's methods (Sec. 2.1, Algorithms 1-4, Sec. 4) and ``global`` (not in the paper: one
@@ -77,7 +75,7 @@ def available_methods() -> list[str]:
     return sorted(METHODS)
 
 
-def method_options(method: Method) -> tuple[str, ...]:
+def _method_options(method: Method) -> tuple[str, ...]:
     """The options a method takes as keywords: its scheme's fields, then its matching options."""
     return _fields(method.landmarks) + method.matching.options()
 
@@ -87,25 +85,15 @@ def get_method(name: str, **overrides: Any) -> Method:
 
     Args:
         name: one of :func:`available_methods`.
-        **overrides: the method's options (:func:`method_options`); ``None`` means "not set"
+        **overrides: the method's options (:func:`_method_options`); ``None`` means "not set"
             (except ``soft_nms_iou``, where it turns Algorithm 4 off).
 
     Raises:
         ValueError: unknown method, an option the method does not take (the message lists the
             valid ones) or an option value of the wrong type or range.
     """
-    if name not in METHODS:
-        raise ValueError(
-            f"Unknown method {name!r}. Valid methods: {', '.join(available_methods())}."
-        )
-    preset = METHODS[name]
-    valid = method_options(preset)
-    for key in overrides:
-        if key not in valid:
-            raise ValueError(
-                f"Unknown option {key!r} for method {name!r}: it would be ignored. Options of "
-                f"{name!r}: {', '.join(valid) if valid else 'none'}."
-            )
+    preset = METHODS[check_choice(name, "method", available_methods())]
+    check_options(overrides, _method_options(preset), f"method {name!r}")
     given = {k: v for k, v in overrides.items() if v is not None or k == "soft_nms_iou"}
     scheme = {k: v for k, v in given.items() if k in _fields(preset.landmarks)}
     matching = {k: v for k, v in given.items() if k not in scheme}

@@ -13,10 +13,11 @@ from typing import Any
 import torch
 from torch import nn
 
+from ..checks import check_int, check_options
 from ..paper import ALEXNET_INPUT
 from ..utils import file_sha256
 from .alexnet import AlexNetConv3, resolve_weights
-from .efficientnet_lite import EfficientNetLiteFeatures, default_weights_path
+from .efficientnet_lite import N_STAGES, EfficientNetLiteFeatures, default_weights_path
 from .handcrafted import HOGBackbone
 from .module import ModuleBackbone
 
@@ -24,6 +25,8 @@ Factory = Callable[..., nn.Module]
 
 
 Weights = str | os.PathLike | None
+#: A parsed spec: :func:`parse_backbone`'s ``(name, options)``.
+Parsed = tuple[str, dict[str, int]]
 
 
 def _no_weights(weights: Weights) -> Path | str | None:
@@ -73,7 +76,7 @@ _REGISTRY: dict[str, _Entry] = {
     "hog": _Entry(_hog, 64),
 }
 #: Valid stage range of the EfficientNet-Lite backbones.
-_STAGES = range(1, 8)
+_STAGES = range(1, N_STAGES + 1)
 
 
 def available_backbones() -> list[str]:
@@ -106,8 +109,9 @@ def parse_backbone(spec: str) -> tuple[str, dict[str, int]]:
         ``(name, options)``, e.g. ``("efficientnet_lite0", {"input_size": 96, "stage": 4})``.
 
     Raises:
-        ValueError: unknown name (lists the valid ones), unknown option (lists the backbone's),
-            a value that is not an integer, or a stage / size out of range.
+        ValueError: unknown name (lists the valid ones), an unknown option or one given twice
+            (lists the backbone's), a value that is not an integer, or a stage / size out of
+            range.
     """
     if not isinstance(spec, str):
         raise TypeError(
@@ -117,59 +121,69 @@ def parse_backbone(spec: str) -> tuple[str, dict[str, int]]:
     name, _, rest = spec.partition(":")
     name = name.strip()
     options = backbone_options(name)
-    for item in filter(None, (p.strip() for p in rest.split(","))):
-        key, eq, value = (s.strip() for s in item.partition("="))
-        if not eq or key not in options:
+    items = [[s.strip() for s in p.partition("=")] for p in rest.split(",") if p.strip()]
+    for key, eq, _ in items:
+        if not eq:
             raise ValueError(
-                f"backbone {name!r}: bad option {item!r} in {spec!r}; valid options "
-                f"(key=integer): {', '.join(f'{k}={v}' for k, v in options.items())}"
+                f"backbone {name!r}: option {key!r} in {spec!r} has no value; write key=integer, "
+                f"e.g. {', '.join(f'{k}={v}' for k, v in options.items())} (the defaults)"
             )
+    check_options([key for key, _, _ in items], options, f"backbone {name!r}")
+    for key, _, value in items:
         try:
             options[key] = int(value)
         except ValueError:
             raise ValueError(
                 f"backbone {name!r}: option {key} must be an integer, got {value!r} in {spec!r}"
             ) from None
-    if options["input_size"] < 16:
-        raise ValueError(f"input_size must be >= 16, got {options['input_size']} in {spec!r}")
+    check_int(options["input_size"], f"input_size in {spec!r}", 16)
     if "stage" in options and options["stage"] not in _STAGES:
-        raise ValueError(f"stage must be in 1..7, got {options['stage']} in {spec!r}")
+        raise ValueError(f"stage must be in 1..{N_STAGES}, got {options['stage']} in {spec!r}")
     return name, options
 
 
-def canonical_backbone(spec: str) -> str:
-    """One spelling per backbone configuration: options sorted, defaults dropped."""
-    name, options = parse_backbone(spec)
+def _parsed(spec: str | Parsed) -> Parsed:
+    """``spec`` parsed: a string by :func:`parse_backbone`; a :data:`Parsed` pair is trusted (the
+    :class:`~vpr_core.features.Encoder` parses its backbone once, when it is made)."""
+    return spec if isinstance(spec, tuple) else parse_backbone(spec)
+
+
+def canonical_backbone(spec: str | Parsed) -> str:
+    """One spelling per backbone configuration: options sorted, defaults dropped (``spec``: a
+    string, or :func:`parse_backbone`'s pair)."""
+    name, options = _parsed(spec)
     defaults = backbone_options(name)
     diff = [f"{k}={v}" for k, v in sorted(options.items()) if v != defaults[k]]
     return name + (":" + ",".join(diff) if diff else "")
 
 
-def weights_sha256(spec: str, weights: Weights = None) -> str:
-    """The identity of the weights a backbone would read: the sha256 of the file's bytes, read
-    now (never memoised by path, size or mtime), ``"random"``, ``"none"``, or ``"missing"``
-    (building the backbone then raises its own clear error).
+def weights_sha256(spec: str | Parsed, weights: Weights = None) -> str:
+    """The identity of the weights a backbone (``spec``: a string, or :func:`parse_backbone`'s
+    pair) would read: the sha256 of the file's bytes, read now (never memoised by path, size or
+    mtime), ``"random"``, ``"none"``, or ``"missing"`` (building the backbone then raises its
+    own clear error).
 
     Raises:
         FileNotFoundError: AlexNet finds no weights file at all (the message says how to get one).
     """
-    found = _REGISTRY[parse_backbone(spec)[0]].resolve(weights)
+    found = _REGISTRY[_parsed(spec)[0]].resolve(weights)
     if found is None or isinstance(found, str):
         return "none" if found is None else found
     return file_sha256(found) if found.is_file() else "missing"
 
 
-def build_backbone(spec: str, weights: Weights = None, seed: int = 0) -> nn.Module:
-    """The network of a backbone name or spec, in eval mode (the spec's ``input_size`` is the
-    encoder's crop side; :func:`feature_shape` gives the network's output at a side).
+def build_backbone(spec: str | Parsed, weights: Weights = None, seed: int = 0) -> nn.Module:
+    """The network of a backbone name or spec (or :func:`parse_backbone`'s pair), in eval mode
+    (the spec's ``input_size`` is the encoder's crop side; :func:`feature_shape` gives the
+    network's output at a side).
 
     The arguments are trusted: :class:`~vpr_core.features.Encoder` checks them once.
     ``weights``: a path, ``"random"`` for AlexNet, None: the default lookup; ``seed`` seeds a
     random initialisation.
     """
-    base, options = parse_backbone(spec)
-    del options["input_size"]
-    model: Any = _REGISTRY[base].factory(weights, seed, **options)
+    base, options = _parsed(spec)
+    network = {k: v for k, v in options.items() if k != "input_size"}
+    model: Any = _REGISTRY[base].factory(weights, seed, **network)
     return model.eval()
 
 
@@ -185,6 +199,7 @@ def feature_shape(model: nn.Module, input_size: int) -> tuple[int, ...]:
 
 __all__ = [
     "ModuleBackbone",
+    "Parsed",
     "available_backbones",
     "backbone_options",
     "build_backbone",

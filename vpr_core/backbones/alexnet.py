@@ -16,6 +16,20 @@ from .checkpoint import file_sha256, load_checkpoint, user_weights_label
 
 logger = logging.getLogger("vpr_core")
 
+__all__ = [
+    "ALEXNET_ENV",
+    "ALEXNET_FILENAME",
+    "ALEXNET_URL",
+    "CONV3_KEYS",
+    "EXPECTED_WEIGHTS",
+    "IMAGENET_MEAN",
+    "IMAGENET_SHA256_PREFIX",
+    "IMAGENET_STD",
+    "RANDOM_WEIGHTS_LABEL",
+    "AlexNetConv3",
+    "resolve_weights",
+]
+
 ALEXNET_URL = "https://download.pytorch.org/models/alexnet-owt-7be5be79.pth"
 ALEXNET_FILENAME = "alexnet-owt-7be5be79.pth"
 ALEXNET_ENV = settings.ALEXNET_ENV
@@ -36,7 +50,7 @@ CONV3_KEYS: dict[str, tuple[int, ...]] = {
 }
 
 
-def hub_weights_path() -> Path:
+def _hub_weights_path() -> Path:
     """Where torch hub would cache the torchvision AlexNet weights (may not exist)."""
     return Path(torch.hub.get_dir()) / "checkpoints" / ALEXNET_FILENAME
 
@@ -46,7 +60,7 @@ def _missing_weights_message() -> str:
         "AlexNet ImageNet weights not found. The 'alexnet_conv3' backbone needs torchvision's "
         f"AlexNet state dict ({ALEXNET_FILENAME}); nothing is downloaded at run time. Either:\n"
         f"  * download {ALEXNET_URL}\n"
-        f"    and put it at {hub_weights_path()} (the torch hub cache), or\n"
+        f"    and put it at {_hub_weights_path()} (the torch hub cache), or\n"
         f"  * set the environment variable {ALEXNET_ENV}=/path/to/{ALEXNET_FILENAME}, or\n"
         "  * pass LandmarkEncoder('alexnet_conv3', weights='/path/to/file.pth').\n"
         "For speed tests only, weights='random' builds an untrained network (flagged as such)."
@@ -79,13 +93,13 @@ def resolve_weights(weights: str | os.PathLike | None) -> Path | str:
                 f"{ALEXNET_ENV}={env} does not point to a file.\n" + _missing_weights_message()
             )
         return p
-    p = hub_weights_path()
+    p = _hub_weights_path()
     if p.is_file():
         return p
     raise FileNotFoundError(_missing_weights_message())
 
 
-def extract_conv3_state(
+def _extract_conv3_state(
     state: dict[str, torch.Tensor], source: str = ""
 ) -> dict[str, torch.Tensor]:
     """Pick the conv1-conv3 tensors out of a (full torchvision) AlexNet state dict.
@@ -172,7 +186,7 @@ class AlexNetConv3(nn.Module):
             )
         else:
             state = load_checkpoint(resolved, EXPECTED_WEIGHTS)
-            self.load_state_dict(extract_conv3_state(state, str(resolved)), strict=True)
+            self.load_state_dict(_extract_conv3_state(state, str(resolved)), strict=True)
             self.weights_sha256 = file_sha256(resolved)
             self.weights_source = (
                 f"ImageNet (torchvision {ALEXNET_FILENAME})"

@@ -15,7 +15,6 @@ __all__ = [
     "WeightsFileError",
     "file_sha256",
     "load_checkpoint",
-    "nonfinite_tensors",
     "state_dict_sha256",
     "user_weights_label",
 ]
@@ -49,7 +48,7 @@ def load_checkpoint(path: str | os.PathLike, expected: str) -> dict[str, torch.T
 
     Raises:
         WeightsFileError: not a torch checkpoint (truncated, other format), not a dict of
-            tensors, or NaN / inf in a tensor (:func:`nonfinite_tensors`; the message names the
+            tensors, or NaN / inf in a tensor (:func:`_nonfinite_tensors`; the message names the
             file, the tensors and the fix).
     """
     p = Path(path)
@@ -71,7 +70,7 @@ def load_checkpoint(path: str | os.PathLike, expected: str) -> dict[str, torch.T
             f"weights file {p} holds a {type(state).__name__}, not a state dict of tensors; "
             f"expected {expected}."
         )
-    bad = nonfinite_tensors(state)
+    bad = _nonfinite_tensors(state)
     if bad:
         raise WeightsFileError(
             f"weights file {p} holds NaN or inf in {', '.join(bad[:3])}"
@@ -88,7 +87,7 @@ def load_checkpoint(path: str | os.PathLike, expected: str) -> dict[str, torch.T
 _F32_MAX = float(torch.finfo(torch.float32).max)
 
 
-def nonfinite_tensors(state: Mapping[str, torch.Tensor]) -> list[str]:
+def _nonfinite_tensors(state: Mapping[str, torch.Tensor]) -> list[str]:
     """Names of the floating-point (or complex) tensors of ``state`` holding NaN or inf, or a
     value beyond float32's range (the backbones compute in float32: it becomes inf there)."""
     bad = []

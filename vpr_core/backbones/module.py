@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import NoReturn
 
 import torch
 from torch import nn
@@ -117,10 +118,7 @@ class ModuleBackbone(nn.Module):
             else None
         )
         if fault is not None:
-            raise ValueError(
-                f"backbone module {self.label} returns {fault} on a random {size} input "
-                f"(backbones.module.probe_input): {self._fix}"
-            )
+            self._refuse(fault, f"a random {size} input (backbones.module.probe_input)")
         self.probe_sha256 = array_sha256([out.detach().float().cpu().numpy()])
         self.feature_shape = tuple(int(n) for n in out.shape[1:])
         self.raw_dim = math.prod(self.feature_shape)
@@ -147,6 +145,13 @@ class ModuleBackbone(nn.Module):
             "of the batch, may not)"
         )
 
+    def _refuse(self, fault: str, where: str, fix: str | None = None) -> NoReturn:
+        """The one error for a module output that cannot describe landmarks: ``fault`` (NaN or
+        inf, all zeros, ...) on ``where``, and the fix (default :attr:`_fix`)."""
+        raise ValueError(
+            f"backbone module {self.label} returns {fault} on {where}: {fix or self._fix}"
+        )
+
     def _check_first_real(
         self, mode: str, out: torch.Tensor, inputs: torch.Tensor, where: str
     ) -> None:
@@ -157,9 +162,7 @@ class ModuleBackbone(nn.Module):
             return
         fault = _degenerate(out, per_cell)
         if fault is not None:
-            raise ValueError(
-                f"backbone module {self.label} returns {fault} on {where}: {self._fix}"
-            )
+            self._refuse(fault, where)
         self._seen[mode] = True
 
     def feature_map(self, batch: torch.Tensor) -> torch.Tensor:
@@ -177,10 +180,11 @@ class ModuleBackbone(nn.Module):
                 "batch dimension and work on images of any size, or use pooling='crop'"
             )
         if not out.isfinite().all():
-            raise ValueError(
-                f"backbone module {self.label} returned NaN or inf on a finite {size} image "
-                "(pooling='roi', its feature map): check its forward on images of that size "
-                "(an overflow, a division by zero), or use pooling='crop'"
+            self._refuse(
+                "NaN or inf",
+                f"a finite {size} image (pooling='roi', its feature map)",
+                "check its forward on images of that size (an overflow, a division by zero), "
+                "or use pooling='crop'",
             )
         self._check_first_real("roi", out, batch, f"a real {size} image (pooling='roi')")
         return out.float()
@@ -197,9 +201,10 @@ class ModuleBackbone(nn.Module):
                 "call. Fix its forward to keep the batch dimension (B crops in, B rows out)"
             )
         if not out.isfinite().all():
-            raise ValueError(
-                f"backbone module {self.label} returned NaN or inf for finite crops (its "
-                "forward): check it on real crops (an overflow, a division by zero)"
+            self._refuse(
+                "NaN or inf",
+                f"{n} finite crops (its forward)",
+                "check it on real crops (an overflow, a division by zero)",
             )
         self._check_first_real("crop", out, batch, f"a real batch of {n} different crops")
         return out.float().flatten(1)

@@ -8,10 +8,10 @@ import numpy as np
 import torch
 from kornia.geometry.transform import crop_and_resize
 
-__all__ = ["boxes_to_corners", "crop_boxes", "pyramid_levels"]
+__all__ = ["crop_boxes", "pyramid_levels"]
 
 
-def boxes_to_corners(boxes: np.ndarray, image_size: tuple[int, int], level: int = 0) -> np.ndarray:
+def _boxes_to_corners(boxes: np.ndarray, image_size: tuple[int, int], level: int = 0) -> np.ndarray:
     """``(x, y, w, h)`` boxes -> kornia corner points, clipped to the image.
 
     A box covers the continuous region ``[x, x + w) x [y, y + h)``; its corner *pixel centres*
@@ -105,7 +105,7 @@ def crop_boxes(
         img = pyramid[lvl_eff]
         idx = np.flatnonzero(levels == lvl)
         corners = torch.from_numpy(
-            boxes_to_corners(boxes[idx], (int(img.shape[-2]), int(img.shape[-1])), lvl_eff)
+            _boxes_to_corners(boxes[idx], (int(img.shape[-2]), int(img.shape[-1])), lvl_eff)
         ).to(device)
         for start in range(0, len(idx), batch_size):
             sl = slice(start, start + batch_size)

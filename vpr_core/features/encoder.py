@@ -5,6 +5,7 @@ map per image (``roi``), then a Gaussian random projection; see docs/DEFINITIONS
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 import math
 from typing import Any, cast
@@ -15,12 +16,20 @@ from torch import nn
 
 from ..backbones import (
     ModuleBackbone,
+    Parsed,
     build_backbone,
     canonical_backbone,
     feature_shape,
     parse_backbone,
 )
-from ..checks import check_boxes, check_choice, check_image, check_int
+from ..checks import (
+    check_boxes,
+    check_choice,
+    check_device,
+    check_image,
+    check_int,
+    check_options,
+)
 from ..paper import PROJECTION_DIM
 from .crops import crop_boxes, pyramid_levels
 from .projection import random_projection
@@ -57,7 +66,8 @@ class Encoder:
     ``"roi"``), the square crop side ``input_size`` (None: the backbone's), the torch ``device``,
     and the Gaussian random projection to ``dim`` (None: raw features) from ``seed``; then
     ``crop``/``roi`` details (``batch_size``, ``antialias``, ``working_size``, ``roi_sampling``;
-    see :class:`LandmarkEncoder`). Checked once, here."""
+    see :class:`LandmarkEncoder`). Checked once, here; :attr:`parsed_backbone` holds the parsed
+    spec."""
 
     backbone: str | nn.Module = "efficientnet_lite0"
     weights: str | None = None
@@ -74,7 +84,7 @@ class Encoder:
     def __post_init__(self) -> None:
         module = isinstance(self.backbone, nn.Module)
         if not isinstance(self.backbone, nn.Module):
-            given = parse_backbone(self.backbone)[1]["input_size"]  # a name, or a clear error
+            given = self.parsed_backbone[1]["input_size"]  # parsed once, or a clear error
             explicit = "input_size" in self.backbone.partition(":")[2]
             if explicit and self.input_size not in (None, given):
                 raise ValueError(
@@ -94,6 +104,7 @@ class Encoder:
                 f"backbone={type(self.backbone).__name__}(...) needs its crop size: pass "
                 "input_size=S (the side of the square (B, 3, S, S) crops it takes)"
             )
+        check_device(self.device)
         _set(self, "device", str(self.device))
         if self.dim is not None:
             _set(self, "dim", check_int(self.dim, "dim (None: raw features)", 1))
@@ -104,19 +115,22 @@ class Encoder:
             _set(self, "working_size", check_int(self.working_size, "working_size", 32))
         _set(self, "roi_sampling", check_int(self.roi_sampling, "roi_sampling", 1))
 
+    @functools.cached_property
+    def parsed_backbone(self) -> Parsed:
+        """:func:`~vpr_core.backbones.parse_backbone` of a named backbone, parsed once (when the
+        value is made); the backbone functions take it as is. Not for a module backbone."""
+        assert isinstance(self.backbone, str), "a module backbone has no spec"
+        return parse_backbone(self.backbone)
+
 
 def as_encoder(encoder: Encoder | str | nn.Module | None = None, **options: Any) -> Encoder:
     """An :class:`Encoder` from a value, or a backbone (name, spec or module) with options."""
+    given = list(options) + (["backbone"] if encoder is not None else [])
+    check_options(given, [f.name for f in dataclasses.fields(Encoder)], "encoder")
     if isinstance(encoder, Encoder):
         return dataclasses.replace(encoder, **options) if options else encoder
     if encoder is not None:
-        if "backbone" in options:
-            raise ValueError("the backbone is given twice (positional and backbone=)")
         options["backbone"] = encoder
-    unknown = set(options) - {f.name for f in dataclasses.fields(Encoder)}
-    if unknown:
-        valid = ", ".join(f.name for f in dataclasses.fields(Encoder))
-        raise TypeError(f"unknown encoder option(s) {sorted(unknown)}; valid: {valid}")
     return Encoder(**options)
 
 
@@ -170,26 +184,21 @@ class LandmarkEncoder:
         self.kwargs: dict[str, Any] = {
             f.name: getattr(spec, f.name) for f in dataclasses.fields(spec)
         }
-        name = (
-            type(spec.backbone).__name__
-            if isinstance(spec.backbone, nn.Module)
-            else canonical_backbone(spec.backbone)
-        )
-        self.device = torch.device(spec.device)
-        if self.device.type == "cuda" and not torch.cuda.is_available():
-            raise ValueError(f"device={spec.device!r} but torch sees no CUDA GPU; use device='cpu'")
+        module = isinstance(spec.backbone, nn.Module)
+        name = type(spec.backbone).__name__ if module else canonical_backbone(spec.parsed_backbone)
+        self.device = torch.device(spec.device)  # checked by the Encoder
         self.backbone_name = name
         self.seed = spec.seed
         self.pooling = spec.pooling
         self.batch_size = spec.batch_size
         self.antialias = spec.antialias
         self.roi_sampling = spec.roi_sampling
-        if isinstance(spec.backbone, nn.Module):
-            model: Any = ModuleBackbone(spec.backbone, cast(int, spec.input_size))
+        if module:
+            model: Any = ModuleBackbone(cast(nn.Module, spec.backbone), cast(int, spec.input_size))
             self.input_size, shape = model.input_size, model.feature_shape
         else:
-            model = build_backbone(name, spec.weights, self.seed)
-            size = spec.input_size or parse_backbone(name)[1]["input_size"]
+            model = build_backbone(spec.parsed_backbone, spec.weights, self.seed)
+            size = spec.input_size or spec.parsed_backbone[1]["input_size"]
             self.input_size, shape = size, feature_shape(model, size)
         self.model = model.to(self.device)
         if self.pooling == "roi" and getattr(self.model, "stride", None) is None:
@@ -318,8 +327,10 @@ class LandmarkEncoder:
         Raises:
             TypeError / ValueError: wrong image type/shape/dtype or boxes shape.
         """
-        image = check_image(image)
-        boxes = check_boxes(boxes, positive=True)
+        return self._encode(check_image(image), check_boxes(boxes, positive=True))
+
+    def _encode(self, image: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+        """:meth:`encode` of a checked image and boxes."""
         if len(boxes) == 0:
             return np.zeros((0, self.dim), dtype=np.float32)
         if self.pooling == "crop":
@@ -373,7 +384,7 @@ class LandmarkEncoder:
         method). Args: ``image`` ``(H, W, 3)`` uint8 RGB. Returns: ``(dim,)`` float32.
         """
         h, w = check_image(image).shape[:2]
-        return self.encode(image, np.array([[0.0, 0.0, w, h]]))[0]
+        return self._encode(image, np.array([[0.0, 0.0, w, h]]))[0]
 
     def _roi_raw(self, image: np.ndarray, boxes: np.ndarray) -> torch.Tensor:
         """``roi`` mode raw features ``(K, raw_dim)`` on the device (one backbone pass)."""

@@ -8,6 +8,8 @@ from functools import lru_cache
 import numpy as np
 import torch
 
+from ..checks import check_int
+
 __all__ = ["random_projection"]
 
 
@@ -31,6 +33,5 @@ def random_projection(raw_dim: int, dim: int, seed: int = 0) -> torch.Tensor:
         ``(raw_dim, dim)`` float32 CPU tensor with i.i.d. ``N(0, 1/dim)`` entries (read-only:
         shared between encoders with the same arguments; ``.to(device)`` makes a copy).
     """
-    if raw_dim < 1 or dim < 1:
-        raise ValueError(f"raw_dim and dim must be positive, got {raw_dim}, {dim}")
-    return _projection_cached(int(raw_dim), int(dim), int(seed))
+    raw_dim, dim = check_int(raw_dim, "raw_dim", 1), check_int(dim, "dim", 1)
+    return _projection_cached(raw_dim, dim, int(seed))

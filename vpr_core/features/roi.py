@@ -16,7 +16,6 @@ __all__ = [
     "WORKING_SIZE_FACTOR",
     "RoiGrid",
     "roi_pool",
-    "roi_sample_points",
     "working_image",
 ]
 
@@ -42,7 +41,7 @@ class RoiGrid(NamedTuple):
     sampling: int = DEFAULT_ROI_SAMPLING
 
 
-def working_shape(image_size: tuple[int, int], working_size: int) -> tuple[int, int]:
+def _working_shape(image_size: tuple[int, int], working_size: int) -> tuple[int, int]:
     """``(H, W)`` -> ``(Hw, Ww)`` with ``max(Hw, Ww) == working_size``, aspect kept."""
     h, w = image_size
     f = working_size / max(h, w)
@@ -53,15 +52,15 @@ def working_image(image: torch.Tensor, working_size: int) -> torch.Tensor:
     """Resize a ``(1, 3, H, W)`` image to the working size (bilinear, antialiased when shrinking).
 
     Returns:
-        ``(1, 3, Hw, Ww)`` float32, see :func:`working_shape`.
+        ``(1, 3, Hw, Ww)`` float32, see :func:`_working_shape`.
     """
-    hw, ww = working_shape((int(image.shape[-2]), int(image.shape[-1])), working_size)
+    hw, ww = _working_shape((int(image.shape[-2]), int(image.shape[-1])), working_size)
     if (hw, ww) == tuple(image.shape[-2:]):
         return image
     return F.interpolate(image, size=(hw, ww), mode="bilinear", align_corners=False, antialias=True)
 
 
-def roi_sample_points(boxes: np.ndarray, image_size: tuple[int, int], grid: RoiGrid) -> np.ndarray:
+def _roi_sample_points(boxes: np.ndarray, image_size: tuple[int, int], grid: RoiGrid) -> np.ndarray:
     """Image pixel coordinates (index convention) of every RoIAlign sample of every box:
     ``boxes`` ``(K, 4)`` float64 ``(x, y, w, h)`` in pixels of an image of ``image_size``
     ``(H, W)``, sampled on ``grid`` (``n`` cells, ``r`` samples per cell and axis).
@@ -144,7 +143,7 @@ def roi_pool(
     n, r, stride, offset = grid.side, grid.sampling, grid.stride, grid.offset
     k = len(boxes)
     c, hf, wf = fmap.shape[-3:]
-    pts = roi_sample_points(boxes, image_size, grid)
+    pts = _roi_sample_points(boxes, image_size, grid)
     # image index -> working-image continuous coordinate -> feature index (cell centre = integer)
     qx = ((pts[0] + 0.5) * (work_size[1] / image_size[1]) - offset) / stride
     qy = ((pts[1] + 0.5) * (work_size[0] / image_size[0]) - offset) / stride

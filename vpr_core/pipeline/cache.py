@@ -28,8 +28,6 @@ from ..utils import logger, short_hash
 
 __all__ = [
     "CHECKSUMS",
-    "DamagedEntryError",
-    "ForeignEntryError",
     "atomic_savez",
     "dataset_fingerprint",
     "images_fingerprint",
@@ -41,11 +39,11 @@ _REPORTED: set[str] = set()
 _UNREADABLE = (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError)
 
 
-class ForeignEntryError(ValueError):
+class _ForeignEntryError(ValueError):
     """A readable cache entry that is not the one asked for (another identity, wrong shape)."""
 
 
-class DamagedEntryError(ValueError):
+class _DamagedEntryError(ValueError):
     """A readable cache entry whose arrays do not match the checksums written beside them
     (edited by hand, damaged on disk, or written by a version without checksums)."""
 
@@ -70,20 +68,20 @@ def _checksums(arrays: dict[str, Any]) -> str:
 
 
 def _verify(z: Any, out: dict[str, np.ndarray], mapped: tuple[str, ...]) -> None:
-    """Raise :class:`DamagedEntryError` unless each array of ``out`` matches the checksum the
+    """Raise :class:`_DamagedEntryError` unless each array of ``out`` matches the checksum the
     entry records: dtype and shape always, the sha256 of its bytes unless memory-mapped."""
     if CHECKSUMS not in z.files:
-        raise DamagedEntryError("it carries no checksums (written by an older version)")
+        raise _DamagedEntryError("it carries no checksums (written by an older version)")
     try:
         recorded = json.loads(str(z[CHECKSUMS]))
     except ValueError:
-        raise DamagedEntryError("its checksums do not read") from None
+        raise _DamagedEntryError("its checksums do not read") from None
     for k, a in out.items():
         dtype, shape, digest = recorded.get(k, (None, None, None))
         if (dtype, shape) != (a.dtype.str, list(a.shape)):
-            raise DamagedEntryError(f"{k!r} is not the {dtype} {shape} array it was written as")
+            raise _DamagedEntryError(f"{k!r} is not the {dtype} {shape} array it was written as")
         if k not in mapped and digest != _digest(a):
-            raise DamagedEntryError(f"the bytes of {k!r} do not match its checksum (edited?)")
+            raise _DamagedEntryError(f"the bytes of {k!r} do not match its checksum (edited?)")
 
 
 def _cache_folder_error(path: Path, exc: OSError) -> OSError:
@@ -163,7 +161,7 @@ def load_npz(
     """Read ``keys`` from a cached ``.npz``; ``None`` if it is absent, unreadable or foreign.
 
     An unreadable file (``BadZipFile``, ``EOFError``, a missing key, a damaged array), one whose
-    arrays do not match their recorded checksums (:class:`DamagedEntryError`: an entry edited by
+    arrays do not match their recorded checksums (:class:`_DamagedEntryError`: an entry edited by
     hand, or one without checksums), one whose recorded identity differs from ``identity``, or
     one that ``check`` rejects is logged once with its path and the reason, removed, and
     reported as missing so the caller recomputes it.
@@ -188,10 +186,10 @@ def load_npz(
             if identity is not None:
                 stored = str(z["_identity"]) if "_identity" in z.files else "no identity"
                 if stored != identity:
-                    raise ForeignEntryError(f"it holds {stored!r}, not {identity!r}")
+                    raise _ForeignEntryError(f"it holds {stored!r}, not {identity!r}")
             problem = check(out) if check is not None else None
             if problem:
-                raise ForeignEntryError(problem)
+                raise _ForeignEntryError(problem)
             _verify(z, out, mapped)  # last: an entry of the wrong shape is named for its shape
         return out
     except _UNREADABLE as exc:
@@ -199,16 +197,16 @@ def load_npz(
             _REPORTED.add(str(path))
             what = (
                 "does not hold what it is named for"
-                if isinstance(exc, ForeignEntryError)
+                if isinstance(exc, _ForeignEntryError)
                 else "does not match its checksums"
-                if isinstance(exc, DamagedEntryError)
+                if isinstance(exc, _DamagedEntryError)
                 else "is unreadable"
             )
             logger.warning(
                 "cache entry %s %s (%s: %s); removed, recomputing it",
                 path,
                 what,
-                type(exc).__name__,
+                type(exc).__name__.lstrip("_"),  # ForeignEntryError, BadZipFile, ...
                 exc,
             )
         with contextlib.suppress(FileNotFoundError):

@@ -13,12 +13,11 @@ import torch
 from torch import nn
 
 from ..backbones import weights_sha256
-from ..engine import extract_features_distributed
 from ..features import Encoder, LandmarkEncoder, as_encoder
 from ..utils import cache_dir, code_version, config_slug, progress
 from .cache import SIDES, atomic_savez, load_npz, n_images
 
-__all__ = ["encoder_kwargs", "extract_features", "features_for_image", "get_encoder"]
+__all__ = ["extract_features", "get_encoder"]
 
 
 def get_encoder(
@@ -31,7 +30,7 @@ def get_encoder(
     spec = as_encoder(encoder, **options)
     if isinstance(spec.backbone, nn.Module):
         return LandmarkEncoder(spec)
-    return _cached_encoder(spec, weights_sha256(spec.backbone, spec.weights))
+    return _cached_encoder(spec, weights_sha256(spec.parsed_backbone, spec.weights))
 
 
 @lru_cache(maxsize=4)
@@ -128,7 +127,7 @@ def _rows(store, boxes: np.ndarray) -> tuple[np.ndarray, float]:
     return np.array(s_desc[rows], dtype=np.float32), float(s_cost[rows].sum())
 
 
-def features_for_image(
+def _features_for_image(
     encoder, dataset, side: str, i: int, boxes: np.ndarray, overwrite: bool = False
 ) -> tuple[np.ndarray, float]:
     """Descriptors of ``boxes`` in one image, from the per-image store; computes what is missing.
@@ -151,7 +150,7 @@ def features_for_image(
 
 def _extract_side_crop_batched(boxes: list, dataset, side: str, encoder) -> tuple[list, list]:
     """One side's ``crop``-mode descriptors, the missing crops of consecutive images sharing
-    batches (only the last batch is padded; same bits as :func:`features_for_image`, tested).
+    batches (only the last batch is padded; same bits as :func:`_features_for_image`, tested).
     A box's recorded cost is its image's crop time plus its share of the batches it ran in."""
     n = n_images(dataset, side)
     bs = int(encoder.batch_size)
@@ -221,14 +220,11 @@ def _extract_side_crop_batched(boxes: list, dataset, side: str, encoder) -> tupl
     return [r[0] for r in results], [r[1] for r in results]
 
 
-def encoder_kwargs(encoder: LandmarkEncoder) -> dict[str, Any]:
-    """The keyword arguments that rebuild ``encoder`` on a Dask worker (a module travels as is)."""
-    return dict(encoder.kwargs)
-
-
 def _extract_side_distributed(client, boxes: list, dataset, side: str, encoder) -> tuple:
     """One side's descriptors: the client reads/writes the stores, workers compute what is
-    missing (:func:`vpr_core.engine.extract_features_distributed`)."""
+    missing (:func:`vpr_core.engine.extract_features_distributed`; the engine is imported only
+    here, with a client)."""
+    from ..engine import extract_features_distributed
 
     n = n_images(dataset, side)
     all_boxes = [np.asarray(boxes[i], dtype=np.float64).reshape(-1, 4) for i in range(n)]
@@ -239,7 +235,7 @@ def _extract_side_distributed(client, boxes: list, dataset, side: str, encoder) 
     if todo:
         new = [missing[i] for i in todo]
         descs, secs = extract_features_distributed(
-            client, dataset, side, encoder_kwargs(encoder), indices=todo, boxes=new
+            client, dataset, side, dict(encoder.kwargs), indices=todo, boxes=new
         )
         for i, nb, d, s in zip(todo, new, descs, secs, strict=False):
             stores[i] = _add_to_store(paths_[i], stores[i], nb, d, s)
@@ -270,7 +266,7 @@ def extract_features(boxes: dict[str, Any], dataset, encoder, client=None) -> di
         else:
             descs, secs = [], []
             for i in progress(range(n_images(dataset, side)), desc=f"features {side}"):
-                d, s = features_for_image(encoder, dataset, side, i, boxes[side][i])
+                d, s = _features_for_image(encoder, dataset, side, i, boxes[side][i])
                 descs.append(d)
                 secs.append(s)
         out[side] = descs

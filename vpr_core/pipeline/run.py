@@ -13,9 +13,7 @@ from typing import Any, ParamSpec
 
 import numpy as np
 
-from ..engine.blocks import similarity_blocks_distributed, similarity_pairs_distributed
-from ..engine.client import get_client
-from ..engine.shortlist import rerank, shortlist_pairs, split_whole_image, with_whole_image_boxes
+from ..checks import check_int
 from ..evaluation import (
     Evaluation,
     bootstrap_metrics,
@@ -24,7 +22,7 @@ from ..evaluation import (
     saturation_notice,
 )
 from ..evaluation.spec import refuse_tolerance
-from ..features import Encoder
+from ..features import Encoder, as_encoder
 from ..landmarks.edge_boxes import edge_model_id
 from ..landmarks.schemes import CandidateScheme, LandmarkScheme
 from ..matching import similarity_matrix
@@ -85,25 +83,24 @@ def _constant_notice(sim: np.ndarray) -> None:
 
 
 def _check_shortlist(shortlist: Any, n_ref: int) -> int | None:
+    """``shortlist`` (None: exhaustive, or k references re-ranked per query) as an int, or None
+    where k covers every reference."""
     if shortlist is None:
         return None
-    if isinstance(shortlist, bool) or not isinstance(shortlist, (int, np.integer)) or shortlist < 1:
-        raise ValueError(
-            f"shortlist must be a positive integer k (references re-ranked per "
-            f"query) or None for exhaustive matching, got {shortlist!r}"
-        )
+    shortlist = check_int(shortlist, "shortlist", 1)
     if shortlist == 1:
         logger.warning(
             "shortlist=1 leaves no second-best reference: the ratio protocol then "
             "sets S2 := S1 (ratio 1); use k >= 2"
         )
-    return int(shortlist) if shortlist < n_ref else None  # k >= Nr is exhaustive
+    return shortlist if shortlist < n_ref else None  # k >= Nr is exhaustive
 
 
 def _features(boxes: dict, dataset, encoder, shortlist: int | None, client):
     """Landmark descriptors (and whole-image descriptors when a shortlist needs them)."""
     if shortlist is None:
         return extract_features(boxes, dataset, encoder, client=client), None
+    from ..engine.shortlist import split_whole_image, with_whole_image_boxes  # opt-in
 
     feats = extract_features(
         with_whole_image_boxes(boxes, dataset), dataset, encoder, client=client
@@ -111,7 +108,7 @@ def _features(boxes: dict, dataset, encoder, shortlist: int | None, client):
     return split_whole_image(feats)
 
 
-def match(
+def _match(
     boxes: dict[str, Any],
     feats: dict[str, Any],
     matching: Matching | None = None,
@@ -142,12 +139,14 @@ def match(
     matching = matching or Matching()
     args = (feats["query"], boxes["query"], feats["reference"], boxes["reference"])
     nq, nr = len(feats["query"]), len(feats["reference"])
+    if shortlist is not None or client is not None:
+        from .. import engine  # opt-in scale-out: imported only for a shortlist or a client
     t0 = time.perf_counter()
     if shortlist is None:
-        if client is None:
+        if client is None:  # the paper's path
             sim = similarity_matrix(*args, matching=matching)
         else:
-            sim = similarity_blocks_distributed(client, *args, matching)
+            sim = engine.similarity_blocks_distributed(client, *args, matching)
         return sim, {
             "pairs": float(nq * nr),
             "shortlist_s": 0.0,
@@ -156,10 +155,10 @@ def match(
     if global_desc is None:
         raise ValueError("shortlist=k needs the whole-image descriptors (global_desc)")
 
-    pairs, _ = shortlist_pairs(global_desc["query"], global_desc["reference"], shortlist)
+    pairs, _ = engine.shortlist_pairs(global_desc["query"], global_desc["reference"], shortlist)
     t1 = time.perf_counter()
-    vals = similarity_pairs_distributed(client, *args, pairs, matching)  # None: in-process
-    sim = rerank(vals, pairs, nq, nr)
+    vals = engine.similarity_pairs_distributed(client, *args, pairs, matching)  # None: in-process
+    sim = engine.rerank(vals, pairs, nq, nr)
     t2 = time.perf_counter()
     logger.info(
         "shortlist k=%d: Eq. (1) on %d of %d pairs (%.1f s ranking, %.1f s matching)",
@@ -205,7 +204,7 @@ def _values(
         found.update({k: overrides.pop(k) for k in list(overrides) if k in names})
     return (
         as_method(method, **overrides),
-        dataclasses.replace(encoder or Encoder(), **parts[Encoder]),
+        as_encoder(encoder, **parts[Encoder]),  # one Encoder made (and checked)
         dataclasses.replace(evaluation or Evaluation(), **parts[Evaluation]),
     )
 
@@ -272,6 +271,8 @@ def run_method(
     edge_model = edge_model_id() if isinstance(conf.landmarks, CandidateScheme) else "none"
     client = None
     if scheduler is not None:
+        from ..engine import get_client  # opt-in: a Dask cluster
+
         client = get_client(scheduler)
     try:
         boxes = extract_landmarks(conf.landmarks, dataset)
@@ -308,7 +309,7 @@ def run_method(
             sim, match_s = cached["similarity"], float(cached["seconds_per_pair"])
             n_pairs = float(cached["pairs"])
         else:
-            sim, info = match(
+            sim, info = _match(
                 boxes,
                 feats,
                 conf.matching,
