@@ -16,6 +16,18 @@ from vpr_core.matching import SPATIAL_OPTIONS, WEIGHTING_OPTIONS
 from vpr_core.methods import available_methods
 from vpr_core.paper import PROJECTION_DIM
 
+__all__ = [
+    "DESCRIPTION",
+    "EVAL_EPILOG",
+    "RUN_EPILOG",
+    "backbone_help",
+    "check_names",
+    "command_parser",
+    "dataset_options",
+    "given_once",
+    "parser",
+]
+
 
 def _parse_value(text: str):
     for cast in (int, float):

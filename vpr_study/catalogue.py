@@ -15,6 +15,20 @@ from pathlib import Path
 
 from vpr_study.figures import FIGURES, NOTEBOOKS
 
+__all__ = [
+    "EVAL_OUTPUTS",
+    "EXTRA_FIGURES",
+    "FIGURES_FILES",
+    "LABEL_NOTEBOOKS",
+    "ONE_OFF",
+    "RESULTS_FILES",
+    "TABLES",
+    "TIMINGS_ONLY",
+    "figure_stems",
+    "strays",
+    "study_outputs",
+]
+
 #: Figures a notebook writes that :data:`~vpr_study.figures.FIGURES` does not list yet
 #: (``{notebook stem: (figure stems)}``).
 EXTRA_FIGURES: dict[str, tuple[str, ...]] = {}

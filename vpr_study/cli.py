@@ -37,6 +37,25 @@ from vpr_study.arguments import check_names, command_parser, dataset_options, gi
 from vpr_study.findings import findings_markdown, result_labels
 from vpr_study.runner import run_study, study_datasets
 
+__all__ = [
+    "HEADLINE",
+    "INTERRUPTED",
+    "PROGRESS_INTERVAL_S",
+    "build_parser",
+    "changed_settings",
+    "cmd_eval",
+    "cmd_findings",
+    "cmd_run",
+    "default_label",
+    "eval_settings",
+    "eval_stem",
+    "fit_text",
+    "format_table",
+    "main",
+    "say",
+    "StageLines",
+]
+
 INTERRUPTED = "interrupted; cached work is kept, rerun to resume"
 
 

@@ -18,6 +18,8 @@ from vpr_core import paths, settings
 from vpr_study import memo
 from vpr_study.figures import expected_figures
 
+__all__ = ["BACKGROUND_NICE", "kernel_settings", "run_labels"]
+
 logger = logging.getLogger("vpr_core")
 
 

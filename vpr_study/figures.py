@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+__all__ = ["FIGURES", "NOTEBOOKS", "expected_figures", "FigureSpec"]
+
 
 @dataclass(frozen=True)
 class FigureSpec:

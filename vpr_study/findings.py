@@ -17,6 +17,22 @@ from vpr_core.evaluation.bootstrap import N_BOOTSTRAP, VERDICTS, difference_verd
 from vpr_core.methods import get_method, run_key
 from vpr_core.paper import TABLE2, TABLE3, TABLE4
 
+__all__ = [
+    "CELL_WORDS",
+    "CLAIMS",
+    "LEGEND",
+    "MATCHES_TABLE",
+    "OBSERVATION_1",
+    "ON_PAR_MARGIN",
+    "Claim",
+    "cmr_difference",
+    "findings_markdown",
+    "findings_table",
+    "markdown_cell",
+    "read_table",
+    "result_labels",
+]
+
 
 @dataclass(frozen=True)
 class Claim:

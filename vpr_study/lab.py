@@ -18,6 +18,21 @@ from typing import Any
 from vpr_core import paths
 from vpr_study.figures import NOTEBOOKS
 
+__all__ = [
+    "RUN_METADATA",
+    "STARTER_NAME",
+    "STUDY_NOTEBOOKS",
+    "USER_NOTEBOOKS",
+    "init",
+    "main",
+    "malformed",
+    "project_path",
+    "starter_source",
+    "strip_outputs",
+    "strip_text",
+    "stripped",
+]
+
 logger = logging.getLogger(__name__)
 
 #: The committed study notebooks, as paths from the project root (JupyterLab's API paths with

@@ -15,6 +15,8 @@ from pathlib import Path
 from vpr_core import paths
 from vpr_core.utils import file_sha256
 
+__all__ = ["inputs_key", "notebook_key", "record", "up_to_date", "written_since"]
+
 #: Settings that only say where things go or how progress looks (the key leaves them out).
 _PLACEMENT = {"VPR_OUTPUT_DIR", "VPR_CACHE_DIR", "VPR_PROGRESS", "VPR_DASK_SCHEDULER"}
 

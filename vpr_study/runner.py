@@ -17,6 +17,23 @@ from vpr_study.execution import run_labels
 from vpr_study.figures import FIGURES, NOTEBOOKS
 from vpr_study.findings import findings_markdown, result_labels
 
+__all__ = [
+    "NORDLAND_STUDY",
+    "PARAMETER_TYPES",
+    "QUICK_IMAGES",
+    "QUICK_PLACES",
+    "REAL_DATA_NOTEBOOKS",
+    "check_parameters",
+    "notebook_parameters",
+    "notebook_paths",
+    "notebooks_dir",
+    "output_label",
+    "run_study",
+    "source_checkout",
+    "study_datasets",
+    "summary_table",
+]
+
 logger = logging.getLogger("vpr_core")
 
 #: Places of the ``synthetic`` dataset in quick mode (the headless notebook tests).
