@@ -157,6 +157,9 @@ def test_unknown_option_lists_valid_ones(tmp_path):
 def test_missing_root(name, tmp_path):
     with pytest.raises(FileNotFoundError, match="does not exist"):
         load_dataset(name, root=tmp_path / "nowhere")
+    (tmp_path / "a_file").write_text("")
+    with pytest.raises(FileNotFoundError, match=rf"dataset '{name}': root .*a_file' is a file"):
+        load_dataset(name, root=tmp_path / "a_file")
     with pytest.raises(ValueError, match="needs root="):
         load_dataset(name)
 

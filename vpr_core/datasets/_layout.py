@@ -46,13 +46,14 @@ def check_root(root: str | os.PathLike | None, name: str, layout: str) -> Path:
         )
     try:
         found = find_input(root)
+        problem = "" if found.is_dir() else f"{str(found)!r} is a file, not a folder"
     except FileNotFoundError as exc:
+        problem = str(exc)
+    if problem:
         hint = f"; or fetch it with download_dataset({name!r}, root)" if name in DOWNLOADS else ""
         raise FileNotFoundError(
-            f"dataset {name!r}: root {exc}{hint}. Expected layout: {layout}"
-        ) from None
-    if not found.is_dir():
-        raise FileNotFoundError(f"dataset root {found} is not a folder. Expected layout: {layout}")
+            f"dataset {name!r}: root {problem}{hint}. Expected layout: {layout}"
+        )
     return found
 
 
