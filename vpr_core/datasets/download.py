@@ -22,7 +22,7 @@ from .. import settings
 from ..checks import check_range
 from ..utils import file_sha256
 
-__all__ = ["DOWNLOADS", "download_dataset"]
+__all__ = ["DOWNLOADS", "DOWNLOAD_DEADLINE_S", "MAX_EXTRACT_BYTES", "download_dataset"]
 
 log = logging.getLogger("vpr_core")
 
