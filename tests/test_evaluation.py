@@ -21,6 +21,7 @@ from vpr_core.evaluation import (
     pr_curve,
     recall_at_100_precision,
     recall_at_k,
+    recall_rate_at_n,
 )
 from vpr_core.evaluation.bootstrap import _per_query, _prepare, _resample_metrics
 
@@ -123,14 +124,18 @@ def test_bad_inputs():
         pr_curve(S.ravel(), GT.ravel())
     with pytest.raises(ValueError, match="at least 2 references"):
         pr_curve(S[:, :1], GT[:, :1])
-    with pytest.raises(ValueError, match="boolean"):
+    with pytest.raises(ValueError, match=r"ground truth \(ground_truth=\).*bools or 0/1"):
         pr_curve(S, GT * 2)
     with pytest.raises(ValueError, match="no ranked reference"):
         pr_curve(np.full((2, 2), np.nan), np.eye(2, dtype=bool))
     with pytest.raises(ValueError, match="inf"):
         pr_curve(np.array([[np.inf, 0.0], [0.0, 1.0]]), np.eye(2, dtype=bool))
-    with pytest.raises(ValueError, match="k must be"):
+    with pytest.raises(ValueError, match="k must be a positive integer, got 0"):
         recall_at_k(S, GT, 0)
+    with pytest.raises(ValueError, match="k must be a positive integer, got 0"):
+        evaluate(S, GT, ks=(1, 0))  # one rule, one wording for every k
+    with pytest.raises(ValueError, match="n_max must be a positive integer, got 0"):
+        recall_rate_at_n(S, GT, 0)
 
 
 def test_metrics_table_and_perfect_matrix():
@@ -271,8 +276,11 @@ def test_bootstrap_bad_arguments():
         bootstrap_metrics(S, GT, n=-1)
     with pytest.raises(ValueError, match="protocol"):
         bootstrap_metrics(S, GT, protocol="multi_match")
-    with pytest.raises(ValueError, match="ks"):
+    with pytest.raises(ValueError, match="k must be a positive integer, got 0"):
         bootstrap_metrics(S, GT, ks=(0,))
+    # without resamples too: the resampled rows are per query, multi_match decides per pair
+    with pytest.raises(ValueError, match="'multi_match' has no bootstrap intervals.*use a protoc"):
+        paired_bootstrap(S, S, GT, n=0, protocol="multi_match")
     with pytest.raises(ValueError, match="shape"):
         paired_bootstrap(S, S[:, :2], GT)
 

@@ -114,8 +114,17 @@ def test_chance_refuses_what_it_cannot_compute():
         chance(np.zeros((3, 3), bool))
     with pytest.raises(ValueError, match="valid: ratio"):
         chance(np.eye(3, dtype=bool), "nope")
-    with pytest.raises(ValueError, match="n \\(random rankings\\)"):
+    with pytest.raises(ValueError, match="n \\(random rankings\\) must be a positive integer"):
         chance(np.eye(3, dtype=bool), n=0)
+    with pytest.raises(ValueError, match="k must be a positive integer, got 0"):
+        chance(np.eye(3, dtype=bool), ks=(1, 0))
+    # the ground-truth rules of the datasets (one home), naming the argument
+    with pytest.raises(ValueError, match=r"ground truth must be a \(Nq, Nr\) matrix"):
+        chance(np.ones(3, dtype=bool))
+    with pytest.raises(ValueError, match=r"\(ground_truth=\) must hold bools or 0/1"):
+        chance(np.eye(3) * 2)
+    with pytest.raises(ValueError, match=r"\(soft=, the dataset's ground_truth_soft\) has shape"):
+        chance(np.eye(3, dtype=bool), soft=np.eye(2, dtype=bool))
 
 
 def test_saturation_warns_when_chance_is_inside_every_run_interval():
@@ -158,6 +167,8 @@ def test_compare_has_chance_columns_and_refuses_another_dataset():
     b.dataset = "other_place"
     with pytest.raises(ValueError, match="'other_place'.*'toy'|'toy'.*'other_place'"):
         compare([a, b])
+    with pytest.raises(ValueError, match=r"^per_query\(\): .*compare runs of one dataset"):
+        per_query([a, b])  # the same rule, naming its caller
     for unset in (None, ""):  # a result without a fingerprint: the ground truth decides
         a, b = _pair("aaa", unset)
         assert len(compare([a, b], n_bootstrap=0)) == 2

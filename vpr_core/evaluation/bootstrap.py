@@ -10,9 +10,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .curves import Scored, _metrics, _parse, _query_scores, _ranked
-from .ranks import _true_rank
-from .spec import BOOTSTRAP_PROTOCOLS, N_BOOTSTRAP, PROTOCOLS, Evaluation
+from ..checks import check_int
+from .curves import Scored
+from .ranks import query_scores, ranked, true_rank
+from .spec import BOOTSTRAP_PROTOCOLS, N_BOOTSTRAP, Evaluation
 
 __all__ = [
     "BOOTSTRAP_PROTOCOLS",
@@ -82,16 +83,16 @@ class _PerQuery:
 def _per_query(x: Scored, ks: tuple[int, ...]) -> _PerQuery:
     """Per-query quantities of one method on its resampled rows (:func:`_prepare`)."""
     s, gt, protocol = x.s, x.gt, x.protocol
-    ranked = _ranked(s)  # an unranked query is never accepted (not retrieved)
-    idx = np.flatnonzero(ranked)
-    score, correct = _query_scores(s[ranked], gt[ranked], protocol == "ratio")
+    any_ranked = ranked(s)  # an unranked query is never accepted (not retrieved)
+    idx = np.flatnonzero(any_ranked)
+    score, correct = query_scores(s[any_ranked], gt[any_ranked], protocol == "ratio")
     # the same sort as curves._curve_from_scores: accepted in this order, equal scores together
     o = np.argsort(score if protocol == "ratio" else -score, kind="stable")
     sc = score[o]
     run_end = np.r_[sc[1:] != sc[:-1], True] if sc.size else np.zeros(0, dtype=bool)
-    rank = _true_rank(s, gt)
+    rank = true_rank(s, gt)
     hits = {k: (rank < k).astype(np.float64) for k in ks}  # no hit where nothing is ranked
-    counted = ranked if protocol == "vpr_bench" else np.ones_like(ranked)
+    counted = any_ranked if protocol == "vpr_bench" else np.ones_like(any_ranked)
     has_gt = np.asarray(gt.any(axis=1))
     return _PerQuery(
         protocol, counted, has_gt, idx[o], correct[o].astype(np.float64), run_end, hits
@@ -148,22 +149,19 @@ def _draws(n_boot: int, n_queries: int, seed: int):
 def _prepare(similarity, ground_truth, evaluation: Evaluation, ignore=None) -> Scored:
     """The checked inputs on the resampled queries: ``vpr_bench`` every query, else those with
     ground truth (raises without ground truth; warns once when queries are left out)."""
-    if evaluation.protocol not in BOOTSTRAP_PROTOCOLS:
-        raise ValueError(
-            f"bootstrap supports protocol 'ratio', 'best_match' or 'vpr_bench' "
-            f"(per-query decisions), got {evaluation.protocol!r}; valid protocols: "
-            f"{', '.join(PROTOCOLS)}"
-        )
-    s, gt, keep, _ = _parse(similarity, ground_truth, evaluation, ignore)
+    s, gt, keep, _ = Scored.parse(similarity, ground_truth, evaluation, ignore)
     rows = np.ones(s.shape[0], dtype=bool) if evaluation.protocol == "vpr_bench" else gt.any(1)
     return Scored(s[rows], gt[rows], keep[rows], evaluation)
 
 
-def _ks(ks: Sequence[int]) -> tuple[int, ...]:
-    ks = tuple(int(k) for k in ks)
-    if any(k < 1 for k in ks):
-        raise ValueError(f"ks must be >= 1, got {ks}")
-    return ks
+def _arguments(protocol: str, n: int, ks: Sequence[int]) -> tuple[Evaluation, tuple[int, ...]]:
+    """The checked :class:`Evaluation` and ``ks`` of a bootstrap call. Its protocol must decide
+    per query even without resamples (``n = 0``, which an Evaluation accepts for
+    ``multi_match``): the resampled rows are the queries with ground truth."""
+    evaluation = Evaluation(protocol, n_bootstrap=n)
+    if not evaluation.n_bootstrap:
+        evaluation.require_per_query("use ")
+    return evaluation, tuple(check_int(k, "k", 1) for k in ks)
 
 
 def _interval(vals: list[np.ndarray]) -> tuple[float, float]:
@@ -202,10 +200,11 @@ def bootstrap_metrics(
         ValueError: no query with ground truth, a protocol without intervals, bad ``ks`` or
             shapes.
     """
-    x, kt = _prepare(similarity, ground_truth, Evaluation(protocol, n_bootstrap=n), ignore), _ks(ks)
-    point = _metrics(x, kt, warn=False)
+    evaluation, kt = _arguments(protocol, n, ks)
+    x = _prepare(similarity, ground_truth, evaluation, ignore)
+    point = x.metrics(kt, warn=False)
     pq = _per_query(x, kt)
-    draws = [_resample_metrics(pq, w) for w in _draws(n, len(x.s), seed)]
+    draws = [_resample_metrics(pq, w) for w in _draws(evaluation.n_bootstrap, len(x.s), seed)]
     return {
         key: (float(value), *_interval([d[key] for d in draws])) for key, value in point.items()
     }
@@ -256,20 +255,20 @@ def paired_bootstrap(
         unpacks as a 4-tuple and has ``.se`` and ``.queries_needed`` (module docstring);
         identical inputs give ``(0, 0, 0, 1)``.
     """
-    evaluation, kt = Evaluation(protocol, n_bootstrap=n), _ks(ks)
+    evaluation, kt = _arguments(protocol, n, ks)
     a = _prepare(sim_a, ground_truth, evaluation, ignore)
     b = _prepare(sim_b, ground_truth, evaluation, ignore)  # same shape: both checked against it
-    pa, pb = _metrics(a, kt, warn=False), _metrics(b, kt, warn=False)
+    pa, pb = a.metrics(kt, warn=False), b.metrics(kt, warn=False)
     qa, qb = _per_query(a, kt), _per_query(b, kt)
     deltas: dict[str, list[np.ndarray]] = {key: [] for key in pa}
-    for w in _draws(n, len(a.s), seed):
+    for w in _draws(evaluation.n_bootstrap, len(a.s), seed):
         ma, mb = _resample_metrics(qa, w), _resample_metrics(qb, w)
         for key, parts in deltas.items():
             parts.append(ma[key] - mb[key])
     out = {}
     for key in pa:
         delta = pa[key] - pb[key]
-        if n == 0:
+        if not evaluation.n_bootstrap:
             out[key] = Difference(delta, np.nan, np.nan, np.nan)
             continue
         d = np.concatenate(deltas[key])

@@ -8,13 +8,14 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from ..checks import check_int
+from ..datasets.ground_truth import check_ground_truth, ground_truth_coverage
 from ..notices import notice
-from .curves import _check, _kept_queries, _query_curve, auc_pr, recall_at_100_precision
+from .curves import PRCurve, auc_pr, queries_with_ground_truth, recall_at_100_precision
 from .spec import Evaluation, as_evaluation
 
 __all__ = [
     "CHANCE_CHECKED",
-    "ChanceLevels",
     "CHANCE_RANKINGS",
     "SATURATION_SHARE",
     "chance",
@@ -110,7 +111,7 @@ def chance(
     soft: np.ndarray | None = None,
 ) -> dict[str, float]:
     """Each table metric under a random ranking of the same ground truth (its chance level);
-    exact values, printed rounded (:class:`ChanceLevels`).
+    exact values, printed rounded to 3 decimals.
 
     R@K is exact (docs/DEFINITIONS.md, "Chance level"); so are AUC and R@100P of
     ``multi_match``. AUC and R@100P of the per-query protocols are the mean over ``n`` seeded
@@ -131,22 +132,20 @@ def chance(
             them last).
 
     Returns:
-        ``{"auc", "r@100p", "r@K"...}`` (the keys of :func:`evaluate`), a :class:`ChanceLevels`.
+        ``{"auc", "r@100p", "r@K"...}`` (the keys of :func:`evaluate`), a dict printed rounded.
 
     Raises:
         ValueError: no query with ground truth, bad protocol, ``n`` or ``ks``.
     """
     evaluation = as_evaluation(evaluation)
     protocol = evaluation.protocol
-    if int(n) < 1 or any(int(k) < 1 for k in ks):
-        raise ValueError(f"n (random rankings) and every k must be >= 1, got n={n}, ks={ks}")
-    gt = _check(np.zeros(np.shape(ground_truth)), ground_truth)[1]
-    _kept_queries(np.zeros(gt.shape), gt, warn=False)  # raises without ground truth
-    if soft is not None and np.shape(soft) != gt.shape:
-        raise ValueError(
-            f"soft must be a bool matrix of shape {gt.shape} like the ground truth, got "
-            f"{np.shape(soft)}; pass the dataset's ground_truth_soft"
-        )
+    n = check_int(n, "n (random rankings)", 1)
+    ks = tuple(check_int(k, "k", 1) for k in ks)
+    ground_truth_coverage(ground_truth)  # refuses what is not a (Nq, Nr) matrix
+    gt = check_ground_truth(ground_truth, np.shape(ground_truth), "(ground_truth=)")
+    queries_with_ground_truth(gt)  # raises without ground truth
+    if soft is not None:
+        soft = check_ground_truth(soft, gt.shape, "(soft=, the dataset's ground_truth_soft)")
     soft_only = _soft_only(gt, soft)
     if protocol == "multi_match":
         auc, r100p = _chance_multi_match(gt, int(gt.size - soft_only.sum()))
@@ -154,18 +153,18 @@ def chance(
         p_correct = _p_correct(gt, soft_only, protocol == "vpr_bench")
         rng = np.random.default_rng(seed)
         values = []
-        for _ in range(int(n)):
+        for _ in range(n):
             correct = rng.random(p_correct.size) < p_correct
-            curve = _query_curve(rng.random(p_correct.size), correct, evaluation, 0)
+            curve = PRCurve.from_query_scores(rng.random(p_correct.size), correct, evaluation, 0)
             values.append((auc_pr(curve), recall_at_100_precision(curve)))
         auc, r100p = (float(v) for v in np.mean(values, axis=0))
-    out = ChanceLevels(auc=auc, **{"r@100p": r100p})
+    out = _ChanceLevels(auc=auc, **{"r@100p": r100p})
     for k in ks:
-        out[f"r@{int(k)}"] = _chance_recall(gt, int(k), soft_only)
+        out[f"r@{k}"] = _chance_recall(gt, k, soft_only)
     return out
 
 
-class ChanceLevels(dict):
+class _ChanceLevels(dict):
     """:func:`chance`'s exact values, printed rounded to 3 decimals (``0.1``, never
     ``0.09999999999999998``)."""
 

@@ -27,6 +27,7 @@ __all__ = [
     "METRICS",
     "ComparisonTable",
     "check_results",
+    "check_same_dataset",
     "compact",
     "compact_text",
     "compare",
@@ -94,10 +95,11 @@ def _context(r: Any) -> dict:
     }
 
 
-def _check_same_dataset(results: Sequence[Any], base: Any) -> np.ndarray:
-    """The baseline's ground truth; refuses results of another dataset (their fingerprints where
-    both are recorded, and the ground truth), naming both, and both tolerances where they
-    differ (one dataset loaded at two tolerances: its fingerprints differ too)."""
+def check_same_dataset(results: Sequence[Any], base: Any, caller: str) -> np.ndarray:
+    """The baseline's ground truth; refuses results (checked by :func:`check_results`) of
+    another dataset (their fingerprints where both are recorded, and the ground truth), naming
+    both, and both tolerances where they differ (one dataset loaded at two tolerances: its
+    fingerprints differ too). ``caller``: the function the message names."""
     fp = getattr(base, "dataset_fingerprint", None)
     gt = np.asarray(base.ground_truth, dtype=bool)
     for r in results:
@@ -107,19 +109,19 @@ def _check_same_dataset(results: Sequence[Any], base: Any) -> np.ndarray:
         other_truth = not _same(np.asarray(r.ground_truth, dtype=bool), gt)
         if tol != base_tol and (other_truth or (other_data and r.dataset == base.dataset)):
             raise ValueError(
-                f"compare(): {r.label!r} was scored at tolerance {tol} and {base.label!r} at "
+                f"{caller}(): {r.label!r} was scored at tolerance {tol} and {base.label!r} at "
                 f"tolerance {base_tol} (another ground truth); load the dataset at one "
                 "tolerance and run both on it (the Eq. (1) matrices are reused from the cache)"
             )
         if other_data:
             raise ValueError(
-                f"compare(): {r.label!r} ran on dataset {r.dataset!r} (fingerprint {other}) and "
+                f"{caller}(): {r.label!r} ran on dataset {r.dataset!r} (fingerprint {other}) and "
                 f"{base.label!r} on {base.dataset!r} (fingerprint {fp}): query i of one is not "
                 "query i of the other; compare runs of one dataset only"
             )
         if other_truth:
             raise ValueError(
-                f"compare(): {r.label!r} was evaluated on another ground truth than "
+                f"{caller}(): {r.label!r} was evaluated on another ground truth than "
                 f"{base.label!r}; compare runs of one dataset only"
             )
     return gt
@@ -241,7 +243,7 @@ def compare(
         base = results[labels.index(baseline)]
     else:
         raise ValueError(f"baseline {baseline!r} is not one of the results: {', '.join(labels)}")
-    gt = _check_same_dataset(results, base)
+    gt = check_same_dataset(results, base, "compare")
     protocols = sorted({getattr(r, "protocol", "ratio") for r in results})
     if len(protocols) > 1:
         raise ValueError(

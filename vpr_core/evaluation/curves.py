@@ -11,18 +11,21 @@ from typing import Any, NamedTuple
 import numpy as np
 import pandas as pd
 
-from ..datasets.ground_truth import ground_truth_coverage
-from .ranks import _recall, _true_rank
+from ..checks import check_int
+from ..datasets.ground_truth import check_ground_truth, ground_truth_coverage
+from .ranks import query_scores, ranked, true_rank
 from .spec import PROTOCOLS, Evaluation, as_evaluation
 
 __all__ = [
     "PROTOCOLS",
     "PRCurve",
+    "Scored",
     "auc_pr",
     "evaluate",
     "ground_truth_coverage",
     "metrics_table",
     "pr_curve",
+    "queries_with_ground_truth",
     "recall_at_100_precision",
     "recall_at_k",
     "recall_rate_at_n",
@@ -59,6 +62,34 @@ class PRCurve:
         """Unpack as ``recall, precision, thresholds``."""
         return iter((self.recall, self.precision, self.thresholds))
 
+    @classmethod
+    def from_query_scores(
+        cls, score: np.ndarray, correct: np.ndarray, evaluation: Evaluation, n_missed: int
+    ) -> PRCurve:
+        """The curve of per-query decisions (``ratio``, ``best_match``, ``vpr_bench``), from
+        parsed input.
+
+        Args:
+            score, correct: ``(n,)`` score and top-1 correctness of the queries with a ranked
+                reference (:func:`~.ranks.query_scores`); evaluation: the protocol;
+                n_missed: counted queries that retrieved nothing (never accepted).
+        """
+        protocol = evaluation.protocol
+        # recall denominators: ratio TP + FN (None), best_match all counted queries, vpr_bench
+        # sum(y)
+        n_pos = {
+            "ratio": None,
+            "best_match": score.size + n_missed,
+            "vpr_bench": int(correct.sum()),
+        }[protocol]
+        curve = _curve_from_scores(score, correct, protocol == "ratio", n_pos, n_missed)
+        curve.protocol = protocol
+        if protocol == "vpr_bench" and n_pos:  # stop at the first point of full recall
+            end = int(np.searchsorted(curve.tp, n_pos)) + 1
+            for name in ("recall", "precision", "thresholds", "tp", "fp", "fn"):
+                setattr(curve, name, getattr(curve, name)[:end])
+        return curve
+
 
 def _check(similarity, ground_truth, ignore=None) -> tuple[np.ndarray, np.ndarray]:
     """Validate shapes and dtypes; NaN similarities are allowed (unranked), inf is not.
@@ -66,33 +97,28 @@ def _check(similarity, ground_truth, ignore=None) -> tuple[np.ndarray, np.ndarra
     ``ignore`` ``(Nq, Nr)`` bool (soft ground truth): entries ``ignore & ~gt`` become NaN.
     """
     s = np.asarray(similarity, dtype=np.float64)
-    gt = np.asarray(ground_truth)
     if s.ndim != 2:
         raise ValueError(f"similarity must be a (Nq, Nr) matrix, got shape {s.shape}")
-    if gt.shape != s.shape:
-        raise ValueError(f"ground_truth shape {gt.shape} differs from similarity shape {s.shape}")
-    if gt.dtype != bool:
-        if not np.isin(gt, (0, 1)).all():
-            raise ValueError("ground_truth must be boolean (or 0/1)")
-        gt = gt.astype(bool)
+    gt = check_ground_truth(ground_truth, s.shape, f"(ground_truth=) of the {s.shape} similarity")
     if np.isinf(s).any():
         raise ValueError("similarity contains inf; use NaN to mark a pair that is not ranked")
     if ignore is not None:
-        ig = np.asarray(ignore)
-        if ig.shape != s.shape or not np.isin(ig, (0, 1)).all():
-            raise ValueError(
-                f"ignore must be a bool matrix of shape {s.shape} (soft ground "
-                f"truth), got shape {ig.shape} dtype {ig.dtype}"
-            )
-        s = np.where(ig.astype(bool) & ~gt, np.nan, s)
+        ig = check_ground_truth(ignore, s.shape, "(ignore=, the soft ground truth)")
+        s = np.where(ig & ~gt, np.nan, s)
     return s, gt
 
 
-def _ranked(s: np.ndarray) -> np.ndarray:
-    """``(Nq,)`` bool: the row has a ranked (non-NaN) reference (else it retrieved nothing)."""
-    if not s.shape[1]:
-        return np.zeros(s.shape[0], dtype=bool)
-    return np.asarray(~np.isnan(s).all(axis=1))
+def queries_with_ground_truth(gt: np.ndarray) -> np.ndarray:
+    """``(Nq,)`` bool: the queries of a parsed ``bool (Nq, Nr)`` ground truth that have a true
+    reference; refuses a ground truth where none has (no metric can be computed)."""
+    has_gt = np.asarray(gt.any(axis=1))
+    if not has_gt.any():
+        raise ValueError(
+            f"no query has a ground-truth reference (0 of {gt.shape[0]} queries), so no metric "
+            "can be computed. Check the ground-truth file (query/reference indices, 0- or "
+            "1-based) or widen the tolerance (e.g. load_dataset(..., tolerance=2))."
+        )
+    return has_gt
 
 
 def _kept_queries(
@@ -105,27 +131,21 @@ def _kept_queries(
     when no query has ground truth or none of them has a ranked reference; logs one warning
     with the counts when queries are left out or not retrieved (``warn``).
     """
-    has_gt, ranked = np.asarray(gt.any(axis=1)), _ranked(s)
+    has_gt, any_ranked = queries_with_ground_truth(gt), ranked(s)
     n_total, n_gt = s.shape[0], int(has_gt.sum())
-    n_missed = int((has_gt & ~ranked).sum())
-    if n_gt == 0:
-        raise ValueError(
-            f"no query has a ground-truth reference (0 of {n_total} queries), so no metric can be "
-            "computed. Check the ground-truth file (query/reference indices, 0- or 1-based) or "
-            "widen the tolerance (e.g. load_dataset(..., tolerance=2))."
-        )
+    n_missed = int((has_gt & ~any_ranked).sum())
     if n_missed == n_gt:
         raise ValueError(
             f"every query with ground truth ({n_gt} of {n_total}) has no ranked reference (all "
             "similarities NaN: images without landmarks). Check the landmark settings."
         )
-    keep = has_gt if need_gt else ranked
+    keep = has_gt if need_gt else any_ranked
     if warn and (n_missed or not keep.all()):
         parts = []
         if need_gt and n_gt < n_total:
             parts.append(f"{n_total - n_gt} have no ground-truth reference (left out)")
-        if not need_gt and not ranked.all():
-            parts.append(f"{int((~ranked).sum())} have no ranked reference (left out)")
+        if not need_gt and not any_ranked.all():
+            parts.append(f"{int((~any_ranked).sum())} have no ranked reference (left out)")
         if n_missed:
             parts.append(
                 f"{n_missed} with ground truth have no ranked reference (all NaN) and count as "
@@ -135,47 +155,6 @@ def _kept_queries(
             "metrics count %d of %d queries: %s", int(keep.sum()), n_total, "; ".join(parts)
         )
     return keep
-
-
-def _best_two(s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Best index (ties: lowest), best value and second best value among ranked references.
-
-    NaN entries are never chosen; with a single ranked reference the second best is the best
-    (``S2 := S1``). Every row must have at least one non-NaN entry.
-    """
-    nan = np.isnan(s)
-    if nan.any():
-        s = np.where(nan, -np.inf, s)
-    b1 = np.argmax(s, axis=1)
-    rows = np.arange(s.shape[0])
-    s1 = s[rows, b1]
-    rest = s.copy()
-    rest[rows, b1] = -np.inf
-    s2 = rest.max(axis=1)
-    if nan.any():
-        s2 = np.where(np.isneginf(s2), s1, s2)
-    return b1, s1, s2
-
-
-def _query_scores(s: np.ndarray, gt: np.ndarray, ratio: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Per-query score and correctness of the best match.
-
-    Args:
-        s: ``(n, Nr)`` similarities of kept queries; gt: ``(n, Nr)`` bool.
-        ratio: score ``r = S2 / S1`` in ``[0, 1]``, accepted if ``r <= tau`` (the ``ratio``
-            protocol); else score ``S1``, accepted if ``S1 >= tau`` (``best_match``,
-            ``vpr_bench``).
-
-    Returns:
-        ``(score (n,), correct (n,) bool)``.
-    """
-    b1, s1, s2 = _best_two(s)
-    correct = gt[np.arange(s.shape[0]), b1]
-    if not ratio:
-        return s1, correct
-    with np.errstate(invalid="ignore", divide="ignore"):
-        r = np.where(s1 > 0, s2 / np.where(s1 > 0, s1, 1.0), 1.0)
-    return np.clip(r, 0.0, 1.0), correct
 
 
 def _curve_from_scores(
@@ -242,15 +221,16 @@ def pr_curve(
         ValueError: bad shapes or protocol, or no query with ground truth (no pair for
             ``multi_match``).
     """
-    return _curve(
-        _parse(similarity, ground_truth, Evaluation(protocol, n_bootstrap=0), ignore, warn)
-    )
+    return Scored.parse(
+        similarity, ground_truth, Evaluation(protocol, n_bootstrap=0), ignore, warn
+    ).curve()
 
 
 class Scored(NamedTuple):
     """Checked inputs of a metric: ``(Nq, Nr)`` similarities and ground truth, the ``(Nq,)``
     queries the protocol counts (``multi_match`` counts pairs: every query) and the
-    :class:`~vpr_core.evaluation.Evaluation`."""
+    :class:`~vpr_core.evaluation.Evaluation`. Made by :meth:`parse` (the one check); its
+    methods trust it."""
 
     s: np.ndarray
     gt: np.ndarray
@@ -261,64 +241,53 @@ class Scored(NamedTuple):
     def protocol(self) -> str:
         return self.evaluation.protocol
 
+    @classmethod
+    def parse(
+        cls,
+        similarity: Any,
+        ground_truth: Any,
+        evaluation: Evaluation,
+        ignore: Any = None,
+        warn: bool = True,
+    ) -> Scored:
+        """The checked inputs of ``evaluation``'s curve (refusals: :func:`pr_curve`)."""
+        protocol = evaluation.protocol
+        s, gt = _check(similarity, ground_truth, ignore)
+        if protocol == "multi_match":
+            queries_with_ground_truth(gt)  # raises without ground truth
+            return cls(s, gt, np.ones(s.shape[0], dtype=bool), evaluation)
+        if protocol == "ratio" and s.shape[1] < 2:
+            raise ValueError(f"the ratio protocol needs at least 2 references, got {s.shape[1]}")
+        if s.shape[1] < 1:
+            raise ValueError("similarity has no reference column")
+        keep = _kept_queries(s, gt, warn, need_gt=protocol != "vpr_bench")
+        return cls(s, gt, keep, evaluation)
 
-def _parse(
-    similarity: Any,
-    ground_truth: Any,
-    evaluation: Evaluation,
-    ignore: Any = None,
-    warn: bool = True,
-) -> Scored:
-    """The checked :class:`Scored` inputs of ``evaluation``'s curve."""
-    protocol = evaluation.protocol
-    s, gt = _check(similarity, ground_truth, ignore)
-    if protocol == "multi_match":
-        if not gt.any():
-            _kept_queries(s, gt)  # raises: no ground truth
-        return Scored(s, gt, np.ones(s.shape[0], dtype=bool), evaluation)
-    if protocol == "ratio" and s.shape[1] < 2:
-        raise ValueError(f"the ratio protocol needs at least 2 references, got {s.shape[1]}")
-    if s.shape[1] < 1:
-        raise ValueError("similarity has no reference column")
-    return Scored(s, gt, _kept_queries(s, gt, warn, need_gt=protocol != "vpr_bench"), evaluation)
+    def curve(self) -> PRCurve:
+        """:func:`pr_curve` of these inputs."""
+        s, gt, keep, evaluation = self
+        if self.protocol == "multi_match":
+            counted = ~np.isnan(s).ravel()
+            curve = _curve_from_scores(
+                s.ravel()[counted], gt.ravel()[counted], False, int(gt.sum())
+            )
+            curve.protocol = self.protocol
+            return curve
+        rows = keep & ranked(s)
+        score, correct = query_scores(s[rows], gt[rows], self.protocol == "ratio")
+        return PRCurve.from_query_scores(score, correct, evaluation, int(keep.sum() - rows.sum()))
 
-
-def _curve(x: Scored) -> PRCurve:
-    """:func:`pr_curve` of parsed inputs."""
-    s, gt, keep, evaluation = x
-    if x.protocol == "multi_match":
-        ranked = ~np.isnan(s).ravel()
-        curve = _curve_from_scores(s.ravel()[ranked], gt.ravel()[ranked], False, int(gt.sum()))
-        curve.protocol = x.protocol
-        return curve
-    ranked = keep & _ranked(s)
-    score, correct = _query_scores(s[ranked], gt[ranked], x.protocol == "ratio")
-    return _query_curve(score, correct, evaluation, int(keep.sum() - ranked.sum()))
-
-
-def _query_curve(
-    score: np.ndarray, correct: np.ndarray, evaluation: Evaluation, n_missed: int
-) -> PRCurve:
-    """The curve of per-query decisions (``ratio``, ``best_match``, ``vpr_bench``).
-
-    Args:
-        score, correct: ``(n,)`` score and top-1 correctness of the queries with a ranked
-            reference; n_missed: counted queries that retrieved nothing (never accepted).
-    """
-    protocol = evaluation.protocol
-    # recall denominators: ratio TP + FN (None), best_match all counted queries, vpr_bench sum(y)
-    n_pos = {
-        "ratio": None,
-        "best_match": score.size + n_missed,
-        "vpr_bench": int(correct.sum()),
-    }[protocol]
-    curve = _curve_from_scores(score, correct, protocol == "ratio", n_pos, n_missed)
-    curve.protocol = protocol
-    if protocol == "vpr_bench" and n_pos:  # stop at the first point of full recall
-        end = int(np.searchsorted(curve.tp, n_pos)) + 1
-        for name in ("recall", "precision", "thresholds", "tp", "fp", "fn"):
-            setattr(curve, name, getattr(curve, name)[:end])
-    return curve
+    def metrics(self, ks: Sequence[int], warn: bool) -> dict[str, float]:
+        """:func:`evaluate` of these inputs and checked ``ks``; R@K counts the queries with
+        ground truth (its own coverage warning only where the curve counted others:
+        ``multi_match``, ``vpr_bench``)."""
+        s, gt = self.s, self.gt
+        curve = self.curve()
+        out = {"auc": auc_pr(curve), "r@100p": recall_at_100_precision(curve)}
+        with_gt = _kept_queries(s, gt, warn and self.protocol in ("multi_match", "vpr_bench"))
+        for k in ks:
+            out[f"r@{k}"] = _recall(s, gt, with_gt, k)
+        return out
 
 
 def auc_pr(curve: PRCurve) -> float:
@@ -355,10 +324,14 @@ def recall_at_k(
     Raises:
         ValueError: no query with ground truth (or none with a ranked reference).
     """
-    if int(k) < 1:
-        raise ValueError(f"k must be >= 1, got {k}")
+    k = check_int(k, "k", 1)
     s, gt = _check(similarity, ground_truth, ignore)
     return _recall(s, gt, _kept_queries(s, gt, warn), k)
+
+
+def _recall(s: np.ndarray, gt: np.ndarray, keep: np.ndarray, k: int) -> float:
+    """:func:`recall_at_k` of checked inputs over the queries ``keep``."""
+    return float((true_rank(s[keep], gt[keep]) < k).mean())
 
 
 def recall_rate_at_n(
@@ -384,11 +357,10 @@ def recall_rate_at_n(
     Returns:
         ``(n_max,)`` float, entry ``N - 1`` is RecallRate@N (non-decreasing).
     """
-    if int(n_max) < 1:
-        raise ValueError(f"n_max must be >= 1, got {n_max}")
+    n_max = check_int(n_max, "n_max", 1)
     s, gt = _check(similarity, ground_truth, ignore)
     _kept_queries(s, gt, warn=False)  # raises without ground truth
-    rank = _true_rank(s, gt)
+    rank = true_rank(s, gt)
     never = int((rank == np.iinfo(np.int64).max).sum())
     if never:
         logger.warning(
@@ -397,7 +369,7 @@ def recall_rate_at_n(
             s.shape[0],
             never,
         )
-    return (rank[:, None] < np.arange(1, int(n_max) + 1)).mean(axis=0)
+    return (rank[:, None] < np.arange(1, n_max + 1)).mean(axis=0)
 
 
 def evaluate(
@@ -415,23 +387,9 @@ def evaluate(
     ``ignore``: optional ``(Nq, Nr)`` bool soft ground truth (see the module docstring). Logs at
     most one coverage warning; raises a ValueError when no query has ground truth.
     """
-    return _metrics(
-        _parse(similarity, ground_truth, as_evaluation(evaluation), ignore), ks, warn=True
-    )
-
-
-def _metrics(x: Scored, ks: Sequence[int], warn: bool) -> dict[str, float]:
-    """:func:`evaluate` of parsed inputs; R@K counts the queries with ground truth (its own
-    coverage warning only where the curve counted others: ``multi_match``, ``vpr_bench``)."""
-    s, gt = x.s, x.gt
-    curve = _curve(x)
-    out = {"auc": auc_pr(curve), "r@100p": recall_at_100_precision(curve)}
-    with_gt = _kept_queries(s, gt, warn and x.protocol in ("multi_match", "vpr_bench"))
-    for k in ks:
-        if int(k) < 1:
-            raise ValueError(f"k must be >= 1, got {k}")
-        out[f"r@{int(k)}"] = _recall(s, gt, with_gt, k)
-    return out
+    evaluation = as_evaluation(evaluation)
+    ks = tuple(check_int(k, "k", 1) for k in ks)
+    return Scored.parse(similarity, ground_truth, evaluation, ignore).metrics(ks, warn=True)
 
 
 def metrics_table(results: Mapping[str, Mapping[str, float]]):

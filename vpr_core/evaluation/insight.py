@@ -11,9 +11,8 @@ import pandas as pd
 
 from ..matching import Matching, match_landmarks, weighted_matches
 from ..notices import notice
-from .compare import _check_same_dataset, check_results
-from .curves import _best_two, _query_scores, _ranked
-from .ranks import _true_rank
+from .compare import check_results, check_same_dataset
+from .ranks import best_two, query_scores, ranked, true_rank
 
 __all__ = ["CONTRAST_COLUMN", "PER_QUERY_COLUMNS", "per_query"]
 
@@ -95,15 +94,15 @@ def _one_run(result: Any, gt: np.ndarray, queries: np.ndarray, contrast: bool) -
     """The rows of one run on ``queries`` (indices of queries with ground truth)."""
     s = np.asarray(result.similarity, dtype=np.float64)[queries]
     g = gt[queries]
-    ranked = _ranked(s)
-    rank = _true_rank(s, g).astype(np.float64)
+    rows = ranked(s)
+    rank = true_rank(s, g).astype(np.float64)
     rank[rank == np.iinfo(np.int64).max] = np.nan  # no correct reference ranked
     top1 = np.full(len(queries), -1)
     ratio = np.full(len(queries), np.nan)
-    if ranked.any():
-        top1[ranked] = _best_two(s[ranked])[0]
-        ratio[ranked] = _query_scores(s[ranked], g[ranked], ratio=True)[0]
-    correct = ranked & g[np.arange(len(queries)), np.maximum(top1, 0)]
+    if rows.any():
+        top1[rows] = best_two(s[rows])[0]
+        ratio[rows] = query_scores(s[rows], g[rows], ratio=True)[0]
+    correct = rows & g[np.arange(len(queries)), np.maximum(top1, 0)]
     far = _wrong_distance(g, top1, correct) if _sequence(result) else np.full(len(queries), np.nan)
     table = pd.DataFrame(
         {
@@ -152,7 +151,7 @@ def per_query(results: Any | Sequence[Any], contrast: bool = False) -> pd.DataFr
     one = hasattr(results, "similarity")
     runs = check_results([results] if one else results, "per_query", unique_labels=True)
     labels = [r.label for r in runs]
-    gt = _check_same_dataset(runs, runs[0])
+    gt = check_same_dataset(runs, runs[0], "per_query")
     queries = np.flatnonzero(gt.any(axis=1))
     table = pd.concat([_one_run(r, gt, queries, contrast) for r in runs], ignore_index=True)
     agree = table.groupby("query")["top-1 correct"].nunique() == 1

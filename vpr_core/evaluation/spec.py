@@ -65,11 +65,16 @@ class Evaluation:
         n = check_int(self.n_bootstrap, "n_bootstrap (resamples; 0: no intervals)", 0)
         object.__setattr__(self, "n_bootstrap", n)
         check_bootstrap_memory(n)
-        if n and self.protocol not in BOOTSTRAP_PROTOCOLS:
+        if n:
+            self.require_per_query("pass n_bootstrap=0, or ")
+
+    def require_per_query(self, fix: str) -> None:
+        """Refuse a protocol without per-query decisions (``multi_match``) where the bootstrap
+        needs them; ``fix`` starts the remedy the message names before the valid protocols."""
+        if self.protocol not in BOOTSTRAP_PROTOCOLS:
             raise ValueError(
                 f"protocol {self.protocol!r} has no bootstrap intervals (it decides per pair, not "
-                f"per query); pass n_bootstrap=0, or a protocol of "
-                f"{', '.join(BOOTSTRAP_PROTOCOLS)}"
+                f"per query); {fix}a protocol of {', '.join(BOOTSTRAP_PROTOCOLS)}"
             )
 
 
