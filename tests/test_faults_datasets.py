@@ -16,6 +16,7 @@ import skimage.data
 from vpr_core.datasets import (
     MIN_IMAGE_SIDE,
     check_coverage,
+    check_ground_truth,
     ground_truth_coverage,
     load_dataset,
     read_image,
@@ -46,6 +47,18 @@ def test_all_false_ground_truth_is_an_error(tmp_path):
         load_dataset("folder", tmp_path)
     with pytest.raises(ValueError, match="my rule has no positive pair"):
         check_coverage(np.zeros((2, 4), bool), "my rule")
+
+
+def test_ground_truth_shape_and_values_are_one_rule():
+    """check_ground_truth: the shape and 0/1 rule every ground truth meets (dataset, file, run)."""
+    ok = check_ground_truth(np.eye(2, 3, dtype=int), (2, 3), "gt.npy")
+    assert ok.dtype == bool and ok.tolist() == np.eye(2, 3, dtype=bool).tolist()
+    with pytest.raises(ValueError, match=r"gt.npy has shape \(3, 2\) but must be \(2, 3\) for 2"):
+        check_ground_truth(np.zeros((3, 2), bool), (2, 3), "gt.npy")
+    with pytest.raises(ValueError, match=r"has shape \(3,\) but must be a \(Nq, Nr\) matrix"):
+        check_ground_truth(np.zeros(3, bool), (3,), "x")
+    with pytest.raises(ValueError, match="must hold bools or 0/1 numbers, got dtype float64"):
+        check_ground_truth(np.full((2, 3), 0.5), (2, 3), "x")
 
 
 def test_partial_csv_coverage_warns_with_the_count(tmp_path, caplog):

@@ -78,13 +78,14 @@ def check_ground_truth(gt: Any, shape: tuple[int, int], source: str) -> np.ndarr
     """Return ``gt`` as a ``bool (Nq, Nr)`` match matrix: it must have ``shape = (Nq, Nr)`` (query
     x reference images) and hold bools or 0/1 numbers. ``source`` names it in the messages (a
     file, ``"of PlaceDataset 'x'"``)."""
-    arr = np.asarray(gt)
-    nq, nr = shape
-    if arr.shape != (nq, nr):
+    arr, want = np.asarray(gt), tuple(shape)
+    if arr.ndim != 2 or arr.shape != want:
+        need = "a (Nq, Nr) matrix (query x reference images)"
+        if len(want) == 2:
+            need = f"({want[0]}, {want[1]}) for {want[0]} query and {want[1]} reference images"
         raise ValueError(
-            f"ground truth {source} has shape {arr.shape} but there are {nq} query and {nr} "
-            f"reference images, so it must be ({nq}, {nr}); fix the ground truth or the image "
-            "folders so they agree."
+            f"ground truth {source} has shape {arr.shape} but must be {need}; fix the ground "
+            "truth or the image folders so they agree."
         )
     if arr.dtype != np.bool_ and (
         not np.issubdtype(arr.dtype, np.number) or not np.isin(arr, (0, 1)).all()
