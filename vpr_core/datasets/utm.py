@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from ..checks import is_number
 from ._layout import check_root, data_name, listed_paths, traverse_dir
 from .base import PlaceDataset
 from .ground_truth import check_coverage
@@ -120,13 +122,8 @@ def _one_zone(query: list[Path], database: list[Path]) -> str | None:
     return next(iter(seen))
 
 
-def _threshold(value: object, what: str) -> float:
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, (int, float, np.number))
-        or not np.isfinite(value)
-        or value < 0
-    ):
+def _threshold(value: Any, what: str) -> float:
+    if not is_number(value) or value < 0:
         raise ValueError(f"utm: {what} must be a number of metres >= 0, got {value!r}.")
     return float(value)
 

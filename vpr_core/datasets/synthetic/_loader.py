@@ -10,7 +10,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ...checks import check_int
+from ...checks import check_int, is_number
 from ...utils import cache_dir, logger, progress, short_hash
 from ..base import PlaceDataset
 from ..ground_truth import check_tolerance, frame_aligned
@@ -119,11 +119,7 @@ def load_synthetic(
             f"synthetic: image_size must be (H, W) with H, W >= 32, got {image_size!r}; "
             "e.g. image_size=(360, 640)."
         )
-    if (
-        isinstance(repetition, bool)
-        or not isinstance(repetition, (int, float, np.number))
-        or not (0 <= repetition <= 1)
-    ):
+    if not is_number(repetition) or not 0 <= repetition <= 1:
         raise ValueError(f"synthetic: repetition must be a number in [0, 1], got {repetition!r}.")
     if repetition > 0:
         diff = dataclasses.replace(
