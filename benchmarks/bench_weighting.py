@@ -9,12 +9,17 @@ replace their old rows). Run: ``.venv/bin/python benchmarks/bench_weighting.py [
 
 ``--statistics STEP ...`` (issue 46.1) measures instead the shortlist ``contrast`` statistics on
 Nordland every STEP-th place (5: 716 places, 1: all 3,576; dense, roi, top-25): the Eq. (1)
-seconds of ``similarity_pairs`` (features and pairs given) without a weighting and with the
-statistics over samples of 8, 16 (the default, ``CONTRAST_SAMPLE``), 32, 64 and 256 references
-(256: the references of the statistics before issue 46), each one's ratio to the unweighted
-matching, its AUC and R@1 and the paired difference against the 256-reference statistics;
-and the precision of the 16-reference statistics against those over every reference (on 64
-queries). Writes ``results/benchmarks/weighting_statistics.csv``.
+seconds of ``similarity_pairs`` (features and pairs given; wall, and CPU seconds of this
+process over every thread) without a weighting and with the statistics over samples of 8, 16
+(the default, ``CONTRAST_SAMPLE``), 32, 64 and 256 references (256: the references of the
+statistics before issue 46), each one's ratio to the unweighted matching, its AUC and R@1 and
+the paired difference against the 256-reference statistics; and, up to 1,000 places, the
+precision of the 16-reference statistics against those over every reference (on 64 queries).
+Runs are interleaved, ``--repeat`` rounds (medians), except the 256-reference statistics, the
+comparison's reference, run in the first round only. Writes
+``results/benchmarks/weighting_statistics.csv`` (rows of the sizes run replace their old rows).
+Committed: ``--statistics 5 --sizes 8 12 16 24 256 --repeat 1`` (716 places, wall seconds only)
+and ``--statistics 1 --sizes 16 256 --repeat 1`` (3,576 places).
 """
 
 from __future__ import annotations
@@ -209,19 +214,24 @@ def _statistics_rows(step: int, repeat: int, sizes: tuple[int, ...]) -> list[dic
             pick = np.random.default_rng(0).choice(nr, n, replace=False)
             rng_ids[n] = np.sort(pick).astype(np.int64)
     times: dict = {None: [], **{n: [] for n in sizes}}
+    cpu: dict = {key: [] for key in times}
     sims: dict = {}
-    for _ in range(repeat):  # interleaved
+    for rnd in range(repeat):  # interleaved; the 256-reference reference in the first round only
         for key in times:
-            t0 = time.perf_counter()
+            if rnd and key == WEIGHTING_SAMPLE:
+                continue
+            t0, c0 = time.perf_counter(), time.process_time()
             if key is None:
                 v = similarity_pairs(*args, pairs, plain, compute)
             else:
                 v = similarity_pairs(*args, pairs, contrast, compute, sample=rng_ids[key])
             times[key].append(time.perf_counter() - t0)
+            cpu[key].append(time.process_time() - c0)
             sim = np.full((nq, nr), np.nan)
             sim[pairs[:, 0], pairs[:, 1]] = v
             sims[key] = sim
     base = statistics.median(times[None])
+    cpu_base = statistics.median(cpu[None])
     ref = sims.get(WEIGHTING_SAMPLE)
     rows = []
     for key, ts in times.items():
@@ -233,6 +243,8 @@ def _statistics_rows(step: int, repeat: int, sizes: tuple[int, ...]) -> list[dic
             "default": key == CONTRAST_SAMPLE,
             "matching s": statistics.median(ts),
             "x none": statistics.median(ts) / base,
+            "cpu s": statistics.median(cpu[key]),
+            "cpu x none": statistics.median(cpu[key]) / cpu_base,
             "AUC": m["auc"],
             "R@1": m["r@1"],
         }
@@ -245,7 +257,8 @@ def _statistics_rows(step: int, repeat: int, sizes: tuple[int, ...]) -> list[dic
         rows.append(row)
         print(
             f"{nq} places, {row['weighting']:8s} sample {str(key):4s}: "
-            f"{row['matching s']:7.2f} s = x{row['x none']:.2f} unweighted; "
+            f"{row['matching s']:7.2f} s = x{row['x none']:.2f} unweighted "
+            f"({row['cpu s']:.2f} CPU s = x{row['cpu x none']:.2f}); "
             f"AUC {row['AUC']:.4f} R@1 {row['R@1']:.4f}"
             + (
                 f"; vs 256-reference statistics dAUC {row['dAUC']:+.4f} "
@@ -274,7 +287,7 @@ def main() -> None:
     """Run the chosen sets and merge their rows into ``weighting.csv``."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--sets", nargs="+", default=list(SETS), choices=list(SETS))
-    p.add_argument("--repeat", type=int, default=5, help="timed runs of the exhaustive matching")
+    p.add_argument("--repeat", type=int, default=5, help="timed runs (median)")
     p.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
     p.add_argument("--out", type=Path, default=OUT)
     p.add_argument(
@@ -302,6 +315,9 @@ def main() -> None:
             new = pd.concat([old[~old["places"].isin(new["places"])], new], ignore_index=True)
         out.parent.mkdir(parents=True, exist_ok=True)
         new["sample"] = new["sample"].astype("Int64")
+        first = ["places", "weighting", "sample", "default", "matching s", "x none"]
+        first += ["cpu s", "cpu x none"]
+        new = new[[c for c in first if c in new] + [c for c in new if c not in first]]
         new.sort_values(["places"], kind="stable").to_csv(out, index=False, float_format="%.4f")
         print(f"wrote {out}")
         return
