@@ -322,14 +322,13 @@ def scale_statistics(
     matching = getattr(config, "matching", None) or Matching()
     gt = np.asarray(dataset.ground_truth, dtype=bool)
     nq, nr = gt.shape
-    if len(boxes_q) != nq or len(desc_q) != nq:
-        raise ValueError(
-            f"boxes_q/desc_q need one entry per query ({nq}), got {len(boxes_q)}/{len(desc_q)}"
-        )
-    if len(boxes_r) != nr or len(desc_r) != nr:
-        raise ValueError(
-            f"boxes_r/desc_r need one entry per reference ({nr}), got {len(boxes_r)}/{len(desc_r)}"
-        )
+    sides = (("query", nq, boxes_q, desc_q), ("reference", nr, boxes_r, desc_r))
+    for side, n, boxes, desc in sides:
+        if len(boxes) != n or len(desc) != n:
+            x = side[0]
+            raise ValueError(
+                f"boxes_{x}/desc_{x} need one entry per {side} ({n}), got {len(boxes)}/{len(desc)}"
+            )
     if "method" in label_options:
         raise TypeError("scale_statistics takes the labeller as label_method=..., not method=...")
     boxes_q = [check_boxes(b, f"boxes_q[{i}]") for i, b in enumerate(boxes_q)]

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..checks import check_int
 from .bootstrap import (
     N_BOOTSTRAP,
     bootstrap_columns,
@@ -207,23 +208,19 @@ def compare(
 
     Raises:
         TypeError: ``results`` is one result (pass a list) or holds something else than
-            results; ``baseline`` is neither a label nor an index (``True`` included); ``seed``
-            is not an integer >= 0.
-        ValueError: no results, duplicate labels, an unknown baseline, or results on different
-            datasets (fingerprints or ground truths differ; both are named).
+            results; ``baseline`` is neither a label nor an index (``True`` included).
+        ValueError: no results, duplicate labels, an unknown baseline, ``seed`` or
+            ``n_bootstrap`` not an integer >= 0, or results on different datasets (fingerprints
+            or ground truths differ; both are named).
     """
-    check_bootstrap_memory(n_bootstrap)
+    check_bootstrap_memory(check_int(n_bootstrap, "n_bootstrap (resamples; 0: no intervals)"))
     if _is_result(baseline):
         raise TypeError(
             "compare(): the second argument is the baseline, and a result was given: pass the "
             "results as one list, compare([a, b, ...]), and baseline=<label> if not the first"
         )
     results = check_results(results, "compare", unique_labels=True)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise TypeError(
-            f"compare(): seed={seed!r} is not a seed of the resampling: pass an integer >= 0 "
-            "(e.g. seed=0, the default)"
-        )
+    seed = check_int(seed, "compare(): seed (of the resampling)")
     labels = [r.label for r in results]
     if baseline is None:
         base = results[0]
