@@ -33,8 +33,9 @@ __all__ = [
     "weighted_matches",
 ]
 
-#: The block engine's settings in the one-pair functions (a float64 matmul) and weighted_matches.
-_PAIR = Compute(matmul_dtype="float64")
+#: The block engine's settings in the one-pair functions (Eq. (1) alone, a float64 matmul: only
+#: its boundary check and parse are used) and in weighted_matches; made once, not per call.
+_PAIR, _PAIR_MATCHING = Compute(matmul_dtype="float64"), Matching()
 _DEFAULT = Compute()
 
 
@@ -335,7 +336,7 @@ def match_landmarks(
         None if boxes_a is None else [np.asarray(boxes_a)],
         [np.asarray(desc_b)],
         None if boxes_b is None else [np.asarray(boxes_b)],
-        Matching(),
+        _PAIR_MATCHING,
         _PAIR,
         sides=("a", "b"),
     )
