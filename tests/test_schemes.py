@@ -105,6 +105,30 @@ def test_candidate_schemes_select_by_their_algorithm():
     assert (scale_index(MinScale(n=20).select(cands, SIZE), SIZE) >= 4).all()
 
 
+def test_a_scheme_checks_once_when_made_and_trusts_its_options_per_image(monkeypatch):
+    """Issue 47: the per-image path (``select`` / ``for_size``) runs no check again."""
+    import vpr_core.boxes
+    import vpr_core.landmarks.scales
+    import vpr_core.landmarks.schemes
+
+    rng = np.random.default_rng(4)
+    cands = np.concatenate([rng.uniform(0, 300, (200, 2)), rng.uniform(10, 300, (200, 2))], 1)
+    made = (EdgeBoxesTop(n=7), MinScale(n=20), ScalePriority(n=20), ReduceOverlap(n=20))
+    dense = Dense(scales=(0.25, 0.49), per_scale=(16, 9))
+    expected = [s.select(cands, SIZE) for s in made] + [dense.for_size(SIZE)]
+
+    def checked(*args, **kwargs):
+        raise AssertionError("a per-image call re-checked a parsed value")
+
+    for module in (vpr_core.landmarks.schemes, vpr_core.landmarks.scales, vpr_core.boxes):
+        for name in dir(module):
+            if name.startswith(("check_", "is_")):
+                monkeypatch.setattr(module, name, checked)
+    got = [s.select(cands, SIZE) for s in made] + [dense.for_size(SIZE)]
+    for a, b in zip(got, expected, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_boxes_of_an_image(synthetic_image_small):
     image = synthetic_image_small
     size = image.shape[:2]
