@@ -111,7 +111,7 @@ def check_image_size(image_size: Any, name: str = "image_size") -> tuple[int, in
     try:
         seq = tuple(image_size)
     except TypeError:
-        raise ValueError(f"{name} must be a (H, W) pair, got {image_size!r}") from None
+        seq = ()
     if len(seq) not in (2, 3):
         raise ValueError(f"{name} must be a (H, W) pair, got {image_size!r}")
     h, w = seq[0], seq[1]
