@@ -101,10 +101,14 @@ def test_refuses_runs_it_cannot_explain(runs):
         viz.plot_carried_landmarks(ds, plain, weighted, n_queries=True)
     other = load_dataset("synthetic", n_places=5, image_size=(64, 112), repetition=0.9)
     kw = {"dim": 64, "n_bootstrap": 0, "per_scale": 4}
-    with pytest.raises(ValueError, match="did not run on this dataset"):
+    with pytest.raises(
+        ValueError, match="plot_carried_landmarks: .* was run on another dataset than"
+    ):
         viz.plot_carried_landmarks(other, plain, weighted)
     other_plain = run_method("dense", other, **kw)
-    with pytest.raises(ValueError, match="did not run on this dataset"):
+    with pytest.raises(
+        ValueError, match="plot_carried_landmarks: .* was run on another dataset than"
+    ):
         viz.plot_carried_landmarks(ds, other_plain, weighted)
     classical = run_method("dense", ds, spatial="consistency", **kw)
     with pytest.raises(ValueError, match="differ in more than the weighting"):
@@ -127,6 +131,15 @@ def test_the_per_query_figures_refuse_in_the_shared_wording(runs):
             call(ds, plain, bare)
     with pytest.raises(ValueError, match="n_queries must be a positive integer, got 0"):
         viz.plot_carried_landmarks(ds, plain, weighted, n_queries=0)
+    for call in (viz.plot_weighted_matches, viz.plot_carried_landmarks):
+        with pytest.raises(ValueError, match=r"^'dense[^']*' has no weighting: pass the run of"):
+            call(ds, plain, plain)
+    from vpr_core.datasets import load_dataset
+
+    other = load_dataset("synthetic", n_places=5, image_size=(64, 112), repetition=0.9)
+    for call in (viz.plot_disagreements, viz.plot_weighted_matches, viz.plot_carried_landmarks):
+        with pytest.raises(ValueError, match=rf"^{call.__name__}: .* another dataset than"):
+            call(other, plain, weighted)
 
 
 def test_no_changed_top1_says_so(runs):

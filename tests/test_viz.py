@@ -113,6 +113,20 @@ def test_pr_curves_legend_below_identical_curves_said_and_dataset_named():
     assert viz.layout_problems(fig) == []
 
 
+def test_pr_curves_refuse_what_is_not_a_list_of_results_in_compares_words():
+    """One rule for a list of results (evaluation.compare.check_results), the figure named."""
+    from vpr_core.viz import plot_pr_curves
+
+    gt = np.eye(3, dtype=bool)
+    one = _result("dense", gt + 0.5, gt)
+    with pytest.raises(ValueError, match=r"^plot_pr_curves\(\) needs at least one result"):
+        plot_pr_curves([])
+    with pytest.raises(TypeError, match=r"^plot_pr_curves\(\): results is one result \('dense'\)"):
+        plot_pr_curves(one)
+    with pytest.raises(TypeError, match=r"^plot_pr_curves\(\): results\[1\] is a str"):
+        plot_pr_curves([one, "classical"])
+
+
 def test_pr_curves_same_curve_is_said_and_colours_never_repeat():
     from matplotlib.colors import to_hex
 

@@ -16,7 +16,7 @@ from ..checks import check_descriptors_kept, check_int
 from ..evaluation.ranks import best_two as _best_two
 from ..evaluation.ranks import ranked as _ranked
 from ..matching.pairwise import cosine_similarity
-from ._shared import FIG_WIDTH, FONT, run_matches, wrapped
+from ._shared import FIG_WIDTH, FONT, check_runs_on, run_matches, weighting_of, wrapped
 from .curves import dataset_line
 
 __all__ = ["CARRIED_COLUMNS", "CROP_PIXELS", "SILENT_WEIGHT", "plot_carried_landmarks"]
@@ -139,35 +139,22 @@ def _side_by_side(a: np.ndarray, b: np.ndarray, grey: bool) -> np.ndarray:
 
 def _check_carried_runs(ds: Any, plain: Any, weighted: Any) -> str:
     """The weighting of ``weighted``; refuses runs the figure cannot explain."""
-    m_w = getattr(getattr(weighted, "config", None), "matching", None)
+    weighting = weighting_of(weighted)
     m_p = getattr(getattr(plain, "config", None), "matching", None)
-    if m_w is None or not m_w.weighting:
-        raise ValueError(
-            f"{getattr(weighted, 'label', weighted)!r} has no weighting: pass the run of "
-            "run_method(..., weighting='contrast', keep_descriptors=True) as `weighted`"
-        )
     if m_p is None or m_p.weighting:
         raise ValueError(
             f"`plain` must be the paper's Eq. (1) (no weighting), got "
             f"{getattr(plain, 'label', plain)!r}: run the same method without weighting"
         )
     check_descriptors_kept(weighted, "plot_carried_landmarks")
-    gt = np.asarray(ds.ground_truth, dtype=bool)
-    fps = {getattr(r, "dataset_fingerprint", None) for r in (plain, weighted)} - {None, ""}
-    for run in (plain, weighted):
-        truth = np.asarray(run.ground_truth, dtype=bool)
-        if len(fps) > 1 or truth.shape != gt.shape or not np.array_equal(truth, gt):
-            raise ValueError(
-                f"{run.label!r} did not run on this dataset ({ds.name!r}; the runs: "
-                f"{plain.dataset!r} and {weighted.dataset!r}): pass two runs of one method "
-                "on `ds`, without and with a weighting"
-            )
-    if plain.method != weighted.method or dataclasses.replace(m_w, weighting=None) != m_p:
+    check_runs_on(ds, (plain, weighted), "plot_carried_landmarks")
+    m_w = dataclasses.replace(weighted.config.matching, weighting=None)
+    if plain.method != weighted.method or m_w != m_p:
         raise ValueError(
             f"{plain.label!r} and {weighted.label!r} differ in more than the weighting: pass one "
             "method run without and with weighting= (same matching options otherwise)"
         )
-    return str(m_w.weighting)
+    return weighting
 
 
 def _carried_rows(

@@ -15,7 +15,7 @@ from ..checks import check_choice
 from ..datasets.ground_truth import ground_truth_text
 from ..evaluation import auc_pr, chance, ground_truth_coverage
 from ..evaluation.chance import chance_precision
-from ..evaluation.compare import identical_to
+from ..evaluation.compare import check_results, identical_to
 from ..paper import SCALE_LABELS
 from ._shared import wrapped
 from .base import METHOD_COLORS, SAVE_DPI
@@ -178,11 +178,13 @@ def plot_pr_curves(
 
     Returns:
         The figure.
+
+    Raises:
+        ValueError, TypeError: ``results`` is empty, one result or holds something else
+            (:func:`~vpr_core.evaluation.compare.check_results`).
     """
 
-    results = list(results)
-    if not results:
-        raise ValueError("plot_pr_curves needs at least one result")
+    results = check_results(results, "plot_pr_curves")
     head = f"{title}\n" if title else ""
     heading = _heading(head + dataset_line(results))
     top = _GAP + _LINE * (heading.count("\n") + 1)

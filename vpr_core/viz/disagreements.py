@@ -16,8 +16,7 @@ from ..datasets.ground_truth import ground_truth_references
 from ..evaluation import per_query
 from ..labels import pair_matches
 from ..matching import match_landmarks
-from ..pipeline.cache import dataset_fingerprint
-from ._shared import FIG_WIDTH, FONT, wrapped
+from ._shared import FIG_WIDTH, FONT, check_runs_on, wrapped
 from .curves import dataset_line
 from .matches import GAP, plot_labelled_matches
 
@@ -137,11 +136,7 @@ def plot_disagreements(
     n = check_int(n, "n (queries shown)", 1)
     for run in (run_a, run_b):
         check_descriptors_kept(run, "plot_disagreements")
-        if getattr(run, "dataset_fingerprint", None) not in (None, dataset_fingerprint(ds)):
-            raise ValueError(
-                f"plot_disagreements: {run.label!r} was run on another dataset than {ds.name!r} "
-                "(their fingerprints differ); pass the dataset the runs were computed on"
-            )
+    check_runs_on(ds, (run_a, run_b), "plot_disagreements")
     full = per_query([run_a, run_b])
     shown, kind, wins, losses = _pick(full, run_a.label, run_b.label, n)
     table = full.set_index("query").loc[shown].reset_index()[full.columns]

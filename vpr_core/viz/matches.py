@@ -12,6 +12,7 @@ from matplotlib.figure import Figure
 
 from ..checks import check_boxes, check_shape
 from ..labels import pair_matches
+from ..statistics import check_per_match
 from .base import draw_boxes
 
 __all__ = [
@@ -71,9 +72,9 @@ def plot_labelled_matches(
     m = np.asarray(matches, dtype=np.int64).reshape(-1, 2)
     bq = check_boxes(boxes_q, "boxes_q")
     br = check_boxes(boxes_r, "boxes_r") * scale_r
-    lab = None if labels is None else np.asarray(labels, dtype=bool).reshape(-1)
-    if lab is not None and len(lab) != len(m):
-        raise ValueError(f"labels ({len(lab)}) must have one entry per match ({len(m)})")
+    lab = None
+    if labels is not None:
+        lab = check_per_match(np.asarray(labels, dtype=bool).reshape(-1), len(m), "labels")
     # incorrect first, correct on top
     order = np.arange(len(m)) if lab is None else np.argsort(lab, kind="stable")
     for k in order:

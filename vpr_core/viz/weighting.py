@@ -14,7 +14,7 @@ import pandas as pd
 from ..checks import check_descriptors_kept, check_int
 from ..datasets.ground_truth import ground_truth_references
 from ..evaluation import per_query
-from ._shared import FIG_WIDTH, FONT, run_matches, wrapped
+from ._shared import FIG_WIDTH, FONT, check_runs_on, run_matches, weighting_of, wrapped
 from .curves import dataset_line
 
 __all__ = ["plot_weighted_matches"]
@@ -86,13 +86,13 @@ def plot_weighted_matches(
         ``(figure, table)``: :func:`~vpr_core.evaluation.per_query` rows of the queries shown.
 
     Raises:
-        ValueError: ``n < 1``, no weighting on ``weighted``, or runs without descriptors.
+        ValueError: ``n < 1``, no weighting on ``weighted``, runs without descriptors or runs
+            of another dataset.
     """
     n = check_int(n, "n (queries shown)", 1)
-    weighting = getattr(weighted.config, "matching", None) and weighted.config.matching.weighting
-    if not weighting:
-        raise ValueError(f"{weighted.label!r} has no weighting: run it with weighting='contrast'")
+    weighting = weighting_of(weighted)
     check_descriptors_kept(weighted, "plot_weighted_matches")
+    check_runs_on(ds, (plain, weighted), "plot_weighted_matches")
     table = per_query([plain, weighted])
     ok = table.pivot(index="query", columns="run", values="top-1 correct")
     fixed = ok.index[~ok[plain.label].astype(bool) & ok[weighted.label].astype(bool)]
