@@ -9,6 +9,7 @@ from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
+import torch
 
 __all__ = [
     "check_boxes",
@@ -222,8 +223,6 @@ def is_number(v: Any) -> bool:
 def check_device(device: Any) -> Any:
     """Return ``device`` as a ``torch.device`` that this machine has (CUDA only when torch sees a
     GPU)."""
-    import torch  # here: checks.py is imported by modules that never need torch
-
     try:
         dev = torch.device(device)
     except (RuntimeError, TypeError):
