@@ -213,7 +213,7 @@ def test_labels_side_by_side_all_finish_before_the_first_error_is_raised(monkeyp
     assert missing == ["b/fig.png (absent)", "c/fig.png (absent)"]
     # the first label keeps its CPU priority, the others fill the cores it leaves idle
     assert niceness == {"b": 0, "c": execution.BACKGROUND_NICE}
-    with pytest.raises(ValueError, match="jobs must be an integer >= 1"):
+    with pytest.raises(ValueError, match=r"jobs \(labels executed at once\) must be a positive"):
         runner.run_study("synthetic", quick=True, jobs=0)
 
 
