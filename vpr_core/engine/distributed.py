@@ -51,7 +51,7 @@ def _encoder_key(encoder_kwargs: dict[str, Any]) -> tuple[str, nn.Module | None]
             f"{state_dict_sha256(module.state_dict())} {architecture_sha256(module)}"
         )
         return json.dumps(kwargs, sort_keys=True, default=str), module
-    kwargs["weights_sha256"] = weights_sha256(kwargs["backbone"], kwargs["weights"])  # content
+    kwargs["weights_sha256"] = weights_sha256(spec.parsed_backbone, spec.weights)  # content
     return json.dumps(kwargs, sort_keys=True, default=str), None
 
 

@@ -94,7 +94,7 @@ def landmarks_for_image(
     Edge Box schemes (:class:`~vpr_core.landmarks.schemes.CandidateScheme`) select from the
     image's cached candidates; size-only schemes are computed from the image size; any other
     scheme's ``boxes(image)`` is cached under its class, field values and version
-    (:func:`~vpr_core.landmarks.schemes.scheme_version`), or computed on every call when its
+    (:func:`~vpr_core.landmarks.schemes.scheme_identity`), or computed on every call when its
     class declares no version (a user's code may read globals that changed). A scheme that
     ``fresh=True`` computes the boxes again (and rewrites their cache entry), so the seconds
     are measured now.
