@@ -59,7 +59,7 @@ study-nordland: $(STAMP)
 	$(VENV)/bin/vpr-study findings --write
 
 test: $(STAMP)
-	MPLBACKEND=Agg $(PY) -m pytest -q
+	MPLBACKEND=Agg $(PY) -m pytest -q -n 2 --dist loadfile
 
 # JupyterLab on the project, on 127.0.0.1 with its token; --allow-root only when run as root
 # (containers, cloud machines). It opens the starter notebook in user/notebooks/ (git-ignored,

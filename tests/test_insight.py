@@ -119,7 +119,7 @@ def test_chance_refuses_what_it_cannot_compute():
     with pytest.raises(ValueError, match="k must be a positive integer, got 0"):
         chance(np.eye(3, dtype=bool), ks=(1, 0))
     # the ground-truth rules of the datasets (one home), naming the argument
-    with pytest.raises(ValueError, match=r"ground truth must be a \(Nq, Nr\) matrix"):
+    with pytest.raises(ValueError, match=r"ground truth must have shape \(Nq, Nr\)"):
         chance(np.ones(3, dtype=bool))
     with pytest.raises(ValueError, match=r"\(ground_truth=\) must hold bools or 0/1"):
         chance(np.eye(3) * 2)
