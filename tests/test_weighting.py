@@ -102,12 +102,12 @@ def test_weighting_sample_is_fixed_and_all_references_up_to_256():
     assert len(s) == WEIGHTING_SAMPLE == 256 and np.all(np.diff(s) > 0) and s.max() < 716
     np.testing.assert_array_equal(s, weighting_sample(716))  # seeded
     assert len(np.setdiff1d(s, np.arange(256))) > 100  # spread over the route
-    # contrast: 16 references, the same seeded draw
+    # contrast: 12 references, the same seeded draw
     c = weighting_sample(716, "contrast")
-    assert len(c) == CONTRAST_SAMPLE == 16 and np.all(np.diff(c) > 0)
-    want = np.sort(np.random.default_rng(0).choice(716, 16, replace=False))
+    assert len(c) == CONTRAST_SAMPLE == 12 and np.all(np.diff(c) > 0)
+    want = np.sort(np.random.default_rng(0).choice(716, 12, replace=False))
     np.testing.assert_array_equal(c, want)
-    np.testing.assert_array_equal(weighting_sample(16, "contrast"), np.arange(16))
+    np.testing.assert_array_equal(weighting_sample(12, "contrast"), np.arange(12))
     np.testing.assert_array_equal(weighting_sample(716, "idf"), s)
 
 
@@ -122,16 +122,16 @@ def _stats_oracle(qd, rd, sample):
     return out
 
 
-def test_shortlist_contrast_statistics_are_16_sampled_references_row_maxima():
+def test_shortlist_contrast_statistics_are_12_sampled_references_row_maxima():
     qd, qb, rd, rb = _sets(21, nq=5, nr=40, dim=24)
     rd[7], rb[7] = np.zeros((0, 24), np.float32), np.zeros((0, 4))  # no landmark: not counted
     sample = weighting_sample(40, "contrast")
-    assert len(sample) == 16
+    assert len(sample) == 12
     # the best cosines of sample_matches are the float64 oracle's row maxima (float32 matmul)
     prob = Problem.build(qd, qb, rd, rb, CONTRAST, Compute())
     for qi in range(4):
         m = sample_matches(prob, slice(qi, qi + 1), torch.from_numpy(sample), 5)
-        got = m.best[0][:, : len(qd[qi])].numpy()  # (16, Kq)
+        got = m.best[0][:, : len(qd[qi])].numpy()  # (12, Kq)
         want = [
             oracle.cosine_similarity(qd[qi], rd[j]).max(axis=1) if len(rd[j]) else None
             for j in sample
@@ -139,7 +139,7 @@ def test_shortlist_contrast_statistics_are_16_sampled_references_row_maxima():
         for row, w in zip(got, want, strict=True):
             if w is not None:
                 np.testing.assert_allclose(row, w, atol=1e-6, rtol=0)
-    # similarity_pairs' default statistics are those of the 16 sampled references (oracle)
+    # similarity_pairs' default statistics are those of the 12 sampled references (oracle)
     pairs = np.array([[0, 1], [1, 2], [2, 30], [0, 5], [3, 39], [4, 0]])
     got = similarity_pairs(qd, qb, rd, rb, pairs, matching=CONTRAST)
     want = oracle.similarity_matrix(qd, qb, rd, rb, weighting="contrast", sample=sample)

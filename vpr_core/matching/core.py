@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -348,6 +348,8 @@ class Problem:
     margin: float
     nms: _SoftNMS | None
     empty: bool
+    #: the references of :meth:`best_cosines`, gathered once per call (key: indices, chunk size)
+    gathered: dict = field(default_factory=dict, repr=False)
 
     @classmethod
     def build(
@@ -429,12 +431,17 @@ class Problem:
         q, r = self.q, self.r
         a = q.images(qsel)
         nq = a.shape[0] // q.k
+        key = (refs.cpu().numpy().tobytes(), size)
+        chunks = self.gathered.get(key)
+        if chunks is None:  # the same references for every query of a call: gathered once
+            sels = [refs[c0 : c0 + size] for c0 in range(0, int(refs.numel()), size)]
+            chunks = [(sel.numel(), r.images(sel), ~r.mask[sel][None, None]) for sel in sels]
+            self.gathered[key] = chunks
         parts = []
-        for c0 in range(0, int(refs.numel()), size):
-            sel = refs[c0 : c0 + size]
-            s = (a @ r.images(sel).T).view(nq, q.k, sel.numel(), r.k)
+        for n, b, pad in chunks:
+            s = (a @ b.T).view(nq, q.k, n, r.k)
             if r.padded:
-                s.masked_fill_(~r.mask[sel][None, None], PAD)
+                s.masked_fill_(pad, PAD)
             parts.append(s.amax(3))
         best = torch.cat(parts, 2).permute(0, 2, 1).to(torch.float64)  # (nq, ns, Kq)
         nn = torch.full(best.shape, -1, dtype=torch.int64, device=best.device)

@@ -129,7 +129,7 @@ def similarity_pairs(
             references ``sample``.
         compute: as :func:`similarity_matrix` (``batch_size`` unused: one query at a time).
         sample: indices of the references whose cosines give the weighting statistics
-            (default: :func:`~.weighting.weighting_sample`: ``contrast`` 16, ``idf`` 256).
+            (default: :func:`~.weighting.weighting_sample`: ``contrast`` 12, ``idf`` 256).
 
     Returns:
         ``(P,)`` float64 similarities, in the order of ``pairs``.

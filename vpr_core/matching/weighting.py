@@ -24,10 +24,10 @@ __all__ = [
 #: of a shortlist run; every reference when there are at most this many.
 WEIGHTING_SAMPLE = 256
 #: (Not in the paper.) References (a seed-0 sample) whose best cosines give the ``contrast``
-#: statistics of a shortlist run; every reference when there are at most this many. 16 keeps
-#: the statistics' cost near a tenth of the matching of a 25-reference shortlist (issue 46;
-#: their precision: docs/DEFINITIONS.md).
-CONTRAST_SAMPLE = 16
+#: statistics of a shortlist run; every reference when there are at most this many. 12 keeps
+#: their cost within 1.3x the unweighted matching of a 25-reference shortlist (issue 46; their
+#: precision and the sizes measured: docs/DEFINITIONS.md).
+CONTRAST_SAMPLE = 12
 #: (Not in the paper.) A contrast standard deviation at or below this counts as 0 (the float32
 #: cosines cannot tell the references apart): the landmark's weight is 0.
 CONTRAST_SIGMA_MIN = 1e-6
