@@ -391,11 +391,16 @@ def test_roi_grouping_invariant_and_deterministic(roi_encoder):
         [dense_sampling(img.shape[:2]), [[-30, -20, 100, 90], [600, 330, 80, 60]]]
     )
     whole = roi_encoder.encode(img, boxes)
-    for k in (1, 7, 50):
-        parts = np.concatenate(
-            [roi_encoder.encode(img, boxes[i : i + k]) for i in range(0, len(boxes), k)]
-        )
-        np.testing.assert_array_equal(whole, parts)
+    k = 33  # groups across the scales' boundaries, the last one short
+    parts = np.concatenate(
+        [roi_encoder.encode(img, boxes[i : i + k]) for i in range(0, len(boxes), k)]
+    )
+    np.testing.assert_array_equal(whole, parts)
+    # one box at a time: each of the 4 scales' first box, the last box and the two that leave
+    # the image
+    one = [0, 25, 50, 75, 99, 100, 101]
+    alone = np.concatenate([roi_encoder.encode(img, boxes[i : i + 1]) for i in one])
+    np.testing.assert_array_equal(whole[one], alone)
     np.testing.assert_array_equal(whole, LandmarkEncoder(pooling="roi").encode(img, boxes))
 
 

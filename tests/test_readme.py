@@ -180,6 +180,7 @@ def quoted() -> list[tuple[str, str]]:
             "nothing changed",
             "docs/MEASUREMENTS.md: study-cold, study-unchanged",
         ),
+        (f"AMD EPYC: {_timed('study-cold-epyc')} cold", "docs/MEASUREMENTS.md: study-cold-epyc"),
         (
             f"with contrast AUC {_iv(fc['AUC'], fc['AUC lo'], fc['AUC hi'], False)} in "
             f"{_timed('nordland-full-contrast')}",
