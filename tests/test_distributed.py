@@ -24,6 +24,7 @@ from vpr_core.engine import (
 from vpr_core.features import LandmarkEncoder
 from vpr_core.landmarks import dense_sampling
 from vpr_core.matching import Compute, Matching, similarity_matrix, similarity_pairs
+from vpr_core.matching.weighting import weighting_sample
 
 distributed = pytest.importorskip("distributed")
 
@@ -286,10 +287,13 @@ def test_a_malformed_address_is_refused_at_once(capsys):
     assert time.perf_counter() - t0 < 30  # no stall in a client's __del__
 
 
-@pytest.mark.parametrize(("weighting", "nr"), [("contrast", 13), ("idf", 13), ("contrast", 300)])
+@pytest.mark.parametrize(
+    ("weighting", "nr"), [("contrast", 12), ("contrast", 13), ("idf", 13), ("contrast", 300)]
+)
 def test_weighting_on_cluster_equals_in_process(client, weighting, nr):
     """(Not in the paper) database weighting: a task's statistics are the in-process ones (all
-    references, or with Nr > 256 the seeded sample, scattered to every worker)."""
+    references, or with more than the weighting's sample the seeded sample, scattered to every
+    worker)."""
     rng = np.random.default_rng(9)
     qd, qb = _random_sets(rng, 11, dim=16, kmin=1, kmax=6)
     rd, rb = _random_sets(rng, nr, dim=16, kmin=1, kmax=6)
@@ -304,5 +308,9 @@ def test_weighting_on_cluster_equals_in_process(client, weighting, nr):
     want_p = similarity_pairs(qd, qb, rd, rb, pairs, **kw, compute=Compute(show_progress=False))
     got_p = similarity_pairs_distributed(client, qd, qb, rd, rb, pairs, blocks=(3, 4), **kw)
     assert np.array_equal(got_p, want_p)
-    if nr <= 256:  # statistics over every reference: the matrix path's values
+    every = len(weighting_sample(nr, weighting)) == nr  # contrast: 12 references, idf: 256
+    assert every == (nr <= (12 if weighting == "contrast" else 256))
+    if every:  # statistics over every reference: the matrix path's values
         np.testing.assert_allclose(got_p, want[pairs[:, 0], pairs[:, 1]], atol=1e-7, rtol=0)
+    else:
+        assert not np.allclose(got_p, want[pairs[:, 0], pairs[:, 1]], atol=1e-7, rtol=0)
