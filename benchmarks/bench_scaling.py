@@ -15,8 +15,8 @@ of log(CPU seconds) on log(places) over its measured sizes. Exhaustive matching 
 extrapolated there from its fit (``measured = False`` in the table; dashed, hollow markers in
 the figure). The committed table: ``--places 3576 100 300 1000 --max-exhaustive 1000``
 (exhaustive at 3,576 extrapolated, docs/MEASUREMENTS.md); ``--replot`` refits and redraws from
-the table. Writes
-``results/benchmarks/weighting_scaling.csv`` and ``figures/benchmarks/weighting_scaling.png``.
+the table. Writes ``results/benchmarks/weighting_scaling.csv`` and
+``figures/benchmarks/weighting_scaling.png``.
 Run: ``.venv/bin/python benchmarks/bench_scaling.py [--places ...]``.
 """
 
