@@ -35,10 +35,12 @@ def _fmt(v) -> str:
 
 def _merge(path: Path, row: dict) -> None:
     """Write ``row`` into the table, replacing an earlier row of the same comparison."""
-    from vpr_core.utils import read_rows, write_rows
+    from vpr_core import utils
 
     same = tuple(str(row[k]) for k in KEY)
-    write_rows(path, [r for r in read_rows(path) if tuple(r[k] for k in KEY) != same] + [row])
+    utils.write_rows(
+        path, [r for r in utils.read_rows(path) if tuple(r[k] for k in KEY) != same] + [row]
+    )
 
 
 def main() -> None:
@@ -56,10 +58,9 @@ def main() -> None:
     args = p.parse_args()
     os.environ.setdefault("TQDM_DISABLE", "1")
 
+    from vpr_core import paths, run_method
     from vpr_core.datasets import load_dataset
     from vpr_core.evaluation import difference_verdict, paired_bootstrap
-    from vpr_core.paths import results_dir, study_outputs
-    from vpr_core.pipeline import run_method
 
     if not args.root.is_dir():
         raise SystemExit(
@@ -67,8 +68,8 @@ def main() -> None:
         )
     ds = load_dataset("nordland", args.root, step=args.step, tolerance=args.tolerance)
     name = f"nordland_step{args.step}_tol{args.tolerance}"
-    with study_outputs():  # the committed results/benchmarks/, not the user area
-        out = results_dir("benchmarks") / "descriptor_paired.csv"
+    with paths.study_outputs():  # the committed results/benchmarks/, not the user area
+        out = paths.results_dir("benchmarks") / "descriptor_paired.csv"
     print(
         f"{name}: {len(ds.query_paths)} queries x {len(ds.reference_paths)} references, "
         f"pooling {args.pooling}, shortlist {args.shortlist}"

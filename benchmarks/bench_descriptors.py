@@ -14,7 +14,7 @@ For each option (a backbone spec, see :mod:`vpr_core.backbones`, and a pooling m
   truth) and a Nordland subset (winter vs summer, every ``step``-th place, tolerance 0 by
   default: with step 50 neighbouring kept places are 500 original frames apart).
 
-``crop`` and ``roi`` options run through ``vpr_core.pipeline.run_method(method, dataset,
+``crop`` and ``roi`` options run through ``vpr_core.run_method(method, dataset,
 backbone=spec, pooling=...)``; ``roi@N`` (another working size, not a ``run_method`` argument)
 through the same landmark and feature stages with a ``LandmarkEncoder(pooling="roi",
 working_size=N)``. The table is printed and written to
@@ -75,8 +75,7 @@ def datasets(step: int, tolerance: int = 0) -> dict:
 
 def encoder_for(spec: str, pooling: str):
     """The encoder of one option (``run_method``'s shared one for crop)."""
-    from vpr_core.features import LandmarkEncoder
-    from vpr_core.pipeline import get_encoder
+    from vpr_core.features import LandmarkEncoder, get_encoder
 
     if pooling == "crop":
         return get_encoder(spec)
@@ -105,19 +104,21 @@ def similarity(
     method: str, dataset, spec: str, pooling: str, encoder, spatial: str | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(similarity (Nq, Nr), ground_truth (Nq, Nr))`` of one method with one option."""
-    from vpr_core import pipeline
+    from vpr_core import run_method
+    from vpr_core.features import extract_features
+    from vpr_core.landmarks import extract_landmarks
 
     if pooling in ("crop", "roi"):
-        r = pipeline.run_method(
+        r = run_method(
             method, dataset, backbone=spec, pooling=pooling, spatial=spatial, n_bootstrap=0
         )
         return r.similarity, r.ground_truth
+    from vpr_core import get_method
     from vpr_core.matching import Matching, similarity_matrix
-    from vpr_core.methods import get_method
 
     conf = get_method(method)
-    boxes = pipeline.extract_landmarks(conf.landmarks, dataset)
-    feats = pipeline.extract_features(boxes, dataset, encoder)
+    boxes = extract_landmarks(conf.landmarks, dataset)
+    feats = extract_features(boxes, dataset, encoder)
     sim = similarity_matrix(
         feats["query"],
         boxes["query"],
@@ -138,9 +139,9 @@ def fmt(v: tuple[float, float, float]) -> str:
 def _kept_rows(path: Path, rerun: set[str]) -> list[dict]:
     """Rows of an earlier table whose option is still in :data:`OPTIONS` and not re-run now
     (``--options`` measures some options again and keeps the others' measurements)."""
-    from vpr_core.utils import read_rows
+    from vpr_core import utils
 
-    old = read_rows(path)
+    old = utils.read_rows(path)
     known = {o[0]: o for o in OPTIONS}
     return [
         {"option": r["option"], "backbone": r["backbone"], "pooling": r["pooling"], "geometry": ""}
@@ -182,14 +183,13 @@ def main() -> None:
     p.add_argument("--repeats", type=int, default=3)
     args = p.parse_args()
     os.environ.setdefault("TQDM_DISABLE", "1")
+    from vpr_core import paths, utils
     from vpr_core.evaluation import bootstrap_metrics
-    from vpr_core.paths import results_dir, study_outputs
-    from vpr_core.utils import write_rows
 
     data = datasets(args.nordland_step, args.nordland_tolerance)
     options = [o for o in OPTIONS if args.options is None or o[0] in args.options]
-    with study_outputs():  # the committed results/benchmarks/, not the user area
-        out = results_dir("benchmarks") / "descriptor_choice.csv"
+    with paths.study_outputs():  # the committed results/benchmarks/, not the user area
+        out = paths.results_dir("benchmarks") / "descriptor_choice.csv"
     print(
         f"torch threads {torch.get_num_threads()}, load average {os.getloadavg()}; datasets: "
         + ", ".join(
@@ -232,7 +232,7 @@ def main() -> None:
             flush=True,
         )
         rows.append(row)
-        write_rows(out, _in_option_order(kept + rows))
+        utils.write_rows(out, _in_option_order(kept + rows))
     print(f"\nwritten {out}")
     keys = [k for k in rows[0] if k.endswith(("R@1", "AUC"))]
     print(

@@ -32,11 +32,11 @@ import torch
 
 def edge_box_like(image_size: tuple[int, int], n: int, seed: int = 0) -> np.ndarray:
     """``(n, 4)`` random boxes shaped like Edge Boxes proposals (scales 0.02-0.72, inside)."""
-    from vpr_core.paper import SCALE_EDGES
+    from vpr_core import paper
 
     h, w = image_size
     rng = np.random.default_rng(seed)
-    area = rng.uniform(SCALE_EDGES[0], SCALE_EDGES[-1], n) * h * w
+    area = rng.uniform(paper.SCALE_EDGES[0], paper.SCALE_EDGES[-1], n) * h * w
     aspect = np.exp(rng.uniform(np.log(0.5), np.log(2.0), n))
     bw = np.minimum(np.sqrt(area * aspect), w)
     bh = np.minimum(area / bw, h)
@@ -133,23 +133,23 @@ def main() -> None:
 
     from skimage.data import astronaut
 
+    from vpr_core import paper
     from vpr_core.features import LandmarkEncoder
     from vpr_core.landmarks import dense_sampling
-    from vpr_core.paper import N_LANDMARKS
 
     image = np.ascontiguousarray(np.concatenate([astronaut(), astronaut()[:, ::-1]], 1)[:360, :640])
     box_sets = {
         "dense": np.asarray(dense_sampling(image.shape[:2])),
-        "edge-box-like": edge_box_like(image.shape[:2], N_LANDMARKS),
+        "edge-box-like": edge_box_like(image.shape[:2], paper.N_LANDMARKS),
     }
     print(
-        f"640x360 image, {N_LANDMARKS} landmarks, repeats={args.repeats}, torch "
+        f"640x360 image, {paper.N_LANDMARKS} landmarks, repeats={args.repeats}, torch "
         f"{torch.__version__}, threads {torch.get_num_threads()}, load average "
         f"{os.getloadavg()} (other processes share these cores)"
     )
-    from vpr_core.utils import tune_allocator
+    from vpr_core import utils
 
-    tuned = tune_allocator()
+    tuned = utils.tune_allocator()
     header = (
         f"{'backbone':<34}{'work px':>8} {'boxes':<15}{'crop s':>8}{'roi s':>8}{'ratio':>7}"
         f"{'crop cpu':>10}{'roi cpu':>9}{'ratio':>7}{'crop0 s':>9}{'crop0/roi':>10}"

@@ -40,6 +40,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from vpr_core import paper, utils
 from vpr_core.datasets import load_dataset
 from vpr_core.features import LandmarkEncoder
 from vpr_core.labels import (
@@ -51,8 +52,6 @@ from vpr_core.labels import (
 )
 from vpr_core.landmarks import dense_sampling, edge_boxes
 from vpr_core.matching import match_landmarks
-from vpr_core.paper import N_LANDMARKS
-from vpr_core.utils import progress
 
 
 def landmark_boxes(image: np.ndarray, landmarks: str) -> np.ndarray:
@@ -61,7 +60,7 @@ def landmark_boxes(image: np.ndarray, landmarks: str) -> np.ndarray:
     if landmarks == "dense":
         return dense_sampling(image.shape[:2])
     if landmarks == "edge_boxes":
-        return np.asarray(edge_boxes(image, max_boxes=N_LANDMARKS), dtype=np.float64)
+        return np.asarray(edge_boxes(image, max_boxes=paper.N_LANDMARKS), dtype=np.float64)
     raise ValueError(f"landmarks must be 'dense' or 'edge_boxes', got {landmarks!r}")
 
 
@@ -88,7 +87,7 @@ def collect_pairs(
     ds = load_dataset("synthetic", n_places=n_places or max(n_pairs, 2), seed=seed)
     enc = LandmarkEncoder(backbone=backbone, dim=1024, seed=0)
     out = []
-    for q in progress(range(min(n_pairs, len(ds))), desc=f"pairs seed {seed}"):
+    for q in utils.progress(range(min(n_pairs, len(ds))), desc=f"pairs seed {seed}"):
         if not ds.ground_truth[q, q]:
             continue
         img_q, img_r = ds.load_image("query", q), ds.load_image("reference", q)

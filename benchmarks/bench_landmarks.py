@@ -26,7 +26,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from vpr_core import landmarks as L
-from vpr_core.paper import N_CANDIDATES
+from vpr_core import paper
 
 SIZE = (360, 640)
 
@@ -99,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--source", choices=("skimage", "synthetic", "gardens"), default="skimage")
     ap.add_argument("--n-images", type=int, default=6)
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--candidates", type=int, default=N_CANDIDATES)
+    ap.add_argument("--candidates", type=int, default=paper.N_CANDIDATES)
     args = ap.parse_args(argv)
 
     loader = {"skimage": images_skimage, "synthetic": images_synthetic, "gardens": images_gardens}[

@@ -26,8 +26,8 @@ import time
 import numpy as np
 import torch
 
+from vpr_core import paper
 from vpr_core.matching import Compute, Matching, image_similarity, similarity_matrix
-from vpr_core.paper import SOFT_NMS_IOU
 
 TARGET = 1.3
 
@@ -41,9 +41,9 @@ def _timed(fn) -> tuple[float, float]:
 
 def nordland_study(root: str, repeat: int) -> None:
     """Block engine vs pair by pair, and the weightings, on the study's Nordland descriptors."""
+    from vpr_core import run_method
     from vpr_core.datasets import load_dataset
     from vpr_core.matching import WEIGHTING_OPTIONS
-    from vpr_core.pipeline import run_method
 
     ds = load_dataset("nordland", root=root, step=50, tolerance=0)
     r = run_method("dense", ds, pooling="roi", keep_descriptors=True, n_bootstrap=0)
@@ -165,18 +165,23 @@ def main() -> None:
         def run_nms():
             nonlocal sim_nms
             sim_nms = similarity_matrix(
-                qd, qb, rd, rb, soft_nms_iou=SOFT_NMS_IOU, compute=Compute(show_progress=False)
+                qd,
+                qb,
+                rd,
+                rb,
+                soft_nms_iou=paper.SOFT_NMS_IOU,
+                compute=Compute(show_progress=False),
             )
 
         t_nms, _ = _timed(run_nms)
         print(
-            f"similarity_matrix soft-NMS t={SOFT_NMS_IOU}: {t_nms:.3f} s "
+            f"similarity_matrix soft-NMS t={paper.SOFT_NMS_IOU}: {t_nms:.3f} s "
             f"({t_nms / t_mm:.2f}x bare matmul); {t_nms / n / n * 1e3:.3f} ms per image pair"
         )
         sub = pairs[:10]
         err = max(
             abs(
-                image_similarity(qd[i], qb[i], rd[j], rb[j], soft_nms_iou=SOFT_NMS_IOU)
+                image_similarity(qd[i], qb[i], rd[j], rb[j], soft_nms_iou=paper.SOFT_NMS_IOU)
                 - sim_nms[i, j]
             )
             for i, j in sub

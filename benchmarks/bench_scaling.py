@@ -31,13 +31,19 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from vpr_core import get_method
 from vpr_core.datasets import PlaceDataset, load_dataset
-from vpr_core.engine.shortlist import shortlist_pairs, split_whole_image, with_whole_image_boxes
-from vpr_core.features import Encoder
-from vpr_core.matching import Compute, Matching, similarity_matrix, similarity_pairs
-from vpr_core.methods import get_method
-from vpr_core.pipeline.feature_stage import extract_features, get_encoder
-from vpr_core.pipeline.landmark_stage import extract_landmarks
+from vpr_core.features import Encoder, extract_features, get_encoder
+from vpr_core.landmarks import extract_landmarks
+from vpr_core.matching import (
+    Compute,
+    Matching,
+    shortlist_pairs,
+    similarity_matrix,
+    similarity_pairs,
+    split_whole_image,
+    with_whole_image_boxes,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "nordland_64x32"

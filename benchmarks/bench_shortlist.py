@@ -1,6 +1,6 @@
 """Exhaustive vs shortlist + re-rank on a Nordland subset: R@1 / AUC with 95% intervals.
 
-One run of :func:`vpr_core.pipeline.run_method` exhaustive (every query x reference by Eq. (1))
+One run of :func:`vpr_core.run_method` exhaustive (every query x reference by Eq. (1))
 and one per shortlist size k (a whole-image descriptor picks each query's top-k references,
 Eq. (1) re-ranks them, NaN elsewhere), on the same features (cached once). Prints one table and
 writes ``results/benchmarks/nordland_shortlist.csv`` (under the output root,
@@ -27,10 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
+from vpr_core import paths, run_method
 from vpr_core.datasets import load_dataset
 from vpr_core.evaluation import bootstrap_metrics, paired_bootstrap
-from vpr_core.paths import results_dir, study_outputs
-from vpr_core.pipeline import run_method
 
 DEFAULT_ROOT = Path(__file__).resolve().parents[2] / "shared" / "data" / "nordland_64x32"
 
@@ -122,8 +121,8 @@ def main(argv: list[str] | None = None) -> int:
         )
     import pandas as pd
 
-    with study_outputs():  # the committed results/benchmarks/, not the user area
-        out = results_dir("benchmarks") / "nordland_shortlist.csv"
+    with paths.study_outputs():  # the committed results/benchmarks/, not the user area
+        out = paths.results_dir("benchmarks") / "nordland_shortlist.csv"
     pd.DataFrame(rows).to_csv(out, index=False, float_format="%.6f")
     print(f"wrote {out}")
     return 0

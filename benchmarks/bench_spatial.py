@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vpr_core import run_method
 from vpr_core.datasets import load_dataset
 from vpr_core.evaluation import (
     bootstrap_metrics,
@@ -22,7 +23,6 @@ from vpr_core.evaluation import (
     paired_bootstrap,
 )
 from vpr_core.matching import SPATIAL_OPTIONS, Compute, Matching, similarity_matrix
-from vpr_core.pipeline import run_method
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 METRICS = (("auc", "AUC"), ("r@1", "R@1"))

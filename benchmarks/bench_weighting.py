@@ -34,28 +34,26 @@ import numpy as np
 import pandas as pd
 import torch
 
+from vpr_core import get_method, run_method
 from vpr_core.datasets import load_dataset
-from vpr_core.engine.shortlist import shortlist_pairs, split_whole_image, with_whole_image_boxes
 from vpr_core.evaluation import compare_pairs, evaluate, paired_bootstrap
-from vpr_core.features import Encoder
+from vpr_core.features import Encoder, extract_features, get_encoder
+from vpr_core.landmarks import extract_landmarks
 from vpr_core.matching import (
+    CONTRAST_SAMPLE,
     WEIGHTING_OPTIONS,
+    WEIGHTING_SAMPLE,
     Compute,
     Matching,
+    Problem,
+    sample_matches,
+    shortlist_pairs,
     similarity_matrix,
     similarity_pairs,
-)
-from vpr_core.matching.core import Problem
-from vpr_core.matching.weighting import (
-    CONTRAST_SAMPLE,
-    WEIGHTING_SAMPLE,
-    sample_matches,
+    split_whole_image,
     weighting_sample,
+    with_whole_image_boxes,
 )
-from vpr_core.methods import get_method
-from vpr_core.pipeline import run_method
-from vpr_core.pipeline.feature_stage import extract_features, get_encoder
-from vpr_core.pipeline.landmark_stage import extract_landmarks
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data"

@@ -31,12 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
+from vpr_core import available_methods, paper, run_method
 from vpr_core.datasets import list_images, load_dataset, read_image
 from vpr_core.evaluation import auc_pr, bootstrap_metrics, pr_curve
 from vpr_core.landmarks import edge_boxes, scale_index
-from vpr_core.methods import available_methods
-from vpr_core.paper import FIG7_NMS_THRESHOLDS, FIG7_SOFT_NMS_THRESHOLDS, N_LANDMARKS
-from vpr_core.pipeline import run_method
 
 MAX_AUC = 0.95
 MIN_SPREAD = 0.15
@@ -58,11 +56,11 @@ def study_runs() -> list[tuple[str, str, dict]]:
     ]
     runs += [
         (f"overlap_scheme1 t={t}", "overlap_scheme1", {"iou_threshold": t})
-        for t in FIG7_NMS_THRESHOLDS
+        for t in paper.FIG7_NMS_THRESHOLDS
     ]
     runs += [
         (f"overlap_scheme2 soft={t}", "overlap_scheme2", {"soft_nms_iou": t})
-        for t in FIG7_SOFT_NMS_THRESHOLDS
+        for t in paper.FIG7_SOFT_NMS_THRESHOLDS
     ]
     if "global" in available_methods():
         runs.append(("global", "global", {}))
@@ -70,10 +68,10 @@ def study_runs() -> list[tuple[str, str, dict]]:
 
 
 def high_scale_share(images) -> float:
-    """Share of the first ``N_LANDMARKS`` Edge Boxes per image with Table-1 scale >= 4."""
+    """Share of the first ``paper.N_LANDMARKS`` Edge Boxes per image with Table-1 scale >= 4."""
     total = high = 0
     for img in images:
-        boxes = np.asarray(edge_boxes(img, max_boxes=N_LANDMARKS).boxes)
+        boxes = np.asarray(edge_boxes(img, max_boxes=paper.N_LANDMARKS).boxes)
         idx = np.asarray(scale_index(boxes, img.shape[:2]))
         total += idx.size
         high += int((idx >= MIN_SCALE).sum())

@@ -10,13 +10,12 @@ whose only body is a ``raise``) over code lines; the anchors (hloc, LightGlue, k
 It also counts how values flow (DESIGN.md habit 5): the functions with more than 8 explicit
 parameters, and in how many signatures each option the issue names appears (target: 3).
 
-Issue 47 adds what a reader meets: the public face (functions and classes a module outside the
-package faces offers: top-level, no leading underscore, in a file that is neither ``__init__.py``
-nor a package-private ``_name.py``), the modules without ``__all__``, the underscore names imported
-across modules, and the rules raised from more than one site (raise statements grouped by their
-message with the placeholders blanked; target 0), with the near-duplicate messages (shared words,
-for reading) beside them. ``--names`` prints the public names per module as docs/ARCHITECTURE.md
-lists them.
+Issues 47 and 52 add what a reader meets: the package faces (each ``__init__.py``'s ``__all__``:
+what code outside the package may import) and their size, the imports by callers that reach past
+a face (target 0), the modules without ``__all__``, and the rules raised from more than one site
+(raise statements grouped by their message with the placeholders blanked; target 0), with the
+near-duplicate messages (shared words, for reading) beside them. ``--names`` prints the faces as
+docs/ARCHITECTURE.md lists them.
 
 Usage::
 
@@ -24,13 +23,14 @@ Usage::
     .venv/bin/python benchmarks/code_size.py --files    # per file
     .venv/bin/python benchmarks/code_size.py --root vpr_study   # the study's tooling
     .venv/bin/python benchmarks/code_size.py --rules    # every rule raised from > 1 site
-    .venv/bin/python benchmarks/code_size.py --names    # public names per module (markdown)
+    .venv/bin/python benchmarks/code_size.py --names    # the package faces (markdown)
 """
 
 from __future__ import annotations
 
 import argparse
 import ast
+import json
 import re
 from collections import Counter, defaultdict
 from pathlib import Path
@@ -132,11 +132,10 @@ def declared_all(tree: ast.Module) -> list[str] | None:
 
 
 def face(root: Path) -> dict:
-    """What issue 47 counts: ``public`` ``[(module, name)]`` (functions and classes outside the
-    package faces), ``no_all`` (modules without ``__all__``), ``underscore`` (``(module,
-    imported from, name)`` of underscore names imported across modules) and ``all`` (each
-    module's ``__all__``)."""
-    out: dict = {"public": [], "no_all": [], "underscore": [], "all": {}}
+    """What issues 47 and 52 count: ``public`` ``[(module, name)]`` (functions and classes
+    outside the package faces), ``no_all`` (modules without ``__all__``), ``all`` (each module's
+    ``__all__``) and ``faces`` (each package face's ``__all__``: what callers may import)."""
+    out: dict = {"public": [], "no_all": [], "all": {}, "faces": {}}
     for path in sorted(root.rglob("*.py")):
         tree = ast.parse(path.read_text(encoding="utf-8"))
         mod = module_name(path, root)
@@ -144,21 +143,64 @@ def face(root: Path) -> dict:
         if names is None:
             out["no_all"].append(mod)
         out["all"][mod] = names or []
-        if path.name != "__init__.py" and not path.name.startswith("_"):
+        if path.name == "__init__.py":
+            out["faces"][mod] = names or []
+        elif not path.name.startswith("_"):
             out["public"] += [
                 (mod, n.name)
                 for n in tree.body
                 if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef))
                 and not n.name.startswith("_")
             ]
-        for node in ast.walk(tree):
-            if isinstance(node, ast.ImportFrom):
-                out["underscore"] += [
-                    (mod, node.module or ".", a.name)
-                    for a in node.names
-                    if a.name.startswith("_") and not a.name.startswith("__")
-                ]
     return out
+
+
+def _callers(project: Path) -> list[tuple[str, str]]:
+    """``[(where, source)]`` of the code outside ``vpr_core`` that calls it: ``vpr_study``,
+    benchmarks, the notebooks and the starter (code cells), README and docs code blocks."""
+    found = [
+        (str(p.relative_to(project)), p.read_text(encoding="utf-8"))
+        for pattern in ("vpr_study/**/*.py", "benchmarks/*.py", "notebooks/scripts/*.py")
+        for p in sorted(project.glob(pattern))
+    ]
+    for nb in [*sorted(project.glob("notebooks/*.ipynb")), project / "vpr_study/starter.ipynb"]:
+        cells = json.loads(nb.read_text(encoding="utf-8"))["cells"]
+        found += [
+            (str(nb.relative_to(project)), "".join(c["source"]))
+            for c in cells
+            if c["cell_type"] == "code"
+        ]
+    for md in [project / "README.md", *sorted((project / "docs").glob("*.md"))]:
+        text = md.read_text(encoding="utf-8")
+        found += [
+            (str(md.relative_to(project)), b)
+            for b in re.findall(r"```python\n(.*?)```", text, re.S)
+        ]
+    return found
+
+
+def reach_past(root: Path) -> list[str]:
+    """Imports of ``root``'s modules that are not package faces (``__init__.py``), made by the
+    code outside the package (:func:`_callers`): ``["where: module", ...]``; target none."""
+    faces = set(face(root)["faces"])
+    bad = []
+    for where, source in _callers(root.parent):
+        try:
+            tree = ast.parse(source)
+        except SyntaxError:
+            continue
+        for node in ast.walk(tree):
+            mods = (
+                [node.module or ""]
+                if isinstance(node, ast.ImportFrom) and node.level == 0
+                else [a.name for a in node.names]
+                if isinstance(node, ast.Import)
+                else []
+            )
+            bad += [
+                f"{where}: {m}" for m in mods if m.split(".")[0] == root.name and m not in faces
+            ]
+    return bad
 
 
 def _message(node: ast.expr | None) -> str | None:
@@ -216,11 +258,14 @@ def near_duplicates(sites: dict[str, list[str]], share: float = 0.6) -> list[lis
 
 
 def names_markdown(root: Path) -> str:
-    """The public names of each module (its ``__all__``), one markdown row per module."""
-    rows = ["| module | public names (`__all__`) |", "|---|---|"]
-    for mod, names in face(root)["all"].items():
+    """The names each package face exports (its ``__init__.py``'s ``__all__``), one markdown
+    row per face, and their total."""
+    faces = face(root)["faces"]
+    rows = ["| face | names (`__all__`) |", "|---|---|"]
+    for mod, names in faces.items():
         rows.append(f"| `{mod}` | {', '.join(f'`{n}`' for n in names) or '(none)'} |")
-    return "\n".join(rows)
+    total = sum(len(n) for n in faces.values())
+    return "\n".join(rows) + f"\n\n{total} names in {len(faces)} faces."
 
 
 def main() -> None:
@@ -254,9 +299,15 @@ def main() -> None:
         print(f"  {n_params:3d}  {where}")
     print("signatures per option: " + ", ".join(f"{o} {options[o]}" for o in OPTIONS))
     f = face(root)
-    print(f"public functions and classes outside the package faces: {len(f['public'])}")
+    sizes = {mod: len(names) for mod, names in f["faces"].items()}
+    print(
+        f"package faces: {len(sizes)}, names they export: {sum(sizes.values())} ("
+        + ", ".join(f"{m} {n}" for m, n in sizes.items())
+        + ")"
+    )
+    print(f"imports by callers past a face: {len(reach_past(root))} (target 0)")
+    print(f"public functions and classes inside the package (behind its faces): {len(f['public'])}")
     print(f"modules without __all__: {len(f['no_all'])}")
-    print(f"underscore names imported across modules: {len(f['underscore'])}")
     sites = rule_sites(root)
     repeated = {m: w for m, w in sites.items() if len(w) > 1}
     near = near_duplicates(sites)
@@ -268,8 +319,8 @@ def main() -> None:
             print(f"  {len(where)}x {message[:90]!r}: {', '.join(where)}")
         for group in near:
             print("  near: " + " | ".join(f"{m[:60]!r} {sites[m]}" for m in group))
-        for mod, src, name in f["underscore"]:
-            print(f"  underscore import: {mod} <- {src}.{name}")
+        for where in reach_past(root):
+            print(f"  past a face: {where}")
         for mod in f["no_all"]:
             print(f"  no __all__: {mod}")
 

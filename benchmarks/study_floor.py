@@ -30,8 +30,8 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from vpr_core.pipeline.feature_stage import _encoder_slug, get_encoder  # noqa: E402
-from vpr_core.utils import cache_dir, tune_allocator  # noqa: E402
+from vpr_core import utils
+from vpr_core.features import encoder_slug, get_encoder
 
 TARGET_S = 300.0  # issue 35: the whole cold study
 
@@ -80,10 +80,10 @@ def main() -> None:
     parser.add_argument("--crops", type=int, default=500, help="crops per timing (default 500)")
     parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args()
-    tune_allocator()  # as the study's notebooks do
+    utils.tune_allocator()  # as the study's notebooks do
     encoder = get_encoder(args.backbone)  # the study's crop encoder
-    slug = _encoder_slug(encoder)
-    root = cache_dir("features")
+    slug = encoder_slug(encoder)
+    root = utils.cache_dir("features")
     images, boxes = store_rows(root / slug)
     for other in sorted(p for p in root.iterdir() if p.is_dir() and p.name != slug):
         n_img, n_box = store_rows(other)

@@ -18,7 +18,7 @@ import pytest  # noqa: E402
 
 from vpr_core import paths  # noqa: E402
 from vpr_core.datasets import load_dataset  # noqa: E402
-from vpr_core.viz import base  # noqa: E402
+from vpr_study.viz import base  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 README_ROOT = "../shared/data/gardens_point_mini"  # the README's Python example
@@ -197,7 +197,7 @@ def _axes_inches(fig) -> tuple[float, float]:
 def test_a_long_legend_entry_keeps_the_axes_size_on_one_line(tmp_path):
     import numpy as np
 
-    from vpr_core.viz import plot_pr_curves
+    from vpr_study.viz import plot_pr_curves
 
     rng = np.random.default_rng(0)
     gt = np.eye(8, dtype=bool)
@@ -209,7 +209,7 @@ def test_a_long_legend_entry_keeps_the_axes_size_on_one_line(tmp_path):
         + [_pr_result(f"overlap scheme {i} with a long name", zero, gt) for i in range(6)],
         title="Fig. 7a",
     )
-    from vpr_core.viz.curves import PR_AXES
+    from vpr_study.viz.curves import PR_AXES
 
     assert _axes_inches(short) == _axes_inches(long) == PR_AXES
     texts = [t.get_text() for t in long.axes[0].get_legend().get_texts()]
@@ -224,7 +224,7 @@ def test_a_curve_starts_at_its_last_point_at_recall_zero_and_says_it():
     import numpy as np
 
     from vpr_core.evaluation import auc_pr, pr_curve
-    from vpr_core.viz import plot_pr_curves
+    from vpr_study.viz import plot_pr_curves
 
     gt = np.eye(4, dtype=bool)
     sim = np.array(  # the most confident matches are wrong: precision 1 -> 0 at recall 0
@@ -251,8 +251,8 @@ def test_a_curve_starts_at_its_last_point_at_recall_zero_and_says_it():
 def test_pr_titles_name_every_non_default_setting_pooling_roi_included():
     import numpy as np
 
-    from vpr_core.viz import plot_pr_curves
-    from vpr_core.viz.curves import dataset_line
+    from vpr_study.viz import plot_pr_curves
+    from vpr_study.viz.curves import dataset_line
 
     gt = np.eye(4, dtype=bool)
     sim = gt + 0.1
@@ -349,8 +349,8 @@ def test_chance_prints_rounded_and_keeps_exact_values():
 def test_per_query_says_when_top1_matches_are_nan():
     import numpy as np
 
-    from vpr_core.evaluation import per_query
     from vpr_core.notices import VPRWarning
+    from vpr_study.insight import per_query
 
     gt = np.eye(4, dtype=bool)
     run = _pr_result("dense", gt + 0.1, gt, boxes=None, descriptors=None)
@@ -366,7 +366,7 @@ def test_the_coverage_overlay_leaves_the_image_visible():
     import numpy as np
 
     from vpr_core.landmarks import dense_sampling
-    from vpr_core.viz import plot_coverage
+    from vpr_study.viz import plot_coverage
 
     rng = np.random.default_rng(0)
     image = np.kron(rng.integers(0, 256, (12, 16)), np.ones((20, 20))).astype(np.uint8)
@@ -391,7 +391,7 @@ def test_a_shortlist_coverage_figure_says_it_equals_the_exhaustive_one(tiny_synt
     import numpy as np
 
     from vpr_core.landmarks import dense_sampling
-    from vpr_core.viz import plot_coverage_comparison
+    from vpr_study.viz import plot_coverage_comparison
 
     size = tiny_synthetic.image_size("reference", 0)
     boxes = {"reference": [dense_sampling(size) for _ in range(len(tiny_synthetic))]}
@@ -413,9 +413,9 @@ def test_a_shortlist_coverage_figure_says_it_equals_the_exhaustive_one(tiny_synt
 def test_disagreements_draw_the_deciding_matches_and_label_rows_and_columns(tiny_synthetic):
     from matplotlib.patches import Rectangle
 
-    from vpr_core.pipeline import run_method
-    from vpr_core.viz import plot_disagreements
-    from vpr_core.viz.disagreements import TOP_TERMS
+    from vpr_core import run_method
+    from vpr_study.viz import plot_disagreements
+    from vpr_study.viz.disagreements import TOP_TERMS
 
     runs = [run_method(m, tiny_synthetic, keep_descriptors=True) for m in ("dense", "classical")]
     fig, table = plot_disagreements(tiny_synthetic, *runs, n=3)

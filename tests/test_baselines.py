@@ -1,4 +1,4 @@
-"""Tests for vpr_core.baselines (VPR-Bench precomputed peer results)."""
+"""Tests for vpr_study.peers (VPR-Bench precomputed peer results)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vpr_core.baselines import (
+from vpr_core.datasets import PlaceDataset
+from vpr_core.evaluation import auc_pr, pr_curve, recall_at_100_precision
+from vpr_study.peers import (
     PRECOMPUTED_FILE,
     find_vprbench_peers,
     load_vprbench_precomputed,
@@ -16,8 +18,6 @@ from vpr_core.baselines import (
     peer_from_matrix,
     peer_similarity_for,
 )
-from vpr_core.datasets import PlaceDataset
-from vpr_core.evaluation import auc_pr, pr_curve, recall_at_100_precision
 
 
 def _write(path: Path, sim: np.ndarray, queries=None, encode=0.0123, match=0.0045, as_list=False):

@@ -15,10 +15,9 @@ import pytest
 import torch
 from torch import nn
 
-from vpr_core import settings
+from vpr_core import run_method, settings
 from vpr_core.backbones.efficientnet_lite import load_state_dict
 from vpr_core.datasets import load_dataset
-from vpr_core.pipeline import run_method
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -181,7 +180,7 @@ import os, sys
 import numpy as np
 from test_cache_identity import DENSE, _overwrite_keeping_stamp
 from vpr_core.datasets import load_dataset
-from vpr_core.pipeline import run_method
+from vpr_core import run_method
 weights, out = sys.argv[1], sys.argv[2]
 ds = load_dataset("synthetic", n_places=4, image_size=(64, 112))
 for i, step in enumerate(sys.argv[3:]):
@@ -242,7 +241,7 @@ def test_weights_overwritten_in_place_across_processes(ds, caches, tmp_path, mon
 # ------------------------------------------------------------------------- the matching cache
 def test_the_results_cache_is_keyed_by_its_inputs(ds, caches, monkeypatch):
     """Descriptors that changed under the same configuration give a new matrix."""
-    from vpr_core.pipeline import run as run_module
+    from vpr_core import run as run_module
 
     first = _sim("dense", ds, scales=(0.25,), per_scale=4)
     real = run_module.extract_features

@@ -228,8 +228,8 @@ def test_a_hostile_label_is_refused_everywhere_naming_the_allowed_characters(
     tmp_path, monkeypatch, capsys, label
 ):
     from vpr_core import datasets
-    from vpr_core.viz.base import save
     from vpr_study import runner
+    from vpr_study.viz.base import save
 
     allowed = "letters, digits, '_', '-', '.' and '+'"
     with pytest.raises(ValueError, match=re.escape(allowed)):

@@ -8,7 +8,7 @@ import pytest
 
 distributed = pytest.importorskip("distributed")
 
-from vpr_core.engine import client as engine_client  # noqa: E402
+from vpr_study.cluster import client as engine_client  # noqa: E402
 
 
 @pytest.fixture

@@ -17,8 +17,9 @@ import numpy as np
 import pytest
 
 from vpr_core import datasets as D
-from vpr_core.datasets import DATASETS, PlaceDataset, download_dataset, load_dataset
+from vpr_core.datasets import DATASETS, PlaceDataset, load_dataset
 from vpr_core.datasets.ground_truth import ground_truth_references, sample_irrelevant_references
+from vpr_study.download import download_dataset
 
 SMALL = (64, 112)  # (H, W) for fast generator tests
 
@@ -446,7 +447,7 @@ def test_download_dataset_unknown_and_registry():
 def test_plot_examples(tiny_synthetic, tmp_path):
     import matplotlib.pyplot as plt
 
-    from vpr_core.viz import plot_dataset_overview, plot_examples
+    from vpr_study.viz import plot_dataset_overview, plot_examples
 
     seen = []
 

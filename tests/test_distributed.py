@@ -1,4 +1,4 @@
-"""The Dask engine (vpr_core.engine.distributed) against a LocalCluster on 127.0.0.1.
+"""The Dask engine (vpr_study.cluster.features) against a LocalCluster on 127.0.0.1.
 
 The cluster has two worker processes with one thread each (Dask's nanny also sets
 OMP_NUM_THREADS=1 there), while this process runs torch with its default thread count: the
@@ -11,20 +11,19 @@ import numpy as np
 import pytest
 import torch
 
-from vpr_core.engine import (
-    SCHEDULER_ENV,
-    extract_features_distributed,
-    get_client,
-    rerank,
-    scheduler_address,
-    shortlist_pairs,
-    similarity_blocks_distributed,
-    similarity_pairs_distributed,
-)
 from vpr_core.features import LandmarkEncoder
 from vpr_core.landmarks import dense_sampling
 from vpr_core.matching import Compute, Matching, similarity_matrix, similarity_pairs
 from vpr_core.matching.weighting import weighting_sample
+from vpr_core.matching.shortlist import rerank, shortlist_pairs
+from vpr_core.settings import SCHEDULER_ENV
+from vpr_study.cluster import (
+    extract_features_distributed,
+    get_client,
+    scheduler_address,
+    similarity_blocks_distributed,
+    similarity_pairs_distributed,
+)
 
 distributed = pytest.importorskip("distributed")
 

@@ -150,7 +150,7 @@ def test_metrics_table_and_perfect_matrix():
 
 
 def test_plot_metric_bars():
-    from vpr_core import viz
+    from vpr_study import viz
 
     fig2 = viz.plot_metric_bars(metrics_table({"a": evaluate(S, GT)}), metric="auc")
     assert fig2.axes

@@ -361,9 +361,9 @@ def test_roi_config_shape_and_global(roi_encoder, encoder):
     c = roi_encoder.describe()
     assert c["pooling"] == "roi" and encoder.describe()["pooling"] == "crop"
     assert c["working_size"] == 4 * 128 and c["dim"] == 1024 and c["raw_dim"] == encoder.raw_dim
-    from vpr_core.pipeline.feature_stage import _encoder_slug
+    from vpr_core.features.stage import encoder_slug
 
-    assert _encoder_slug(roi_encoder) != _encoder_slug(encoder)
+    assert encoder_slug(roi_encoder) != encoder_slug(encoder)
     boxes = np.array([[0, 0, 640, 360], [100, 50, 200, 150]], dtype=float)
     d = roi_encoder.encode(img, boxes)
     assert d.shape == (2, 1024) and d.dtype == np.float32 and np.isfinite(d).all()
@@ -566,7 +566,7 @@ def test_weights_are_identified_by_content_not_name(tmp_path, monkeypatch):
     """Two files of one name in two folders never share a feature store and give different
     descriptors; a copy elsewhere is the same entry; "ImageNet" only for the shipped contents."""
     from vpr_core.datasets import load_dataset
-    from vpr_core.pipeline.feature_stage import _encoder_slug, _features_for_image, get_encoder
+    from vpr_core.features.stage import _features_for_image, encoder_slug, get_encoder
 
     monkeypatch.setenv("VPR_CACHE_DIR", str(tmp_path / "cache"))
     env = settings.efficientnet_weights_env("lite0")
@@ -579,7 +579,7 @@ def test_weights_are_identified_by_content_not_name(tmp_path, monkeypatch):
     ds = load_dataset("synthetic", n_places=2, image_size=(64, 112))
     boxes = np.array([[0, 0, 60, 40], [30, 10, 70, 50]], dtype=float)
     encs = [get_encoder(dim=32, weights=str(p), input_size=64) for p in (a, b, copy)]
-    slugs = [_encoder_slug(e) for e in encs]
+    slugs = [encoder_slug(e) for e in encs]
     desc = [_features_for_image(e, ds, "query", 0, boxes)[0] for e in encs]
     assert slugs[0] != slugs[1] and slugs[0] == slugs[2]
     assert not np.allclose(desc[0], desc[1]) and np.array_equal(desc[0], desc[2])
@@ -626,7 +626,7 @@ class TinyPooled(TinyNet):
 
 def test_user_module_backbone(image):
     from vpr_core.backbones.checkpoint import state_dict_sha256
-    from vpr_core.pipeline.feature_stage import _encoder_slug
+    from vpr_core.features.stage import encoder_slug
 
     net = TinyNet()
     boxes = np.array([[0, 0, 50, 40], [10, 20, 100, 90], [150, 80, 40, 30]], dtype=float)
@@ -640,7 +640,7 @@ def test_user_module_backbone(image):
     roi = LandmarkEncoder(net, dim=16, input_size=32, pooling="roi")
     assert roi.encode(image, boxes).shape == (3, 16) and roi.model.stride == 4
     # identity: the same weights in a new instance are the same entry; other weights are not
-    assert _encoder_slug(LandmarkEncoder(TinyNet(), dim=16, input_size=32)) == _encoder_slug(enc)
+    assert encoder_slug(LandmarkEncoder(TinyNet(), dim=16, input_size=32)) == encoder_slug(enc)
     assert (
         LandmarkEncoder(TinyNet(1), dim=16, input_size=32).config["weights_sha256"]
         != (c["weights_sha256"])
@@ -666,8 +666,8 @@ def test_edited_forward_changes_the_module_identity(monkeypatch):
 def test_user_module_through_get_encoder_and_shards():
     """get_encoder takes a module; its kwargs rebuild it for the (Dask) shard path."""
     from vpr_core.datasets import load_dataset
-    from vpr_core.engine import extract_features_distributed
-    from vpr_core.pipeline.feature_stage import get_encoder
+    from vpr_core.features.stage import get_encoder
+    from vpr_study.cluster import extract_features_distributed
 
     net = TinyNet()
     enc = get_encoder(net, dim=16, input_size=32)

@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vpr_core.baselines import PRECOMPUTED_FILE, find_vprbench_peers, peer_from_matrix
+from vpr_core import run_method
 from vpr_core.datasets import load_dataset
 from vpr_core.evaluation import compare
-from vpr_core.pipeline import peer_result, run_method
 from vpr_core.utils import csv_safe, read_rows, write_rows
-from vpr_core.viz.base import save_all
+from vpr_study.peers import PRECOMPUTED_FILE, find_vprbench_peers, peer_from_matrix, peer_result
+from vpr_study.viz.base import save_all
 
 #: Names a hostile user gives a method or a folder (issue 32.1).
 FORMULAS = ('=HYPERLINK("http://x","y")', "+cmd|/C calc!A0", "@SUM(1)", "-2+3")
@@ -340,7 +340,7 @@ def _zip_bytes() -> bytes:
 
 
 def test_truncated_archive_without_length_is_not_marked_done(archive_server, tmp_path):
-    from vpr_core.datasets.download import download_dataset
+    from vpr_study.download import download_dataset
 
     base, state = archive_server
     state["zip"] = _zip_bytes()
@@ -353,7 +353,7 @@ def test_truncated_archive_without_length_is_not_marked_done(archive_server, tmp
 
 
 def test_archive_whose_member_does_not_read_is_removed(archive_server, tmp_path):
-    from vpr_core.datasets.download import download_dataset
+    from vpr_study.download import download_dataset
 
     base, state = archive_server
     good = _zip_bytes()
@@ -368,7 +368,7 @@ def test_archive_whose_member_does_not_read_is_removed(archive_server, tmp_path)
 
 
 def test_url_ending_in_dot_dot_is_a_clear_error(archive_server, tmp_path):
-    from vpr_core.datasets.download import download_dataset
+    from vpr_study.download import download_dataset
 
     base, state = archive_server
     state["%2e%2e"] = b"data"
@@ -403,7 +403,7 @@ def _utm_soft(root: Path):
 
 
 def test_soft_positives_are_neither_right_nor_wrong_in_every_metric(tmp_path):
-    from vpr_core.evaluation import per_query
+    from vpr_study.insight import per_query
 
     ds = _utm_soft(tmp_path)
     assert (ds.ground_truth_soft & ~ds.ground_truth).sum() == 4
@@ -597,7 +597,7 @@ def test_folder_pairing_with_one_number_on_two_files_is_refused(tmp_path, garden
 
 
 def test_scheduler_port_out_of_range_is_a_bad_port():
-    from vpr_core.engine.client import get_client
+    from vpr_study.cluster.client import get_client
 
     with pytest.raises(ValueError, match=r"port 99999 .*1 to 65535"):
         get_client("tcp://127.0.0.1:99999", timeout=1)
@@ -605,7 +605,7 @@ def test_scheduler_port_out_of_range_is_a_bad_port():
 
 def test_scheduler_without_workers_says_what_to_check():
     distributed = pytest.importorskip("distributed")
-    from vpr_core.engine.client import get_client
+    from vpr_study.cluster.client import get_client
 
     with (
         distributed.LocalCluster(
@@ -617,7 +617,7 @@ def test_scheduler_without_workers_says_what_to_check():
 
 
 def test_lost_workers_say_what_to_check():
-    from vpr_core.engine.client import _cluster_lost
+    from vpr_study.cluster.client import _cluster_lost
 
     text = str(_cluster_lost(None, "features (dask)", "no worker left for 15 s"))
     assert "check that its `dask worker` processes run" in text
@@ -648,8 +648,8 @@ def test_notebook_limit_below_one_is_refused_like_minus_one(limit):
 
 
 def test_plot_disagreements_refuses_a_dataset_the_runs_were_not_computed_on():
-    from vpr_core.pipeline import run_method
-    from vpr_core.viz import plot_disagreements
+    from vpr_core import run_method
+    from vpr_study.viz import plot_disagreements
 
     ds = load_dataset("synthetic", n_places=4)
     other = load_dataset("synthetic", n_places=4, seed=1)

@@ -8,8 +8,8 @@ import re
 import numpy as np
 import pytest
 
+from vpr_core import run_method
 from vpr_core.evaluation import compare
-from vpr_core.pipeline import run_method
 
 
 @pytest.fixture(scope="module")
@@ -49,8 +49,8 @@ def test_one_result_instead_of_a_list_says_to_pass_a_list(runs):
 
 def test_compare_and_per_query_share_one_rule_for_what_results_are(runs):
     # check_results: one wording, the caller named, for compare, per_query (and plots)
-    from vpr_core.evaluation import per_query
     from vpr_core.evaluation.compare import check_results
+    from vpr_study.insight import per_query
 
     for fn, name in ((compare, "compare"), (per_query, "per_query")):
         with pytest.raises(ValueError, match=rf"{name}\(\) needs at least one result"):

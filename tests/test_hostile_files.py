@@ -74,7 +74,7 @@ def test_csv_safe_keeps_numbers_and_plain_text(kept):
 def test_a_cell_holding_cr_is_quoted_and_keeps_its_row(tmp_path):
     import pandas as pd
 
-    from vpr_core.viz.base import save_all
+    from vpr_study.viz.base import save_all
 
     table = pd.DataFrame({"method": [*HIDDEN_FORMULAS, "a\rb"], "AUC": -0.144})
     (path,) = save_all([("t", table)], "hostile", out=tmp_path)
@@ -92,10 +92,11 @@ def test_a_cell_holding_cr_is_quoted_and_keeps_its_row(tmp_path):
 
 
 def test_a_run_label_with_a_hidden_formula_stays_in_its_cell(tmp_path, monkeypatch):
+    from vpr_core import run_method
     from vpr_core.datasets import load_dataset
-    from vpr_core.evaluation import compare, per_query
-    from vpr_core.pipeline import run_method
-    from vpr_core.viz.base import save_all
+    from vpr_core.evaluation import compare
+    from vpr_study.insight import per_query
+    from vpr_study.viz.base import save_all
 
     monkeypatch.setenv("VPR_CACHE_DIR", str(tmp_path / "cache"))
     ds = load_dataset("synthetic", n_places=4, image_size=(96, 160))
@@ -160,7 +161,7 @@ def _zip(entries: dict[str, bytes]) -> bytes:
 
 
 def test_a_download_never_touches_a_users_folder_or_file(served, tmp_path):
-    from vpr_core.datasets.download import download_dataset
+    from vpr_study.download import download_dataset
 
     base, state = served
     state["mine.zip"] = _zip({"mine/query/0.txt": b"archive", "mine/reference/0.txt": b"a"})
@@ -192,7 +193,7 @@ def test_a_download_never_touches_a_users_folder_or_file(served, tmp_path):
 
 
 def test_a_download_of_unknown_completeness_is_not_recorded_as_finished(served, tmp_path, caplog):
-    from vpr_core.datasets.download import download_dataset
+    from vpr_study.download import download_dataset
 
     base, state = served
     state["gt.bin"] = bytes(range(256)) * 40
@@ -266,7 +267,7 @@ def _arrays(path: Path) -> dict[str, np.ndarray]:
 
 
 def test_a_cache_entry_edited_by_hand_heals(tmp_path, caplog):
-    from vpr_core.pipeline.cache import atomic_savez, load_npz
+    from vpr_core.cache import atomic_savez, load_npz
 
     entry = tmp_path / "landmarks.npz"
     boxes = np.array([[1.0, 2.0, 30.0, 40.0]])
@@ -285,8 +286,8 @@ def test_a_cache_entry_edited_by_hand_heals(tmp_path, caplog):
 
 
 def test_a_similarity_matrix_edited_by_hand_is_recomputed(tmp_path, monkeypatch, caplog):
+    from vpr_core import run_method
     from vpr_core.datasets import load_dataset
-    from vpr_core.pipeline import run_method
 
     monkeypatch.setenv("VPR_CACHE_DIR", str(tmp_path / "cache"))
     ds = load_dataset("synthetic", n_places=4, image_size=(96, 160))

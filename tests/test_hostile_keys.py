@@ -12,11 +12,11 @@ import torch
 from PIL import Image
 from torch import nn
 
+from vpr_core import run_method
 from vpr_core.backbones import build_backbone
 from vpr_core.datasets import load_dataset
 from vpr_core.features import LandmarkEncoder
 from vpr_core.notices import VPRWarning
-from vpr_core.pipeline import run_method
 from vpr_study import memo
 
 BOXES = np.array([[0, 0, 50, 40], [10, 20, 60, 30], [40, 8, 30, 50]], dtype=float)
@@ -100,14 +100,14 @@ class BatchGlobal(nn.Module):
 
 
 def test_a_forward_reading_a_global_only_for_several_crops_changes_the_key(monkeypatch):
-    from vpr_core.pipeline.feature_stage import _encoder_slug
+    from vpr_core.features.stage import encoder_slug
 
     before = LandmarkEncoder(BatchGlobal(), dim=16, input_size=32)
     monkeypatch.setattr(sys.modules[__name__], "SCALE", 2.0)
     after = LandmarkEncoder(BatchGlobal(), dim=16, input_size=32)
     assert after.config["weights_sha256"] == before.config["weights_sha256"]
     assert after.config["probe_sha256"] != before.config["probe_sha256"]
-    assert _encoder_slug(after) != _encoder_slug(before)
+    assert encoder_slug(after) != encoder_slug(before)
 
 
 @pytest.fixture(scope="module")

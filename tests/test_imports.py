@@ -20,9 +20,6 @@ ALLOWED_LOCAL = {
     "nbclient",
     "jupytext",
     "IPython",
-    # opt-in scale-out: run_method imports it only for shortlist= / scheduler=
-    # (docs/ARCHITECTURE.md), so the paper's path never loads it
-    "vpr_core.engine",
 }
 MAX_LOCAL = 15
 
@@ -114,9 +111,9 @@ def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
 
 def test_graph_sees_relative_imports():
     graph = _graph()
-    assert "vpr_core.pipeline.result" in graph["vpr_core.pipeline.run"]
-    assert "vpr_core.landmarks.schemes" in graph["vpr_core.pipeline.run"]
-    assert not any(m.startswith("vpr_core.engine") for m in graph["vpr_core.pipeline.run"])
+    assert "vpr_core.result" in graph["vpr_core.run"]
+    assert "vpr_core.landmarks.schemes" in graph["vpr_core.run"]
+    assert not any(m.startswith("vpr_study.cluster") for m in graph["vpr_core.run"])
     assert _cycle({"a": {"b"}, "b": {"a"}}) == ["a", "b", "a"]
 
 
@@ -127,7 +124,7 @@ def test_no_module_level_import_cycle():
 
 def _local_imports() -> list[tuple[str, int, str]]:
     """``(file, line, top-level module)`` of every import inside a function body; a relative
-    import of a ``vpr_core`` subpackage names it (``vpr_core.engine``)."""
+    import of a ``vpr_core`` subpackage names it (``vpr_core.matching``)."""
     out = []
     for path in sorted(PKG.rglob("*.py")):
         package = list(path.relative_to(PKG.parent).parent.parts)
@@ -206,3 +203,21 @@ def test_pipeline_never_imports_the_study_tooling():
             bad += [where for n in names if n.startswith("vpr_study")]
     assert not bad, f"vpr_core must not import vpr_study: {bad}"
     assert (PKG.parent / "vpr_study" / "cli.py").is_file()
+
+
+def test_importing_every_core_module_loads_no_workbench_library():
+    """Issue 52: ``vpr_core`` is the pipeline: importing all of it (a fresh interpreter) loads no
+    plotting, notebook or cluster library."""
+    import subprocess
+    import sys
+
+    code = (
+        "import importlib, pkgutil, sys, vpr_core\n"
+        "for m in pkgutil.walk_packages(vpr_core.__path__, 'vpr_core.'):\n"
+        "    importlib.import_module(m.name)\n"
+        "heavy = ('matplotlib', 'dask', 'distributed', 'ipywidgets', 'papermill', 'nbclient',\n"
+        "         'nbformat', 'IPython', 'jupytext', 'vpr_study')\n"
+        "print(sorted({k.split('.')[0] for k in sys.modules} & set(heavy)))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]", out.stdout

@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from vpr_core import MethodResult, run_method
 from vpr_core.evaluation import (
     bootstrap_metrics,
     chance,
@@ -18,15 +19,14 @@ from vpr_core.evaluation import (
     compact_text,
     compare,
     evaluate,
-    per_query,
     saturation_notice,
 )
 from vpr_core.evaluation.chance import chance_precision
 from vpr_core.evaluation.compare import CHANCE_ROW
 from vpr_core.matching import Matching, match_landmarks
 from vpr_core.notices import VPRWarning
-from vpr_core.pipeline import MethodResult, run_method
-from vpr_core.viz import plot_disagreements, plot_pr_curves
+from vpr_study.insight import per_query
+from vpr_study.viz import plot_disagreements, plot_pr_curves
 
 TIMINGS = {
     "landmarks_per_image": 1.0,

@@ -17,8 +17,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from vpr_core import viz
-from vpr_core.viz.base import DEFAULT_LABEL, save_all
+from vpr_study import viz
+from vpr_study.viz.base import DEFAULT_LABEL, save_all
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -32,7 +32,7 @@ USER_CELLS = [
     "import pandas as pd\n"
     "from types import SimpleNamespace\n"
     "from vpr_core.evaluation import evaluate, pr_curve\n"
-    "from vpr_core.viz import plot_pr_curves, save",
+    "from vpr_study.viz import plot_pr_curves, save",
     "fig, ax = plt.subplots(figsize=(5, 3))\n"
     "ax.plot([0, 1], [1, 0], label='mine')\n"
     "ax.set_title('my own figure')\n"
@@ -85,7 +85,7 @@ matplotlib.use("module://matplotlib_inline.backend_inline")
 import sys
 import matplotlib.pyplot as plt
 import pandas as pd
-from vpr_core.viz.base import save_all
+from vpr_study.viz.base import save_all
 
 def figure():
     fig, ax = plt.subplots(figsize=(4, 3))
@@ -194,7 +194,7 @@ def test_pr_legend_takes_no_width_from_the_plot_one_line_per_entry_each_with_its
     entry had none)."""
     from matplotlib.lines import Line2D
 
-    from vpr_core.pipeline import run_method
+    from vpr_core import run_method
 
     runs = [
         run_method(m, tiny_synthetic, backbone="hog", n_bootstrap=50)
@@ -238,7 +238,7 @@ def test_disagreement_captions_read_at_the_displayed_size_and_the_title_says_wha
     says which it is; both are shown when both exist."""
     import re
 
-    from vpr_core.pipeline import run_method
+    from vpr_core import run_method
 
     runs = [
         run_method(m, tiny_synthetic, keep_descriptors=True, backbone="hog", n_bootstrap=0)
@@ -291,8 +291,8 @@ def _fake(label, sim, gt):
 def test_disagreements_show_wins_and_losses_when_both_exist():
     """Six wins shown under a title promising wins and losses (Nordland): the pick takes both
     kinds when both exist, and the title counts them."""
-    from vpr_core.evaluation import per_query
-    from vpr_core.viz.disagreements import _pick
+    from vpr_study.insight import per_query
+    from vpr_study.viz.disagreements import _pick
 
     gt = np.eye(10, dtype=bool)
     a = gt * 2.0 + 0.1
@@ -310,8 +310,8 @@ def test_disagreements_show_wins_and_losses_when_both_exist():
 def test_weighted_match_captions_read_at_the_displayed_size(tiny_synthetic):
     """The issue's own figure (``plot_weighted_matches``, saved from the next cell): 8-point
     captions on 13 inches, now every caption at least 9 points at the size Lab shows it."""
-    from vpr_core.pipeline import run_method
-    from vpr_core.viz.weighting import plot_weighted_matches
+    from vpr_core import run_method
+    from vpr_study.viz.weighting import plot_weighted_matches
 
     kw = {"backbone": "hog", "n_bootstrap": 0, "keep_descriptors": True}
     plain = run_method("dense", tiny_synthetic, **kw)

@@ -572,12 +572,12 @@ def test_box_iou_is_the_one_in_vpr_core_boxes():
 
 
 # ------------------------------------------------------------------------------------------
-# plots (vpr_core.viz, landmarks section)
+# plots (vpr_study.viz, landmarks section)
 # ------------------------------------------------------------------------------------------
 
 
 def test_landmark_plots(synthetic_image, tmp_path):
-    viz = pytest.importorskip("vpr_core.viz")
+    viz = pytest.importorskip("vpr_study.viz")
     import matplotlib.pyplot as plt
 
     boxes = L.dense_sampling(SIZE)

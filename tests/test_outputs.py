@@ -22,7 +22,7 @@ from matplotlib.figure import Figure  # noqa: E402
 
 from vpr_core import paths  # noqa: E402
 from vpr_core.datasets.ground_truth import ground_truth_text  # noqa: E402
-from vpr_core.viz import base  # noqa: E402
+from vpr_study.viz import base  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -179,7 +179,7 @@ def test_layout_check_catches_a_cut_subtitle():
 
 
 def test_an_invisible_curve_gets_a_note():
-    from vpr_core.viz.curves import _curve_note
+    from vpr_study.viz.curves import _curve_note
 
     assert "no query correctly matched" in _curve_note(np.zeros(5), np.r_[1.0, np.zeros(4)])
     assert _curve_note(np.linspace(0, 1, 5), np.ones(5)) == ""
@@ -219,9 +219,9 @@ def test_figures_say_when_ground_truth_comes_from_a_file(tmp_path, tiny_syntheti
     """Issue 26 item 5: a correspondence file is not "tolerance 0" in a figure's subtitle."""
     import shutil
 
+    from vpr_core import run_method
     from vpr_core.datasets import load_dataset
-    from vpr_core.pipeline import run_method
-    from vpr_core.viz import plot_pr_curves
+    from vpr_study.viz import plot_pr_curves
 
     root = tmp_path / "corridor"
     for side, files in (
@@ -246,7 +246,7 @@ def test_figures_say_when_ground_truth_comes_from_a_file(tmp_path, tiny_syntheti
 
 def test_statistics_panels_fit_a_file_based_ground_truth():
     from vpr_core.statistics import MatchRecord, scale_statistics_from_matches
-    from vpr_core.viz import plot_asl, plot_cls, plot_cmr
+    from vpr_study.viz import plot_asl, plot_cls, plot_cmr
 
     rng = np.random.default_rng(0)
     records = [

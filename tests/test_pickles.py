@@ -13,9 +13,9 @@ import cv2
 import numpy as np
 import pytest
 
-from vpr_core.baselines import load_vprbench_precomputed, peer_from_matrix
 from vpr_core.datasets import load_dataset
 from vpr_core.datasets.safe_pickle import _restricted_loads, _UnsafePickleError, read_npy
+from vpr_study.peers import load_vprbench_precomputed, peer_from_matrix
 
 
 class _System:

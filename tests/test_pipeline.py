@@ -4,10 +4,11 @@ import numpy as np
 import pytest
 import torch
 
-from vpr_core import pipeline
+from vpr_core import run_method
 from vpr_core.datasets import load_dataset
+from vpr_core.features import get_encoder
+from vpr_core.landmarks.stage import edge_box_candidates
 from vpr_core.matching import image_similarity
-from vpr_core.pipeline import run_method
 
 
 @pytest.fixture(scope="module")
@@ -22,7 +23,7 @@ def isolated_cache(tmp_path, monkeypatch):
 
 
 def test_dense_run_shapes_metrics_and_timings(tiny):
-    r = pipeline.run_method("dense", tiny, keep_descriptors=True)
+    r = run_method("dense", tiny, keep_descriptors=True)
     assert r.similarity.shape == (6, 6)
     assert all(b.shape == (100, 4) for b in r.boxes["query"])
     assert all(d.shape == (100, 1024) for d in r.descriptors["reference"])
@@ -41,9 +42,9 @@ def test_dense_run_shapes_metrics_and_timings(tiny):
 
 
 def test_edge_box_schemes_share_candidates(tiny):
-    cl = pipeline.run_method("classical", tiny)
-    s1 = pipeline.run_method("selection_scheme1", tiny)
-    cands, _ = pipeline.edge_box_candidates(tiny, "query", 0)
+    cl = run_method("classical", tiny)
+    s1 = run_method("selection_scheme1", tiny)
+    cands, _ = edge_box_candidates(tiny, "query", 0)
     np.testing.assert_array_equal(cl.boxes["query"][0], cands[:100])
     # every scheme-1 landmark is a candidate of scale index >= 4
     from vpr_core.landmarks import scale_index
@@ -55,10 +56,10 @@ def test_edge_box_schemes_share_candidates(tiny):
 def test_edge_box_candidates_are_keyed_on_the_edge_models_content(tiny, isolated_cache):
     from vpr_core.landmarks.edge_boxes import edge_model_id
 
-    a, _ = pipeline.edge_box_candidates(tiny, "query", 0)
-    b, _ = pipeline.edge_box_candidates(tiny, "query", 0, edge_model=edge_model_id())
+    a, _ = edge_box_candidates(tiny, "query", 0)
+    b, _ = edge_box_candidates(tiny, "query", 0, edge_model=edge_model_id())
     assert len(list((isolated_cache / "landmarks").iterdir())) == 1  # the same entry
-    pipeline.edge_box_candidates(tiny, "query", 0, edge_model="sha256:" + "0" * 64)
+    edge_box_candidates(tiny, "query", 0, edge_model="sha256:" + "0" * 64)
     assert len(list((isolated_cache / "landmarks").iterdir())) == 2  # another model's entry
     np.testing.assert_array_equal(a, b)
 
@@ -67,7 +68,7 @@ def test_feature_cache_reads_second_time_and_recomputes_changed_config(
     tiny, isolated_cache, monkeypatch
 ):
     calls = []
-    enc = pipeline.get_encoder()
+    enc = get_encoder()
     orig = enc.crops  # crop mode: the feature stage crops each image's missing boxes
 
     def counting(image, boxes):
@@ -75,25 +76,25 @@ def test_feature_cache_reads_second_time_and_recomputes_changed_config(
         return orig(image, boxes)
 
     monkeypatch.setattr(enc, "crops", counting)
-    pipeline.run_method("dense", tiny, scales=(0.25,), per_scale=4)
+    run_method("dense", tiny, scales=(0.25,), per_scale=4)
     first = sum(calls)
     assert first == 12 * 4
-    pipeline.run_method("dense", tiny, scales=(0.25,), per_scale=4)
+    run_method("dense", tiny, scales=(0.25,), per_scale=4)
     assert sum(calls) == first, "second run of the same config must read the cache"
-    pipeline.run_method("dense", tiny, scales=(0.25, 0.49), per_scale=4)
+    run_method("dense", tiny, scales=(0.25, 0.49), per_scale=4)
     # only the new scale's boxes are computed (resume); the 0.25 boxes come from the store
     assert sum(calls) == first + 12 * 4
 
 
 def test_soft_nms_changes_scores_not_landmarks(tiny):
-    a = pipeline.run_method("classical", tiny)
-    b = pipeline.run_method("overlap_scheme2", tiny, soft_nms_iou=0.3)
+    a = run_method("classical", tiny)
+    b = run_method("overlap_scheme2", tiny, soft_nms_iou=0.3)
     for x, y in zip(a.boxes["query"], b.boxes["query"], strict=False):
         np.testing.assert_array_equal(x, y)
     # pair scores 1 - d*s can be negative, so soft-NMS is not monotone: check it changed S
     # and that the matrix equals the pairwise Algorithm-4 path
     assert not np.allclose(a.similarity, b.similarity)
-    r = pipeline.run_method("overlap_scheme2", tiny, soft_nms_iou=0.3, keep_descriptors=True)
+    r = run_method("overlap_scheme2", tiny, soft_nms_iou=0.3, keep_descriptors=True)
     s = image_similarity(
         r.descriptors["query"][0],
         r.boxes["query"][0],
@@ -105,12 +106,12 @@ def test_soft_nms_changes_scores_not_landmarks(tiny):
 
 
 def test_run_is_deterministic(tiny, isolated_cache):
-    a = pipeline.run_method("dense", tiny, scales=(0.36,), per_scale=4).similarity
-    pipeline.get_encoder.cache_clear()
+    a = run_method("dense", tiny, scales=(0.36,), per_scale=4).similarity
+    get_encoder.cache_clear()
     import shutil
 
     shutil.rmtree(isolated_cache)
-    b = pipeline.run_method("dense", tiny, scales=(0.36,), per_scale=4).similarity
+    b = run_method("dense", tiny, scales=(0.36,), per_scale=4).similarity
     np.testing.assert_array_equal(a, b)
 
 
@@ -118,7 +119,7 @@ def test_dense_efficientnet_on_real_gardens_point_mini(gardens_point_mini_root):
     """Issue 3: dense + efficientnet_lite0 on 10 real day/night pairs, exact ground truth:
     R@1 >= 0.3 (three times chance, 0.1). Measured: see docs/MEASUREMENTS.md."""
     ds = load_dataset("folder", root=gardens_point_mini_root)
-    r = pipeline.run_method("dense", ds)
+    r = run_method("dense", ds)
     assert r.similarity.shape == (10, 10)
     assert r.metrics["r@1"] >= 0.3, r.metrics
 
@@ -126,7 +127,7 @@ def test_dense_efficientnet_on_real_gardens_point_mini(gardens_point_mini_root):
 def test_box_keys_are_rounded_row_bytes():
     """The vectorised cache keys equal the bytes of each row rounded to 1e-3 px, and boxes that
     differ by more than the rounding get different keys."""
-    from vpr_core.pipeline.feature_stage import _box_keys
+    from vpr_core.features.stage import _box_keys
 
     rng = np.random.default_rng(0)
     boxes = rng.normal(size=(300, 4)) * 300
@@ -140,9 +141,9 @@ def test_box_keys_are_rounded_row_bytes():
 def test_crops_batched_across_images_give_each_images_own_bits(tiny, isolated_cache):
     """The feature stage fills batches with the crops of consecutive images; every descriptor is
     the same bits as encoding its image alone, also when a later config resumes a store."""
-    enc = pipeline.get_encoder()
-    r1 = pipeline.run_method("dense", tiny, scales=(0.25,), per_scale=9, keep_descriptors=True)
-    r2 = pipeline.run_method(
+    enc = get_encoder()
+    r1 = run_method("dense", tiny, scales=(0.25,), per_scale=9, keep_descriptors=True)
+    r2 = run_method(
         "dense", tiny, scales=(0.25, 0.49), per_scale=9, keep_descriptors=True
     )  # 9 new boxes per image, 9 cached
     for r in (r1, r2):
@@ -191,18 +192,18 @@ def test_run_method_protocols(tiny_synthetic):
 
 def test_the_papers_path_never_touches_the_engine():
     """In-process and exhaustive, run_method is landmarks -> features -> similarity_matrix ->
-    metrics: vpr_core.engine is never imported (docs/ARCHITECTURE.md: only for ``shortlist=`` /
-    ``scheduler=``), nor Dask (fresh interpreter)."""
+    metrics: the Dask executor (:mod:`vpr_study.cluster`, a value passed as ``executor=``) is
+    never imported, nor Dask (fresh interpreter)."""
     import subprocess
     import sys
 
     code = (
         "import sys; from vpr_core.datasets import load_dataset; "
-        "from vpr_core.pipeline import run_method; "
+        "from vpr_core import run_method; "
         "run_method('dense', load_dataset('synthetic', n_places=3), backbone='hog', "
         "n_bootstrap=0); "
         "print(sorted(m for m in sys.modules if m.startswith(('distributed', 'dask', "
-        "'vpr_core.engine'))))"
+        "'vpr_study.cluster'))))"
     )
     out = (
         subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
@@ -260,7 +261,7 @@ class _Net(torch.nn.Module):
     ids=["multi_match", "n_bootstrap", "protocol", "input_size", "module_size", "pooling", "dim"],
 )
 def test_bad_options_are_refused_before_any_work(four, monkeypatch, options, match):
-    from vpr_core.pipeline import run as run_module
+    from vpr_core import run as run_module
 
     def no_work(*args, **kwargs):
         raise AssertionError("the run started before its options were checked")

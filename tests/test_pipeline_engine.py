@@ -8,9 +8,11 @@ import re
 import numpy as np
 import pytest
 
-from vpr_core import pipeline
+from vpr_core import run_method
 from vpr_core.datasets import load_dataset
+from vpr_core.features import get_encoder
 from vpr_study import cli
+from vpr_study.peers import peer_result
 
 #: A small encoder so the tests stay fast (16 dense landmarks per image).
 SMALL = {"dim": 64, "scales": (0.25,), "per_scale": 16}
@@ -29,7 +31,7 @@ def isolated_cache(tmp_path, monkeypatch):
 
 def _run(ds, **kw):
     opts = {**SMALL, **kw}
-    return pipeline.run_method("dense", ds, **opts)
+    return run_method("dense", ds, **opts)
 
 
 def test_shortlist_covering_every_reference_is_exhaustive(small):
@@ -68,7 +70,7 @@ def test_every_row_carries_its_interval(small):
 
 def test_roi_pooling_runs_end_to_end_and_is_deterministic(small, isolated_cache):
     a = _run(small, pooling="roi")
-    pipeline.get_encoder.cache_clear()
+    get_encoder.cache_clear()
     b = _run(small, pooling="roi")
     np.testing.assert_array_equal(a.similarity, b.similarity)
     assert a.encoder["pooling"] == "roi"
@@ -76,16 +78,22 @@ def test_roi_pooling_runs_end_to_end_and_is_deterministic(small, isolated_cache)
 
 
 def test_run_method_on_a_local_cluster_equals_in_process(small, isolated_cache):
+    """``run_method(..., executor=DaskExecutor(address))``: features, the shortlist's pairs and
+    the exhaustive matrix computed on the cluster equal the in-process run."""
     distributed = pytest.importorskip("distributed")
-    local = _run(small, shortlist=3)
+    from vpr_study import DaskExecutor
+
+    local = [_run(small, shortlist=3), _run(small)]
     with distributed.LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
     ) as cluster:
         import shutil
 
         shutil.rmtree(isolated_cache)  # features and matrices are recomputed on the cluster
-        remote = _run(small, shortlist=3, scheduler=cluster.scheduler_address)
-    np.testing.assert_array_equal(local.similarity, remote.similarity)
+        with DaskExecutor(cluster.scheduler_address) as executor:
+            remote = [_run(small, shortlist=3, executor=executor), _run(small, executor=executor)]
+    for a, b in zip(local, remote, strict=True):
+        np.testing.assert_array_equal(a.similarity, b.similarity)
 
 
 def _truncate(path):
@@ -95,7 +103,7 @@ def _truncate(path):
 
 def test_truncated_cache_entries_heal(small, isolated_cache, caplog):
     """Entries of every stage cut short at once: each is named in a warning and recomputed."""
-    ref = pipeline.run_method("classical", small, dim=64)
+    ref = run_method("classical", small, dim=64)
     cut = {}
     for kind in ("landmarks", "features", "results"):
         files = sorted((isolated_cache / kind).rglob("*.npz"))
@@ -103,9 +111,9 @@ def test_truncated_cache_entries_heal(small, isolated_cache, caplog):
         for f in files[:3]:
             _truncate(f)
         cut[kind] = files[0]
-    pipeline.get_encoder.cache_clear()
+    get_encoder.cache_clear()
     with caplog.at_level(logging.WARNING, logger="vpr_core"):
-        again = pipeline.run_method("classical", small, dim=64)
+        again = run_method("classical", small, dim=64)
     np.testing.assert_array_equal(ref.similarity, again.similarity)
     msgs = [r.getMessage() for r in caplog.records if "unreadable" in r.getMessage()]
     for kind, f in cut.items():
@@ -113,19 +121,19 @@ def test_truncated_cache_entries_heal(small, isolated_cache, caplog):
     # healed: a third run reads everything without warnings
     caplog.clear()
     with caplog.at_level(logging.WARNING, logger="vpr_core"):
-        pipeline.run_method("classical", small, dim=64)
+        run_method("classical", small, dim=64)
     assert not [r for r in caplog.records if "unreadable" in r.getMessage()]
 
 
 def test_peer_result_sits_beside_ours(small, tmp_path):
     from test_baselines import _write
 
-    from vpr_core.baselines import load_vprbench_precomputed
+    from vpr_study.peers import load_vprbench_precomputed
 
     gt = np.asarray(small.ground_truth)
     sim = np.where(gt, 0.9, 0.1) + np.random.default_rng(0).random(gt.shape) * 0.01
     peer = load_vprbench_precomputed(_write(tmp_path / "NetVLAD" / "x.npy", sim))
-    res = pipeline.peer_result(peer, small)
+    res = peer_result(peer, small)
     assert res.metrics["r@1"] == 1.0 and res.intervals["auc"][1] <= 1.0
     assert res.row()["method"].startswith("NetVLAD")
 
@@ -185,7 +193,7 @@ def test_image_without_landmarks_is_excluded_and_named(tmp_path, isolated_cache,
             assert cv2.imwrite(str(tmp_path / "ds" / side / f"{i:03d}.png"), img[..., ::-1])
     ds = load_dataset("folder", tmp_path / "ds")
     with caplog.at_level(logging.WARNING, logger="vpr_core"):
-        res = pipeline.run_method("classical", ds, dim=32, n_bootstrap=0)
+        res = run_method("classical", ds, dim=32, n_bootstrap=0)
     text = " ".join(r.getMessage() for r in caplog.records)
     assert "001.png" in text and "excluded from ranking" in text
     # one warning for the run, the image with the fewest landmarks named first
@@ -197,7 +205,7 @@ def test_image_without_landmarks_is_excluded_and_named(tmp_path, isolated_cache,
 def test_cli_adds_vprbench_peers_to_table_and_figure(tmp_path, capsys):
     from test_baselines import _write
 
-    from vpr_core.baselines import PRECOMPUTED_FILE
+    from vpr_study.peers import PRECOMPUTED_FILE
 
     gt = np.eye(6, dtype=bool)
     sim = np.where(gt, 0.8, 0.2) + np.random.default_rng(1).random((6, 6)) * 0.05
@@ -249,7 +257,7 @@ def _npz(path):
 
 
 def _foreign_run(small, caplog, what):
-    pipeline.get_encoder.cache_clear()
+    get_encoder.cache_clear()
     with caplog.at_level(logging.WARNING, logger="vpr_core"):
         again = _run(small)
     msgs = [r.getMessage() for r in caplog.records if "does not hold" in r.getMessage()]
@@ -337,7 +345,7 @@ def test_an_unwritable_output_folder_is_named_with_the_fix(tmp_path, capsys):
 
 
 def test_mapped_arrays_equal_eager_reads(tmp_path):
-    from vpr_core.pipeline.cache import atomic_savez, load_npz
+    from vpr_core.cache import atomic_savez, load_npz
 
     rng = np.random.default_rng(0)
     arrays = {
@@ -384,7 +392,7 @@ def test_a_store_that_cannot_be_mapped_heals(damage, small, isolated_cache, capl
         np.savez_compressed(store, **_npz(store))
     else:
         _short_desc_store(store)
-    pipeline.get_encoder.cache_clear()
+    get_encoder.cache_clear()
     with caplog.at_level(logging.WARNING, logger="vpr_core"):
         again = _run(small)
     msgs = [r.getMessage() for r in caplog.records if "unreadable" in r.getMessage()]

@@ -9,17 +9,17 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
-from vpr_core import viz
 from vpr_core.matching import weighted_matches
-from vpr_core.viz._shared import FIG_WIDTH
-from vpr_core.viz.carried import CARRIED_COLUMNS, SILENT_WEIGHT
+from vpr_study import viz
+from vpr_study.viz._shared import FIG_WIDTH
+from vpr_study.viz.carried import CARRIED_COLUMNS, SILENT_WEIGHT
 
 
 @pytest.fixture(scope="module")
 def runs():
     """A repetitive 6-place synthetic set where contrast fixes one query and breaks another."""
+    from vpr_core import run_method
     from vpr_core.datasets import load_dataset
-    from vpr_core.pipeline import run_method
 
     ds = load_dataset("synthetic", n_places=6, image_size=(64, 112), repetition=0.9)
     kw = {"dim": 64, "n_bootstrap": 0, "keep_descriptors": True, "per_scale": 4}
@@ -84,8 +84,8 @@ def test_captions_read_at_the_displayed_size(runs):
 
 
 def test_refuses_runs_it_cannot_explain(runs):
+    from vpr_core import run_method
     from vpr_core.datasets import load_dataset
-    from vpr_core.pipeline import run_method
 
     ds, plain, weighted = runs
     with pytest.raises(ValueError, match="has no weighting"):

@@ -149,7 +149,7 @@ def test_recall_rate_at_n_is_vpr_benchs():
 def test_plot_recall_at_n():
     from types import SimpleNamespace
 
-    from vpr_core.viz.recall import plot_recall_at_n
+    from vpr_study.viz.recall import plot_recall_at_n
 
     s, gt = _matrix(3)
     fig = plot_recall_at_n(

@@ -1,7 +1,8 @@
-"""Issue 47: the package's face. Every module declares ``__all__`` (names it really defines or
-imports), no underscore name crosses a module boundary, each rule is raised from one site, and
-docs/ARCHITECTURE.md lists the public names per module as ``benchmarks/code_size.py --names``
-prints them."""
+"""Issues 47 and 52: the package's faces. Every module declares ``__all__`` (names it really
+defines or imports), nothing outside ``vpr_core`` (``vpr_study``, benchmarks, notebooks, the
+starter, README and docs code) imports past a package face (an ``__init__.py``), each rule is
+raised from one site, and docs/ARCHITECTURE.md lists the faces as ``benchmarks/code_size.py
+--names`` prints them."""
 
 from __future__ import annotations
 
@@ -39,9 +40,18 @@ def test_all_names_exist(package):
     assert missing == []
 
 
+def test_nothing_outside_the_package_reaches_past_a_face():
+    assert code_size.reach_past(ROOT / "vpr_core") == []
+
+
 @pytest.mark.parametrize("package", PACKAGES, ids=lambda p: p.name)
-def test_no_underscore_name_crosses_modules(package):
-    assert code_size.face(package)["underscore"] == []
+def test_a_lazy_face_lists_what_it_loads(package):
+    """The top-level faces load their names on first use (``vpr-study --help`` loads no torch):
+    ``__all__`` is the table they load from, and every name loads."""
+    module = importlib.import_module(package.name)
+    assert set(module.__all__) - {"__version__"} == set(module._FACE)
+    for name in module._FACE:
+        assert getattr(module, name) is not None
 
 
 def test_each_rule_is_raised_from_one_site():
@@ -49,11 +59,11 @@ def test_each_rule_is_raised_from_one_site():
     assert {m: w for m, w in sites.items() if len(w) > 1} == {}
 
 
-def test_architecture_lists_the_public_names():
+def test_architecture_lists_the_faces():
     text = (ROOT / "docs" / "ARCHITECTURE.md").read_text(encoding="utf-8")
     assert code_size.names_markdown(ROOT / "vpr_core") in text, (
-        "docs/ARCHITECTURE.md's public-name table is stale: paste "
-        "`.venv/bin/python benchmarks/code_size.py --names` under 'Public names'"
+        "docs/ARCHITECTURE.md's table of faces is stale: paste "
+        "`.venv/bin/python benchmarks/code_size.py --names` under 'Faces'"
     )
 
 
@@ -70,5 +80,17 @@ def test_the_face_measure_counts_what_it_says(tmp_path):
     f = code_size.face(pkg)
     assert f["public"] == [("pkg.sub.a", "f"), ("pkg.sub.a", "g")]
     assert f["no_all"] == ["pkg.sub._b"]
-    assert f["underscore"] == [("pkg.sub.a", "_b", "_h")]
+    assert f["faces"] == {"pkg": [], "pkg.sub": ["f"]}
     assert code_size.rule_sites(pkg) == {"x {} bad": ["sub/a.py:4", "sub/a.py:6"]}
+    # a caller beside the package: a face import passes, one past a face is listed
+    (tmp_path / "benchmarks").mkdir()
+    (tmp_path / "benchmarks" / "b.py").write_text(
+        "from pkg.sub import f\nfrom pkg.sub.a import g\nimport pkg.sub._b\n"
+    )
+    (tmp_path / "README.md").write_text("```python\nfrom pkg import sub\n```\n")
+    (tmp_path / "vpr_study").mkdir()
+    (tmp_path / "vpr_study" / "starter.ipynb").write_text('{"cells": []}')
+    assert code_size.reach_past(pkg) == [
+        "benchmarks/b.py: pkg.sub.a",
+        "benchmarks/b.py: pkg.sub._b",
+    ]

@@ -8,9 +8,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from vpr_core import pipeline
+from vpr_core import run_method
 from vpr_core.datasets import load_dataset
 from vpr_core.evaluation import compare
+from vpr_core.features import get_encoder
 from vpr_core.landmarks import (
     Dense,
     EdgeBoxesTop,
@@ -20,14 +21,15 @@ from vpr_core.landmarks import (
     WholeImage,
     dense_sampling,
     edge_boxes,
+    extract_landmarks,
     reduce_overlap,
     scale_index,
     select_min_scale,
     select_scale_priority,
 )
 from vpr_core.landmarks.schemes import check_scheme, scheme_identity
-from vpr_core.pipeline import run_method
 from vpr_core.utils import code_version
+from vpr_study.peers import peer_result
 
 SIZE = (360, 640)
 
@@ -229,7 +231,7 @@ def test_a_user_scheme_runs_is_cached_compared_and_plotted(small, caplog):
 
     import matplotlib.pyplot as plt
 
-    from vpr_core.viz import plot_pr_curves
+    from vpr_study.viz import plot_pr_curves
 
     CALLS.clear()
     mine = run_method(CentreGrid(g=3), small, backbone="hog", n_bootstrap=20)
@@ -285,7 +287,7 @@ def test_a_user_schemes_bad_box_is_refused_at_the_landmark_stage(small, box, pro
 
     where = r"BadBox.boxes\(\) on query image 0 \(.*\.png\): .*"
     with pytest.raises(ValueError, match=where + problem):
-        pipeline.extract_landmarks(BadBox(), small)
+        extract_landmarks(BadBox(), small)
 
 
 def test_a_scheme_field_must_be_a_plain_value():
@@ -314,11 +316,11 @@ def test_a_bare_paper_scheme_is_named_after_its_preset(small):
 def test_the_result_records_what_determines_its_numbers(small, tmp_path):
     from test_baselines import _write
 
-    from vpr_core.baselines import load_vprbench_precomputed
+    from vpr_core.cache import dataset_fingerprint
     from vpr_core.landmarks.edge_boxes import edge_model_id
-    from vpr_core.pipeline.cache import dataset_fingerprint
+    from vpr_study.peers import load_vprbench_precomputed
 
-    enc = pipeline.get_encoder()
+    enc = get_encoder()
     r = run_method(EdgeBoxesTop(n=4), small, n_bootstrap=0)  # default backbone: shipped weights
     assert r.run == "classical(n=4)"
     assert r.dataset_fingerprint == dataset_fingerprint(small) != ""
@@ -327,6 +329,4 @@ def test_the_result_records_what_determines_its_numbers(small, tmp_path):
     other = load_dataset("synthetic", n_places=6, image_size=(96, 128), seed=1)
     assert dataset_fingerprint(other) != r.dataset_fingerprint  # other pixels, same names
     peer = load_vprbench_precomputed(_write(tmp_path / "NetVLAD" / "x.npy", small.ground_truth))
-    assert pipeline.peer_result(peer, small, n_bootstrap=0).dataset_fingerprint == (
-        r.dataset_fingerprint
-    )
+    assert peer_result(peer, small, n_bootstrap=0).dataset_fingerprint == (r.dataset_fingerprint)

@@ -1,12 +1,12 @@
-"""Shortlist + re-rank (vpr_core.engine.shortlist): top-k by global cosine, Eq. (1) on them."""
+"""Shortlist + re-rank (vpr_core.matching.shortlist): top-k by global cosine, Eq. (1) on them."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from vpr_core.engine import global_cosine, rerank, shortlist_pairs, topk_lowest_index
 from vpr_core.matching import Compute, similarity_matrix, similarity_pairs
+from vpr_core.matching.shortlist import global_cosine, rerank, shortlist_pairs, topk_lowest_index
 
 
 def _landmark_sets(rng, n, dim=32, kmin=5, kmax=12):
@@ -135,7 +135,7 @@ def test_rerank_validates_inputs():
 
 
 def test_match_stage_exhaustive_and_full_shortlist_agree():
-    from vpr_core.pipeline.run import _match as match
+    from vpr_core.run import _match as match
 
     rng = np.random.default_rng(4)
     qd, qb = _landmark_sets(rng, 5)
@@ -156,7 +156,7 @@ def test_match_stage_exhaustive_and_full_shortlist_agree():
 
 
 def test_whole_image_boxes_round_trip(tiny_synthetic):
-    from vpr_core.engine.shortlist import split_whole_image, with_whole_image_boxes
+    from vpr_core.matching.shortlist import split_whole_image, with_whole_image_boxes
 
     n = len(tiny_synthetic.query_paths)
     boxes = {

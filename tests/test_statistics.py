@@ -107,7 +107,7 @@ def test_empty_scales_are_nan_not_crash():
 
 
 def _png_hash(fig, tmp_path, name):
-    from vpr_core.viz import save_figure
+    from vpr_study.viz import save_figure
 
     p = save_figure(fig, tmp_path / name)
     return hashlib.sha1(p.read_bytes()).hexdigest()
@@ -116,7 +116,7 @@ def _png_hash(fig, tmp_path, name):
 def test_plots_deterministic(tmp_path):
     import matplotlib.pyplot as plt
 
-    from vpr_core import viz
+    from vpr_study import viz
 
     st = scale_statistics_from_matches(hand_records())
     h1 = _png_hash(viz.plot_scale_statistics(st, title="hand"), tmp_path, "a.png")
@@ -271,7 +271,7 @@ def test_scale_statistics_geometric_labels(synthetic_small):
 
 def test_statistics_recomputed_independently_from_the_match_table(tiny_synthetic):
     """CMR / CLS / ASL recomputed with pandas from ``matches_frame`` agree with ScaleStats."""
-    from vpr_core.pipeline import run_method
+    from vpr_core import run_method
     from vpr_core.statistics import scale_statistics
 
     res = run_method(
@@ -303,9 +303,9 @@ def test_statistics_recomputed_independently_from_the_match_table(tiny_synthetic
 
 
 def test_pair_matches_and_scale_distribution_of_a_run(tiny_synthetic):
+    from vpr_core import run_method
     from vpr_core.labels import pair_matches
     from vpr_core.landmarks import scale_distribution
-    from vpr_core.pipeline import run_method
 
     res = run_method("dense", tiny_synthetic, keep_descriptors=True, backbone="hog", n_bootstrap=0)
     gt = pair_matches(tiny_synthetic, res, query=0)

@@ -10,12 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from vpr_core import run as run_module
+from vpr_core import run_method
 from vpr_core.datasets import PlaceDataset, load_dataset
 from vpr_core.datasets._layout import widen
 from vpr_core.datasets.ground_truth import frame_aligned
 from vpr_core.evaluation import Evaluation, compare, evaluate
-from vpr_core.pipeline import peer_result, run_method
-from vpr_core.pipeline import run as run_module
+from vpr_study.peers import peer_result
 
 #: A wide tolerance on 4 places saturates the ground truth: expected here, not checked.
 pytestmark = pytest.mark.filterwarnings("ignore:saturated ground truth")
@@ -137,7 +138,7 @@ def test_evaluation_holds_no_tolerance():
 def test_a_tolerance_override_is_refused_naming_the_fix(four, isolated_cache, monkeypatch):
     """``run_method(..., tolerance=N)`` and ``peer_result(..., tolerance=N)`` are refused before
     any work, naming both ways to load the truth at N."""
-    from vpr_core.baselines import peer_from_matrix
+    from vpr_study.peers import peer_from_matrix
 
     def no_work(*args, **kwargs):
         raise AssertionError("work started before the tolerance was refused")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vpr_core import viz
+from vpr_study import viz
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -80,8 +80,8 @@ def test_pr_curves_legend_below_identical_curves_said_and_dataset_named():
     import numpy as np
     from matplotlib.colors import to_hex
 
-    from vpr_core.viz import plot_pr_curves
-    from vpr_core.viz.curves import METHOD_COLORS
+    from vpr_study.viz import plot_pr_curves
+    from vpr_study.viz.curves import METHOD_COLORS
 
     rng = np.random.default_rng(0)
     gt = np.eye(6, dtype=bool)
@@ -115,7 +115,7 @@ def test_pr_curves_legend_below_identical_curves_said_and_dataset_named():
 
 def test_pr_curves_refuse_what_is_not_a_list_of_results_in_compares_words():
     """One rule for a list of results (evaluation.compare.check_results), the figure named."""
-    from vpr_core.viz import plot_pr_curves
+    from vpr_study.viz import plot_pr_curves
 
     gt = np.eye(3, dtype=bool)
     one = _result("dense", gt + 0.5, gt)
@@ -130,7 +130,7 @@ def test_pr_curves_refuse_what_is_not_a_list_of_results_in_compares_words():
 def test_pr_curves_same_curve_is_said_and_colours_never_repeat():
     from matplotlib.colors import to_hex
 
-    from vpr_core.viz import plot_pr_curves
+    from vpr_study.viz import plot_pr_curves
 
     rng = np.random.default_rng(1)
     gt = np.eye(6, dtype=bool)
@@ -168,7 +168,7 @@ def test_landmark_panels_say_which_colour_is_which_scale():
 def test_pair_and_coverage_figures_of_runs(tiny_synthetic):
     import matplotlib.pyplot as plt
 
-    from vpr_core.pipeline import run_method
+    from vpr_core import run_method
 
     runs = [
         run_method(m, tiny_synthetic, keep_descriptors=True, backbone="hog", n_bootstrap=0)
@@ -235,8 +235,8 @@ def test_save_warns_about_a_broken_layout(tmp_path):
 
 
 def test_pair_label_widget_starts_from_a_run_and_says_when_saved(tiny_synthetic, tmp_path):
+    from vpr_core import run_method
     from vpr_core.labels import read_label_file
-    from vpr_core.pipeline import run_method
 
     res = run_method("dense", tiny_synthetic, keep_descriptors=True, backbone="hog", n_bootstrap=0)
     out = tmp_path / "labels.csv"
@@ -324,7 +324,7 @@ def test_bad_viz_inputs_raise_one_clear_line(case):
 def test_dataset_line_names_the_subset_and_the_ground_truth():
     from types import SimpleNamespace
 
-    from vpr_core.viz import dataset_line
+    from vpr_study.viz import dataset_line
 
     r = SimpleNamespace(
         ground_truth=np.eye(3, dtype=bool),

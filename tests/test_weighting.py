@@ -304,8 +304,8 @@ def test_matching_value_keeps_default_keys_and_labels():
 
 
 def test_run_method_passes_the_weighting_to_the_matcher():
+    from vpr_core import run_method
     from vpr_core.datasets import load_dataset
-    from vpr_core.pipeline import run_method
 
     ds = load_dataset("synthetic", n_places=5, image_size=(64, 112))
     kw = {"dim": 64, "n_bootstrap": 0, "keep_descriptors": True}
@@ -356,9 +356,9 @@ def test_cli_eval_weighting_both_pairs_each_method_with_itself(tmp_path, capsys)
 def test_plot_weighted_matches_colours_the_fixed_queries():
     import matplotlib
 
+    from vpr_core import run_method
     from vpr_core.datasets import load_dataset
-    from vpr_core.pipeline import run_method
-    from vpr_core.viz.weighting import plot_weighted_matches
+    from vpr_study.viz.weighting import plot_weighted_matches
 
     ds = load_dataset("synthetic", n_places=6, image_size=(64, 112), repetition=0.9)
     kw = {"dim": 64, "n_bootstrap": 0, "keep_descriptors": True, "per_scale": 4}

@@ -305,7 +305,7 @@ def scale_statistics(
 ) -> ScaleStats:
     """Fig. 4 scale statistics of any landmark method (docs/DEFINITIONS.md, "Scale statistics").
 
-    ``run``: a :class:`~vpr_core.pipeline.MethodResult` with its descriptors
+    ``run``: a :class:`~vpr_core.MethodResult` with its descriptors
     (``run_method(..., keep_descriptors=True)``), or any object with ``boxes`` and
     ``descriptors`` as ``{"query": [(K_i, 4)], "reference": [...]}`` / ``(K_i, D)``. Each query
     with ground truth is matched (:func:`vpr_core.matching.match_landmarks`, with the run's

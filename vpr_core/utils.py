@@ -197,17 +197,16 @@ def progress(iterable: Iterable | None, **kwargs: Any):
 
 #: The source files each cached stage's results depend on (folders of ``vpr_core``, or files).
 STAGE_SOURCES: dict[str, tuple[str, ...]] = {
-    # pipeline/cache.py in each: a change of the entries' format gives new keys, so entries of
+    # cache.py in each: a change of the entries' format gives new keys, so entries of
     # the old format are never read (not healed one by one, each with a warning)
     "landmarks": (
         "landmarks",
         "boxes.py",
         "checks.py",
-        "pipeline/landmark_stage.py",
-        "pipeline/cache.py",
+        "cache.py",
     ),
-    "features": ("features", "backbones", "pipeline/feature_stage.py", "pipeline/cache.py"),
-    "matching": ("matching", "boxes.py", "pipeline/run.py", "engine", "pipeline/cache.py"),
+    "features": ("features", "backbones", "cache.py"),
+    "matching": ("matching", "boxes.py", "run.py", "cache.py"),
 }
 _CODE_VERSIONS: dict[str, str] = {}
 

@@ -8,13 +8,11 @@ from collections.abc import Callable
 
 import torch
 
-from vpr_core import paths, settings
+from vpr_core import available_methods, paper, paths, settings
 from vpr_core.backbones import available_backbones, parse_backbone, weights_sha256
 from vpr_core.datasets import DATASETS
 from vpr_core.evaluation import PROTOCOLS
 from vpr_core.matching import SPATIAL_OPTIONS, WEIGHTING_OPTIONS
-from vpr_core.methods import available_methods
-from vpr_core.paper import PROJECTION_DIM
 
 __all__ = [
     "DESCRIPTION",
@@ -308,8 +306,8 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
     e.add_argument(
         "--dim",
         type=int,
-        default=PROJECTION_DIM,
-        help=f"descriptor dimension after the random projection (default {PROJECTION_DIM})",
+        default=paper.PROJECTION_DIM,
+        help=f"descriptor dimension after the random projection (default {paper.PROJECTION_DIM})",
     )
     e.add_argument(
         "--seed", type=_int_at_least(0), default=0, help="seed of the random projection (default 0)"

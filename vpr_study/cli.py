@@ -16,26 +16,33 @@ import threading
 import time
 import warnings
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 import pandas as pd
 
-from vpr_core import paths, settings
-from vpr_core.baselines import find_vprbench_peers, peer_from_descriptors, peer_from_matrix
-from vpr_core.datasets import load_dataset
-from vpr_core.datasets.ground_truth import ground_truth_text
-from vpr_core.evaluation import compact, compare, compare_pairs, ground_truth_coverage
-from vpr_core.evaluation.spec import check_bootstrap_memory
+from vpr_core import VPRWarning, paths, run_method, settings, utils
+from vpr_core.datasets import ground_truth_text, load_dataset
+from vpr_core.evaluation import (
+    check_bootstrap_memory,
+    compact,
+    compare,
+    compare_pairs,
+    ground_truth_coverage,
+)
 from vpr_core.matching import SPATIAL_OPTIONS, WEIGHTING_OPTIONS
-from vpr_core.notices import VPRWarning
-from vpr_core.pipeline import peer_result, run_method
-from vpr_core.utils import configure_logging, short_hash, tune_allocator
-from vpr_core.viz import plot_pr_curves
-from vpr_core.viz.base import save_all
 from vpr_study.arguments import check_names, command_parser, dataset_options, given_once, parser
+from vpr_study.cluster import DaskExecutor
 from vpr_study.findings import findings_markdown, result_labels
+from vpr_study.peers import (
+    find_vprbench_peers,
+    peer_from_descriptors,
+    peer_from_matrix,
+    peer_result,
+)
 from vpr_study.runner import run_study, study_datasets
+from vpr_study.viz import plot_pr_curves
+from vpr_study.viz.base import save_all
 
 __all__ = [
     "HEADLINE",
@@ -316,7 +323,7 @@ def eval_settings(args: argparse.Namespace) -> dict:
     return found
 
 
-#: Settings the dataset line of a PR figure already names (:func:`vpr_core.viz.dataset_line`).
+#: Settings the dataset line of a PR figure already names (:func:`vpr_study.viz.dataset_line`).
 _IN_DATASET_LINE = ("backbone", "pooling", "shortlist", "protocol")
 
 
@@ -347,7 +354,7 @@ def eval_stem(args: argparse.Namespace, label: str) -> str:
     readable, files = changed_settings(args)
     parts = [f"{k.replace('_', '-')}-{v}" for k, v in readable.items()]
     if files:
-        parts.append(short_hash(files, 8))
+        parts.append(utils.short_hash(files, 8))
     stem = "_".join([f"eval_{label}", "+".join(args.method), *parts])
     return "".join(c if c.isalnum() or c in "-_.+=" else "_" for c in stem)
 
@@ -361,7 +368,7 @@ def default_label(name: str) -> str:
 
 def cmd_eval(args: argparse.Namespace) -> int:
     check_bootstrap_memory(args.n_bootstrap, "--n-bootstrap")
-    tune_allocator()  # process-wide, here at the boundary: crop features ~1.7x faster
+    utils.tune_allocator()  # process-wide, here at the boundary: crop features ~1.7x faster
     lines = StageLines()
     with lines.stage(f"loading {args.dataset}"):
         dataset = load_dataset(args.dataset, root=args.root, **dataset_options(args))
@@ -385,33 +392,35 @@ def cmd_eval(args: argparse.Namespace) -> int:
     weighting = choices.get(args.weighting, [args.weighting])
     results, computed, wall, run_of = [], {}, {}, {}
     todo = list(itertools.product(args.method, spatial, weighting))
-    for n, (m, s, w) in enumerate(todo, 1):
-        options = ", ".join(f"{k} {v}" for k, v in (("spatial", s), ("weighting", w)) if v)
-        before, t0 = _matrix_entries(), time.perf_counter()
-        with lines.stage(
-            f"{m}{f' ({options})' if options else ''} on {label}",
-            f" ({n} of {len(todo)}): landmarks, features, Eq. (1) matrix, metrics",
-        ):
-            r = run_method(
-                m,
-                dataset,
-                backbone=args.backbone,
-                dim=args.dim,
-                seed=args.seed,
-                weights=args.weights,
-                pooling=args.pooling,
-                device=args.device,
-                shortlist=args.shortlist,
-                scheduler=scheduler,
-                n_bootstrap=args.n_bootstrap,
-                protocol=args.protocol,
-                spatial=s,
-                weighting=w,
-            )
-        results.append(r)
-        run_of[m, s, w] = r
-        computed[r.label] = _matrix_entries() != before
-        wall[r.label] = time.perf_counter() - t0
+    with ExitStack() as stack:  # a Dask executor is closed however the runs end
+        executor = stack.enter_context(DaskExecutor(scheduler)) if scheduler else None
+        for n, (m, s, w) in enumerate(todo, 1):
+            options = ", ".join(f"{k} {v}" for k, v in (("spatial", s), ("weighting", w)) if v)
+            before, t0 = _matrix_entries(), time.perf_counter()
+            with lines.stage(
+                f"{m}{f' ({options})' if options else ''} on {label}",
+                f" ({n} of {len(todo)}): landmarks, features, Eq. (1) matrix, metrics",
+            ):
+                r = run_method(
+                    m,
+                    dataset,
+                    backbone=args.backbone,
+                    dim=args.dim,
+                    seed=args.seed,
+                    weights=args.weights,
+                    pooling=args.pooling,
+                    device=args.device,
+                    shortlist=args.shortlist,
+                    executor=executor,
+                    n_bootstrap=args.n_bootstrap,
+                    protocol=args.protocol,
+                    spatial=s,
+                    weighting=w,
+                )
+            results.append(r)
+            run_of[m, s, w] = r
+            computed[r.label] = _matrix_entries() != before
+            wall[r.label] = time.perf_counter() - t0
     if args.peers or args.peer_dataset or args.peer:
         with lines.stage("peers"):
             results += _peer_results(args, dataset) + _user_peers(args, dataset)
@@ -578,7 +587,7 @@ def main(argv: list[str] | None = None) -> int:
     previous = signal.getsignal(signal.SIGTERM)
     signal.signal(signal.SIGTERM, _terminated)
     check_names(parser, args)
-    configure_logging()
+    utils.configure_logging()
     try:
         # --out applies to this command only; the runner hands it to its kernels
         with paths.using_output_root(args.out or None), _writes_to(args), _notices_once():

@@ -12,10 +12,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from vpr_core import paths
-from vpr_core.evaluation.bootstrap import N_BOOTSTRAP, VERDICTS, difference_verdict, needs_text
-from vpr_core.methods import get_method, run_key
-from vpr_core.paper import TABLE2, TABLE3, TABLE4
+from vpr_core import get_method, paper, paths, run_key
+from vpr_core.evaluation import N_BOOTSTRAP, VERDICTS, difference_verdict, needs_text
 
 __all__ = [
     "CELL_WORDS",
@@ -90,19 +88,19 @@ CLAIMS: tuple[Claim, ...] = (
     Claim("Fig. 7b: soft-NMS at IoU 0.7 is on par with classical",
           _F7B, (_O2, {"soft_nms_iou": 0.7}), _C, "~"),
     Claim("Table 2: 4 scales x 25 (Set 5) beat one scale x 100 (Set 1)",
-          _T2, _dense(TABLE2, "Set 5"), _dense(TABLE2, "Set 1"), ">"),
+          _T2, _dense(paper.TABLE2, "Set 5"), _dense(paper.TABLE2, "Set 1"), ">"),
     Claim("Table 2: one large scale (Set 2, 0.49) is worse than Set 1",
-          _T2, _dense(TABLE2, "Set 2"), _dense(TABLE2, "Set 1"), "<"),
+          _T2, _dense(paper.TABLE2, "Set 2"), _dense(paper.TABLE2, "Set 1"), "<"),
     Claim("Table 2: six scales x 16 (Set 6) are worse even than one scale (Set 1)",
-          _T2, _dense(TABLE2, "Set 6"), _dense(TABLE2, "Set 1"), "<"),
+          _T2, _dense(paper.TABLE2, "Set 6"), _dense(paper.TABLE2, "Set 1"), "<"),
     Claim("Table 3: the most uneven split (Set 4) is worse than uniform 25 each (Set 1)",
-          _T3, _dense(TABLE3, "Set 4"), _dense(TABLE3, "Set 1"), "<"),
+          _T3, _dense(paper.TABLE3, "Set 4"), _dense(paper.TABLE3, "Set 1"), "<"),
     Claim("Table 4: similar scales (Set 2) are on par with Set 1",
-          _T4, _dense(TABLE4, "Set 2"), _dense(TABLE4, "Set 1"), "~"),
+          _T4, _dense(paper.TABLE4, "Set 2"), _dense(paper.TABLE4, "Set 1"), "~"),
     Claim("Table 4: small scales (Set 3) are worse than Set 1",
-          _T4, _dense(TABLE4, "Set 3"), _dense(TABLE4, "Set 1"), "<"),
+          _T4, _dense(paper.TABLE4, "Set 3"), _dense(paper.TABLE4, "Set 1"), "<"),
     Claim("Table 4: oversize scales (Set 4) are worse than Set 1",
-          _T4, _dense(TABLE4, "Set 4"), _dense(TABLE4, "Set 1"), "<"),
+          _T4, _dense(paper.TABLE4, "Set 4"), _dense(paper.TABLE4, "Set 1"), "<"),
     Claim("Fig. 13: classical is clearly worse than dense", _F13, _C, _D, "<"),
     Claim("Fig. 13: Scheme 1 is slightly worse than dense", _F13, _S1, _D, "<"),
     Claim("(not in the paper) a global descriptor vs dense landmarks",

@@ -12,8 +12,7 @@ import time
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-from vpr_core import paths
-from vpr_core.utils import file_sha256
+from vpr_core import paths, utils
 
 __all__ = ["inputs_key", "notebook_key", "record", "up_to_date", "written_since"]
 
@@ -44,14 +43,14 @@ def _files(top: Path) -> list[Path]:
 def _tree_digest(files: Iterable[Path], base: Path) -> str:
     digest = hashlib.sha256()
     for f in sorted(files):
-        digest.update(f"{f.relative_to(base)}|{file_sha256(f)}|".encode())
+        digest.update(f"{f.relative_to(base)}|{utils.file_sha256(f)}|".encode())
     return digest.hexdigest()
 
 
 def _path_digest(path: Path) -> str:
     """A file by its content, a folder by every file under it (:func:`_files`)."""
     if path.is_file():
-        return file_sha256(path)
+        return utils.file_sha256(path)
     return _tree_digest(_files(path), path)
 
 
@@ -78,7 +77,7 @@ def _settings() -> dict[str, str]:
     for name, value in sorted(os.environ.items()):
         if name.startswith("VPR_") and name not in _PLACEMENT:
             is_file = Path(value).expanduser().is_file()
-            out[name] = f"{value}|{file_sha256(value) if is_file else ''}"
+            out[name] = f"{value}|{utils.file_sha256(value) if is_file else ''}"
     return out
 
 
@@ -159,7 +158,7 @@ def up_to_date(label: str, stem: str, key: str) -> dict | None:
     if record.get("key") != key or not record.get("outputs"):
         return None
     for name, digest in record["outputs"].items():
-        if not Path(name).is_file() or file_sha256(name) != digest:
+        if not Path(name).is_file() or utils.file_sha256(name) != digest:
             return None
     return record
 
@@ -181,7 +180,7 @@ def record(label: str, stem: str, key: str, outputs: Iterable[Path], seconds: fl
     path.parent.mkdir(parents=True, exist_ok=True)
     entry = {
         "key": key,
-        "outputs": {str(p): file_sha256(p) for p in sorted(outputs)},
+        "outputs": {str(p): utils.file_sha256(p) for p in sorted(outputs)},
         "seconds": round(seconds, 1),
         "when": time.strftime("%Y-%m-%d %H:%M:%S"),
     }

@@ -11,8 +11,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from vpr_core import paths, settings
-from vpr_core.checks import check_int
+from vpr_core import checks, paths, settings
 from vpr_core.datasets import load_dataset
 from vpr_study.execution import run_labels
 from vpr_study.figures import FIGURES, NOTEBOOKS
@@ -262,7 +261,7 @@ def run_study(
     )
     if label is not None:
         paths.check_label(label)
-    jobs = check_int(jobs, "jobs (labels executed at once)", 1)
+    jobs = checks.check_int(jobs, "jobs (labels executed at once)", 1)
     if root is not None:
         root = str(Path(root).expanduser().resolve())
     # fail fast, with the loader's clear message (quick synthetic: only the places it uses)

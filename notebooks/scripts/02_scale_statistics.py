@@ -32,13 +32,10 @@
 # %%
 from matplotlib_inline.backend_inline import set_matplotlib_formats
 
-from vpr_core import paper
+from vpr_core import configure_logging, paper, run_method, scale_statistics, tune_allocator
 from vpr_core.datasets import load_dataset
-from vpr_core.pipeline import run_method
 from vpr_study.runner import check_parameters
-from vpr_core.statistics import scale_statistics
-from vpr_core.utils import configure_logging, tune_allocator
-from vpr_core.viz import plot_asl, plot_cls, plot_cmr, plot_pair, plot_scale_statistics, save
+from vpr_study.viz import plot_asl, plot_cls, plot_cmr, plot_pair, plot_scale_statistics, save
 
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits
@@ -105,6 +102,6 @@ stats.to_frame()
 
 # %% [markdown]
 # ### Labelling by hand (optional, interactive only)
-# `vpr_core.viz.pair_label_widget(ds, run, query=0)` shows one pair's matches and writes a CSV
+# `vpr_study.viz.pair_label_widget(ds, run, query=0)` shows one pair's matches and writes a CSV
 # usable with `label_matches(..., method="file")`. It needs `ipywidgets` (`make lab` installs
 # it with JupyterLab) and is not used by the headless run.

@@ -26,10 +26,9 @@
 from vpr_core.datasets import load_dataset
 from vpr_core.evaluation import compare
 from vpr_core.landmarks import scale_distribution
-from vpr_core.pipeline import run_method
+from vpr_core import configure_logging, run_method, tune_allocator
 from vpr_study.runner import check_parameters
-from vpr_core.utils import configure_logging, tune_allocator
-from vpr_core.viz import dataset_line, plot_pr_curves, plot_scale_distribution, save
+from vpr_study.viz import dataset_line, plot_pr_curves, plot_scale_distribution, save
 
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits

@@ -26,13 +26,11 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from vpr_core import paper
+from vpr_core import configure_logging, paper, run_method, tune_allocator
 from vpr_core.datasets import load_dataset
 from vpr_core.evaluation import compare
-from vpr_core.pipeline import run_method
 from vpr_study.runner import check_parameters
-from vpr_core.utils import configure_logging, tune_allocator
-from vpr_core.viz import plot_pr_curves, save
+from vpr_study.viz import plot_pr_curves, save
 
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits

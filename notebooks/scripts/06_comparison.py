@@ -27,15 +27,13 @@
 # %%
 from matplotlib_inline.backend_inline import set_matplotlib_formats
 
-from vpr_core.baselines import find_vprbench_peers, peer_from_matrix
-from vpr_core.cost import cost_table
+from vpr_study import cost_table, find_vprbench_peers, peer_from_matrix, peer_result, per_query
 from vpr_core.datasets import load_dataset
-from vpr_core.evaluation import compare, per_query
-from vpr_core.pipeline import peer_result, run_method
+from vpr_core.evaluation import compare
+from vpr_core import configure_logging, run_method, tune_allocator
 from vpr_study.runner import check_parameters
-from vpr_core.utils import configure_logging, tune_allocator
-from vpr_core.viz import plot_coverage_comparison, plot_disagreements, plot_pr_curves, save
-from vpr_core.viz.weighting import plot_weighted_matches
+from vpr_study.viz import plot_coverage_comparison, plot_disagreements, plot_pr_curves, save
+from vpr_study.viz import plot_weighted_matches
 
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits

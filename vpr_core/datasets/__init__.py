@@ -1,6 +1,6 @@
 """Place-recognition datasets: :class:`PlaceDataset` (``base``), image files (``images``), ground
-truth (``ground_truth``), one module per loader, the synthetic generator and downloads; here the
-registry :data:`DATASETS` and :func:`load_dataset`."""
+truth (``ground_truth``), one module per loader and the synthetic generator (downloads:
+:mod:`vpr_study.download`); here the registry :data:`DATASETS` and :func:`load_dataset`."""
 
 from __future__ import annotations
 
@@ -10,8 +10,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ..checks import check_options
-from .base import PlaceDataset
-from .download import DOWNLOADS, download_dataset
+from .base import SIDES, PlaceDataset
 from .folder import load_folder
 from .freiburg import load_freiburg_across_seasons
 from .gardens_point import load_gardens_point
@@ -19,25 +18,29 @@ from .ground_truth import (
     check_coverage,
     check_ground_truth,
     ground_truth_coverage,
+    ground_truth_references,
+    ground_truth_text,
     read_ground_truth,
 )
 from .images import IMAGE_EXTENSIONS, MIN_IMAGE_SIDE, list_images, read_image
 from .mapillary_berlin import load_mapillary_berlin
 from .nordland import load_nordland
+from .safe_pickle import read_npy
 from .synthetic import load_synthetic, render_synthetic_place, synthetic_homography
 from .utm import load_utm
 from .vpr_bench import load_vpr_bench, read_vprbench_ground_truth
 
 __all__ = [
     "DATASETS",
-    "DOWNLOADS",
     "IMAGE_EXTENSIONS",
     "MIN_IMAGE_SIDE",
+    "SIDES",
     "PlaceDataset",
     "check_coverage",
     "check_ground_truth",
-    "download_dataset",
     "ground_truth_coverage",
+    "ground_truth_references",
+    "ground_truth_text",
     "list_images",
     "load_dataset",
     "load_folder",
@@ -50,6 +53,7 @@ __all__ = [
     "load_vpr_bench",
     "read_ground_truth",
     "read_image",
+    "read_npy",
     "read_vprbench_ground_truth",
     "render_synthetic_place",
     "synthetic_homography",

@@ -13,11 +13,11 @@ import numpy as np
 
 from ..paths import find_input
 from .base import PlaceDataset
-from .download import DOWNLOADS
 from .ground_truth import check_coverage, read_ground_truth
 from .images import check_folder, list_images
 
 __all__ = [
+    "DOWNLOADABLE",
     "check_frame_pairs",
     "check_root",
     "correspondence_dataset",
@@ -27,6 +27,11 @@ __all__ = [
     "traverse_dir",
     "widen",
 ]
+
+
+#: The datasets :func:`vpr_study.download_dataset` can fetch (its ``DOWNLOADS``; a test keeps the
+#: two equal): their missing-root error says so.
+DOWNLOADABLE = frozenset({"gardens_point"})
 
 
 def check_root(root: str | os.PathLike | None, name: str, layout: str) -> Path:
@@ -50,7 +55,11 @@ def check_root(root: str | os.PathLike | None, name: str, layout: str) -> Path:
     except FileNotFoundError as exc:
         problem = str(exc)
     if problem:
-        hint = f"; or fetch it with download_dataset({name!r}, root)" if name in DOWNLOADS else ""
+        hint = (
+            f"; or fetch it with vpr_study.download_dataset({name!r}, root)"
+            if name in DOWNLOADABLE
+            else ""
+        )
         raise FileNotFoundError(
             f"dataset {name!r}: root {problem}{hint}. Expected layout: {layout}"
         )

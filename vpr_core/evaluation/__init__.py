@@ -1,11 +1,12 @@
 """Evaluation of a query x reference similarity matrix: curves and metrics (``curves``),
 their chance level (``chance``), bootstrap intervals and paired differences (``bootstrap``),
-the comparison table (``compare``), the per-query view (``insight``)."""
+the comparison table (``compare``)."""
 
 from __future__ import annotations
 
 from .bootstrap import (
     N_BOOTSTRAP,
+    VERDICTS,
     Difference,
     bootstrap_columns,
     bootstrap_metrics,
@@ -14,8 +15,17 @@ from .bootstrap import (
     needs_text,
     paired_bootstrap,
 )
-from .chance import chance, saturation_notice
-from .compare import ComparisonTable, compact, compact_text, compare, compare_pairs
+from .chance import chance, chance_precision, saturation_notice
+from .compare import (
+    ComparisonTable,
+    check_results,
+    check_same_dataset,
+    compact,
+    compact_text,
+    compare,
+    compare_pairs,
+    identical_to,
+)
 from .curves import (
     PROTOCOLS,
     PRCurve,
@@ -28,20 +38,26 @@ from .curves import (
     recall_at_k,
     recall_rate_at_n,
 )
-from .insight import per_query
-from .spec import Evaluation
+from .ranks import best_two, query_scores, ranked, true_rank
+from .spec import Evaluation, check_bootstrap_memory, refuse_tolerance
 
 __all__ = [
     "N_BOOTSTRAP",
     "PROTOCOLS",
+    "VERDICTS",
     "ComparisonTable",
     "Difference",
     "Evaluation",
     "PRCurve",
     "auc_pr",
+    "best_two",
     "bootstrap_columns",
     "bootstrap_metrics",
     "chance",
+    "chance_precision",
+    "check_bootstrap_memory",
+    "check_results",
+    "check_same_dataset",
     "compact",
     "compact_text",
     "compare",
@@ -50,13 +66,17 @@ __all__ = [
     "evaluate",
     "format_interval",
     "ground_truth_coverage",
+    "identical_to",
     "metrics_table",
     "needs_text",
     "paired_bootstrap",
-    "per_query",
     "pr_curve",
+    "query_scores",
+    "ranked",
     "recall_at_100_precision",
     "recall_at_k",
     "recall_rate_at_n",
+    "refuse_tolerance",
     "saturation_notice",
+    "true_rank",
 ]

@@ -186,8 +186,8 @@ def compare(
     """Metrics with intervals for every result, and paired differences against a baseline.
 
     Args:
-        results: :class:`~vpr_core.pipeline.MethodResult` objects (or peers from
-            :func:`~vpr_core.pipeline.peer_result`) on the same dataset.
+        results: :class:`~vpr_core.MethodResult` objects (or peers from
+            :func:`~vpr_core.peer_result`) on the same dataset.
         baseline: the label (or position) of the result the others are compared with;
             default: the first.
         n_bootstrap: resamples of the paired bootstrap (0: differences without intervals,

@@ -5,11 +5,15 @@ backbones in :mod:`vpr_core.backbones`."""
 from ..backbones import available_backbones
 from .encoder import Encoder, LandmarkEncoder, as_encoder
 from .projection import random_projection
+from .stage import encoder_slug, extract_features, get_encoder
 
 __all__ = [
     "Encoder",
     "LandmarkEncoder",
     "as_encoder",
     "available_backbones",
+    "encoder_slug",
+    "extract_features",
+    "get_encoder",
     "random_projection",
 ]

@@ -22,6 +22,7 @@ from .schemes import (
     WholeImage,
 )
 from .selection import reduce_overlap, select_min_scale, select_scale_priority
+from .stage import extract_landmarks, landmarks_for_image
 
 __all__ = [
     "EDGE_BOXES_DEFAULTS",
@@ -43,7 +44,9 @@ __all__ = [
     "box_iou",
     "dense_sampling",
     "edge_boxes",
+    "extract_landmarks",
     "landmark_coverage",
+    "landmarks_for_image",
     "normalized_scale",
     "reduce_overlap",
     "scale_distribution",

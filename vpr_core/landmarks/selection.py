@@ -1,6 +1,6 @@
 """Algorithms 1-3: 100 landmarks from 1,000 Edge Box candidates (Sec. 3.2) in proposal order;
 ``return_indices`` adds the kept candidates' ``(N,)`` int64 indices. Fewer than ``n`` qualifying:
-all of them (a run names such images once, :func:`vpr_core.pipeline.extract_landmarks`).
+all of them (a run names such images once, :func:`vpr_core.extract_landmarks`).
 
 Each function checks its input once and runs the algorithm of its scheme value
 (:class:`~vpr_core.landmarks.MinScale`, ``ScalePriority``, ``ReduceOverlap``), whose

@@ -2,13 +2,15 @@
 pair in :mod:`.pairwise` (the float64 reference that reads like the paper) and for blocks of pairs
 in the torch engine (:mod:`.core`, the same numbers); the public functions are in
 :mod:`.similarity`. The engine's inputs are parsed in the package-private :mod:`._sides`; its
-rules that :mod:`vpr_core.engine` shares are exported here (``landmark_lists``,
+rules that :mod:`vpr_study.cluster` shares are exported here (``landmark_lists``,
 ``check_same_dim``, ``rescale_rows``)."""
 
 from __future__ import annotations
 
 from ._sides import check_same_dim, landmark_lists, rescale_rows
-from .pairwise import MatchResult
+from .core import Problem
+from .pairwise import MatchResult, cosine_similarity
+from .shortlist import shortlist_pairs, split_whole_image, with_whole_image_boxes
 from .similarity import (
     check_pairs,
     cosine_distance,
@@ -21,23 +23,33 @@ from .similarity import (
     weighted_matches,
 )
 from .spec import SPATIAL_OPTIONS, WEIGHTING_OPTIONS, Compute, Matching
+from .weighting import CONTRAST_SAMPLE, WEIGHTING_SAMPLE, sample_matches, weighting_sample
 
 __all__ = [
+    "CONTRAST_SAMPLE",
     "SPATIAL_OPTIONS",
     "WEIGHTING_OPTIONS",
+    "WEIGHTING_SAMPLE",
     "Compute",
     "MatchResult",
     "Matching",
+    "Problem",
     "check_pairs",
     "check_same_dim",
     "cosine_distance",
+    "cosine_similarity",
     "image_similarity",
     "landmark_lists",
     "match_landmarks",
     "reciprocal_matches",
     "rescale_rows",
+    "sample_matches",
     "shape_penalty",
+    "shortlist_pairs",
     "similarity_matrix",
     "similarity_pairs",
+    "split_whole_image",
     "weighted_matches",
+    "weighting_sample",
+    "with_whole_image_boxes",
 ]

@@ -10,11 +10,10 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from .checks import check_int
-from .matching import similarity_matrix
-from .methods import get_method
-from .paper import PROJECTION_DIM
-from .pipeline import get_encoder, landmarks_for_image
+from vpr_core import checks, get_method, paper
+from vpr_core.features import get_encoder
+from vpr_core.landmarks import landmarks_for_image
+from vpr_core.matching import similarity_matrix
 
 __all__ = ["COST_COLUMNS", "cost_table"]
 
@@ -71,7 +70,7 @@ def cost_table(
         methods: method presets, one row each.
         n_images: images timed (all ``n * n`` pairs for the matching step).
         repeats: repetitions averaged.
-        backbone, pooling, seed: the landmark encoder (as :func:`~vpr_core.pipeline.run_method`).
+        backbone, pooling, seed: the landmark encoder (as :func:`~vpr_core.run_method`).
 
     Returns:
         DataFrame indexed by method with :data:`COST_COLUMNS`: seconds per image for landmark
@@ -81,8 +80,11 @@ def cost_table(
     Raises:
         ValueError: ``n_images`` or ``repeats`` below 1.
     """
-    n_images, repeats = check_int(n_images, "n_images", 1), check_int(repeats, "repeats", 1)
-    encoder = get_encoder(backbone, dim=PROJECTION_DIM, seed=seed, pooling=pooling)
+    n_images, repeats = (
+        checks.check_int(n_images, "n_images", 1),
+        checks.check_int(repeats, "repeats", 1),
+    )
+    encoder = get_encoder(backbone, dim=paper.PROJECTION_DIM, seed=seed, pooling=pooling)
     n = min(n_images, len(dataset.query_paths))
     rows = [{"method": m, **_time_method(m, dataset, encoder, n, repeats)} for m in methods]
     return pd.DataFrame(rows).set_index("method")

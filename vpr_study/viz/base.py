@@ -19,18 +19,7 @@ import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.patches import Rectangle
 
-from ..notices import notice
-from ..paths import (
-    OUT_SETTING,
-    USER_AREA,
-    check_label,
-    check_name,
-    figures_dir,
-    figures_root,
-    make_dir,
-    output_root,
-)
-from ..utils import csv_safe, write_frame_csv
+from vpr_core import notice, paths, utils
 
 __all__ = [
     "METHOD_COLORS",
@@ -89,8 +78,8 @@ def save_figure(
     if path.suffix not in (".png", ".pdf"):
         path = path.with_suffix(path.suffix + ".png") if path.suffix else path.with_suffix(".png")
     if not path.is_absolute():
-        path = figures_dir(dataset) / path
-    make_dir(path.parent, OUT_SETTING)
+        path = paths.figures_dir(dataset) / path
+    paths.make_dir(path.parent, paths.OUT_SETTING)
     _commit([(_staged(path, partial(_draw, fig, suffix=path.suffix, dpi=dpi)), path)], path.parent)
     return path
 
@@ -271,11 +260,11 @@ def _split_timings(table: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame | No
 
 def _write_csv(table: pd.DataFrame, tmp: Path) -> None:
     with_index = not isinstance(table.index, pd.RangeIndex)  # decided before renaming
-    table = table.rename(columns=csv_safe, index=csv_safe if with_index else None)
+    table = table.rename(columns=utils.csv_safe, index=utils.csv_safe if with_index else None)
     for i, dtype in enumerate(table.dtypes):
         if not pd.api.types.is_numeric_dtype(dtype):  # text cells; numbers stay numbers
-            table.isetitem(i, table.iloc[:, i].map(csv_safe))
-    write_frame_csv(table, tmp, float_format="%.6f", index=with_index)
+            table.isetitem(i, table.iloc[:, i].map(utils.csv_safe))
+    utils.write_frame_csv(table, tmp, float_format="%.6f", index=with_index)
 
 
 def save_all(
@@ -317,15 +306,15 @@ def save_all(
     """
     items = list(items)
     for name, _ in items:
-        check_name(name)
+        paths.check_name(name)
     unlabelled = label is None
     if label is None:
-        base = output_root() if out is None else Path(out).expanduser().resolve()
-        root = base / USER_AREA
+        base = paths.output_root() if out is None else Path(out).expanduser().resolve()
+        root = base / paths.USER_AREA
         label = DEFAULT_LABEL
     else:
-        check_label(label)
-        root = figures_root() if out is None else Path(out).expanduser().resolve()
+        paths.check_label(label)
+        root = paths.figures_root() if out is None else Path(out).expanduser().resolve()
     staged: list[tuple[Path, Path]] = []
     written: list[Path] = []
     try:
@@ -333,10 +322,10 @@ def save_all(
             if isinstance(obj, matplotlib.figure.Figure):
                 for problem in layout_problems(obj):
                     notice(f"layout of {name}: {problem}")
-                path = make_dir(root / "figures" / label, OUT_SETTING) / f"{name}.png"
+                path = paths.make_dir(root / "figures" / label, paths.OUT_SETTING) / f"{name}.png"
                 staged.append((_staged(path, partial(_draw, obj, suffix=".png")), path))
             elif isinstance(obj, pd.DataFrame):
-                folder = make_dir(root / "results" / label, OUT_SETTING)
+                folder = paths.make_dir(root / "results" / label, paths.OUT_SETTING)
                 table, timings = _split_timings(obj)
                 path = folder / f"{name}.csv"
                 if timings is not None and set(table.columns) <= set(timings.columns):
@@ -359,7 +348,7 @@ def save_all(
         for tmp, _ in staged:
             tmp.unlink(missing_ok=True)
         raise
-    _commit(staged, make_dir(root, OUT_SETTING))
+    _commit(staged, paths.make_dir(root, paths.OUT_SETTING))
     if unlabelled:
         for path in written:
             logger.info(

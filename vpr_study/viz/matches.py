@@ -10,9 +10,9 @@ import matplotlib.ticker
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..checks import check_boxes, check_shape
-from ..labels import pair_matches
-from ..statistics import check_per_match
+from vpr_core import check_per_match, checks
+from vpr_core.labels import pair_matches
+
 from .base import draw_boxes
 
 __all__ = [
@@ -70,8 +70,8 @@ def plot_labelled_matches(
     ax.imshow(canvas)
     ax.set_axis_off()
     m = np.asarray(matches, dtype=np.int64).reshape(-1, 2)
-    bq = check_boxes(boxes_q, "boxes_q")
-    br = check_boxes(boxes_r, "boxes_r") * scale_r
+    bq = checks.check_boxes(boxes_q, "boxes_q")
+    br = checks.check_boxes(boxes_r, "boxes_r") * scale_r
     lab = None
     if labels is not None:
         lab = check_per_match(np.asarray(labels, dtype=bool).reshape(-1), len(m), "labels")
@@ -108,7 +108,10 @@ def plot_descriptor_matrices(descriptors: dict, title: str | None = None) -> Fig
     rows landmarks, columns dimensions, colour the value (symmetric around 0, shared scale)."""
     if not descriptors:
         raise ValueError("plot_descriptor_matrices: descriptors is empty.")
-    mats = {k: check_shape(v, "K D", f"descriptors[{k!r}]", float) for k, v in descriptors.items()}
+    mats = {
+        k: checks.check_shape(v, "K D", f"descriptors[{k!r}]", float)
+        for k, v in descriptors.items()
+    }
     vmax = max(float(np.abs(m).max()) if m.size else 0.0 for m in mats.values()) or 1.0
     fig, axes = plt.subplots(
         1, len(mats), figsize=(5.2 * len(mats), 3.6), squeeze=False, layout="constrained"

@@ -8,16 +8,17 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import check_int
-from ..matching import (
+from vpr_core import checks
+from vpr_core.matching import (
     Compute,
     Matching,
     check_pairs,
     landmark_lists,
     similarity_matrix,
     similarity_pairs,
+    weighting_sample,
 )
-from ..matching.weighting import weighting_sample
+
 from .client import gather_in_order
 
 __all__ = ["QUERY_BATCH", "similarity_blocks_distributed", "similarity_pairs_distributed"]
@@ -40,7 +41,7 @@ class _Part:
 
 def _block_size(n: Any, name: str) -> int:
     """``n`` as a positive int, rounded up to a multiple of :data:`QUERY_BATCH`."""
-    return -(-check_int(n, name, 1) // QUERY_BATCH) * QUERY_BATCH
+    return -(-checks.check_int(n, name, 1) // QUERY_BATCH) * QUERY_BATCH
 
 
 def _widest(desc: list) -> int:

@@ -9,7 +9,8 @@ from typing import Any
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ..labels import append_labels, pair_matches
+from vpr_core.labels import append_labels, pair_matches
+
 from .base import draw_boxes
 
 __all__ = ["label_widget", "pair_label_widget"]

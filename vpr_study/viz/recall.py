@@ -8,7 +8,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..evaluation import recall_rate_at_n
+from vpr_core.evaluation import recall_rate_at_n
 
 __all__ = ["plot_recall_at_n"]
 

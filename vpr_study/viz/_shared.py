@@ -1,6 +1,6 @@
-"""What several figure modules of :mod:`vpr_core.viz` share (internal to the package): the width and
-caption size of the per-query figures, their heading wrap, the checks of the runs they are given
-and a weighted run's matches."""
+"""What several figure modules of :mod:`vpr_study.viz` share (internal to the package): the
+width and caption size of the per-query figures, their heading wrap, the checks of the runs they
+are given and a weighted run's matches."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from ..matching import weighted_matches
-from ..pipeline.cache import dataset_fingerprint
+from vpr_core import dataset_fingerprint
+from vpr_core.matching import weighted_matches
 
 __all__ = ["FIG_WIDTH", "FONT", "check_runs_on", "run_matches", "weighting_of", "wrapped"]
 

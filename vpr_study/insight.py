@@ -9,10 +9,16 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..matching import Matching, match_landmarks, weighted_matches
-from ..notices import notice
-from .compare import check_results, check_same_dataset
-from .ranks import best_two, query_scores, ranked, true_rank
+from vpr_core import notice
+from vpr_core.evaluation import (
+    best_two,
+    check_results,
+    check_same_dataset,
+    query_scores,
+    ranked,
+    true_rank,
+)
+from vpr_core.matching import Matching, match_landmarks, weighted_matches
 
 __all__ = ["CONTRAST_COLUMN", "PER_QUERY_COLUMNS", "per_query"]
 
@@ -125,7 +131,7 @@ def per_query(results: Any | Sequence[Any], contrast: bool = False) -> pd.DataFr
     """For every query with ground truth and every run: how the run ranked it.
 
     Args:
-        results: one or more :class:`~vpr_core.pipeline.MethodResult` (or peers) of one dataset.
+        results: one or more :class:`~vpr_core.MethodResult` (or peers) of one dataset.
             The match counts need descriptors: run with ``run_method(...,
             keep_descriptors=True)``; without them the column is NaN and a warning says so.
         contrast: (not in the paper) add the column ``contrast zero share``: of the reciprocal

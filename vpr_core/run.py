@@ -8,27 +8,11 @@ import dataclasses
 import functools
 import time
 import warnings
-from collections.abc import Callable
-from typing import Any, ParamSpec
+from collections.abc import Callable, Sequence
+from typing import Any, ParamSpec, Protocol
 
 import numpy as np
 
-from ..checks import check_int
-from ..evaluation import (
-    Evaluation,
-    bootstrap_metrics,
-    evaluate,
-    ground_truth_coverage,
-    saturation_notice,
-)
-from ..evaluation.spec import refuse_tolerance
-from ..features import Encoder, as_encoder
-from ..landmarks.edge_boxes import edge_model_id
-from ..landmarks.schemes import CandidateScheme, LandmarkScheme
-from ..matching import similarity_matrix
-from ..methods import Matching, Method, as_method, method_label
-from ..notices import VPRWarning, notice
-from ..utils import array_sha256, cache_dir, code_version, config_slug, logger
 from .cache import (
     SIDES,
     atomic_savez,
@@ -37,13 +21,70 @@ from .cache import (
     load_npz,
     n_images,
 )
-from .feature_stage import extract_features, get_encoder
-from .landmark_stage import extract_landmarks
+from .checks import check_int
+from .evaluation import (
+    Evaluation,
+    bootstrap_metrics,
+    evaluate,
+    ground_truth_coverage,
+    saturation_notice,
+)
+from .evaluation.spec import refuse_tolerance
+from .features import Encoder, as_encoder
+from .features.stage import extract_features, get_encoder
+from .landmarks.edge_boxes import edge_model_id
+from .landmarks.schemes import CandidateScheme, LandmarkScheme
+from .landmarks.stage import extract_landmarks
+from .matching import similarity_matrix, similarity_pairs
+from .matching.shortlist import (
+    rerank,
+    shortlist_pairs,
+    split_whole_image,
+    with_whole_image_boxes,
+)
+from .methods import Matching, Method, as_method, method_label
+from .notices import VPRWarning, notice
 from .result import MethodResult
+from .utils import array_sha256, cache_dir, code_version, config_slug, logger
 
 P = ParamSpec("P")
 
-__all__ = ["run_method"]
+__all__ = ["Executor", "run_method"]
+
+
+class Executor(Protocol):
+    """Where the two heavy stages run when not in-process (``run_method(..., executor=)``): the
+    Dask executor of :mod:`vpr_study.cluster` is one. Each method returns what its in-process
+    counterpart returns, exactly; the caller owns the value (opens and closes it)."""
+
+    def encode(
+        self, dataset: Any, side: str, encoder_kwargs: dict, indices: list[int], boxes: list
+    ) -> tuple[list, list]:
+        """Descriptors ``[(K_i, D)]`` and seconds of images ``indices`` of ``side``."""
+        ...
+
+    def similarity_matrix(
+        self,
+        query_desc: Sequence,
+        query_boxes: Sequence,
+        reference_desc: Sequence,
+        reference_boxes: Sequence,
+        matching: Matching,
+    ) -> np.ndarray:
+        """``(Nq, Nr)`` Eq. (1), as :func:`~vpr_core.matching.similarity_matrix`."""
+        ...
+
+    def similarity_pairs(
+        self,
+        query_desc: Sequence,
+        query_boxes: Sequence,
+        reference_desc: Sequence,
+        reference_boxes: Sequence,
+        pairs: np.ndarray,
+        matching: Matching,
+    ) -> np.ndarray:
+        """``(P,)`` Eq. (1) of listed pairs, as :func:`~vpr_core.matching.similarity_pairs`."""
+        ...
 
 
 def _exclude_empty(sim: np.ndarray, boxes: dict, dataset) -> np.ndarray:
@@ -96,14 +137,12 @@ def _check_shortlist(shortlist: Any, n_ref: int) -> int | None:
     return shortlist if shortlist < n_ref else None  # k >= Nr is exhaustive
 
 
-def _features(boxes: dict, dataset, encoder, shortlist: int | None, client):
+def _features(boxes: dict, dataset, encoder, shortlist: int | None, executor):
     """Landmark descriptors (and whole-image descriptors when a shortlist needs them)."""
     if shortlist is None:
-        return extract_features(boxes, dataset, encoder, client=client), None
-    from ..engine.shortlist import split_whole_image, with_whole_image_boxes  # opt-in
-
+        return extract_features(boxes, dataset, encoder, executor=executor), None
     feats = extract_features(
-        with_whole_image_boxes(boxes, dataset), dataset, encoder, client=client
+        with_whole_image_boxes(boxes, dataset), dataset, encoder, executor=executor
     )
     return split_whole_image(feats)
 
@@ -114,11 +153,11 @@ def _match(
     matching: Matching | None = None,
     shortlist: int | None = None,
     global_desc: dict[str, np.ndarray] | None = None,
-    client=None,
+    executor: Executor | None = None,
 ) -> tuple[np.ndarray, dict[str, float]]:
     """Eq. (1) similarities: exhaustive in-process (the paper's path: one
-    :func:`~vpr_core.matching.similarity_matrix` call), or on each query's shortlist, or on a
-    Dask client (:mod:`vpr_core.engine`, imported only then).
+    :func:`~vpr_core.matching.similarity_matrix` call), or on each query's shortlist, or on an
+    :class:`Executor`.
 
     Args:
         boxes: ``{"query": [(K_i, 4)], "reference": [...]}`` landmarks.
@@ -129,7 +168,7 @@ def _match(
             the cosine of ``global_desc``.
         global_desc: ``{"query": (Nq, D'), "reference": (Nr, D')}`` whole-image descriptors
             (needed with ``shortlist``).
-        client: a ``dask.distributed.Client`` or None (in-process).
+        executor: an :class:`Executor`, or None (in-process).
 
     Returns:
         ``(similarity (Nq, Nr) float64, info)``: NaN off the shortlist; ``info`` has
@@ -139,14 +178,12 @@ def _match(
     matching = matching or Matching()
     args = (feats["query"], boxes["query"], feats["reference"], boxes["reference"])
     nq, nr = len(feats["query"]), len(feats["reference"])
-    if shortlist is not None or client is not None:
-        from .. import engine  # opt-in scale-out: imported only for a shortlist or a client
     t0 = time.perf_counter()
     if shortlist is None:
-        if client is None:  # the paper's path
+        if executor is None:  # the paper's path
             sim = similarity_matrix(*args, matching=matching)
         else:
-            sim = engine.similarity_blocks_distributed(client, *args, matching)
+            sim = executor.similarity_matrix(*args, matching)
         return sim, {
             "pairs": float(nq * nr),
             "shortlist_s": 0.0,
@@ -155,10 +192,14 @@ def _match(
     if global_desc is None:
         raise ValueError("shortlist=k needs the whole-image descriptors (global_desc)")
 
-    pairs, _ = engine.shortlist_pairs(global_desc["query"], global_desc["reference"], shortlist)
+    pairs, _ = shortlist_pairs(global_desc["query"], global_desc["reference"], shortlist)
     t1 = time.perf_counter()
-    vals = engine.similarity_pairs_distributed(client, *args, pairs, matching)  # None: in-process
-    sim = engine.rerank(vals, pairs, nq, nr)
+    vals = (
+        similarity_pairs(*args, pairs, matching)
+        if executor is None
+        else executor.similarity_pairs(*args, pairs, matching)
+    )
+    sim = rerank(vals, pairs, nq, nr)
     t2 = time.perf_counter()
     logger.info(
         "shortlist k=%d: Eq. (1) on %d of %d pairs (%.1f s ranking, %.1f s matching)",
@@ -217,7 +258,7 @@ def run_method(
     encoder: Encoder | None = None,
     evaluation: Evaluation | None = None,
     shortlist: int | None = None,
-    scheduler: str | None = None,
+    executor: Executor | None = None,
     label: str | None = None,
     keep_descriptors: bool = False,
     **overrides: Any,
@@ -247,9 +288,9 @@ def run_method(
             cosine of whole-image descriptors (same backbone and pooling) are re-ranked by
             Eq. (1); all other pairs are NaN ("not ranked"; the ratio protocol's S2 is the
             second best inside the shortlist). k >= the number of references is exhaustive.
-        scheduler: a Dask scheduler address: features and matching run as tasks on that
-            cluster; None: in-process, always (the environment is not read here: the CLI reads
-            ``$VPR_DASK_SCHEDULER`` through :func:`vpr_core.settings.dask_scheduler`).
+        executor: where extraction and matching run: an :class:`Executor` value (e.g.
+            :class:`vpr_study.cluster.DaskExecutor` on a Dask cluster; the caller opens and
+            closes it), or None: in-process, always. The numbers are the same either way.
         label: display label; default from the config.
         keep_descriptors: also return the descriptors (needed by the scale statistics).
         **overrides: the encoder and evaluation fields above, and the method's own options,
@@ -269,66 +310,57 @@ def run_method(
     images = images_fingerprint(dataset)  # the matrix cache's folder: not the ground truth
     weights_sha256 = str(landmark_encoder.config.get("weights_sha256", ""))
     edge_model = edge_model_id() if isinstance(conf.landmarks, CandidateScheme) else "none"
-    client = None
-    if scheduler is not None:
-        from ..engine import get_client  # opt-in: a Dask cluster
+    boxes = extract_landmarks(conf.landmarks, dataset)
+    feats, glob = _features(boxes, dataset, landmark_encoder, k, executor)
+    # keyed by what goes in: the images (folder), the boxes and descriptors (content), the
+    # Matching value; not the ground truth, so another tolerance reuses the matrix
+    inputs = [
+        a for side in SIDES for pair in zip(boxes[side], feats[side], strict=True) for a in pair
+    ]
+    if glob is not None:
+        inputs += [glob[side] for side in SIDES]
+    key = {
+        "inputs": array_sha256(inputs),
+        "matching": dataclasses.asdict(conf.matching),
+        "shortlist": k,
+        "code": code_version("matching"),
+    }
+    folder = cache_dir("results", f"{dataset.name}-{images}")
+    path = folder / f"{config_slug(conf.name, key)}.npz"
+    identity = f"results {path.parent.name} {path.stem}"
 
-        client = get_client(scheduler)
-    try:
-        boxes = extract_landmarks(conf.landmarks, dataset)
-        feats, glob = _features(boxes, dataset, landmark_encoder, k, client)
-        # keyed by what goes in: the images (folder), the boxes and descriptors (content), the
-        # Matching value; not the ground truth, so another tolerance reuses the matrix
-        inputs = [
-            a for side in SIDES for pair in zip(boxes[side], feats[side], strict=True) for a in pair
-        ]
-        if glob is not None:
-            inputs += [glob[side] for side in SIDES]
-        key = {
-            "inputs": array_sha256(inputs),
-            "matching": dataclasses.asdict(conf.matching),
-            "shortlist": k,
-            "code": code_version("matching"),
-        }
-        folder = cache_dir("results", f"{dataset.name}-{images}")
-        path = folder / f"{config_slug(conf.name, key)}.npz"
-        identity = f"results {path.parent.name} {path.stem}"
-
-        def check(a: dict) -> str | None:
-            shape = a["similarity"].shape
-            return (
-                None
-                if shape == (nq, nr)
-                else f"a similarity matrix of shape {shape}, expected ({nq}, {nr}) for this dataset"
-            )
-
-        cached = load_npz(
-            path, ("similarity", "seconds_per_pair", "pairs"), identity=identity, check=check
+    def check(a: dict) -> str | None:
+        shape = a["similarity"].shape
+        return (
+            None
+            if shape == (nq, nr)
+            else f"a similarity matrix of shape {shape}, expected ({nq}, {nr}) for this dataset"
         )
-        if cached is not None:
-            sim, match_s = cached["similarity"], float(cached["seconds_per_pair"])
-            n_pairs = float(cached["pairs"])
-        else:
-            sim, info = _match(
-                boxes,
-                feats,
-                conf.matching,
-                shortlist=k,
-                global_desc=glob,
-                client=client,
-            )
-            n_pairs = info["pairs"]
-            match_s = (info["matching_s"] + info["shortlist_s"]) / max(n_pairs, 1)
-            atomic_savez(
-                path,
-                identity=identity,
-                similarity=sim,
-                seconds_per_pair=np.array(match_s),
-                pairs=np.array(n_pairs),
-            )
-    finally:
-        if client is not None:
-            client.close()
+
+    cached = load_npz(
+        path, ("similarity", "seconds_per_pair", "pairs"), identity=identity, check=check
+    )
+    if cached is not None:
+        sim, match_s = cached["similarity"], float(cached["seconds_per_pair"])
+        n_pairs = float(cached["pairs"])
+    else:
+        sim, info = _match(
+            boxes,
+            feats,
+            conf.matching,
+            shortlist=k,
+            global_desc=glob,
+            executor=executor,
+        )
+        n_pairs = info["pairs"]
+        match_s = (info["matching_s"] + info["shortlist_s"]) / max(n_pairs, 1)
+        atomic_savez(
+            path,
+            identity=identity,
+            similarity=sim,
+            seconds_per_pair=np.array(match_s),
+            pairs=np.array(n_pairs),
+        )
     sim = _exclude_empty(np.asarray(sim, dtype=np.float64), boxes, dataset)
     sim = dataset.ignore_soft(sim)  # soft positives: neither right nor wrong, in every metric
     _constant_notice(sim)

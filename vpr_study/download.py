@@ -18,9 +18,7 @@ from pathlib import Path
 
 from tqdm.auto import tqdm
 
-from .. import settings
-from ..checks import check_range
-from ..utils import file_sha256
+from vpr_core import checks, settings, utils
 
 __all__ = ["DOWNLOADS", "DOWNLOAD_DEADLINE_S", "MAX_EXTRACT_BYTES", "download_dataset"]
 
@@ -126,7 +124,7 @@ def download_dataset(
             "docstring."
         )
     url = url or str(entry["url"])  # type: ignore[index]
-    deadline_s = check_range(deadline_s, "deadline_s (seconds)", 0, math.inf, True, True)
+    deadline_s = checks.check_range(deadline_s, "deadline_s (seconds)", 0, math.inf, True, True)
     expected = sha256 or (entry or {}).get("sha256") or None
     expected = expected.lower().strip() if expected else None
     root = Path(root).expanduser()
@@ -166,7 +164,7 @@ def download_dataset(
             got,
         )
     if (target.exists() or target.is_symlink()) and not (
-        _owns(record, root, fname) or (target.is_file() and file_sha256(target) == got)
+        _owns(record, root, fname) or (target.is_file() and utils.file_sha256(target) == got)
     ):
         part.unlink(missing_ok=True)  # the same bytes may replace it; other bytes may not
         raise _in_the_way(target, url, "a file of the URL's file name with other content")

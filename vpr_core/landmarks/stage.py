@@ -9,13 +9,12 @@ from typing import Any
 
 import numpy as np
 
-from .. import landmarks as lm
+from ..cache import SIDES, atomic_savez, load_npz, n_images
 from ..checks import check_boxes
-from ..landmarks.edge_boxes import edge_model_id
-from ..landmarks.schemes import CandidateScheme, SizeScheme, scheme_identity
 from ..paper import N_CANDIDATES
 from ..utils import cache_dir, code_version, config_slug, logger, progress
-from .cache import SIDES, atomic_savez, load_npz, n_images
+from .edge_boxes import edge_boxes, edge_model_id
+from .schemes import CandidateScheme, SizeScheme, scheme_identity
 
 __all__ = ["edge_box_candidates", "extract_landmarks", "landmarks_for_image"]
 
@@ -75,7 +74,7 @@ def edge_box_candidates(
     }
 
     def compute(image: np.ndarray) -> np.ndarray:
-        res = lm.edge_boxes(image, max_boxes=n_candidates)
+        res = edge_boxes(image, max_boxes=n_candidates)
         return np.asarray(res.boxes, dtype=np.float64).reshape(-1, 4)
 
     return _cached_boxes("edge_boxes", params, dataset, side, i, compute, overwrite)

@@ -3,27 +3,19 @@
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from ..baselines import peer_similarity_for
-from ..datasets.ground_truth import ground_truth_text
-from ..evaluation import (
-    Evaluation,
-    bootstrap_metrics,
-    evaluate,
+from .datasets.ground_truth import ground_truth_text
+from .evaluation import (
     format_interval,
-    ground_truth_coverage,
     pr_curve,
 )
-from ..evaluation.spec import refuse_tolerance
-from ..methods import Method, run_key
-from .cache import dataset_fingerprint
+from .methods import Method, run_key
 
-__all__ = ["INTERVAL_COLUMNS", "MethodResult", "peer_result"]
+__all__ = ["INTERVAL_COLUMNS", "MethodResult"]
 
 
 #: Interval columns of :meth:`MethodResult.row` (95% bootstrap over queries).
@@ -72,7 +64,7 @@ class MethodResult:
         warnings: the warnings that change what the numbers mean (also raised with
             ``warnings.warn`` when they happened).
         dataset_fingerprint: hash of the dataset's image contents and ground truth
-            (:func:`~vpr_core.pipeline.cache.dataset_fingerprint`).
+            (:func:`~vpr_core.cache.dataset_fingerprint`).
         weights_sha256: sha256 of the backbone weights' contents ("" when it has none).
         edge_model: the edge map of Edge Box schemes (``"gradient"`` or ``"sha256:..."``,
             :func:`~vpr_core.landmarks.edge_boxes.edge_model_id`), ``"none"`` for other schemes.
@@ -149,64 +141,3 @@ class MethodResult:
         """PR curve of this result under its own protocol (another: :func:`pr_curve` of its
         ``similarity`` and ``ground_truth``)."""
         return pr_curve(self.similarity, self.ground_truth, self.protocol, warn=False)
-
-
-def peer_result(
-    peer, dataset, evaluation: Evaluation | None = None, label: str | None = None, **overrides: Any
-) -> MethodResult:
-    """A VPR-Bench peer (:class:`~vpr_core.baselines.PeerResult`) as a result beside ours.
-
-    Its similarity matrix is checked against ``dataset`` (shape, query order) and evaluated with
-    the same metrics and intervals. Costs: ``features s/img`` is VPR-Bench's stored encode time
-    and ``matching s/pair`` its stored match time, as VPR-Bench recorded them on its machine
-    (not comparable with ours to more than an order of magnitude); landmark columns are NaN.
-
-    Args:
-        peer: a loaded peer (:func:`~vpr_core.baselines.load_vprbench_precomputed`).
-        dataset: the :class:`~vpr_core.datasets.PlaceDataset` it was computed on.
-        evaluation: protocol and bootstrap resamples (as
-            :func:`~vpr_core.pipeline.run_method`; its fields given as keywords change it). The
-            ground truth is ``dataset``'s as loaded (``tolerance=`` here is refused, naming the
-            fix).
-        label: its name in tables and legends (default ``"<name> (VPR-Bench)"``).
-    """
-    refuse_tolerance(overrides, "peer_result")
-    evaluation = dataclasses.replace(evaluation or Evaluation(), **overrides)
-    protocol = evaluation.protocol
-    gt = np.asarray(dataset.ground_truth, dtype=bool)
-
-    sim = dataset.ignore_soft(peer_similarity_for(dataset, peer))  # soft: neither right nor wrong
-    nq, nr = gt.shape
-    timings = {
-        "landmarks_s_per_image": float("nan"),
-        "landmarks_per_image": float("nan"),
-        "features_s_per_image": float(peer.encode_seconds),
-        "matching_s_per_pair": float(peer.match_seconds),
-        "pairs": float(nq * nr),
-    }
-    source = None if peer.source is None else str(peer.source)
-    return MethodResult(
-        method=f"peer:{peer.name}",
-        label=label or f"{peer.name} (VPR-Bench)",
-        dataset=dataset.name,
-        config={"name": f"peer:{peer.name}", "source": source},
-        encoder={},
-        similarity=sim,
-        ground_truth=gt,
-        soft_only=dataset.soft_only,
-        boxes={"query": [], "reference": []},
-        metrics=evaluate(sim, gt, evaluation),
-        timings=timings,
-        intervals=(
-            bootstrap_metrics(sim, gt, n=evaluation.n_bootstrap, protocol=protocol)
-            if evaluation.n_bootstrap
-            else {}
-        ),
-        queries_with_gt=ground_truth_coverage(gt),
-        tolerance=dataset.tolerance,
-        root=None if dataset.root is None else str(dataset.root),
-        ground_truth_from_file=bool(dataset.meta.get("ground_truth_file")),
-        dataset_title=dataset.title,
-        protocol=protocol,
-        dataset_fingerprint=dataset_fingerprint(dataset),
-    )

@@ -11,10 +11,10 @@ import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from ..checks import check_boxes
-from ..datasets.ground_truth import ground_truth_text
-from ..landmarks import dense_sampling, landmark_coverage
-from ..paper import DENSE_PER_SCALE, DENSE_SCALES
+from vpr_core import checks, paper
+from vpr_core.datasets import ground_truth_text
+from vpr_core.landmarks import dense_sampling, landmark_coverage
+
 from .base import draw_boxes
 from .curves import dataset_line
 
@@ -150,7 +150,7 @@ def plot_landmarks(
 
     Returns the figure (a new one when ``ax`` is None).
     """
-    boxes = check_boxes(boxes)
+    boxes = checks.check_boxes(boxes)
     img, size = _landmark_canvas(image)
     if ax is None:
         fig, ax = plt.subplots(figsize=(6.4, 6.4 * size[0] / size[1] + 0.4))
@@ -162,7 +162,9 @@ def plot_landmarks(
     return fig
 
 
-def plot_dense_scales(image_or_size, scales=DENSE_SCALES, per_scale=DENSE_PER_SCALE) -> Figure:
+def plot_dense_scales(
+    image_or_size, scales=paper.DENSE_SCALES, per_scale=paper.DENSE_PER_SCALE
+) -> Figure:
     """Fig. 9: one panel per dense-sampling scale level with that level's boxes.
 
     Args:

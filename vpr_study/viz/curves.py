@@ -11,12 +11,17 @@ import numpy as np
 from matplotlib.colors import to_hex
 from matplotlib.lines import Line2D
 
-from ..checks import check_choice
-from ..datasets.ground_truth import ground_truth_text
-from ..evaluation import auc_pr, chance, ground_truth_coverage
-from ..evaluation.chance import chance_precision
-from ..evaluation.compare import check_results, identical_to
-from ..paper import SCALE_LABELS
+from vpr_core import checks, paper
+from vpr_core.datasets import ground_truth_text
+from vpr_core.evaluation import (
+    auc_pr,
+    chance,
+    chance_precision,
+    check_results,
+    ground_truth_coverage,
+    identical_to,
+)
+
 from ._shared import wrapped
 from .base import METHOD_COLORS, SAVE_DPI
 
@@ -56,7 +61,7 @@ def plot_scale_distribution(
             h = h / h.sum()
         ax.bar(x + (k - (len(labels) - 1) / 2) * width, h, width=width, label=str(label))
     ax.set_xticks(x)
-    ax.set_xticklabels([s.replace("Scale ", "S") for s in SCALE_LABELS])
+    ax.set_xticklabels([s.replace("Scale ", "S") for s in paper.SCALE_LABELS])
     ax.set_xlabel("landmark scale (Table 1)")
     ax.set_ylabel("share of landmarks" if normalize else "number of landmarks")
     if title:  # left-aligned like the PR figures, a line longer than the figure wrapped
@@ -170,7 +175,7 @@ def plot_pr_curves(
     <earlier label>``.
 
     Args:
-        results: :class:`~vpr_core.pipeline.MethodResult` objects (``.label``, ``.curve()``,
+        results: :class:`~vpr_core.MethodResult` objects (``.label``, ``.curve()``,
             ``.intervals``, ``.similarity``, ``.ground_truth``, ``.dataset``, ``.tolerance``).
         title: the figure's title; the dataset line (:func:`dataset_line`) goes below it
             (lines longer than the figure wrapped).
@@ -314,7 +319,7 @@ def plot_metric_bars(
     Returns:
         The figure.
     """
-    check_choice(metric, "metric", table.columns)
+    checks.check_choice(metric, "metric", table.columns)
     if ax is None:
         fig, ax = plt.subplots(figsize=(max(3.0, 0.8 * len(table) + 1.5), 3.2))
     else:

@@ -7,7 +7,8 @@ import numpy as np
 
 from ..checks import check_finite, check_int
 from ..datasets.base import SIDES
-from ..matching import check_pairs, check_same_dim, rescale_rows
+from ._sides import check_same_dim, rescale_rows
+from .similarity import check_pairs
 
 __all__ = [
     "CHUNK_QUERIES",

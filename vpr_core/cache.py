@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from ..datasets.base import SIDES
-from ..utils import logger, short_hash
+from .datasets.base import SIDES
+from .utils import logger, short_hash
 
 __all__ = [
     "CHECKSUMS",

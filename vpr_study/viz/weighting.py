@@ -11,9 +11,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from ..checks import check_descriptors_kept, check_int
-from ..datasets.ground_truth import ground_truth_references
-from ..evaluation import per_query
+from vpr_core import checks
+from vpr_core.datasets import ground_truth_references
+from vpr_study.insight import per_query
+
 from ._shared import FIG_WIDTH, FONT, check_runs_on, run_matches, weighting_of, wrapped
 from .curves import dataset_line
 
@@ -89,9 +90,9 @@ def plot_weighted_matches(
         ValueError: ``n < 1``, no weighting on ``weighted``, runs without descriptors or runs
             of another dataset.
     """
-    n = check_int(n, "n (queries shown)", 1)
+    n = checks.check_int(n, "n (queries shown)", 1)
     weighting = weighting_of(weighted)
-    check_descriptors_kept(weighted, "plot_weighted_matches")
+    checks.check_descriptors_kept(weighted, "plot_weighted_matches")
     check_runs_on(ds, (plain, weighted), "plot_weighted_matches")
     table = per_query([plain, weighted])
     ok = table.pivot(index="query", columns="run", values="top-1 correct")

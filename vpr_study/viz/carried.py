@@ -12,10 +12,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from ..checks import check_descriptors_kept, check_int
-from ..evaluation.ranks import best_two as _best_two
-from ..evaluation.ranks import ranked as _ranked
-from ..matching.pairwise import cosine_similarity
+from vpr_core import checks
+from vpr_core.evaluation import best_two as _best_two
+from vpr_core.evaluation import ranked as _ranked
+from vpr_core.matching import cosine_similarity
+
 from ._shared import FIG_WIDTH, FONT, check_runs_on, run_matches, weighting_of, wrapped
 from .curves import dataset_line
 
@@ -146,7 +147,7 @@ def _check_carried_runs(ds: Any, plain: Any, weighted: Any) -> str:
             f"`plain` must be the paper's Eq. (1) (no weighting), got "
             f"{getattr(plain, 'label', plain)!r}: run the same method without weighting"
         )
-    check_descriptors_kept(weighted, "plot_carried_landmarks")
+    checks.check_descriptors_kept(weighted, "plot_carried_landmarks")
     check_runs_on(ds, (plain, weighted), "plot_carried_landmarks")
     m_w = dataclasses.replace(weighted.config.matching, weighting=None)
     if plain.method != weighted.method or m_w != m_p:
@@ -225,7 +226,7 @@ def plot_carried_landmarks(
             weighting, ``weighted`` without descriptors, runs of another dataset or that differ
             in more than the weighting.
     """
-    n_queries, k = check_int(n_queries, "n_queries", 1), check_int(k, "k", 1)
+    n_queries, k = checks.check_int(n_queries, "n_queries", 1), checks.check_int(k, "k", 1)
     weighting = _check_carried_runs(ds, plain, weighted)
     gt = np.asarray(ds.ground_truth, dtype=bool)
     chosen = _changed_queries(plain, weighted, gt, n_queries)

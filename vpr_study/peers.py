@@ -4,6 +4,7 @@ read with ``allow_pickle=False``), checked against a dataset by :func:`peer_simi
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
 from dataclasses import dataclass, field
@@ -12,9 +13,15 @@ from typing import Any
 
 import numpy as np
 
-from .checks import check_choice
-from .datasets.safe_pickle import read_npy
-from .settings import BENCH_ROOT_ENV, bench_root
+from vpr_core import MethodResult, checks, dataset_fingerprint, settings
+from vpr_core.datasets import read_npy
+from vpr_core.evaluation import (
+    Evaluation,
+    bootstrap_metrics,
+    evaluate,
+    ground_truth_coverage,
+    refuse_tolerance,
+)
 
 log = logging.getLogger("vpr_core")
 
@@ -25,6 +32,7 @@ __all__ = [
     "load_vprbench_precomputed",
     "peer_from_descriptors",
     "peer_from_matrix",
+    "peer_result",
     "peer_similarity_for",
 ]
 
@@ -261,7 +269,7 @@ def peer_from_descriptors(
     ``metric``: ``"cosine"`` or ``"l2"`` (similarity ``1 / d`` as :func:`peer_from_matrix`).
     """
     _check_name(name)
-    metric = check_choice(str(metric).lower(), "metric", ("cosine", "l2"))
+    metric = checks.check_choice(str(metric).lower(), "metric", ("cosine", "l2"))
     q, q_src = _user_array(query_path_or_array, name, "query descriptors", 2)
     r, _ = _user_array(database_path_or_array, name, "database descriptors", 2)
     if q.shape[1] != r.shape[1]:
@@ -290,11 +298,11 @@ def peer_from_descriptors(
 
 def _precomputed_dir(root: str | os.PathLike | None) -> Path:
     if root is None:
-        root = bench_root()
+        root = settings.bench_root()
         if not root:
             raise ValueError(
                 f"no VPR-Bench folder given: pass root=<VPR-Bench checkout> or set "
-                f"{BENCH_ROOT_ENV}."
+                f"{settings.BENCH_ROOT_ENV}."
             )
     root = Path(root).expanduser()
     for cand in (root / "precomputed_matches", root):
@@ -349,3 +357,64 @@ def peer_similarity_for(dataset: Any, peer: PeerResult) -> np.ndarray:
             "each once, so its rows cannot be matched to the dataset's queries."
         )
     return peer.similarity[order].copy()
+
+
+def peer_result(
+    peer, dataset, evaluation: Evaluation | None = None, label: str | None = None, **overrides: Any
+) -> MethodResult:
+    """A VPR-Bench peer (:class:`~vpr_study.peers.PeerResult`) as a result beside ours.
+
+    Its similarity matrix is checked against ``dataset`` (shape, query order) and evaluated with
+    the same metrics and intervals. Costs: ``features s/img`` is VPR-Bench's stored encode time
+    and ``matching s/pair`` its stored match time, as VPR-Bench recorded them on its machine
+    (not comparable with ours to more than an order of magnitude); landmark columns are NaN.
+
+    Args:
+        peer: a loaded peer (:func:`~vpr_study.peers.load_vprbench_precomputed`).
+        dataset: the :class:`~vpr_core.datasets.PlaceDataset` it was computed on.
+        evaluation: protocol and bootstrap resamples (as
+            :func:`~vpr_core.run_method`; its fields given as keywords change it). The
+            ground truth is ``dataset``'s as loaded (``tolerance=`` here is refused, naming the
+            fix).
+        label: its name in tables and legends (default ``"<name> (VPR-Bench)"``).
+    """
+    refuse_tolerance(overrides, "peer_result")
+    evaluation = dataclasses.replace(evaluation or Evaluation(), **overrides)
+    protocol = evaluation.protocol
+    gt = np.asarray(dataset.ground_truth, dtype=bool)
+
+    sim = dataset.ignore_soft(peer_similarity_for(dataset, peer))  # soft: neither right nor wrong
+    nq, nr = gt.shape
+    timings = {
+        "landmarks_s_per_image": float("nan"),
+        "landmarks_per_image": float("nan"),
+        "features_s_per_image": float(peer.encode_seconds),
+        "matching_s_per_pair": float(peer.match_seconds),
+        "pairs": float(nq * nr),
+    }
+    source = None if peer.source is None else str(peer.source)
+    return MethodResult(
+        method=f"peer:{peer.name}",
+        label=label or f"{peer.name} (VPR-Bench)",
+        dataset=dataset.name,
+        config={"name": f"peer:{peer.name}", "source": source},
+        encoder={},
+        similarity=sim,
+        ground_truth=gt,
+        soft_only=dataset.soft_only,
+        boxes={"query": [], "reference": []},
+        metrics=evaluate(sim, gt, evaluation),
+        timings=timings,
+        intervals=(
+            bootstrap_metrics(sim, gt, n=evaluation.n_bootstrap, protocol=protocol)
+            if evaluation.n_bootstrap
+            else {}
+        ),
+        queries_with_gt=ground_truth_coverage(gt),
+        tolerance=dataset.tolerance,
+        root=None if dataset.root is None else str(dataset.root),
+        ground_truth_from_file=bool(dataset.meta.get("ground_truth_file")),
+        dataset_title=dataset.title,
+        protocol=protocol,
+        dataset_fingerprint=dataset_fingerprint(dataset),
+    )

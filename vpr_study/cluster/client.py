@@ -10,11 +10,9 @@ import struct
 import time
 from concurrent.futures import CancelledError
 
-from .. import settings
-from ..settings import SCHEDULER_ENV
-from ..utils import logger, progress
+from vpr_core import settings, utils
 
-__all__ = ["POLL_S", "SCHEDULER_ENV", "gather_in_order", "get_client", "scheduler_address"]
+__all__ = ["POLL_S", "gather_in_order", "get_client", "scheduler_address"]
 
 _ADDRESS = re.compile(r"(tcp|tls|inproc|ucx)://(\[[^\]]+\]|[^:/\[\]]+):(\d{1,5})")
 #: A Dask handshake message is a few hundred bytes; anything near this is not Dask speaking.
@@ -34,7 +32,7 @@ def scheduler_address(scheduler: str | None = None) -> str | None:
         raise ValueError(
             f"Dask scheduler address must be a non-empty string such as "
             f"'tcp://127.0.0.1:8786', got {addr!r} (check --scheduler / "
-            f"${SCHEDULER_ENV}; unset it to run in-process)"
+            f"${settings.SCHEDULER_ENV}; unset it to run in-process)"
         )
     addr = addr.strip()
     if "://" not in addr and re.fullmatch(r"[^:/]+:\d{1,5}", addr):
@@ -44,12 +42,12 @@ def scheduler_address(scheduler: str | None = None) -> str | None:
         raise ValueError(
             f"{addr!r} is not a Dask scheduler address; write it as "
             f"tcp://HOST:PORT (e.g. tcp://127.0.0.1:8786) in --scheduler / "
-            f"${SCHEDULER_ENV}, or unset it to run in-process"
+            f"${settings.SCHEDULER_ENV}, or unset it to run in-process"
         )
     if not 1 <= int(m.group(3)) <= 65535:
         raise ValueError(
             f"{addr!r} has a bad port: port {int(m.group(3))} is not in 1 to 65535; give the "
-            f"scheduler's port (8786 by default) in --scheduler / ${SCHEDULER_ENV}"
+            f"scheduler's port (8786 by default) in --scheduler / ${settings.SCHEDULER_ENV}"
         )
     return addr
 
@@ -71,7 +69,7 @@ def _probe_scheduler(addr: str, timeout: float) -> None:
     host, port = m.group(2).strip("[]"), int(m.group(3))
     fix = (
         f"start a scheduler there (`dask scheduler`, see docs/DISTRIBUTED.md), or unset "
-        f"--scheduler / ${SCHEDULER_ENV} to run in-process"
+        f"--scheduler / ${settings.SCHEDULER_ENV} to run in-process"
     )
     head = b""
     try:
@@ -138,7 +136,8 @@ def get_client(scheduler: str | None = None, timeout: float | None = None):
         raise ConnectionError(
             f"could not reach the Dask scheduler at {addr!r} within {timeout:g} s ({e}). Start "
             f"one (`dask scheduler`, then `dask worker {addr}` on each machine; see "
-            f"docs/DISTRIBUTED.md), or unset --scheduler / ${SCHEDULER_ENV} to run in-process."
+            f"docs/DISTRIBUTED.md), or unset --scheduler / ${settings.SCHEDULER_ENV} to run "
+            "in-process."
         ) from e
     try:
         client.wait_for_workers(1, timeout=timeout)
@@ -147,9 +146,10 @@ def get_client(scheduler: str | None = None, timeout: float | None = None):
         raise ConnectionError(
             f"the Dask scheduler at {addr} has no workers (none joined within {timeout:g} s): "
             f"start `dask worker {addr}` on each machine and check that they can reach the "
-            f"scheduler (their logs), or unset --scheduler / ${SCHEDULER_ENV} to run in-process."
+            f"scheduler (their logs), or unset --scheduler / ${settings.SCHEDULER_ENV} to run "
+            "in-process."
         ) from None
-    logger.info(
+    utils.logger.info(
         "Dask: connected to %s (%d workers)", addr, len(client.scheduler_info().get("workers", {}))
     )
     return client
@@ -164,7 +164,7 @@ def _cluster_lost(client, desc: str, why: object) -> ConnectionError:
         f"check that its `dask worker` processes run and reach the scheduler (a worker killed "
         f"again and again is often out of memory: see its log and --memory-limit), restart "
         f"the scheduler and its workers and rerun to resume, or unset --scheduler / "
-        f"${SCHEDULER_ENV} to run in-process"
+        f"${settings.SCHEDULER_ENV} to run in-process"
     )
 
 
@@ -173,7 +173,7 @@ POLL_S = 5.0
 
 
 def gather_in_order(client, futures: list, desc: str) -> list:
-    """Results of ``futures`` in list order (a progress bar counts completions).
+    """Results of ``futures`` in list order (a utils.progress bar counts completions).
 
     A task's own exception is re-raised as it is. A cluster fault (the scheduler killed, every
     worker lost for longer than :func:`vpr_core.settings.scheduler_timeout`, tasks cancelled)
@@ -185,9 +185,9 @@ def gather_in_order(client, futures: list, desc: str) -> list:
 
     faults = (CancelledError, CommClosedError, StreamClosedError, KilledWorker)
     patience = settings.scheduler_timeout()
-    bar = progress(None, total=len(futures), desc=desc, unit="task")
+    bar = utils.progress(None, total=len(futures), desc=desc, unit="task")
     pending = list(futures)
-    seen = asked = time.monotonic()  # when workers (or progress) were last seen / asked for
+    seen = asked = time.monotonic()  # when workers (or utils.progress) were last seen / asked for
     try:
         while pending:
             still = []

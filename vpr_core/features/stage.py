@@ -13,11 +13,11 @@ import torch
 from torch import nn
 
 from ..backbones import weights_sha256
-from ..features import Encoder, LandmarkEncoder, as_encoder
+from ..cache import SIDES, atomic_savez, load_npz, n_images
 from ..utils import cache_dir, code_version, config_slug, progress
-from .cache import SIDES, atomic_savez, load_npz, n_images
+from .encoder import Encoder, LandmarkEncoder, as_encoder
 
-__all__ = ["extract_features", "get_encoder"]
+__all__ = ["encoder_slug", "extract_features", "get_encoder"]
 
 
 def get_encoder(
@@ -41,7 +41,7 @@ def _cached_encoder(spec: Encoder, sha256: str) -> LandmarkEncoder:
 get_encoder.cache_clear = _cached_encoder.cache_clear  # type: ignore[attr-defined]
 
 
-def _encoder_slug(encoder: LandmarkEncoder) -> str:
+def encoder_slug(encoder: LandmarkEncoder) -> str:
     """Cache folder of an encoder: its config (weights by ``weights_sha256``, never by path)."""
     cfg = dict(encoder.config)
     cfg.pop("device", None)  # the device does not change the cached descriptors' meaning
@@ -62,7 +62,7 @@ def _box_keys(boxes: np.ndarray) -> list[bytes]:
 
 
 def _store_path(encoder, dataset, side: str, i: int):
-    return cache_dir("features", _encoder_slug(encoder)) / f"{dataset.image_key(side, i)}.npz"
+    return cache_dir("features", encoder_slug(encoder)) / f"{dataset.image_key(side, i)}.npz"
 
 
 def _store_identity(path) -> str:
@@ -220,12 +220,9 @@ def _extract_side_crop_batched(boxes: list, dataset, side: str, encoder) -> tupl
     return [r[0] for r in results], [r[1] for r in results]
 
 
-def _extract_side_distributed(client, boxes: list, dataset, side: str, encoder) -> tuple:
-    """One side's descriptors: the client reads/writes the stores, workers compute what is
-    missing (:func:`vpr_core.engine.extract_features_distributed`; the engine is imported only
-    here, with a client)."""
-    from ..engine import extract_features_distributed
-
+def _extract_side_executor(executor, boxes: list, dataset, side: str, encoder) -> tuple:
+    """One side's descriptors: this process reads/writes the stores, the executor computes
+    what is missing (``executor.encode``; :class:`vpr_core.run.Executor`)."""
     n = n_images(dataset, side)
     all_boxes = [np.asarray(boxes[i], dtype=np.float64).reshape(-1, 4) for i in range(n)]
     paths_ = [_store_path(encoder, dataset, side, i) for i in range(n)]
@@ -234,33 +231,31 @@ def _extract_side_distributed(client, boxes: list, dataset, side: str, encoder) 
     todo = [i for i in range(n) if len(missing[i])]
     if todo:
         new = [missing[i] for i in todo]
-        descs, secs = extract_features_distributed(
-            client, dataset, side, dict(encoder.kwargs), indices=todo, boxes=new
-        )
+        descs, secs = executor.encode(dataset, side, dict(encoder.kwargs), todo, new)
         for i, nb, d, s in zip(todo, new, descs, secs, strict=False):
             stores[i] = _add_to_store(paths_[i], stores[i], nb, d, s)
     out = [_rows(stores[i], all_boxes[i]) for i in range(n)]
     return [d for d, _ in out], [s for _, s in out]
 
 
-def extract_features(boxes: dict[str, Any], dataset, encoder, client=None) -> dict[str, Any]:
+def extract_features(boxes: dict[str, Any], dataset, encoder, executor=None) -> dict[str, Any]:
     """Descriptors for every image's landmarks (cached per image and encoder config).
 
     Args:
-        boxes: output of :func:`~vpr_core.pipeline.extract_landmarks`.
+        boxes: output of :func:`~vpr_core.landmarks.stage.extract_landmarks`.
         dataset: a :class:`~vpr_core.datasets.PlaceDataset`.
         encoder: a :class:`~vpr_core.features.LandmarkEncoder` from :func:`get_encoder`.
-        client: a ``dask.distributed.Client``: images whose descriptors are not cached are
-            encoded on the cluster in shards (workers return arrays; only this process touches
-            the cache). None: in-process.
+        executor: a :class:`vpr_core.run.Executor`: images whose descriptors are not cached
+            are encoded by it (it returns arrays; only this process touches the cache). None:
+            in-process.
 
     Returns:
         ``{"query": [(K_i, D) float32 ...], "reference": [...], "seconds": {side: [...]}}``.
     """
     out: dict[str, Any] = {"seconds": {}}
     for side in SIDES:
-        if client is not None:
-            descs, secs = _extract_side_distributed(client, boxes[side], dataset, side, encoder)
+        if executor is not None:
+            descs, secs = _extract_side_executor(executor, boxes[side], dataset, side, encoder)
         elif encoder.pooling == "crop":
             descs, secs = _extract_side_crop_batched(boxes[side], dataset, side, encoder)
         else:

@@ -11,11 +11,12 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from ..checks import check_descriptors_kept, check_int
-from ..datasets.ground_truth import ground_truth_references
-from ..evaluation import per_query
-from ..labels import pair_matches
-from ..matching import match_landmarks
+from vpr_core import checks
+from vpr_core.datasets import ground_truth_references
+from vpr_core.labels import pair_matches
+from vpr_core.matching import match_landmarks
+from vpr_study.insight import per_query
+
 from ._shared import FIG_WIDTH, FONT, check_runs_on, wrapped
 from .curves import dataset_line
 from .matches import GAP, plot_labelled_matches
@@ -118,7 +119,7 @@ def plot_disagreements(
 
     Args:
         ds: the runs' :class:`~vpr_core.datasets.PlaceDataset`.
-        run_a, run_b: :class:`~vpr_core.pipeline.MethodResult` of ``ds`` run with
+        run_a, run_b: :class:`~vpr_core.MethodResult` of ``ds`` run with
             ``keep_descriptors=True`` (the matches are recomputed from the descriptors).
         n: queries shown (rows): where the runs disagree, ``run_a``'s wins and losses both
             when both exist (half each, the rest from the other kind; each in query order),
@@ -133,9 +134,9 @@ def plot_disagreements(
     Raises:
         ValueError: ``n < 1``, runs without descriptors, or runs of another dataset.
     """
-    n = check_int(n, "n (queries shown)", 1)
+    n = checks.check_int(n, "n (queries shown)", 1)
     for run in (run_a, run_b):
-        check_descriptors_kept(run, "plot_disagreements")
+        checks.check_descriptors_kept(run, "plot_disagreements")
     check_runs_on(ds, (run_a, run_b), "plot_disagreements")
     full = per_query([run_a, run_b])
     shown, kind, wins, losses = _pick(full, run_a.label, run_b.label, n)

@@ -1,4 +1,4 @@
-"""Feature extraction (image shards) and matching (query blocks) on an existing Dask cluster.
+"""Feature extraction in image shards on an existing Dask cluster.
 Workers need the client's vpr_core and torch, and the images and weights at the same paths; they
 return arrays (the client alone touches the cache) equal to the in-process ones bit for bit."""
 
@@ -14,25 +14,14 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..backbones import weights_sha256
-from ..backbones.checkpoint import state_dict_sha256
-from ..backbones.module import architecture_sha256
-from ..checks import check_choice, check_int
-from ..datasets.base import SIDES
-from ..features import LandmarkEncoder
-from ..features.encoder import as_encoder
-from ..utils import progress
-from .blocks import similarity_blocks_distributed, similarity_pairs_distributed
-from .client import SCHEDULER_ENV, gather_in_order, get_client, scheduler_address
+from vpr_core import checks, utils
+from vpr_core.backbones import architecture_sha256, state_dict_sha256, weights_sha256
+from vpr_core.datasets import SIDES
+from vpr_core.features import LandmarkEncoder, as_encoder
 
-__all__ = [
-    "SCHEDULER_ENV",
-    "extract_features_distributed",
-    "get_client",
-    "scheduler_address",
-    "similarity_blocks_distributed",
-    "similarity_pairs_distributed",
-]
+from .client import gather_in_order
+
+__all__ = ["extract_features_distributed"]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -149,9 +138,9 @@ def extract_features_distributed(
         ValueError: bad side/kind/shard size, boxes missing or of the wrong length.
         RuntimeError: a worker's encoder config differs from the client's (package versions).
     """
-    check_choice(side, "side", SIDES)
-    check_choice(kind, "kind", ("landmarks", "global"))
-    shard_size = check_int(shard_size, "shard_size", 1)
+    checks.check_choice(side, "side", SIDES)
+    checks.check_choice(kind, "kind", ("landmarks", "global"))
+    shard_size = checks.check_int(shard_size, "shard_size", 1)
     n_side = len(dataset.paths(side))
     idx = list(range(n_side)) if indices is None else [int(i) for i in indices]
     if kind == "landmarks":
@@ -168,7 +157,7 @@ def extract_features_distributed(
     if client is None:
         results = [
             _encode_shard(dataset, side, i, b, key, kind, None, module)
-            for i, b in progress(args, desc=f"features {side}")
+            for i, b in utils.progress(args, desc=f"features {side}")
         ]
     else:
         nthreads = torch.get_num_threads()
