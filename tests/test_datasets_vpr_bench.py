@@ -9,7 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
-from vpr_core.datasets import load_dataset, read_vprbench_ground_truth
+from vpr_core.datasets import load_dataset
+from vpr_core.datasets.vpr_bench import read_vprbench_ground_truth
 
 
 def _images(folder: Path, names) -> None:

@@ -14,8 +14,8 @@ import torch
 from vpr_core.features import LandmarkEncoder
 from vpr_core.landmarks import dense_sampling
 from vpr_core.matching import Compute, Matching, similarity_matrix, similarity_pairs
-from vpr_core.matching.weighting import weighting_sample
 from vpr_core.matching.shortlist import rerank, shortlist_pairs
+from vpr_core.matching.weighting import weighting_sample
 from vpr_core.settings import SCHEDULER_ENV
 from vpr_study.cluster import (
     extract_features_distributed,

@@ -10,20 +10,19 @@ from vpr_core.evaluation import (
     Evaluation,
     PRCurve,
     auc_pr,
-    bootstrap_columns,
     bootstrap_metrics,
     chance,
     evaluate,
     format_interval,
     ground_truth_coverage,
-    metrics_table,
     paired_bootstrap,
     pr_curve,
     recall_at_100_precision,
     recall_at_k,
     recall_rate_at_n,
 )
-from vpr_core.evaluation.bootstrap import _per_query, _prepare, _resample_metrics
+from vpr_core.evaluation.bootstrap import _per_query, _prepare, _resample_metrics, bootstrap_columns
+from vpr_core.evaluation.curves import metrics_table
 
 # 5 queries x 3 references.
 S = np.array(

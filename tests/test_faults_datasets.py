@@ -13,14 +13,9 @@ import numpy as np
 import pytest
 import skimage.data
 
-from vpr_core.datasets import (
-    MIN_IMAGE_SIDE,
-    check_coverage,
-    check_ground_truth,
-    ground_truth_coverage,
-    load_dataset,
-    read_image,
-)
+from vpr_core.datasets import load_dataset, read_image
+from vpr_core.datasets.ground_truth import check_coverage, check_ground_truth, ground_truth_coverage
+from vpr_core.datasets.images import MIN_IMAGE_SIDE
 
 GP_MINI = Path(__file__).resolve().parents[2] / "shared" / "data" / "gardens_point_mini"
 

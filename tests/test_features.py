@@ -25,7 +25,8 @@ from vpr_core.backbones.efficientnet_lite import (
     _shipped_weights_path,
     load_state_dict,
 )
-from vpr_core.features import Encoder, LandmarkEncoder, available_backbones, random_projection
+from vpr_core.features import Encoder, LandmarkEncoder, available_backbones
+from vpr_core.features.projection import random_projection
 
 torch.set_num_threads(min(2, torch.get_num_threads()))
 

@@ -13,18 +13,16 @@ from vpr_core.labels import (
     LABEL_METHODS,
     LabelRule,
     LabelUnavailableError,
-    PairGeometry,
-    Verification,
     append_labels,
     estimate_pair_geometry,
     label_matches,
     label_matches_geometric,
-    map_boxes,
     pair_matches,
-    read_label_file,
     resolve_label_method,
 )
-from vpr_core.labels._geometric import _homography_is_sane
+from vpr_core.labels._exact import map_boxes
+from vpr_core.labels._file import read_label_file
+from vpr_core.labels._geometric import PairGeometry, Verification, _homography_is_sane
 
 # ---------------------------------------------------------------------------------------------
 # A tiny fake dataset with known geometry

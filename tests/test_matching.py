@@ -13,7 +13,6 @@ import torch
 from vpr_core.matching import (
     Compute,
     Matching,
-    MatchResult,
     cosine_distance,
     image_similarity,
     match_landmarks,
@@ -22,6 +21,7 @@ from vpr_core.matching import (
     similarity_matrix,
     similarity_pairs,
 )
+from vpr_core.matching.pairwise import MatchResult
 from vpr_core.paper import SOFT_NMS_SIGMA
 
 BOX = [0.0, 0.0, 10.0, 10.0]

@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 
 from vpr_core.evaluation import (
-    Difference,
     auc_pr,
     bootstrap_metrics,
     difference_verdict,
@@ -23,6 +22,7 @@ from vpr_core.evaluation import (
     recall_at_100_precision,
     recall_rate_at_n,
 )
+from vpr_core.evaluation.bootstrap import Difference
 
 
 def _matrix(seed, nq=60, nr=40, signal=0.5, no_gt=3, rounded=True):

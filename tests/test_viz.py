@@ -236,7 +236,7 @@ def test_save_warns_about_a_broken_layout(tmp_path):
 
 def test_pair_label_widget_starts_from_a_run_and_says_when_saved(tiny_synthetic, tmp_path):
     from vpr_core import run_method
-    from vpr_core.labels import read_label_file
+    from vpr_core.labels._file import read_label_file
 
     res = run_method("dense", tiny_synthetic, keep_descriptors=True, backbone="hog", n_bootstrap=0)
     out = tmp_path / "labels.csv"

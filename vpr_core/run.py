@@ -22,13 +22,8 @@ from .cache import (
     n_images,
 )
 from .checks import check_int
-from .evaluation import (
-    Evaluation,
-    bootstrap_metrics,
-    evaluate,
-    ground_truth_coverage,
-    saturation_notice,
-)
+from .evaluation import Evaluation, bootstrap_metrics, evaluate, ground_truth_coverage
+from .evaluation.chance import saturation_notice
 from .evaluation.spec import refuse_tolerance
 from .features import Encoder, as_encoder
 from .features.stage import extract_features, get_encoder

@@ -22,12 +22,12 @@ from .evaluation.bootstrap import N_BOOTSTRAP
 from .labels import (
     LabelUnavailableError,
     as_label_rule,
-    dataset_image_size,
     label_matches,
     label_matches_parsed,
-    read_label_file,
     resolve_label_method,
 )
+from .labels._exact import dataset_image_size
+from .labels._file import read_label_file
 from .landmarks.scales import scale_index_parsed
 from .matching import match_landmarks
 from .methods import Matching

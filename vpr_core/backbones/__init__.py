@@ -20,7 +20,7 @@ from .alexnet import AlexNetConv3, resolve_weights
 from .checkpoint import state_dict_sha256
 from .efficientnet_lite import N_STAGES, EfficientNetLiteFeatures, default_weights_path
 from .handcrafted import HOGBackbone
-from .module import ModuleBackbone, architecture_sha256
+from .module import architecture_sha256
 
 Factory = Callable[..., nn.Module]
 
@@ -199,14 +199,8 @@ def feature_shape(model: nn.Module, input_size: int) -> tuple[int, ...]:
 
 
 __all__ = [
-    "ModuleBackbone",
-    "Parsed",
     "architecture_sha256",
     "available_backbones",
-    "backbone_options",
-    "build_backbone",
-    "canonical_backbone",
-    "feature_shape",
     "parse_backbone",
     "state_dict_sha256",
     "weights_sha256",

@@ -14,49 +14,25 @@ from .base import SIDES, PlaceDataset
 from .folder import load_folder
 from .freiburg import load_freiburg_across_seasons
 from .gardens_point import load_gardens_point
-from .ground_truth import (
-    check_coverage,
-    check_ground_truth,
-    ground_truth_coverage,
-    ground_truth_references,
-    ground_truth_text,
-    read_ground_truth,
-)
-from .images import IMAGE_EXTENSIONS, MIN_IMAGE_SIDE, list_images, read_image
+from .ground_truth import ground_truth_references, ground_truth_text
+from .images import list_images, read_image
 from .mapillary_berlin import load_mapillary_berlin
 from .nordland import load_nordland
 from .safe_pickle import read_npy
-from .synthetic import load_synthetic, render_synthetic_place, synthetic_homography
+from .synthetic import load_synthetic
 from .utm import load_utm
-from .vpr_bench import load_vpr_bench, read_vprbench_ground_truth
+from .vpr_bench import load_vpr_bench
 
 __all__ = [
     "DATASETS",
-    "IMAGE_EXTENSIONS",
-    "MIN_IMAGE_SIDE",
     "SIDES",
     "PlaceDataset",
-    "check_coverage",
-    "check_ground_truth",
-    "ground_truth_coverage",
     "ground_truth_references",
     "ground_truth_text",
     "list_images",
     "load_dataset",
-    "load_folder",
-    "load_freiburg_across_seasons",
-    "load_gardens_point",
-    "load_mapillary_berlin",
-    "load_nordland",
-    "load_synthetic",
-    "load_utm",
-    "load_vpr_bench",
-    "read_ground_truth",
     "read_image",
     "read_npy",
-    "read_vprbench_ground_truth",
-    "render_synthetic_place",
-    "synthetic_homography",
 ]
 
 DATASETS: dict[str, Callable[..., PlaceDataset]] = {

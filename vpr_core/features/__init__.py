@@ -4,7 +4,6 @@ backbones in :mod:`vpr_core.backbones`."""
 
 from ..backbones import available_backbones
 from .encoder import Encoder, LandmarkEncoder, as_encoder
-from .projection import random_projection
 from .stage import encoder_slug, extract_features, get_encoder
 
 __all__ = [
@@ -15,5 +14,4 @@ __all__ = [
     "encoder_slug",
     "extract_features",
     "get_encoder",
-    "random_projection",
 ]

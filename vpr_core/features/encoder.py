@@ -14,14 +14,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..backbones import (
-    ModuleBackbone,
-    Parsed,
-    build_backbone,
-    canonical_backbone,
-    feature_shape,
-    parse_backbone,
-)
+from ..backbones import Parsed, build_backbone, canonical_backbone, feature_shape, parse_backbone
+from ..backbones.module import ModuleBackbone
 from ..checks import (
     check_boxes,
     check_choice,

@@ -12,46 +12,23 @@ import numpy as np
 from ..checks import check_boxes, check_choice, check_descriptors_kept, check_options
 from ..datasets.ground_truth import ground_truth_references
 from ..matching import match_landmarks
-from ._exact import (
-    LabelRule,
-    LabelUnavailableError,
-    as_label_rule,
-    check_matches,
-    dataset_image_size,
-    is_ground_truth,
-    label_pair_exact,
-    map_boxes,
-)
-from ._file import LABEL_COLUMNS, append_labels, label_pair_file, read_label_file
+from ._exact import LabelRule, LabelUnavailableError, as_label_rule, check_matches, label_pair_exact
+from ._file import append_labels, label_pair_file
 from ._geometric import (
     GEOMETRIC_OPTIONS,
-    PairGeometry,
-    Verification,
     estimate_pair_geometry,
     label_matches_geometric,
     label_pair_geometric,
 )
 
 __all__ = [
-    "LABEL_COLUMNS",
-    "LABEL_METHODS",
     "LabelRule",
     "LabelUnavailableError",
-    "PairGeometry",
-    "PairMatches",
     "append_labels",
-    "check_matches",
-    "dataset_image_size",
-    "Verification",
     "estimate_pair_geometry",
-    "is_ground_truth",
     "label_matches",
     "label_matches_geometric",
-    "label_matches_parsed",
-    "map_boxes",
     "pair_matches",
-    "read_label_file",
-    "resolve_label_method",
 ]
 
 #: Names :func:`label_matches` accepts.

@@ -5,41 +5,29 @@ schemes (one frozen dataclass each) the pipeline runs. Boxes are ``(K, 4)`` ``(x
 from __future__ import annotations
 
 from ..boxes import box_iou
-from ..paper import N_SCALES, SCALE_EDGES, SCALE_LABELS, SCALE_RANGE_LABELS, SCALE_RANGES
 from .coverage import landmark_coverage
 from .dense import dense_sampling
-from .edge_boxes import EDGE_BOXES_DEFAULTS, EdgeBoxes, edge_boxes
-from .scales import normalized_scale, scale_distribution, scale_histogram, scale_index
+from .edge_boxes import edge_boxes
+from .scales import normalized_scale, scale_distribution, scale_index
 from .schemes import (
-    CandidateScheme,
     Dense,
     EdgeBoxesTop,
     LandmarkScheme,
     MinScale,
     ReduceOverlap,
     ScalePriority,
-    SizeScheme,
     WholeImage,
 )
 from .selection import reduce_overlap, select_min_scale, select_scale_priority
 from .stage import extract_landmarks, landmarks_for_image
 
 __all__ = [
-    "EDGE_BOXES_DEFAULTS",
-    "N_SCALES",
-    "SCALE_EDGES",
-    "SCALE_LABELS",
-    "SCALE_RANGES",
-    "SCALE_RANGE_LABELS",
-    "CandidateScheme",
     "Dense",
-    "EdgeBoxes",
     "EdgeBoxesTop",
     "LandmarkScheme",
     "MinScale",
     "ReduceOverlap",
     "ScalePriority",
-    "SizeScheme",
     "WholeImage",
     "box_iou",
     "dense_sampling",
@@ -50,7 +38,6 @@ __all__ = [
     "normalized_scale",
     "reduce_overlap",
     "scale_distribution",
-    "scale_histogram",
     "scale_index",
     "select_min_scale",
     "select_scale_priority",

@@ -7,9 +7,9 @@ rules that :mod:`vpr_study.cluster` shares are exported here (``landmark_lists``
 
 from __future__ import annotations
 
-from ._sides import check_same_dim, landmark_lists, rescale_rows
+from ._sides import landmark_lists
 from .core import Problem
-from .pairwise import MatchResult, cosine_similarity
+from .pairwise import cosine_similarity
 from .shortlist import shortlist_pairs, split_whole_image, with_whole_image_boxes
 from .similarity import (
     check_pairs,
@@ -31,18 +31,15 @@ __all__ = [
     "WEIGHTING_OPTIONS",
     "WEIGHTING_SAMPLE",
     "Compute",
-    "MatchResult",
     "Matching",
     "Problem",
     "check_pairs",
-    "check_same_dim",
     "cosine_distance",
     "cosine_similarity",
     "image_similarity",
     "landmark_lists",
     "match_landmarks",
     "reciprocal_matches",
-    "rescale_rows",
     "sample_matches",
     "shape_penalty",
     "shortlist_pairs",
