@@ -257,9 +257,9 @@ def test_an_encoder_parses_its_backbone_once_and_checks_the_variant_once(monkeyp
     identity, the canonical name, the network) takes the parsed value, and the EfficientNet
     variant is checked once per build."""
     import vpr_core.backbones as bb
-    from vpr_core import feature_stage
     from vpr_core.backbones import efficientnet_lite as eff
     from vpr_core.features import encoder as encoder_module
+    from vpr_core.features import stage as feature_stage
 
     calls = {"parse": 0, "variant": 0}
     real_parse, real_variant = bb.parse_backbone, eff._check_variant

@@ -18,8 +18,10 @@ import pytest
 
 from vpr_core import datasets as D
 from vpr_core.datasets import DATASETS, PlaceDataset, load_dataset
+from vpr_core.datasets._layout import DOWNLOADABLE
+from vpr_core.datasets.freiburg import load_freiburg_across_seasons
 from vpr_core.datasets.ground_truth import ground_truth_references, sample_irrelevant_references
-from vpr_study.download import download_dataset
+from vpr_study.download import DOWNLOADS, download_dataset
 
 SMALL = (64, 112)  # (H, W) for fast generator tests
 
@@ -283,7 +285,7 @@ def test_freiburg_layout(tmp_path):
     ds = load_dataset("freiburg_across_seasons", root=tmp_path)
     assert ds.gt_pairs() == [(0, 0), (1, 2), (2, 1)]
     assert ds.meta["layout_verified"] is False
-    assert "UNVERIFIED" in D.load_freiburg_across_seasons.__doc__
+    assert "UNVERIFIED" in load_freiburg_across_seasons.__doc__
 
 
 def test_folder_frame_aligned_natural_sort_and_extensions(tmp_path):
@@ -434,9 +436,11 @@ def test_download_dataset_wrong_sha(local_server, tmp_path):
 def test_download_dataset_unknown_and_registry():
     with pytest.raises(ValueError, match="downloadable: gardens_point"):
         download_dataset("mapillary_berlin", "/tmp/unused-vpr-download")
-    entry = D.DOWNLOADS["gardens_point"]
+    entry = DOWNLOADS["gardens_point"]
     assert "4590133" in entry["url"]
     assert entry["sha256"] is None or len(entry["sha256"]) == 64
+    # the loaders' missing-root hint names exactly the datasets the download knows
+    assert set(DOWNLOADABLE) == set(DOWNLOADS)
 
 
 # ----------------------------------------------------------------------------------------------

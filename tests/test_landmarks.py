@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 
 from vpr_core import landmarks as L
+from vpr_core import paper
 from vpr_core.boxes import paired_iou
-from vpr_core.landmarks.edge_boxes import edge_model_id
+from vpr_core.landmarks.edge_boxes import EdgeBoxes, edge_model_id
+from vpr_core.landmarks.scales import scale_histogram
 
 H, W = 360, 640
 SIZE = (H, W)
@@ -197,13 +199,13 @@ def test_dense_accepts_image_shape():
 
 
 def test_scale_edges_exported():
-    assert L.SCALE_EDGES == (0.02, 0.05, 0.09, 0.14, 0.23, 0.34, 0.5, 0.72)
-    assert len(L.SCALE_LABELS) == 9 and L.SCALE_LABELS[0] == "Scale 1"
-    assert L.SCALE_RANGES[0] == (0.0, 0.02) and L.SCALE_RANGES[-1] == (0.72, 1.0)
+    assert paper.SCALE_EDGES == (0.02, 0.05, 0.09, 0.14, 0.23, 0.34, 0.5, 0.72)
+    assert len(paper.SCALE_LABELS) == 9 and paper.SCALE_LABELS[0] == "Scale 1"
+    assert paper.SCALE_RANGES[0] == (0.0, 0.02) and paper.SCALE_RANGES[-1] == (0.72, 1.0)
 
 
 def test_scale_index_edges_lower_inclusive():
-    edges = np.array(L.SCALE_EDGES)
+    edges = np.array(paper.SCALE_EDGES)
     np.testing.assert_array_equal(L.scale_index(edges), np.arange(2, 10))
     np.testing.assert_array_equal(L.scale_index(np.nextafter(edges, 0)), np.arange(1, 9))
     np.testing.assert_array_equal(L.scale_index(edges - 1e-9), np.arange(1, 9))
@@ -224,11 +226,11 @@ def test_scale_index_from_boxes():
 
 def test_scale_histogram():
     ratios = [0.01, 0.01, 0.03, 0.2, 0.8, 0.72]
-    hist = L.scale_histogram(boxes_of_ratios(ratios), SIZE)
+    hist = scale_histogram(boxes_of_ratios(ratios), SIZE)
     assert hist.shape == (10,)
     np.testing.assert_array_equal(hist, [0, 2, 1, 0, 0, 1, 0, 0, 0, 2])
-    np.testing.assert_array_equal(L.scale_histogram(np.array(ratios)), hist)
-    assert L.scale_histogram(np.zeros((0, 4)), SIZE).sum() == 0
+    np.testing.assert_array_equal(scale_histogram(np.array(ratios)), hist)
+    assert scale_histogram(np.zeros((0, 4)), SIZE).sum() == 0
 
 
 # ------------------------------------------------------------------------------------------
@@ -414,7 +416,7 @@ def test_landmark_coverage():
 
 def test_edge_boxes_synthetic(eb_result, synthetic_image):
     res = eb_result
-    assert isinstance(res, L.EdgeBoxes)
+    assert isinstance(res, EdgeBoxes)
     assert res.edge_source == "gradient"
     assert len(res) >= 20
     assert res.boxes.shape == (len(res), 4) and res.boxes.dtype == np.float64
@@ -587,7 +589,7 @@ def test_landmark_plots(synthetic_image, tmp_path):
         viz.plot_dense_scales(synthetic_image, scales=(0.25, 0.49), per_scale=(16, 9)),
         viz.plot_coverage(synthetic_image, boxes),
         viz.plot_scale_distribution(
-            {"query": L.scale_histogram(boxes, SIZE), "reference": np.arange(10)}, "dist"
+            {"query": scale_histogram(boxes, SIZE), "reference": np.arange(10)}, "dist"
         ),
     ]
     assert len(figs[1].axes) == 4

@@ -47,7 +47,7 @@ def _paper_map_functions() -> list[tuple[str, str]]:
     rows = []
     for line in table.splitlines()[2:]:
         cells = [c.strip() for c in line.strip("|").split("|")]
-        names = re.findall(r"`(vpr_core\.[\w.]+)`", cells[1])
+        names = re.findall(r"`(vpr_(?:core|study)\.[\w.]+)`", cells[1])
         assert len(names) == 1, f"PAPER_MAP row {cells[0]!r} names {names}, not one function"
         rows.append((cells[0], names[0]))
     return rows

@@ -32,9 +32,9 @@ def _ncc(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
 
 
 def test_generator_deterministic_and_seed_dependent():
-    r1, q1, h1 = D.render_synthetic_place(0, 3, SMALL)
-    r2, q2, h2 = D.render_synthetic_place(0, 3, SMALL)
-    r3, q3, _ = D.render_synthetic_place(1, 3, SMALL)
+    r1, q1, h1 = S.render_synthetic_place(0, 3, SMALL)
+    r2, q2, h2 = S.render_synthetic_place(0, 3, SMALL)
+    r3, q3, _ = S.render_synthetic_place(1, 3, SMALL)
     assert r1.shape == q1.shape == (*SMALL, 3) and r1.dtype == q1.dtype == np.uint8
     assert np.array_equal(r1, r2) and np.array_equal(q1, q2) and np.array_equal(h1, h2)
     assert not np.array_equal(r1, r3) and not np.array_equal(q1, q3)
@@ -74,7 +74,7 @@ def test_synthetic_homography_matches_default_dataset(tiny_synthetic):
     ds = tiny_synthetic
     assert json.loads((ds.root / "manifest.json").read_text())["difficulty"] == "default"
     for i in range(len(ds)):
-        np.testing.assert_array_equal(ds.homographies[i], D.synthetic_homography(0, i))
+        np.testing.assert_array_equal(ds.homographies[i], S.synthetic_homography(0, i))
 
 
 @pytest.mark.parametrize("difficulty", ["easy", "default", "hard"])
@@ -110,7 +110,7 @@ def test_synthetic_homography_aligns_views(tmp_path):
         q, r = ds.load_image("query", i), ds.load_image("reference", i)
         h, w = r.shape[:2]
         hm = ds.homographies[i]
-        np.testing.assert_allclose(hm, D.synthetic_homography(0, i, (h, w), "easy"))
+        np.testing.assert_allclose(hm, S.synthetic_homography(0, i, (h, w), "easy"))
         warped = cv2.warpPerspective(q, hm, (w, h))
         valid = cv2.warpPerspective(np.ones((h, w), np.uint8), hm, (w, h)) > 0
         aligned = _ncc(_grad(warped), _grad(r), valid)
@@ -141,7 +141,7 @@ def test_synthetic_cache_reuse_and_regeneration(tmp_path, monkeypatch):
     before = ds.query_paths[1].read_bytes()
     ds.query_paths[1].unlink()
     calls = []
-    real = D.render_synthetic_place
+    real = S.render_synthetic_place
 
     def spy(seed, i, size, difficulty="default"):
         calls.append(i)
@@ -197,7 +197,7 @@ PIXEL_SHA256 = {
 )
 def test_pixels_match_committed_hashes(key):
     difficulty, size, i = key
-    ref, qry, _ = D.render_synthetic_place(0, i, size, difficulty)
+    ref, qry, _ = S.render_synthetic_place(0, i, size, difficulty)
     got = (hashlib.sha256(ref.tobytes()).hexdigest(), hashlib.sha256(qry.tobytes()).hexdigest())
     assert got == PIXEL_SHA256[key], (
         f"synthetic place {key} changed pixels: {got}. If intended, bump SYNTHETIC_VERSION and "
@@ -211,9 +211,9 @@ def test_generator_independent_of_opencv_threads():
     n = cv2.getNumThreads()
     try:
         cv2.setNumThreads(1)
-        a = D.render_synthetic_place(0, 2, SMALL, "hard")
+        a = S.render_synthetic_place(0, 2, SMALL, "hard")
         cv2.setNumThreads(4)
-        b = D.render_synthetic_place(0, 2, SMALL, "hard")
+        b = S.render_synthetic_place(0, 2, SMALL, "hard")
     finally:
         cv2.setNumThreads(n)
     assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=False))
