@@ -321,8 +321,9 @@ def test_a_full_disk_names_the_path_and_leaves_no_temporary_file(tmp_path, monke
     monkeypatch.setattr(Path, "write_bytes", full)
     monkeypatch.setattr(Path, "write_text", lambda self, text, **kw: full(self, text.encode()))
     root = tmp_path / "syn"
+    monkeypatch.setenv("VPR_CACHE_DIR", str(root))
     with pytest.raises(OSError) as err:
-        load_synthetic(root=root, n_places=1, image_size=(32, 48))
+        load_synthetic(n_places=1, image_size=(32, 48))
     assert err.value.errno == errno.ENOSPC
     assert str(root) in str(err.value) and what.split(".")[0] in str(err.value)
     assert "VPR_CACHE_DIR" in str(err.value) and "free space" in str(err.value)

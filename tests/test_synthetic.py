@@ -43,9 +43,11 @@ def test_generator_deterministic_and_seed_dependent():
     assert q1.mean() < 0.6 * r1.mean()
 
 
-def test_place_independent_of_n_places(tmp_path):
-    a = load_dataset("synthetic", root=tmp_path / "a", n_places=3, image_size=SMALL)
-    b = load_dataset("synthetic", root=tmp_path / "b", n_places=5, image_size=SMALL)
+def test_place_independent_of_n_places(tmp_path, monkeypatch):
+    monkeypatch.setenv("VPR_CACHE_DIR", str(tmp_path / "a"))
+    a = load_dataset("synthetic", n_places=3, image_size=SMALL)
+    monkeypatch.setenv("VPR_CACHE_DIR", str(tmp_path / "b"))
+    b = load_dataset("synthetic", n_places=5, image_size=SMALL)
     for i in range(3):
         for side in ("query", "reference"):
             assert np.array_equal(a.load_image(side, i), b.load_image(side, i))
@@ -105,7 +107,7 @@ def test_synthetic_homography_is_the_view_geometry(difficulty):
 
 def test_synthetic_homography_aligns_views(tmp_path):
     """Warping the night query into the reference frame with H lines up the structures."""
-    ds = load_dataset("synthetic", root=tmp_path, n_places=4, difficulty="easy")
+    ds = load_dataset("synthetic", n_places=4, difficulty="easy")
     for i in range(4):
         q, r = ds.load_image("query", i), ds.load_image("reference", i)
         h, w = r.shape[:2]
@@ -119,7 +121,7 @@ def test_synthetic_homography_aligns_views(tmp_path):
 
 
 def test_synthetic_tolerance_and_options(tmp_path):
-    ds = load_dataset("synthetic", root=tmp_path, n_places=5, image_size=SMALL, tolerance=1)
+    ds = load_dataset("synthetic", n_places=5, image_size=SMALL, tolerance=1)
     q, r = np.indices((5, 5))
     assert np.array_equal(ds.ground_truth, np.abs(q - r) <= 1)
     assert ds.tolerance == 1
@@ -131,7 +133,7 @@ def test_synthetic_tolerance_and_options(tmp_path):
         {"image_size": "big"},
     ):
         with pytest.raises(ValueError):
-            load_dataset("synthetic", root=tmp_path, **bad)
+            load_dataset("synthetic", **bad)
 
 
 def test_synthetic_cache_reuse_and_regeneration(tmp_path, monkeypatch):
@@ -267,7 +269,7 @@ def test_difficulty_presets_and_errors(tmp_path):
     assert S.resolve_difficulty(custom) == ("custom", custom)
     assert S.resolve_difficulty(S.SyntheticDifficulty()) == ("easy", S.DIFFICULTIES["easy"])
     with pytest.raises(ValueError, match="easy, default, hard"):
-        load_dataset("synthetic", root=tmp_path, n_places=1, image_size=SMALL, difficulty="brutal")
+        load_dataset("synthetic", n_places=1, image_size=SMALL, difficulty="brutal")
     with pytest.raises(TypeError, match="SyntheticDifficulty"):
         S.resolve_difficulty(3)
     with pytest.raises(ValueError, match="zoom"):
@@ -282,7 +284,7 @@ def test_difficulty_presets_and_errors(tmp_path):
         S.SyntheticDifficulty(night_gamma=0.0)
     for bad in ({"n_places": 0}, {"n_places": 2.5}, {"seed": -1}, {"seed": True}):
         with pytest.raises(ValueError, match=r"synthetic: (n_places|seed) must be"):
-            load_dataset("synthetic", root=tmp_path, image_size=SMALL, **bad)
+            load_dataset("synthetic", image_size=SMALL, **bad)
 
 
 def test_difficulty_in_cache_key_and_manifest(tmp_path, monkeypatch):

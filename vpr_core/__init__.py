@@ -20,6 +20,7 @@ _FACE = {
     "Executor": "run",
     "run_method": "run",
     "MethodResult": "result",
+    "constant_notice": "result",
     "Method": "methods",
     "available_methods": "methods",
     "get_method": "methods",
@@ -44,6 +45,7 @@ __all__ = [
     "check_per_match",
     "checks",
     "configure_logging",
+    "constant_notice",
     "dataset_fingerprint",
     "get_method",
     "make_deterministic",
@@ -77,7 +79,7 @@ if TYPE_CHECKING:
     from .cache import dataset_fingerprint
     from .methods import Method, available_methods, get_method, run_key
     from .notices import VPRWarning, notice
-    from .result import MethodResult
+    from .result import MethodResult, constant_notice
     from .run import Executor, run_method
     from .statistics import check_per_match, scale_statistics
     from .utils import configure_logging, make_deterministic, tune_allocator

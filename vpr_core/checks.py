@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import math
 import numbers
+import os
+import stat
 from collections.abc import Iterable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -16,6 +19,7 @@ __all__ = [
     "check_choice",
     "check_descriptors_kept",
     "check_device",
+    "check_file",
     "check_finite",
     "check_image",
     "check_image_size",
@@ -129,7 +133,7 @@ def check_int(x: Any, name: str = "n", minimum: int = 0) -> int:
     """Return ``x`` as an int ``>= minimum`` (a bool or a fractional number is refused)."""
     try:
         ok = not isinstance(x, bool) and int(x) == x and x >= minimum
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: int(inf)
         ok = False
     if not ok:
         what = {0: "a non-negative integer", 1: "a positive integer"}.get(
@@ -150,7 +154,7 @@ def check_range(
     """Return ``x`` as a float in the interval ``[low, high]`` (``(`` / ``)`` where open)."""
     try:
         v = float(x)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: an int beyond float's range
         v = math.nan
     above = v > low if low_open else v >= low
     below = v < high if high_open else v <= high
@@ -230,3 +234,33 @@ def check_device(device: Any) -> Any:
     if dev.type == "cuda" and not torch.cuda.is_available():
         raise ValueError(f"device={device!r} but torch sees no CUDA GPU; use device='cpu'")
     return dev
+
+
+def check_file(path: Any, what: str) -> bool:
+    """True if ``path`` is a regular file (links followed), False if nothing is there (the caller
+    says "not found" with its fix); anything else there is refused, named (a folder, a dangling
+    symlink, a FIFO, a device ...), never skipped."""
+    path = Path(path)
+    if path.is_file():
+        return True
+    if not os.path.lexists(path):
+        return False
+    try:
+        mode = path.stat().st_mode
+    except OSError:  # a link to nothing, or a loop
+        target = os.readlink(path) if path.is_symlink() else "?"
+        kind = f"a symlink that leads to no file ({target})"
+    else:
+        kind = next((name for test, name in _FILE_KINDS if test(mode)), "something else")
+    raise ValueError(
+        f"{what} {path} is {kind}, not a regular file; point it at the file itself, or remove it."
+    )
+
+
+_FILE_KINDS = (
+    (stat.S_ISDIR, "a folder"),
+    (stat.S_ISFIFO, "a FIFO (named pipe)"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISSOCK, "a socket"),
+)

@@ -14,8 +14,9 @@ from .evaluation import (
     pr_curve,
 )
 from .methods import Method, run_key
+from .notices import notice
 
-__all__ = ["INTERVAL_COLUMNS", "MethodResult"]
+__all__ = ["INTERVAL_COLUMNS", "MethodResult", "constant_notice"]
 
 
 #: Interval columns of :meth:`MethodResult.row` (95% bootstrap over queries).
@@ -141,3 +142,21 @@ class MethodResult:
         """PR curve of this result under its own protocol (another: :func:`pr_curve` of its
         ``similarity`` and ``ground_truth``)."""
         return pr_curve(self.similarity, self.ground_truth, self.protocol, warn=False)
+
+
+def constant_notice(sim: np.ndarray) -> str | None:
+    """The notice that a matrix holding one value (NaN aside) ranks arbitrarily: its metrics
+    are chance levels, whatever they read (e.g. zero descriptors, or constant ones weighted by
+    ``contrast``, or a user's constant peer matrix); returns it (None: not constant)."""
+    if sim.size < 2 or np.isnan(sim).all():
+        return None
+    low, high = np.nanmin(sim), np.nanmax(sim)
+    if low == high:
+        return notice(
+            f"the similarity matrix is constant (every value {float(low)!r}): its ranking is "
+            "arbitrary, so its metrics are chance levels; check the backbone (its descriptors "
+            "may all be equal or zero: compare encode() of two different images) and the "
+            "matching options (weighting='contrast' scores identical descriptors 0), or a "
+            "peer's matrix file"
+        )
+    return None

@@ -39,7 +39,7 @@ from .matching.shortlist import (
 )
 from .methods import Matching, Method, as_method, method_label
 from .notices import VPRWarning, notice
-from .result import MethodResult
+from .result import MethodResult, constant_notice
 from .utils import array_sha256, cache_dir, code_version, config_slug, logger
 
 P = ParamSpec("P")
@@ -100,22 +100,6 @@ def _exclude_empty(sim: np.ndarray, boxes: dict, dataset) -> np.ndarray:
         f"not retrieved): {'; '.join(names[:10])}{' ...' if len(names) > 10 else ''}"
     )
     return sim
-
-
-def _constant_notice(sim: np.ndarray) -> None:
-    """The notice that a matrix holding one value (NaN aside) ranks arbitrarily: its metrics
-    are chance levels, whatever they read (e.g. zero descriptors, or constant ones weighted by
-    ``contrast``)."""
-    if sim.size < 2 or np.isnan(sim).all():
-        return
-    low, high = np.nanmin(sim), np.nanmax(sim)
-    if low == high:
-        notice(
-            f"the similarity matrix is constant (every value {float(low)!r}): its ranking is "
-            "arbitrary, so its metrics are chance levels; check the backbone (its descriptors "
-            "may all be equal or zero: compare encode() of two different images) and the "
-            "matching options (weighting='contrast' scores identical descriptors 0)"
-        )
 
 
 def _check_shortlist(shortlist: Any, n_ref: int) -> int | None:
@@ -358,7 +342,7 @@ def run_method(
         )
     sim = _exclude_empty(np.asarray(sim, dtype=np.float64), boxes, dataset)
     sim = dataset.ignore_soft(sim)  # soft positives: neither right nor wrong, in every metric
-    _constant_notice(sim)
+    constant_notice(sim)
     metrics = evaluate(sim, gt, evaluation)
     n_boot = evaluation.n_bootstrap
     intervals = bootstrap_metrics(sim, gt, n=n_boot, protocol=protocol) if n_boot else {}

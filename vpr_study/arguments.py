@@ -4,6 +4,7 @@ make, and the dataset options they give."""
 from __future__ import annotations
 
 import argparse
+import math
 from collections.abc import Callable
 
 import torch
@@ -66,7 +67,13 @@ def dataset_options(args: argparse.Namespace) -> dict:
             raise ValueError(f"--opt {item!r} is not KEY=VALUE (e.g. --opt query=winter)")
         if key.strip() == "root":
             raise ValueError(f"--opt {item!r}: the dataset folder is --root, not a loader option")
-        put(key.strip(), _parse_value(value.strip()), f"--opt {item}")
+        parsed = _parse_value(value.strip())
+        if isinstance(parsed, float) and not math.isfinite(parsed):
+            raise ValueError(
+                f"--opt {item!r}: {value.strip()!r} is not a finite number (inf, nan or beyond "
+                "float range); give a finite value"
+            )
+        put(key.strip(), parsed, f"--opt {item}")
     return opts
 
 

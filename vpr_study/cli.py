@@ -8,6 +8,7 @@ import errno
 import itertools
 import logging
 import os
+import pickle
 import shutil
 import signal
 import sys
@@ -424,6 +425,14 @@ def cmd_eval(args: argparse.Namespace) -> int:
     if args.peers or args.peer_dataset or args.peer:
         with lines.stage("peers"):
             results += _peer_results(args, dataset) + _user_peers(args, dataset)
+        labels = [r.label for r in results]
+        twice = sorted({x for x in labels if labels.count(x) > 1})
+        if twice:  # compare() would advise label=..., which a command line cannot pass
+            raise ValueError(
+                f"--peer: {', '.join(map(repr, twice))} names both a peer and a method (or "
+                f"another peer) of this run; give the peer a name of its own, e.g. --peer "
+                f"{twice[0]}-peer=PATH"
+            )
     say(
         f"backbone: {results[0].encoder.get('backbone')} "
         f"(weights: {results[0].encoder.get('weights')}, pooling: {args.pooling}, {mode}; "
@@ -607,11 +616,20 @@ def main(argv: list[str] | None = None) -> int:
     except (
         ValueError,
         TypeError,
-        IndexError,
+        LookupError,
         RuntimeError,
         ImportError,
+        ArithmeticError,
+        AttributeError,
+        EOFError,
+        MemoryError,
+        pickle.UnpicklingError,
     ) as exc:
-        print(f"{prog}: error: {exc}", file=sys.stderr)
+        # a data file can raise any of these; ours name the file, a library's is named by type
+        ours = isinstance(exc, (ValueError, TypeError, RuntimeError, ImportError, IndexError))
+        text = str(exc) if ours else f"{type(exc).__name__}: {exc}"
+        text = text if len(text) <= 2000 else text[:2000] + " ... (message cut at 2,000 characters)"
+        print(f"{prog}: error: {text}", file=sys.stderr)
         return 2
     finally:
         signal.signal(signal.SIGTERM, previous)

@@ -166,8 +166,12 @@ def _verdict(
         return "not run"
     if delta == 0 and lo == 0 and hi == 0:
         return "not testable (identical results)"
-    word = difference_verdict(lo, hi)
-    if expect == "~" and lo >= -ON_PAR_MARGIN and hi <= ON_PAR_MARGIN:
+    word = difference_verdict(lo, hi, queries)
+    if word.startswith("too few"):
+        return word
+    # strictly inside: a table's bounds are rounded to 6 decimals, and one that rounds to the
+    # margin may lie beyond it (0.0500004 is stored as 0.050000)
+    if expect == "~" and lo > -ON_PAR_MARGIN and hi < ON_PAR_MARGIN:
         word = "on par"
     if word == "inconclusive":
         notes = [] if np.isnan(needs) else [needs_text(needs)]
@@ -202,12 +206,41 @@ def _claim_cell(folder: Path, claim: Claim) -> tuple[str, str]:
     rows = df[(df["run"] == method_key) & df["baseline"].isin(base["method"])]
     if base.empty or rows.empty:
         return "-", "not run"
-    r = rows.iloc[0]
-    d, lo, hi, p = (float(r[m]), float(r[f"{m} lo"]), float(r[f"{m} hi"]), float(r[f"{m} p"]))
-    needs = float(r[f"{m} needs"]) if f"{m} needs" in df.columns else np.nan
-    queries = float(r["queries"]) if "queries" in df.columns else np.nan
+    d, lo, hi, p, needs, queries = _claim_numbers(csv, df, base, rows, m)
     verdict = _verdict(claim.expect, lo, hi, d, needs, queries)
     return f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] p={p:.3f}", verdict
+
+
+def _claim_numbers(
+    csv: Path, df: pd.DataFrame, base: pd.DataFrame, rows: pd.DataFrame, m: str
+) -> tuple[float, ...]:
+    """``(d, lo, hi, p, needs, queries)`` of a claim's row, refused naming the file and line (the
+    header is line 1) when a run has two rows, a cell is not a number, the interval is NaN or
+    reversed, or the difference lies outside it."""
+    cols = [m, f"{m} lo", f"{m} hi", f"{m} p", f"{m} needs", "queries"]
+    twice = base if len(base) > 1 else rows
+    line = int(twice.index[0]) + 2
+    values = [np.nan] * len(cols)
+    why = f"holds a second row of run {twice['run'].iloc[0]!r}" if len(twice) > 1 else ""
+    for k, col in enumerate(cols):
+        cell = twice.iloc[0].get(col, np.nan) if not why and col in df.columns else np.nan
+        value = pd.to_numeric(pd.Series([cell]), errors="coerce").iloc[0]
+        if not why and pd.isna(value) and not pd.isna(cell):
+            why = f"column {col!r} holds {str(cell)[:40]!r}, not a number"
+        values[k] = float(value)
+    d, lo, hi = values[:3]
+    if not why and not np.isfinite([d, lo, hi]).all():
+        why = f"{m} {d} [{lo}, {hi}] is not finite (NaN interval: run with n_bootstrap >= 1)"
+    elif not why and lo > hi:
+        why = f"the interval of {m} is reversed ({lo} > {hi})"
+    elif not why and not lo <= d <= hi:
+        why = f"{m} {d} lies outside its own interval [{lo}, {hi}]"
+    if why:
+        raise ValueError(
+            f"{csv} line {line} {why}; this is not a table compare() wrote: rerun the notebook "
+            "or command that writes it."
+        )
+    return tuple(values)
 
 
 def read_table(csv: Path) -> pd.DataFrame:
@@ -269,7 +302,24 @@ def _observation_1(folder: Path) -> tuple[str, str]:
     csv = folder / f"{MATCHES_TABLE}.csv"
     if not csv.is_file():
         return "-", "not run"
-    d, lo, hi = cmr_difference(read_table(csv))
+    table = read_table(csv)
+    missing = sorted({"pair", "correct", "scale", "query"} - set(table.columns))
+    why = f"lacks the column(s) {', '.join(missing)}" if missing else ""
+    for col in () if missing else ("scale", "query", "correct"):
+        text = pd.to_numeric(table[col].replace({"True": 1, "False": 0}), errors="coerce")
+        bad = np.flatnonzero(text.isna() & table[col].notna())
+        why = why or (
+            f"line {bad[0] + 2} holds {str(table[col][bad[0]])[:40]!r} in column "
+            f"{col!r}, not a number"
+            if bad.size
+            else ""
+        )
+    if why:
+        raise ValueError(
+            f"{csv} {why}: it is not a table of labelled matches; write it with "
+            "save(stats.matches_frame(), ...) as notebook 02 does."
+        )
+    d, lo, hi = cmr_difference(table)
     return f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}]", _verdict(">", lo, hi)
 
 
@@ -295,6 +345,7 @@ def findings_table(labels: Sequence[str], out: str | Path | None = None) -> pd.D
     ``<output root>/results/`` (value and verdict)."""
     root = paths.output_root() if out is None else Path(out)
     for label in labels:
+        paths.check_label(label)  # a folder name on disk is a label too: no markup, no column
         if not (root / "results" / label).is_dir():
             found = result_labels(out=root)
             raise ValueError(
@@ -324,11 +375,12 @@ LEGEND = (
 
 
 def markdown_cell(text: object) -> str:
-    """``text`` as one Markdown table cell: HTML (``&``, ``<``, ``>``) and ``|`` and ``\\``
-    escaped, each line break (CR, LF, CRLF) a ``<br>``: a label or claim cannot add a column,
-    inject a row or carry markup."""
+    """``text`` as one Markdown table cell: HTML (``&``, ``<``, ``>``), ``|``, ``\\`` and the
+    link / image syntax ``](`` ``][`` escaped, each line break (CR, LF, CRLF) a ``<br>``: a label
+    or claim cannot add a column, inject a row, a link or an image, or carry markup."""
     out = str(text).replace("\\", "\\\\").replace("&", "&amp;")
     out = out.replace("<", "&lt;").replace(">", "&gt;").replace("|", "\\|")
+    out = out.replace("](", "]\\(").replace("][", "]\\[")
     return "<br>".join(out.replace("\r\n", "\n").replace("\r", "\n").split("\n"))
 
 

@@ -15,7 +15,7 @@ from importlib import resources
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-from vpr_core import paths
+from vpr_core import checks, paths
 from vpr_study.figures import NOTEBOOKS
 
 __all__ = [
@@ -144,6 +144,9 @@ def init(root: str | Path | None = None) -> Path:
         )
     folder = paths.make_dir(base / USER_NOTEBOOKS, "--root (default: the project checkout)")
     target = folder / STARTER_NAME
+    checks.check_file(
+        target, "the starter notebook"
+    )  # a folder or a dangling link there: not "kept"
     try:
         with open(target, "xb") as f:  # exclusive: never overwrites
             f.write(starter_source())
@@ -185,7 +188,10 @@ def main(argv: list[str]) -> None:
             "when absent.",
         )
         parser.add_argument("--root", help="the project checkout (default: the cwd's)")
-        init(parser.parse_args(argv[1:]).root)
+        try:
+            init(parser.parse_args(argv[1:]).root)
+        except (OSError, ValueError) as exc:
+            parser.exit(2, f"{parser.prog}: error: {exc}\n")
         return
     source = argv[0] if argv else "stdin"
     data = Path(argv[0]).read_bytes() if argv else sys.stdin.buffer.read()

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from vpr_core import MethodResult, checks, dataset_fingerprint, settings
+from vpr_core import MethodResult, checks, constant_notice, dataset_fingerprint, settings
 from vpr_core.datasets import read_npy
 from vpr_core.evaluation import (
     Evaluation,
@@ -126,7 +126,7 @@ def load_vprbench_precomputed(path: str | os.PathLike) -> PeerResult:
     """Read ``.../precomputed_matches/<dataset>/<technique>/precomputed_data_corrected.npy``
     (technique and dataset named by the two parent folders)."""
     path = Path(path).expanduser()
-    if not path.is_file():
+    if not checks.check_file(path, "VPR-Bench precomputed file"):
         raise FileNotFoundError(
             f"VPR-Bench precomputed file not found: {path}; expected "
             f"precomputed_matches/<dataset>/<technique>/{PRECOMPUTED_FILE}."
@@ -164,7 +164,7 @@ def _user_array(value: Any, name: str, what: str, ndim: int) -> tuple[np.ndarray
     source = None
     if isinstance(value, (str, os.PathLike)):
         source = Path(value).expanduser()
-        if not source.is_file():
+        if not checks.check_file(source, f"peer {name!r}: {what}"):
             raise FileNotFoundError(f"peer {name!r}: {what} file not found: {source}.")
         try:  # the header's shape is checked against the file before anything is allocated
             value = read_npy(
@@ -384,6 +384,7 @@ def peer_result(
     gt = np.asarray(dataset.ground_truth, dtype=bool)
 
     sim = dataset.ignore_soft(peer_similarity_for(dataset, peer))  # soft: neither right nor wrong
+    constant = constant_notice(sim)
     nq, nr = gt.shape
     timings = {
         "landmarks_s_per_image": float("nan"),
@@ -417,4 +418,5 @@ def peer_result(
         dataset_title=dataset.title,
         protocol=protocol,
         dataset_fingerprint=dataset_fingerprint(dataset),
+        warnings=[constant] if constant else [],
     )

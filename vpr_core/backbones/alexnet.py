@@ -12,6 +12,7 @@ import torch
 from torch import nn
 
 from .. import settings
+from ..checks import check_file
 from .checkpoint import file_sha256, load_checkpoint, user_weights_label
 
 logger = logging.getLogger("vpr_core")
@@ -80,7 +81,7 @@ def resolve_weights(weights: str | os.PathLike | None) -> Path | str:
         return "random"
     if weights is not None:
         p = Path(weights).expanduser()
-        if not p.is_file():
+        if not check_file(p, "AlexNet weights"):
             raise FileNotFoundError(
                 f"AlexNet weights file {p} does not exist.\n" + _missing_weights_message()
             )
@@ -88,7 +89,7 @@ def resolve_weights(weights: str | os.PathLike | None) -> Path | str:
     env = settings.alexnet_weights()
     if env:
         p = Path(env).expanduser()
-        if not p.is_file():
+        if not check_file(p, ALEXNET_ENV):
             raise FileNotFoundError(
                 f"{ALEXNET_ENV}={env} does not point to a file.\n" + _missing_weights_message()
             )

@@ -14,6 +14,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from .. import settings
+from ..checks import check_file
 from .checkpoint import WeightsFileError, file_sha256, load_checkpoint, user_weights_label
 from .fused import BitCheckedFusion
 
@@ -363,7 +364,7 @@ def load_state_dict(
         FileNotFoundError: no such file. WeightsFileError: not a readable torch checkpoint.
     """
     p = Path(path).expanduser() if path is not None else default_weights_path(variant)
-    if not p.is_file():
+    if not check_file(p, f"EfficientNet-{variant.capitalize()} weights"):
         raise FileNotFoundError(f"EfficientNet-{variant.capitalize()} weights file not found: {p}")
     return load_checkpoint(
         p,

@@ -57,6 +57,13 @@ def _degenerate(out: torch.Tensor, per_cell: bool) -> str | None:
     return None
 
 
+def _got(out: object) -> object:
+    """What a module returned, for a message: its shape, a meta tensor's, or its type."""
+    if not isinstance(out, torch.Tensor):
+        return type(out).__name__
+    return f"a meta tensor {tuple(out.shape)} (no data)" if out.is_meta else tuple(out.shape)
+
+
 class ModuleBackbone(nn.Module):
     """Wraps a user module mapping ImageNet-normalised ``(B, 3, S, S)`` crops to ``(B, C, h, w)``
     or ``(B, C)`` features (the module is put in eval mode).
@@ -65,9 +72,10 @@ class ModuleBackbone(nn.Module):
     ``S / h`` when that divides, cell ``i`` centred at ``stride * i + feature_offset`` (the
     module's ``feature_offset``, default ``stride / 2``).
 
-    The module's output is checked on :func:`probe_input` when wrapped, and on its first real
-    batch of different crops (``forward``) or first non-uniform image (``feature_map``): all
-    zeros or the same features for every crop (every cell) are refused, naming the module;
+    The module's output is checked on :func:`probe_input` when wrapped (and a probe crop alone
+    must give its features inside the batch: no dependence on the rest of the batch), and on
+    every real batch of different crops (``forward``) or non-uniform image (``feature_map``):
+    all zeros or the same features for every crop (every cell) are refused, naming the module;
     every call is checked for its shape and for NaN or inf (vectorised: negligible cost).
 
     Attributes:
@@ -104,11 +112,11 @@ class ModuleBackbone(nn.Module):
         with torch.inference_mode():
             out = module(probe)
         size = f"({PROBE_CROPS}, 3, {self.input_size}, {self.input_size})"
-        if not isinstance(out, torch.Tensor) or out.ndim not in (2, 4):
-            got = tuple(out.shape) if isinstance(out, torch.Tensor) else type(out).__name__
+        if not isinstance(out, torch.Tensor) or out.ndim not in (2, 4) or out.is_meta:
+            got = _got(out)
             raise ValueError(
                 f"backbone module {self.label} returned {got} for a {size} batch of crops; it "
-                "must return (B, C, h, w) or (B, C) features"
+                "must return (B, C, h, w) or (B, C) features holding numbers"
             )
         fault = (
             "NaN or inf"
@@ -117,6 +125,16 @@ class ModuleBackbone(nn.Module):
             if len(out) == len(probe)
             else None
         )
+        if fault is None and out.ndim in (2, 4) and len(out) == len(probe) > 1:
+            with torch.inference_mode():
+                alone = module(probe[:1])
+            scale = float(out[:1].abs().max())
+            if not (
+                isinstance(alone, torch.Tensor)
+                and alone.shape == out[:1].shape
+                and torch.allclose(alone, out[:1], rtol=1e-3, atol=1e-4 * scale)
+            ):
+                fault = "other features for a crop alone than for the same crop in a batch"
         if fault is not None:
             self._refuse(fault, f"a random {size} input (backbones.module.probe_input)")
         self.probe_sha256 = array_sha256([out.detach().float().cpu().numpy()])
@@ -132,7 +150,6 @@ class ModuleBackbone(nn.Module):
             if isinstance(stride, int) and math.ceil(self.input_size / stride) == h:
                 self.stride = stride
                 self.feature_offset = float(getattr(module, "feature_offset", stride / 2))
-        self._seen = {"crop": False, "roi": False}  # a real input checked for degenerate output
 
     @property
     def _fix(self) -> str:
@@ -152,18 +169,15 @@ class ModuleBackbone(nn.Module):
             f"backbone module {self.label} returns {fault} on {where}: {fix or self._fix}"
         )
 
-    def _check_first_real(
-        self, mode: str, out: torch.Tensor, inputs: torch.Tensor, where: str
-    ) -> None:
-        """Refuse degenerate output on the first real input of ``mode`` (``crop``: different
-        crops; ``roi``: a non-uniform image); later calls of that mode are not checked."""
+    def _check_real(self, mode: str, out: torch.Tensor, inputs: torch.Tensor, where: str) -> None:
+        """Refuse degenerate output on every real input of ``mode`` (``crop``: different crops;
+        ``roi``: a non-uniform image)."""
         per_cell = mode == "roi"
-        if self._seen[mode] or _alike(inputs, per_cell):
+        if _alike(inputs, per_cell):
             return
         fault = _degenerate(out, per_cell)
         if fault is not None:
             self._refuse(fault, where)
-        self._seen[mode] = True
 
     def feature_map(self, batch: torch.Tensor) -> torch.Tensor:
         """``(1, 3, H, W)`` normalised image -> the module's ``(1, C, h, w)`` map (``roi``),
@@ -171,8 +185,13 @@ class ModuleBackbone(nn.Module):
         out = self.module(batch)
         n, size = batch.shape[0], tuple(batch.shape)
         channels = self.feature_shape[0]
-        if not isinstance(out, torch.Tensor) or out.ndim != 4 or out.shape[:2] != (n, channels):
-            got = tuple(out.shape) if isinstance(out, torch.Tensor) else type(out).__name__
+        if (
+            not isinstance(out, torch.Tensor)
+            or out.ndim != 4
+            or out.shape[:2] != (n, channels)
+            or out.is_meta
+        ):
+            got = _got(out)
             raise ValueError(
                 f"backbone module {self.label} returned {got} for a {size} image "
                 f"(pooling='roi'); expected ({n}, {channels}, h, w): one feature map per image "
@@ -186,15 +205,19 @@ class ModuleBackbone(nn.Module):
                 "check its forward on images of that size (an overflow, a division by zero), "
                 "or use pooling='crop'",
             )
-        self._check_first_real("roi", out, batch, f"a real {size} image (pooling='roi')")
+        self._check_real("roi", out, batch, f"a real {size} image (pooling='roi')")
         return out.float()
 
     def forward(self, batch: torch.Tensor) -> torch.Tensor:
         """``(B, 3, S, S)`` crops -> ``(B, raw_dim)``; the module's output checked (user code)."""
         out = self.module(batch)
         n = batch.shape[0]
-        if not isinstance(out, torch.Tensor) or tuple(out.shape) != (n, *self.feature_shape):
-            got = tuple(out.shape) if isinstance(out, torch.Tensor) else type(out).__name__
+        if (
+            not isinstance(out, torch.Tensor)
+            or tuple(out.shape) != (n, *self.feature_shape)
+            or out.is_meta
+        ):
+            got = _got(out)
             raise ValueError(
                 f"backbone module {self.label} returned {got} for {n} crops; "
                 f"expected {(n, *self.feature_shape)}: one row per crop, the same shape on every "
@@ -206,5 +229,5 @@ class ModuleBackbone(nn.Module):
                 f"{n} finite crops (its forward)",
                 "check it on real crops (an overflow, a division by zero)",
             )
-        self._check_first_real("crop", out, batch, f"a real batch of {n} different crops")
+        self._check_real("crop", out, batch, f"a real batch of {n} different crops")
         return out.float().flatten(1)

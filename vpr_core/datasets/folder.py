@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 from typing import Any
 
+from ..checks import check_file
 from ._layout import check_frame_pairs, check_root, data_name, resolve_file, traverse_dir, widen
 from .base import PlaceDataset
 from .ground_truth import check_coverage, check_tolerance, frame_aligned, read_ground_truth
@@ -50,7 +51,8 @@ def load_folder(
     rdir = traverse_dir(root, reference, "folder", FOLDER_LAYOUT)
     qp, rp = list_images(qdir, "query folder"), list_images(rdir, "reference folder")
     if ground_truth is None:
-        found = [root / f for f in ("ground_truth.npy", "ground_truth.csv") if (root / f).is_file()]
+        names = ("ground_truth.npy", "ground_truth.csv")
+        found = [root / f for f in names if check_file(root / f, "folder: ground-truth file")]
         if len(found) > 1:
             raise ValueError(
                 f"folder: both {found[0].name} and {found[1].name} exist in {root}; remove one "

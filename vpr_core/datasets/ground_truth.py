@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import check_choice, check_int, check_shape
+from ..checks import check_choice, check_file, check_int, check_shape
 from ..notices import notice
 from .safe_pickle import read_npy
 
@@ -259,7 +259,7 @@ def read_ground_truth(
     """
     path = Path(path)
     nq, nr = len(query_paths), len(reference_paths)
-    if not path.is_file():
+    if not check_file(path, "ground-truth file"):
         raise FileNotFoundError(
             f"ground-truth file not found: {path}; create it (a .npy (Nq, Nr) matrix or a .csv "
             "with query,reference rows) or pass ground_truth=<path> to the loader."

@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 from PIL import Image
 
+from ..checks import check_file
 from ..notices import notice
 
 __all__ = [
@@ -183,7 +184,7 @@ def read_image(path: str | os.PathLike, min_side: int = MIN_IMAGE_SIDE) -> np.nd
             (:func:`_check_image_file`), or it is smaller than ``min_side``.
     """
     path = Path(path)
-    if not path.is_file():
+    if not check_file(path, "image"):
         raise FileNotFoundError(f"image file not found: {path}")
     is_jpeg = _check_image_file(path)
     damage = ""
@@ -287,6 +288,8 @@ def scan_images(
         broken = _broken_link(p)
         if broken and is_image:
             raise ValueError(f"{what}: {p} is {broken}; fix or remove the link.")
+        if is_image and not p.is_dir():
+            check_file(p, f"{what}: image")  # a FIFO or a device named like an image
         if p.is_file() and is_image:
             files.append(p)
         elif p.is_file() or broken or (is_image and p.is_dir()):

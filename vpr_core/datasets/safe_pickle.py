@@ -92,6 +92,14 @@ class _RestrictedUnpickler(pickle._Unpickler):  # the Python unpickler: BUILD ca
         self._check_shape(shape, dtype)
         return np.ndarray(shape, dtype, *args, **kwargs)
 
+    def _scalar(self, dtype: Any, *args: Any) -> Any:
+        """numpy's scalar rebuilder, only for a dtype the pickle's size allows (a 192-byte pickle
+        may not ask for a 200 MB ``V200000000`` scalar)."""
+        if not isinstance(dtype, np.dtype):
+            raise _UnsafePickleError(f"{self.source} asks for a scalar of {type(dtype).__name__}.")
+        self._check_shape((), dtype)
+        return self._numpy_scalar(dtype, *args)
+
     def _reconstruct(self, subtype: Any, shape: Any, dtype: Any) -> Any:
         if subtype != self._ndarray:  # the pickle's numpy.ndarray, resolved by find_class
             raise _UnsafePickleError(f"{self.source} asks to rebuild a {subtype!r}.")
@@ -135,6 +143,9 @@ class _RestrictedUnpickler(pickle._Unpickler):  # the Python unpickler: BUILD ca
                 return self._ndarray
             if name == "_reconstruct":
                 return self._reconstruct
+            if name == "scalar":
+                self._numpy_scalar = super().find_class(module, name)
+                return self._scalar
             return super().find_class(module, name)
         raise _UnsafePickleError(
             f"{self.source} is a pickle that asks to run {module}.{name}; it was not loaded. Only "
@@ -271,6 +282,6 @@ def read_npy(
             if str(path) in str(exc):  # already names the file (bounds above)
                 raise
             raise ValueError(
-                f"{path} is not a readable .npy file ({type(exc).__name__}: {exc}); expected "
-                f"{expected}."
+                f"{path} is not a readable .npy file ({type(exc).__name__}: {str(exc)[:200]}); "
+                f"expected {expected}."
             ) from None

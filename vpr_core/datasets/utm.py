@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import is_number
+from ..checks import check_file, is_number
 from ._layout import check_root, data_name, listed_paths, traverse_dir
 from .base import PlaceDataset
 from .ground_truth import check_coverage
@@ -26,7 +26,7 @@ _PATTERN = "@<utm_easting>@<utm_northing>@...@.jpg (e.g. @0543256.96@4178906.93@
 
 def _paths(folder: Path, what: str) -> list[Path]:
     listing = folder.parent / f"{folder.name}_images_paths.txt"
-    if listing.is_file():
+    if check_file(listing, "utm: paths list"):
         paths = listed_paths(listing, folder, "utm")
         missing = [p for p in paths if not p.is_file()]
         if missing:

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import check_choice
+from ..checks import check_choice, check_file
 from ._layout import check_root, data_name, resolve_file, traverse_dir, widen
 from .base import PlaceDataset
 from .ground_truth import check_coverage, check_file_index, check_tolerance
@@ -30,16 +30,17 @@ _ORDERS = ("natural", "lexicographic")
 
 
 def _as_index(value: Any, path: Path, row: int, what: str) -> np.ndarray:
-    """``int64 (k,)`` from a scalar or a list/array of integral numbers; ValueError otherwise."""
+    """``int64 (k,)`` from a scalar or a list/array of integral numbers (not bools); ValueError
+    otherwise."""
     arr = np.asarray(value, dtype=object).ravel()
     try:
-        out = arr.astype(np.float64)
-    except (TypeError, ValueError):
+        out = None if any(isinstance(v, (bool, np.bool_)) for v in arr) else arr.astype(np.float64)
+    except (TypeError, ValueError, OverflowError):
         out = None
     if out is None or not np.all(np.isfinite(out)) or not np.all(out == np.round(out)):
         raise ValueError(
-            f"{path}, row {row}: the {what} must be integer indices, got {value!r}; rows must be "
-            "[query index, [reference indices]] as in VPR-Bench's ground_truth_new.npy."
+            f"{path}, row {row}: the {what} must be integer indices, got {repr(value)[:80]}; rows "
+            "must be [query index, [reference indices]] as in VPR-Bench's ground_truth_new.npy."
         )
     return out.astype(np.int64)
 
@@ -55,7 +56,14 @@ def _mask_or_index(value: Any, path: Path, row: int, nr: int) -> np.ndarray:
                 "reference indices). Is this the file of another dataset, or are images missing?"
             )
         return np.flatnonzero(arr.astype(bool))
-    return _as_index(value, path, row, "reference indices")
+    refs = _as_index(value, path, row, "reference indices")
+    if nr >= 3 and refs.size == nr and set(refs.tolist()) <= {0, 1}:
+        raise ValueError(
+            f"{path}, row {row}: the references are {nr} zeros and ones, one per reference: a 0/1 "
+            "mask, not indices (which would repeat 0 and 1); write the mask as booleans "
+            "(True/False) or the reference indices."
+        )
+    return refs
 
 
 def _not_rows(where: str, got: str) -> ValueError:
@@ -86,19 +94,21 @@ def read_vprbench_ground_truth(path: str | os.PathLike, nq: int, nr: int) -> np.
     an integer, a list/array of integers (possibly empty) or a boolean mask of length ``nr``.
     """
     path = Path(path)
-    if not path.is_file():
+    if not check_file(path, "VPR-Bench ground-truth file"):
         raise FileNotFoundError(
             f"VPR-Bench ground-truth file not found: {path}; every VPR-Bench dataset ships one "
             f"(ground_truth_new.npy beside query/ and ref/). Expected layout: {VPR_BENCH_LAYOUT}"
         )
     gt = np.zeros((nq, nr), dtype=bool)
     for k, row in enumerate(_rows(path)):
-        if isinstance(row, (str, bytes)) or not hasattr(row, "__len__") or len(row) != 2:
-            raise _not_rows(f"{path}, row {k}", repr(row))
+        if not isinstance(row, (list, tuple, np.ndarray)) or len(row) != 2:
+            raise _not_rows(f"{path}, row {k}", f"a {type(row).__name__} {repr(row)[:80]}")
         q = _as_index(row[0], path, k, "query index")
         refs = _mask_or_index(row[1], path, k, nr)
         where = f"{path}, row {k}"
-        qi = check_file_index(int(q[0]) if q.size == 1 else -1, nq, "query", where, repr(row[0]))
+        qi = check_file_index(
+            int(q[0]) if q.size == 1 else -1, nq, "query", where, repr(row[0])[:80]
+        )
         bad = refs[(refs < 0) | (refs >= nr)]
         if bad.size:
             check_file_index(int(bad[0]), nr, "reference", where, str(bad[0]))

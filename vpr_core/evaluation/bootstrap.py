@@ -19,6 +19,7 @@ __all__ = [
     "BOOTSTRAP_PROTOCOLS",
     "N_BOOTSTRAP",
     "Difference",
+    "MIN_QUERIES",
     "bootstrap_columns",
     "bootstrap_metrics",
     "difference_verdict",
@@ -30,6 +31,9 @@ __all__ = [
 
 #: ``queries_needed`` beyond this: "not decidable on any realistic set" (:func:`needs_text`).
 REALISTIC_QUERIES = 100_000
+#: Below this many queries a paired difference is "too few queries", never higher or lower
+#: (docs/DEFINITIONS.md, "Verdicts": an exact sign test reaches p < 0.05 from 6 queries on).
+MIN_QUERIES = 6
 
 
 class Difference(tuple):
@@ -283,15 +287,18 @@ def paired_bootstrap(
 
 #: The verdict words of a paired difference (docs/DEFINITIONS.md, "Verdicts"): the same in
 #: :func:`~vpr_core.evaluation.compare`, the findings table and the README.
-VERDICTS = ("higher", "lower", "inconclusive")
+VERDICTS = ("higher", "lower", "inconclusive", "too few queries")
 
 
-def difference_verdict(low: float, high: float) -> str:
+def difference_verdict(low: float, high: float, queries: float | None = None) -> str:
     """``"higher"`` when the 95% interval of a difference ``a - b`` lies above 0, ``"lower"`` when
     it lies below, ``"inconclusive"`` when it contains 0, ``"not computed"`` when a bound is not
-    finite (no resamples)."""
+    finite (no resamples), ``"too few queries (n < 6)"`` when ``queries`` (with ground truth;
+    None or NaN: unknown) is below :data:`MIN_QUERIES`."""
     if not (np.isfinite(low) and np.isfinite(high)):
         return "not computed"
+    if queries is not None and queries < MIN_QUERIES:  # NaN compares False: unknown
+        return f"too few queries ({int(queries)} < {MIN_QUERIES})"
     if low > 0:
         return "higher"
     return "lower" if high < 0 else "inconclusive"

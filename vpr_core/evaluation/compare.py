@@ -257,6 +257,7 @@ def compare(
         row = {**_with_chance(r.row(), level), "identical to": twin, "baseline": None}
         if r is not base:
             row["baseline"] = base.label
+            queries = int(gt.any(axis=1).sum())
             diff = paired_bootstrap(
                 r.similarity, base.similarity, gt, n_bootstrap, seed, protocol, ks=(1,)
             )
@@ -269,7 +270,7 @@ def compare(
                         f"{name} lo": lo,
                         f"{name} hi": hi,
                         f"{name} p": cols[f"{name} p"],
-                        f"{name} verdict": difference_verdict(lo, hi),
+                        f"{name} verdict": difference_verdict(lo, hi, queries),
                         f"{name} needs": getattr(diff[key], "queries_needed", np.nan),
                     }
                 )

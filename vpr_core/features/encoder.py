@@ -23,6 +23,7 @@ from ..checks import (
     check_image,
     check_int,
     check_options,
+    check_range,
 )
 from ..paper import PROJECTION_DIM
 from .crops import crop_boxes, pyramid_levels
@@ -50,6 +51,9 @@ __all__ = [
 DESCRIPTOR_VERSION = 2  # 2: fixed batch shape (grouping-invariant descriptors)
 #: Accepted ``pooling`` values.
 POOLING_MODES = ("crop", "roi")
+#: Largest crop side: a batch of 50 crops of 1,024 x 1,024 already takes 600 MB before the
+#: backbone runs (100,000 would ask for 120 GB).
+MAX_INPUT_SIZE = 1024
 
 
 @dataclasses.dataclass(frozen=True)
@@ -98,6 +102,14 @@ class Encoder:
                 f"backbone={type(self.backbone).__name__}(...) needs its crop size: pass "
                 "input_size=S (the side of the square (B, 3, S, S) crops it takes)"
             )
+        side = (
+            self.input_size
+            if self.input_size is not None
+            else self.parsed_backbone[1]["input_size"]
+        )
+        check_range(
+            side, "input_size (crop side, what the machine's memory holds)", 1, MAX_INPUT_SIZE
+        )
         check_device(self.device)
         _set(self, "device", str(self.device))
         if self.dim is not None:

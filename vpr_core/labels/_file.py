@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..checks import check_choice
+from ..checks import check_choice, check_file
 
 __all__ = ["LABEL_COLUMNS", "append_labels", "label_pair_file", "read_label_file"]
 
@@ -37,6 +37,10 @@ def _parse_bool(values: Iterable[Any]) -> np.ndarray:
 def read_label_file(path: str | PathLike) -> Any:
     """Read and validate a manual-label CSV (extra columns ignored): a DataFrame with int
     ``query, reference, query_box_index, reference_box_index`` and bool ``correct``."""
+    if not check_file(path, "label file"):
+        raise FileNotFoundError(
+            f"label file not found: {path}; give the path of the CSV of manual labels."
+        )
     df = pd.read_csv(path, skipinitialspace=True)
     df.columns = [str(c).strip() for c in df.columns]
     return _validate_label_frame(df, source=str(path))

@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 
 from .. import settings
-from ..checks import check_image, check_int, check_options
+from ..checks import check_file, check_image, check_int, check_options
 from ..notices import notice
 from ..paper import N_LANDMARKS
 from ..utils import file_sha256
@@ -94,7 +94,7 @@ def _resolve_model(model: str | os.PathLike | None) -> Path | None:
             return None
         model = env
     path = Path(model).expanduser()
-    if not path.is_file():
+    if not check_file(path, "structured-edge model"):
         raise FileNotFoundError(_missing_model_message(path))
     return path
 

@@ -150,10 +150,16 @@ def _check_carried_runs(ds: Any, plain: Any, weighted: Any) -> str:
     checks.check_descriptors_kept(weighted, "plot_carried_landmarks")
     check_runs_on(ds, (plain, weighted), "plot_carried_landmarks")
     m_w = dataclasses.replace(weighted.config.matching, weighting=None)
-    if plain.method != weighted.method or m_w != m_p:
+    e_p, e_w = dict(getattr(plain, "encoder", {})), dict(getattr(weighted, "encoder", {}))
+    differ = [k for k in sorted(e_p.keys() | e_w.keys()) if e_p.get(k) != e_w.get(k)]
+    differ += [k for k in ("shortlist", "protocol") if getattr(plain, k) != getattr(weighted, k)]
+    differ += ["method"] if plain.method != weighted.method else []
+    differ += ["matching"] if m_w != m_p else []
+    if differ:
         raise ValueError(
-            f"{plain.label!r} and {weighted.label!r} differ in more than the weighting: pass one "
-            "method run without and with weighting= (same matching options otherwise)"
+            f"{plain.label!r} and {weighted.label!r} differ in more than the weighting "
+            f"({', '.join(differ)}): pass one method run without and with weighting= (same "
+            "encoder, shortlist and matching options otherwise)"
         )
     return weighting
 
@@ -216,17 +222,21 @@ def plot_carried_landmarks(
     Args:
         ds: the runs' dataset (its images); plain: a method's run without weighting;
             weighted: the same method with ``weighting=`` and ``keep_descriptors=True``.
-        n_queries: queries shown; k: landmarks per row.
+        n_queries: queries shown; k: landmarks per row (1 to 10: what the figure's width fits).
 
     Returns:
         ``(figure, table)``: one row per landmark shown (:data:`CARRIED_COLUMNS`).
 
     Raises:
-        ValueError: ``n_queries`` or ``k`` below 1, ``plain`` with or ``weighted`` without a
-            weighting, ``weighted`` without descriptors, runs of another dataset or that differ
-            in more than the weighting.
+        ValueError: ``n_queries`` or ``k`` below 1 (``k`` above 10), ``plain`` with or
+            ``weighted`` without a weighting, ``weighted`` without descriptors, runs of another
+            dataset or that differ in more than the weighting (encoder, shortlist, protocol,
+            method or matching).
     """
-    n_queries, k = checks.check_int(n_queries, "n_queries", 1), checks.check_int(k, "k", 1)
+    n_queries = checks.check_int(n_queries, "n_queries", 1)
+    k = int(
+        checks.check_range(checks.check_int(k, "k", 1), "k (landmarks a figure row fits)", 1, 10)
+    )
     weighting = _check_carried_runs(ds, plain, weighted)
     gt = np.asarray(ds.ground_truth, dtype=bool)
     chosen = _changed_queries(plain, weighted, gt, n_queries)

@@ -23,6 +23,9 @@ __all__ = ["REPETITION_POOL", "SYNTHETIC_VERSION", "load_synthetic"]
 #: Generator version: part of every cache key. 6: exact arithmetic (same pixels on every CPU)
 #: and difficulty settings.
 SYNTHETIC_VERSION = 6
+#: Most places a route may have: its ``(n, n)`` ground truth and similarity matrices take
+#: 9 bytes x n^2 (3.6 GB at 20,000), and each place takes about a second to draw.
+MAX_PLACES = 20_000
 #: (Not in the paper.) Shared buildings of a route with ``repetition > 0``: few, so that every
 #: place shows the same facades in another arrangement.
 REPETITION_POOL = 3
@@ -56,9 +59,33 @@ def _write_error(path: Path, exc: OSError) -> OSError:
     return OSError(
         exc.errno,
         f"synthetic: cannot write {path} ({exc.strerror or exc}); free space on that disk, or "
-        "set VPR_CACHE_DIR (or pass root=...) to a writable folder with room for the "
+        "set VPR_CACHE_DIR to a writable folder with room for the "
         "dataset; nothing partial was kept",
     )
+
+
+def _generated_folder(root: Path, params: dict, n_places: int) -> Path:
+    """``root`` if the generator made it with ``params`` and it holds ``n_places`` places; the
+    loader only reads such a folder (DESIGN.md: generated data lives in the cache)."""
+    try:
+        path = root / "manifest.json"
+        manifest = json.loads(path.read_text()) if path.is_file() else None
+    except (OSError, ValueError):
+        manifest = None
+    made = isinstance(manifest, dict) and all(manifest.get(k) == v for k, v in params.items())
+    complete = made and all(
+        (root / side / f"{i:04d}.png").is_file()
+        for side in ("query", "reference")
+        for i in range(n_places)
+    )
+    if not complete:
+        why = "holds fewer places than asked" if made else "was not made by the generator"
+        raise ValueError(
+            f"synthetic: root={str(root)!r} {why} with these settings; the synthetic set is "
+            "generated into the cache (VPR_CACHE_DIR), never into a folder you name: drop "
+            "root= (--root), or name a folder the generator made with the same settings"
+        )
+    return root
 
 
 def load_synthetic(
@@ -84,13 +111,14 @@ def load_synthetic(
     exactly (occluders aside).
 
     Files: ``<dir>/query/0000.png``, ``<dir>/reference/0000.png`` and ``<dir>/manifest.json``
-    where ``<dir>`` is ``root`` if given, else ``cache_dir("datasets", "synthetic-<hash>")``
-    (the hash covers seed, image size, difficulty and generator version, not ``n_places``, so a
-    larger route reuses the places of a smaller one). Missing files are (re)generated.
+    where ``<dir>`` is ``cache_dir("datasets", "synthetic-<hash>")`` (the hash covers seed,
+    image size, difficulty and generator version, not ``n_places``, so a larger route reuses the
+    places of a smaller one). Missing files are (re)generated there, never in ``root``.
 
     Args:
-        root: Output folder (default: the cache).
-        n_places: Number of places (``>= 1``).
+        root: A folder the generator made (a copy of a cache folder), read only; refused if
+            its manifest differs from these settings or a place is missing. Default: the cache.
+        n_places: Number of places (1 to :data:`MAX_PLACES`).
         seed: Route seed (``>= 0``); same seed -> identical pixels.
         image_size: ``(H, W)`` of the views (each ``>= 32``).
         tolerance: ``|q - r| <= tolerance`` ground truth.
@@ -104,11 +132,17 @@ def load_synthetic(
 
     Raises:
         ValueError: bad ``n_places``, ``seed``, ``image_size``, ``tolerance`` or an unknown
-            difficulty name (the message lists the valid ones).
+            difficulty name (the message lists the valid ones), or a ``root`` the generator
+            did not make.
     """
     tolerance = check_tolerance(tolerance)
     diff_name, diff = resolve_difficulty(difficulty)
     n_places = check_int(n_places, "synthetic: n_places", minimum=1)
+    if n_places > MAX_PLACES:
+        raise ValueError(
+            f"synthetic: n_places={n_places:,} is more than {MAX_PLACES:,}, the most a route may "
+            "have (its (n, n) matrices take 9 bytes x n^2); give a smaller n_places"
+        )
     seed = check_int(seed, "synthetic: seed")
     try:
         size = tuple(int(v) for v in image_size)
@@ -135,11 +169,10 @@ def load_synthetic(
     }
     if repetition > 0:  # absent at 0: the default route keeps its cache key
         params["repetition"] = float(repetition)
-    out = (
-        Path(root).expanduser()
-        if root is not None
-        else cache_dir("datasets", f"synthetic-{short_hash(params)}")
-    )
+    if root is not None:
+        out = _generated_folder(Path(root).expanduser(), params, n_places)
+    else:
+        out = cache_dir("datasets", f"synthetic-{short_hash(params)}")
     for side in ("query", "reference"):
         try:
             (out / side).mkdir(parents=True, exist_ok=True)
