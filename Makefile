@@ -14,22 +14,24 @@ $(STAMP): pyproject.toml
 	$(PY) -m ipykernel install --sys-prefix --name python3 --display-name "Python 3 (vpr-landmarks)" >/dev/null
 	touch $(STAMP)
 
-install: $(STAMP)
+install: $(STAMP) git-filter
 
 $(LAB_STAMP): $(STAMP) pyproject.toml
 	$(PY) -m pip install -q -e '.[dev,lab]'
 	touch $(LAB_STAMP)
 
 # The git filter of this clone (.git/config; .gitattributes names the notebooks): the outputs,
-# execution counts and run metadata that JupyterLab saves into a notebook never reach git; cell
-# ids are kept (vpr_study.lab: the same stripping as `make lab`'s save hook). The command is
-# relative (git runs it at the top of the work tree), so it works in any clone, moved or not;
-# without .venv (after `make clean`) tools/nbstrip passes notebooks through, saying so once.
-# Outside a git clone it does nothing.
+# execution counts, run metadata and Lab's view state that JupyterLab saves into a study
+# notebook (the catalogue's, by path: vpr_study/nbclean.py) never reach git; cell ids are kept,
+# and any other notebook is the user's and passes unchanged (the same rule as `make lab`'s save
+# hook). The commands are relative (git runs them at the top of the work tree), so they work in
+# any clone, moved or not, and need only the system Python (no .venv: a fresh clone and
+# `make clean` strip the same). `make install` and `make lab` run it. Outside a git clone it
+# does nothing.
 STRIP := sh tools/nbstrip
 git-filter:
 	@if git rev-parse --git-dir >/dev/null 2>&1; then \
-		git config --local filter.nbstripout.clean '$(STRIP)' && \
+		git config --local filter.nbstripout.clean '$(STRIP) --clean %f' && \
 		git config --local filter.nbstripout.smudge cat && \
 		git config --local filter.nbstripout.required false && \
 		git config --local diff.ipynb.textconv '$(STRIP)'; fi
@@ -82,5 +84,7 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff format --check vpr_core vpr_study tests benchmarks
 	$(VENV)/bin/mypy
 
+# The install (.venv, PyTorch with it), every cached dataset, landmark, feature and matrix
+# (.cache) and the executed notebooks (runs/); figures/, results/ and user/ stay (README).
 clean:
 	rm -rf $(VENV) .cache runs

@@ -72,6 +72,7 @@ def test_a_users_cells_save_into_the_ignored_user_area_and_the_study_keeps_its_f
     clone = _checkout(tmp_path)
     monkeypatch.chdir(clone / "notebooks")  # a kernel of JupyterLab, no setting chosen
     fig = plt.figure(figsize=(2, 2))
+    fig.add_subplot().plot([0, 1])  # a figure with no axes is refused (issue 54)
     table = pd.DataFrame({"run": ["a"], "AUC": [0.5]})
     written = base.save_all([("mine", fig), ("mine", table)], "gardens_point_mini")
     assert written == [
@@ -102,7 +103,11 @@ def test_the_user_area_is_git_ignored_and_the_runner_hands_its_kernels_the_outpu
         ["git", "check-ignore", "-q", "figures/gardens_point_mini/mine.png"], cwd=REPO
     )
     assert tracked.returncode == 1
-    assert execution.kernel_settings()["VPR_OUTPUT_DIR"] == str(paths.output_root())
+    # the kernels write where this label's figures go: the study's output root for the study
+    # (issue 54: a label it does not commit, under user/)
+    with paths.study_outputs():
+        assert execution.kernel_settings()["VPR_OUTPUT_DIR"] == str(paths.output_root())
+    assert execution.kernel_settings()["VPR_OUTPUT_DIR"] == str(paths.figures_root())
 
 
 def test_a_user_kernel_in_notebooks_does_not_modify_a_tracked_file(tmp_path):

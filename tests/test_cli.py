@@ -334,3 +334,30 @@ def test_eval_spatial_both_pairs_each_method_with_itself(tmp_path, capsys):
         "dense(spatial=consistency)": "dense",
         "global(spatial=consistency)": "global",
     }
+
+
+def test_piped_output_has_the_stage_lines_alone_not_progress_bars_beside_them(monkeypatch):
+    """Issue 54 item 6: without a terminal a stage's heartbeat lines are its progress; the
+    stage's own progress bars (vpr_core.utils.progress) are off meanwhile, on again after."""
+    from vpr_core.utils import progress
+
+    monkeypatch.delenv("TQDM_DISABLE", raising=False)
+    lines = cli.StageLines()
+    lines.enabled = True  # stderr piped
+    with lines.stage("features"):
+        assert progress(range(3)).disable
+    assert not progress(range(3)).disable
+    monkeypatch.setenv("TQDM_DISABLE", "1")  # the user's own setting is kept
+    with lines.stage("features"):
+        pass
+    assert os.environ["TQDM_DISABLE"] == "1"
+
+
+def test_piped_output_is_not_wrapped_at_a_terminals_default_80_columns(monkeypatch):
+    """Issue 54 item 6: stdout piped and no $COLUMNS: eval's text is fitted to PIPED_WIDTH, not
+    to the 80 columns a missing terminal defaults to; $COLUMNS still decides when set."""
+    monkeypatch.delenv("COLUMNS", raising=False)
+    monkeypatch.setattr("sys.stdout.isatty", lambda: False, raising=False)
+    assert cli.output_width() == cli.PIPED_WIDTH > 80
+    monkeypatch.setenv("COLUMNS", "80")
+    assert cli.output_width() == 80

@@ -198,3 +198,22 @@ def test_result_labels_put_the_study_first_and_skip_quick_and_other_folders(tmp_
         "nordland_step5",
     ]
     assert findings.result_labels(out=tmp_path / "nothing") == []
+
+
+def test_identical_results_have_one_verdict_in_compare_and_the_findings(tiny_synthetic):
+    """Issue 54 item 5: a run identical to its baseline is "not testable (identical results)"
+    in compare's table (not "inconclusive": no number of queries could tell them apart), the
+    words of the findings table; the legend states the rules in the order they apply."""
+    from vpr_core import run_method
+    from vpr_core.evaluation import IDENTICAL, compare
+
+    a = run_method("global", tiny_synthetic, backbone="hog", n_bootstrap=50)
+    b = run_method("global", tiny_synthetic, backbone="hog", n_bootstrap=50, label="again")
+    table = compare([a, b], n_bootstrap=50)
+    assert table.loc["again", "dAUC verdict"] == IDENTICAL == findings._verdict("", 0.0, 0.0, 0.0)
+    assert IDENTICAL in str(table)
+    order = [
+        findings.LEGEND.index(w)
+        for w in ("**not testable**", "**on par**", "**higher**", "**inconclusive**")
+    ]
+    assert order == sorted(order)

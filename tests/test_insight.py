@@ -134,6 +134,32 @@ def test_saturation_warns_when_chance_is_inside_every_run_interval():
         saturation_notice(_frames(4, 2), {})
 
 
+def test_notices_name_their_runs_and_agree_with_the_verdicts():
+    """Issue 54 item 5: the chance notice names each run with its interval (it can be read
+    against the table), a run without intervals makes it no "every run" claim, a perfect run's
+    notice does not deny a verdict against a lower run, and tolerance=0 is never advised at 0."""
+    gt = np.eye(6, dtype=bool)
+    noise = {"auc": (0.2, 0.0, 0.5), "r@1": (0.17, 0.0, 0.5)}
+    weak = {"auc": (0.3, 0.1, 0.6), "r@1": (0.33, 0.0, 0.67)}
+    with pytest.warns(VPRWarning) as said:
+        saturation_notice(gt, [noise, weak], labels=["dense", "mine"])
+    text = str(said[0].message)
+    assert "dense 0.200 [0.000, 0.500], mine 0.300 [0.100, 0.600]" in text
+    assert "R@1: dense 0.170 [0.000, 0.500], mine 0.330 [0.000, 0.670]" in text
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", VPRWarning)
+        assert saturation_notice(gt, [noise, {}], labels=["dense", "no intervals"]) is None
+    perfect = {"auc": (1.0, 1.0, 1.0), "r@1": (1.0, 1.0, 1.0)}
+    with pytest.warns(VPRWarning) as said:
+        saturation_notice(gt, perfect, tolerance=0)
+    text = str(said[0].message)
+    assert "cannot tell methods apart" not in text and "verdict against a run below" in text
+    assert "tolerance=0" not in text
+    with pytest.warns(VPRWarning) as said:
+        saturation_notice(_frames(4, 2), {}, tolerance=0)
+    assert "tolerance=0" not in str(said[0].message) and "already 0" in str(said[0].message)
+
+
 # ------------------------------------------------------------------------------------------
 # compare: chance columns, datasets, compact display
 # ------------------------------------------------------------------------------------------

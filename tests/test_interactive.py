@@ -48,6 +48,13 @@ USER_CELLS = [
     "print(plt.get_backend(), type(fig.canvas).__name__)\n"
     "save(fig, 'x', 'mine'), save(pd.DataFrame({'a': [1.0]}), 'x', 'mine')\n"
     "save(pr, 'pr', 'mine')",
+    "from matplotlib_inline.backend_inline import set_matplotlib_formats\n"
+    "set_matplotlib_formats('jpeg')\n"  # as notebooks 01 and 07 do: shown once, as JPEG
+    "plot_pr_curves([run], title='the value of its cell')",  # issue 54: shown once
+    "try:\n"  # issue 54: a plt.gcf() of a later cell is empty: refused, the fix named
+    "    save(plt.gcf(), 'blank', 'mine')\n"
+    "except ValueError as exc:\n"
+    "    print(exc)",
 ]
 
 
@@ -66,7 +73,12 @@ def test_a_figure_shown_in_one_cell_saves_in_the_next_with_its_table(tmp_path, m
     )
     client.execute()  # a cell's error raises CellExecutionError, naming it
     shown = [o for o in nb.cells[1].outputs if "image/png" in o.get("data", {})]
-    assert shown, "the figure was displayed inline in its own cell"
+    assert len(shown) == 1, "the figure, the cell's value, was displayed once in its cell"
+    for cell, kind in (nb.cells[2], "png"), (nb.cells[4], "jpeg"):  # assigned, or the value
+        assert len([o for o in cell.outputs if f"image/{kind}" in o.get("data", {})]) == 1
+    refused = "".join(o.get("text", "") for o in nb.cells[5].outputs)
+    assert "has no axes" in refused and "fig = plot_pr_curves(runs); save(fig" in refused
+    assert not (tmp_path / "figures" / "mine" / "blank.png").exists()
     printed = "".join(o.get("text", "") for o in nb.cells[3].outputs)
     assert "inline" in printed and "FigureCanvasBase" in printed  # the state of the issue
     png = tmp_path / "figures" / "mine" / "x.png"

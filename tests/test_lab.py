@@ -103,6 +103,28 @@ def test_the_save_hook_strips_exactly_the_study_notebooks(path, root, strips):
         assert model["content"] == _executed(_tour())  # a user's outputs: kept, untouched
 
 
+def test_the_save_hook_drops_labs_view_state_from_a_study_notebook_and_its_twin():
+    """Issue 54 item 2: a click on a cell's collapser saves ``jupyter.source_hidden``; the
+    study notebook and its jupytext twin are saved without it, a user's notebook with it."""
+    nb = _tour()
+    nb["cells"][1]["metadata"]["jupyter"] = {"source_hidden": True}
+    nb["cells"][2]["metadata"]["collapsed"] = False
+    for path, kept in ((TOUR, False), ("notebooks/01_pipeline_tour-Copy1.ipynb", True)):
+        model = {"type": "notebook", "content": copy.deepcopy(nb)}
+        lab.strip_outputs(model, path, None)
+        assert (model["content"] == nb) is kept
+        assert (model["content"] == _tour()) is not kept
+    twin = (REPO / TWIN).read_text(encoding="utf-8")
+    marked = twin.replace("# %%\n", '# %% jupyter={"source_hidden": true}\n', 1)
+    assert marked != twin
+    model = {"type": "file", "format": "text", "content": marked}
+    lab.strip_outputs(model, TWIN, None)
+    assert model["content"] == twin
+    mine = {"type": "file", "format": "text", "content": marked}
+    lab.strip_outputs(mine, "notebooks/scripts/08_mine.py", None)
+    assert mine["content"] == marked
+
+
 def test_the_save_hook_leaves_files_and_folders_alone():
     model = {"type": "file", "content": "x", "format": "text"}
     lab.strip_outputs(model, TOUR)
@@ -133,7 +155,7 @@ MALFORMED = {
             "metadata": {},
             "cells": [{"cell_type": "code", "source": "1", "metadata": {}, "outputs": 3}],
         },
-        "stripping failed",
+        "cell 0's 'outputs' is not a list",
     ),
 }
 
@@ -178,13 +200,42 @@ def _strip_command() -> str:
 def test_the_makefile_writes_a_relative_filter_command():
     command = _strip_command()
     assert command == "sh tools/nbstrip"
+    makefile = (REPO / "Makefile").read_text()
+    assert "filter.nbstripout.clean '$(STRIP) --clean %f'" in makefile  # git gives the path
     assert "abspath" not in command and "$(PY)" not in command and "/.venv" not in command
     assert not any(Path(word).is_absolute() for word in command.split())
     script = (REPO / "tools" / "nbstrip").read_text()
-    assert script.startswith("#!/bin/sh\n") and "py=.venv/bin/python" in script
-    git_filter = re.search(r"^git-filter:(.*?)\n\n", (REPO / "Makefile").read_text(), re.M | re.S)
+    assert script.startswith("#!/bin/sh\n") and "vpr_study/nbclean.py" in script
+    git_filter = re.search(r"^git-filter:(.*?)\n\n", makefile, re.M | re.S)
     assert git_filter and "$(STAMP)" not in git_filter.group(0).split("\n")[0]  # needs no .venv
     assert "$(abspath" not in git_filter.group(0)
+    assert re.search(r"^install: \$\(STAMP\) git-filter$", makefile, re.M)
+
+
+def test_the_filter_module_needs_only_the_standard_library():
+    """vpr_study/nbclean.py run as git runs it, by a Python that has no third-party package
+    and does not see this project (``-I -S``): it reads the catalogue and strips."""
+    executed = json.dumps(_executed(_tour()), indent=1, ensure_ascii=False)
+    done = subprocess.run(
+        [sys.executable, "-I", "-S", "vpr_study/nbclean.py", "--clean", TOUR],
+        cwd=REPO,
+        input=executed.encode(),
+        capture_output=True,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == (REPO / TOUR).read_bytes()
+    source = (REPO / "vpr_study" / "nbclean.py").read_text()
+    imported = set(re.findall(r"^\s*(?:from|import) ([\w.]+)", source, re.M))
+    assert imported <= {
+        "__future__",
+        "importlib.util",
+        "json",
+        "re",
+        "sys",
+        "pathlib",
+        "typing",
+        "vpr_study.figures",
+    }, imported
 
 
 def _clone(tmp_path: Path, name: str = "clone") -> Path:
@@ -192,10 +243,18 @@ def _clone(tmp_path: Path, name: str = "clone") -> Path:
     without .venv."""
     clone = tmp_path / name
     _git(tmp_path, "clone", "-q", "--shared", str(REPO), str(clone))
-    for f in ("Makefile", ".gitattributes", "tools/nbstrip", "vpr_study/lab.py"):
+    for f in (
+        "Makefile",
+        ".gitattributes",
+        "tools/nbstrip",
+        "vpr_study/lab.py",
+        "vpr_study/nbclean.py",
+        "vpr_study/figures.py",
+        TOUR,
+        TWIN,
+    ):
         (clone / f).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(REPO / f, clone / f)
-    shutil.copy2(REPO / TOUR, clone / TOUR)
     _git(clone, "add", "-A")
     _git(clone, "commit", "-qm", "the working tree's filter", check=False)
     assert not (clone / ".venv").exists()
@@ -211,62 +270,100 @@ def _fake_venv(clone: Path) -> None:
     py.chmod(0o755)
 
 
+TWIN = "notebooks/scripts/01_pipeline_tour.py"
+
+
+def _lab_views(clone: Path) -> dict[str, str]:
+    """What a Lab session leaves in ``clone``: the study notebook run with a collapsed cell and
+    its twin with the collapsed cell's marker; a Lab duplicate and a user's own notebook with
+    outputs. ``{path: text written}``."""
+    nb = _executed(_tour())
+    nb["cells"][1]["metadata"]["jupyter"] = {"source_hidden": True}
+    nb["cells"][2]["metadata"]["collapsed"] = True
+    text = json.dumps(nb, indent=1, ensure_ascii=False) + "\n"
+    twin = (REPO / TWIN).read_text(encoding="utf-8")
+    first = next(line for line in twin.splitlines() if line.startswith("# %%"))
+    twin = twin.replace(first + "\n", first + ' jupyter={"source_hidden": true}\n', 1)
+    written = {
+        TOUR: text,
+        TWIN: twin,
+        "notebooks/01_pipeline_tour-Copy1.ipynb": text,
+        "notebooks/08_mine.ipynb": text,
+    }
+    for path, content in written.items():
+        (clone / path).write_text(content, encoding="utf-8")
+    return written
+
+
+def _staged_as_the_readme_says(clone: Path, written: dict[str, str]) -> None:
+    """``git add`` of each kind: the study notebook and its twin as committed (status clean),
+    the duplicate and the user's notebook with their outputs, as written."""
+    added = _git(clone, "add", "-A")
+    assert added.stderr == "", added.stderr
+    for path in (TOUR, TWIN):
+        assert _git(clone, "show", f":{path}").stdout == (REPO / path).read_text(encoding="utf-8")
+    for path in ("notebooks/01_pipeline_tour-Copy1.ipynb", "notebooks/08_mine.ipynb"):
+        assert _git(clone, "show", f":{path}").stdout == written[path]
+    assert sorted(_git(clone, "status", "--porcelain").stdout.split()) == sorted(
+        ["A", "notebooks/01_pipeline_tour-Copy1.ipynb", "A", "notebooks/08_mine.ipynb"]
+    )
+    shown = _git(clone / "notebooks", "diff", "--cached").stdout  # textconv, from a subfolder
+    assert "ran" in shown and "01_pipeline_tour.ipynb" not in shown
+    assert _git(clone, "diff", "HEAD", "--", TOUR, TWIN).stdout == ""
+
+
 @needs_make
-def test_the_git_filter_works_in_a_clone_without_venv_and_after_a_move(tmp_path):
+def test_git_keeps_each_kind_of_notebook_as_the_readme_says_with_or_without_venv(tmp_path):
+    """Issue 54 item 2: in a clone without .venv (a fresh clone, or after ``make clean``) and
+    after ``make install``, ``git add`` strips the study's notebook and its twin (outputs and
+    Lab's view state) and keeps a Lab duplicate and a user's own notebook as they are."""
     clone = _clone(tmp_path)
     subprocess.run(["make", "-s", "git-filter"], cwd=clone, check=True, timeout=120)
     assert _git(clone, "config", "--local", "filter.nbstripout.clean").stdout.strip() == (
-        "sh tools/nbstrip"
+        "sh tools/nbstrip --clean %f"
     )
     assert _git(clone, "config", "--local", "diff.ipynb.textconv").stdout.strip() == (
         "sh tools/nbstrip"
     )
-    nb = clone / TOUR
-    executed = json.dumps(_executed(_tour()), indent=1, ensure_ascii=False) + "\n"
-    nb.write_text(executed, encoding="utf-8")
-    # no .venv: git status, diff and add work; the notebook passes unchanged, said once
-    first = _git(clone, "status", "--porcelain")
-    assert first.stdout.split() == ["M", TOUR]
-    added = _git(clone, "add", TOUR)
-    said = first.stderr + added.stderr
-    assert said.count("pass to git unchanged") == 1 and ".venv/bin/python not found" in said
-    assert _git(clone, "show", f":{TOUR}").stdout == executed  # passthrough
-    assert "ran" in _git(clone / "notebooks", "diff", "--cached").stdout  # textconv, a subfolder
-    again = _git(clone, "status", "--porcelain")
-    assert "unchanged" not in again.stderr  # once
-    # with a Python in .venv: stripped to the committed notebook, git status clean
+    _staged_as_the_readme_says(clone, _lab_views(clone))  # no .venv
+    _git(clone, "reset", "-q", "--hard")
+    _git(clone, "clean", "-qfd")
+    # after `make install` (its stamps fresh: it installs nothing, it sets the filter)
+    venv = tmp_path / "venv"
+    (venv / "bin").mkdir(parents=True)
+    (venv / ".installed").touch()
+    _git(clone, "config", "--local", "--unset", "filter.nbstripout.clean")
+    subprocess.run(["make", "-s", "install", f"VENV={venv}"], cwd=clone, check=True, timeout=120)
     _fake_venv(clone)
-    nb.write_text(executed + "\n", encoding="utf-8")
-    stripped = _git(clone, "add", TOUR)
-    assert stripped.stderr == ""
-    assert _git(clone, "show", f":{TOUR}").stdout == (REPO / TOUR).read_text(encoding="utf-8")
-    assert _git(clone, "status", "--porcelain").stdout == ""
-    assert _git(clone, "diff", "HEAD").stdout == ""  # textconv strips the outputs too
+    _staged_as_the_readme_says(clone, _lab_views(clone))
     # the clone moved: the same relative command works there
+    _git(clone, "reset", "-q", "--hard")
     moved = clone.rename(tmp_path / "moved")
-    assert _git(moved, "status", "--porcelain").stdout == ""
-    # make clean removes .venv: git still works, passes through, and says so once more
-    shutil.rmtree(moved / ".venv")
-    (moved / TOUR).write_text(executed, encoding="utf-8")
-    after = _git(moved, "add", TOUR)
-    assert after.stderr.count("pass to git unchanged") == 1
-    assert _git(moved, "show", f":{TOUR}").stdout == executed
+    (moved / TOUR).write_text(_lab_views(moved)[TOUR], encoding="utf-8")
+    assert _git(moved, "status", "--porcelain", "--", TOUR).stdout == ""
 
 
 @needs_git
-def test_the_filter_script_passes_through_when_python_fails(tmp_path):
-    """A .venv whose Python cannot run the stripping (a half-made environment): unchanged."""
+def test_without_a_python_the_filter_passes_through_and_says_so_each_time(tmp_path):
     clone = _clone(tmp_path)
-    py = clone / ".venv" / "bin" / "python"
-    py.parent.mkdir(parents=True)
-    py.write_text("#!/bin/sh\necho 'No module named nbformat' >&2\nexit 1\n")
-    py.chmod(0o755)
     text = json.dumps(_executed(_tour()))
-    done = subprocess.run(
-        ["sh", "tools/nbstrip"], cwd=clone, input=text, capture_output=True, text=True
-    )
-    assert done.returncode == 0 and done.stdout == text
-    assert "No module named nbformat" in done.stderr
+    bare = tmp_path / "bin"
+    bare.mkdir()
+    for tool in ("cat", "echo", "sh"):
+        found = shutil.which(tool)
+        if found:
+            (bare / tool).symlink_to(found)
+    for _ in range(2):
+        done = subprocess.run(
+            ["sh", "tools/nbstrip", "--clean", TOUR],
+            cwd=clone,
+            input=text,
+            capture_output=True,
+            text=True,
+            env={"PATH": str(bare)},
+        )
+        assert done.returncode == 0 and done.stdout == text
+        assert "no Python 3" in done.stderr and "outputs included" in done.stderr
 
 
 # 3. A clean tree after a Lab session (issue 33 item 3) ------------------------------------------
@@ -296,11 +393,18 @@ def _lab_clone(tmp_path: Path, name: str) -> tuple[Path, Path]:
     are fresh (``make VENV=...`` installs nothing)."""
     clone = tmp_path / name
     (clone / "notebooks" / "scripts").mkdir(parents=True)
-    for f in ("Makefile", "pyproject.toml", ".gitattributes", "tools/nbstrip", TOUR):
+    for f in (
+        "Makefile",
+        "pyproject.toml",
+        ".gitattributes",
+        "tools/nbstrip",
+        "vpr_study/nbclean.py",
+        "vpr_study/figures.py",
+        TOUR,
+    ):
         (clone / f).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(REPO / f, clone / f)
-    twin = "notebooks/scripts/01_pipeline_tour.py"
-    shutil.copy2(REPO / twin, clone / twin)
+    shutil.copy2(REPO / TWIN, clone / TWIN)
     (clone / ".gitignore").write_text(".venv/\n")
     venv = tmp_path / f"{name}-venv"
     (venv / "bin").mkdir(parents=True)
@@ -345,7 +449,7 @@ def test_make_lab_installs_the_lab_extra_once_and_opens_the_starter(tmp_path):
         ["make", "-n", "lab", f"VENV={venv}"], cwd=clone, capture_output=True, text=True, check=True
     ).stdout
     assert "pip install" not in dry and "jupyter lab" in dry
-    assert "git config --local filter.nbstripout.clean 'sh tools/nbstrip'" in dry
+    assert "git config --local filter.nbstripout.clean 'sh tools/nbstrip --clean %f'" in dry
     assert "--ContentsManager.pre_save_hook=vpr_study.lab.strip_outputs" in dry
     assert f'--ServerApp.root_dir="{clone}"' in dry  # notebooks/ and user/notebooks/ visible
     starter = f"{lab.USER_NOTEBOOKS}/{lab.STARTER_NAME}"
@@ -422,8 +526,36 @@ def test_the_starter_ships_in_the_package_and_a_users_notebooks_are_ignored():
     assert all(not c.get("outputs") for c in nb.cells if c.cell_type == "code")
 
 
-def test_the_starter_notebook_runs_end_to_end_with_the_inline_backend(tmp_path, monkeypatch):
-    """As a user runs it in Lab: a kernel in user/notebooks/, figures inline; everything it
+def _suggested_code(nb) -> list[str]:
+    """The code the starter's Markdown suggests: each fenced ``python`` block. A call in
+    inline code of a name the notebook imports (``load_dataset(...)``) must be one of them or
+    a code cell's: what the starter shows, it runs."""
+    import ast
+
+    markdown = "\n".join(c.source for c in nb.cells if c.cell_type == "markdown")
+    blocks = re.findall(r"```python\n(.*?)```", markdown, re.S)
+    code = "\n".join([*(c.source for c in nb.cells if c.cell_type == "code"), *blocks])
+    imported = {
+        a.asname or a.name
+        for node in ast.walk(ast.parse(code))
+        if isinstance(node, ast.ImportFrom)
+        for a in node.names
+    }
+    for span in re.findall(r"`([^`\n]+)`", re.sub(r"```.*?```", "", markdown, flags=re.S)):
+        try:
+            tree = ast.parse(span, mode="eval").body
+        except SyntaxError:
+            continue
+        if isinstance(tree, ast.Call) and getattr(tree.func, "id", None) in imported:
+            assert "..." in span or span in code, f"the Markdown shows {span} but runs it nowhere"
+    return blocks
+
+
+def test_the_starter_notebook_runs_end_to_end_with_the_inline_backend(
+    tmp_path, monkeypatch, gardens_point_mini_root
+):
+    """As a user runs it in Lab: a kernel in user/notebooks/, figures inline, every code cell
+    and every line its Markdown suggests (issue 54: the real-data line failed); everything it
     writes lands in the chosen output and cache roots (tmp_path), nothing in the repository."""
     import nbformat
     from nbclient import NotebookClient
@@ -433,13 +565,24 @@ def test_the_starter_notebook_runs_end_to_end_with_the_inline_backend(tmp_path, 
     monkeypatch.setenv("VPR_CACHE_DIR", str(cache))
     monkeypatch.setenv("MPLBACKEND", "module://matplotlib_inline.backend_inline")
     monkeypatch.setenv("TQDM_DISABLE", "1")
-    path = lab.init(_checkout(tmp_path))
+    checkout = _checkout(tmp_path)
+    data = tmp_path / "shared" / "data"  # ../shared/data beside the checkout, as here
+    data.mkdir(parents=True)
+    (data / "gardens_point_mini").symlink_to(gardens_point_mini_root)
+    path = lab.init(checkout)
     nb = nbformat.read(path, as_version=4)
+    suggested = _suggested_code(nb)
+    assert any(
+        'load_dataset("folder", root="../shared/data/gardens_point_mini")' in c for c in suggested
+    )
+    nb.cells += [nbformat.v4.new_code_cell(code) for code in suggested]  # as a user tries them
     NotebookClient(
         nb, kernel_name="python3", timeout=600, resources={"metadata": {"path": str(path.parent)}}
     ).execute()
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
     assert not [o for o in outputs if o.output_type == "error"]
+    shown = "".join(str(o.get("data", {}).get("text/plain", "")) for o in nb.cells[-1].outputs)
+    assert "gardens_point_mini" in shown and "n_query=10" in shown
     assert any("image/png" in o.get("data", {}) for o in outputs)  # the PR curves, inline
     png = out / "figures" / "mine" / "my_comparison.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

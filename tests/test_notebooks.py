@@ -194,3 +194,43 @@ def test_real_datasets_beside_the_project_get_the_comparison(tmp_path, monkeypat
         assert (table["AUC lo"] <= table["AUC"] + 1e-9).all()
         assert set(table["baseline"].dropna()) == {"dense"}
         assert table["dAUC verdict"].notna().sum() == len(table) - 1
+
+
+def test_notebook_07_shows_its_main_table_formatted_with_the_verdicts():
+    """Issue 54 item 4: the 9-run table shows as ``compact`` (one column per metric, the paired
+    difference with its verdict), not the raw 51-column frame whose ``...`` hid the verdicts."""
+    import jupytext
+
+    nb = jupytext.read(NB_DIR / "07_places_alike.ipynb")
+    (cell,) = [c for c in nb.cells if 'save(table, "places_alike", label)' in c.source]
+    assert cell.source.strip().splitlines()[-1].startswith("compact(table)")
+    from vpr_core.evaluation import compact
+
+    rows = {
+        "queries": [8, 8],
+        "protocol": ["ratio"] * 2,
+        "baseline": ["dense", "dense"],
+        **{
+            f"{m}{s}": [0.5, 0.6]
+            for m in ("AUC", "R@100P", "R@1", "R@5")
+            for s in ("", " lo", " hi")
+        },
+        **{f"d{m}{s}": [None, 0.1] for m in ("AUC", "R@100P", "R@1") for s in ("", " lo", " hi")},
+        **{f"d{m} verdict": [None, "higher"] for m in ("AUC", "R@100P", "R@1")},
+    }
+    shown = compact(pd.DataFrame(rows, index=["dense", "dense (weighting: contrast)"]))
+    assert len(shown.columns) < 12 and "higher" in shown.to_string()
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
+def test_no_markdown_cell_breaks_off_mid_sentence(path):
+    """Issue 54 item 6: notebook 01's introduction ended in "Every figure cell shows the"."""
+    import jupytext
+
+    for cell in jupytext.read(path).cells:
+        if cell.cell_type != "markdown":
+            continue
+        last = cell.source.rstrip().splitlines()[-1].strip()
+        assert last.startswith(("#", "|", "-", "*", "!")) or last.endswith(
+            (".", ":", "!", "?", ")", "`", "*", "|", "$")
+        ), f"{path.name}: a Markdown cell ends mid-sentence: {last!r}"

@@ -275,3 +275,22 @@ def test_bad_options_are_refused_before_any_work(four, monkeypatch, options, mat
 def test_multi_match_runs_end_to_end_without_intervals(four, isolated_cache):
     r = run_method("dense", four, backbone="hog", protocol="multi_match", n_bootstrap=0)
     assert r.protocol == "multi_match" and 0 <= r.metrics["auc"] <= 1 and r.intervals == {}
+
+
+def test_the_log_line_says_when_stage_seconds_are_an_earlier_runs(tmp_path, monkeypatch, caplog):
+    """Issue 54 item 5: a stage read from the cache keeps the seconds of the run that computed
+    it; the log line says so (as the CLI's cost table says "earlier run")."""
+    import logging
+
+    monkeypatch.setenv("VPR_CACHE_DIR", str(tmp_path / "cache"))
+    ds = load_dataset("synthetic", n_places=4)
+    with caplog.at_level(logging.INFO, logger="vpr_core"):
+        run_method("dense", ds, backbone="hog", n_bootstrap=0)
+    first = [r.getMessage() for r in caplog.records if " on synthetic: " in r.getMessage()]
+    assert first and "cached" not in first[-1]
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="vpr_core"):
+        run_method("dense", ds, backbone="hog", n_bootstrap=0)
+    again = [r.getMessage() for r in caplog.records if " on synthetic: " in r.getMessage()]
+    assert "features cached: the seconds of the earlier run that computed them" in again[-1]
+    assert "(read from the cache)" in again[-1]

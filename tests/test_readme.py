@@ -43,6 +43,7 @@ ALLOWED_TEXT = [
     "top 25 references",  # the shortlist setting of nordland_step5
     "roi, shortlist 25",
     "tolerance 0",
+    "tolerance 1",  # the frame tolerance of the all-of-Nordland benchmarks
     "IoU 0.3",  # Fig. 7 thresholds
     "IoU 0.4",
     "IoU 0.7",
@@ -437,3 +438,24 @@ def test_makefile_study_nordland_comment_is_measured():
     comment = _unwrapped(makefile[: makefile.index("\nstudy-nordland:")].rsplit("\n\n", 1)[-1])
     assert f"{_queries('nordland_step5')} Nordland places" in comment
     assert f"{_timed('study-nordland')} from an empty cache" in comment
+
+
+def test_the_readme_says_what_make_clean_removes_and_names_the_insight_calls():
+    """Issue 54 items 3 and 6: every path `make clean` removes is named beside it; the three
+    calls that look closer are named; the documented small run of a study notebook parses."""
+    import re
+    import shlex
+
+    makefile = (REPO / "Makefile").read_text(encoding="utf-8")
+    (recipe,) = re.findall(r"^clean:\n\trm -rf (.+)$", makefile, re.M)
+    text = _unwrapped(README)
+    said = text[text.index("`make clean` removes") :][:300]
+    for path in recipe.replace("$(VENV)", ".venv").split():
+        assert f"`{path}" in said, f"README: `make clean` removes {path}, say so"
+    for call in ("per_query(", "plot_disagreements(", "ds.with_tolerance("):
+        assert call in text, call
+    (command,) = re.findall(r"`(vpr-study run --quick --notebooks \w+)`", text)
+    from vpr_study import cli
+
+    args = cli.build_parser().parse_args(shlex.split(command)[1:])
+    assert args.quick and args.notebooks == ["03_landmark_selection"]

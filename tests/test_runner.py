@@ -7,11 +7,14 @@ import os
 import signal
 import threading
 import time
+from pathlib import Path
 
 import pandas as pd
 import pytest
 
-from vpr_study import execution, figures, runner
+from vpr_core import paths
+from vpr_study import execution, figures, memo, runner
+from vpr_study.figures import NOTEBOOKS
 
 
 def test_registry_is_one_list():
@@ -273,3 +276,90 @@ def test_vpr_study_run_exits_non_zero_naming_the_failed_labels(tmp_path, monkeyp
     err = capsys.readouterr().err
     assert "2 of 2 dataset labels failed" in err
     assert "synthetic_quick: notebook" in err and "other_quick: notebook" in err
+
+
+# Issue 54 item 1: the study is a list (the catalogue), not a pattern ------------------------------
+
+
+def _folder_with_a_duplicate(tmp_path: Path) -> Path:
+    """A notebooks/ folder: the catalogue's notebooks and their twins, and a Lab duplicate of
+    notebook 01 (``01_pipeline_tour-Copy1.ipynb``) with its twin, as File > Duplicate makes."""
+    folder = tmp_path / "notebooks"
+    (folder / "scripts").mkdir(parents=True)
+    for stem in NOTEBOOKS:
+        (folder / f"{stem}.ipynb").write_text(f"{stem}\n")
+        (folder / "scripts" / f"{stem}.py").write_text(f"# {stem}\n")
+    return folder
+
+
+def _duplicate(folder: Path) -> None:
+    (folder / "01_pipeline_tour-Copy1.ipynb").write_text("a copy\n")
+    (folder / "scripts" / "01_pipeline_tour-Copy1.py").write_text("# a copy\n")
+
+
+def test_a_lab_duplicate_in_notebooks_is_not_a_study_notebook(tmp_path, monkeypatch):
+    folder = _folder_with_a_duplicate(tmp_path)
+    _duplicate(folder)
+    (folder / "08_mine.ipynb").write_text("mine\n")
+    monkeypatch.setattr(runner, "notebooks_dir", lambda: folder)
+    assert [p.stem for p in runner.notebook_paths()] == list(NOTEBOOKS)
+    with pytest.raises(ValueError, match="Unknown notebook.*01_pipeline_tour-Copy1.*user/"):
+        runner.notebook_paths(["01_pipeline_tour-Copy1"])
+    (folder / "04_overlap.ipynb").unlink()
+    with pytest.raises(FileNotFoundError, match="04_overlap.ipynb missing.*git checkout"):
+        runner.notebook_paths()
+
+
+def test_a_users_notebook_beside_the_study_changes_no_memo_key(tmp_path):
+    folder = _folder_with_a_duplicate(tmp_path)
+    nb = folder / "03_landmark_selection.ipynb"
+    before = memo.notebook_key(nb, "inputs")
+    _duplicate(folder)
+    assert memo.notebook_key(nb, "inputs") == before
+    (folder / "helper.csv").write_text("a file a cell may read\n")  # still an input
+    assert memo.notebook_key(nb, "inputs") != before
+
+
+def _checkout(tmp_path: Path) -> Path:
+    root = tmp_path / "checkout"
+    (root / "notebooks").mkdir(parents=True)
+    (root / "pyproject.toml").write_text(f'[project]\nname = "{paths.PROJECT_NAME}"\n')
+    return root
+
+
+@pytest.mark.parametrize(
+    ("kw", "label", "where"),
+    [
+        ({"quick": True}, "synthetic_quick", "user"),
+        ({"label": "mine"}, "mine", "user"),
+        ({}, "synthetic", ""),
+    ],
+)
+def test_only_the_committed_labels_write_into_figures_and_results(
+    tmp_path, monkeypatch, kw, label, where
+):
+    """``--quick`` and a label the catalogue does not commit write under user/; the kernels get
+    that folder as their output root. The study's labels write figures/ and results/."""
+    root = _checkout(tmp_path)
+    monkeypatch.chdir(root)
+    monkeypatch.delenv("VPR_OUTPUT_DIR", raising=False)
+    monkeypatch.setenv("VPR_CACHE_DIR", str(tmp_path / "cache"))
+    seen = {}
+
+    def fake_run_labels(chains, kernel, force, jobs):
+        seen["labels"] = [c[0] for c in chains]
+        seen["env"] = execution.kernel_settings()
+        seen["figures"] = paths.figures_dir(chains[0][0])
+        return []
+
+    monkeypatch.setattr(runner, "load_dataset", lambda *a, **k: None)
+    monkeypatch.setattr(runner, "run_labels", fake_run_labels)
+    monkeypatch.setattr(runner, "study_datasets", lambda: {})
+    with paths.study_outputs():  # as `vpr-study run` calls it
+        runner.run_study(notebooks=["03_landmark_selection"], **kw)
+    base = root / where if where else root
+    assert seen["labels"] == [label]
+    assert seen["figures"] == base / "figures" / label
+    assert seen["env"]["VPR_OUTPUT_DIR"] == str(base)
+    assert seen["env"]["VPR_CACHE_DIR"] == str(tmp_path / "cache")
+    assert (root / where / "figures").is_dir() and (where or not (root / "user").exists())

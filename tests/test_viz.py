@@ -180,6 +180,13 @@ def test_pair_and_coverage_figures_of_runs(tiny_synthetic):
     assert list(table.index) == ["dense", "global"] and len(fig.axes) >= 2
     assert table.loc["global", "covered share (mean)"] == 1.0  # the whole-image box
     assert 0 < table.loc["dense", "covered share (this image)"] <= 1
+    # issue 54: the panels compare a count, so they share one colour scale; the outlines are
+    # said on each colour bar
+    scales = {im.get_clim() for ax in fig.axes for im in ax.get_images() if im.get_alpha()}
+    assert len(scales) == 1 and scales.pop()[1] > 1, scales
+    bars = [ax.get_ylabel() for ax in fig.axes if "boxes covering" in ax.get_ylabel()]
+    assert len(bars) == 2 and all("white outlines:" in b for b in bars)
+    assert "one colour scale" in fig._suptitle.get_text()
     plt.close("all")
 
 
@@ -339,3 +346,59 @@ def test_dataset_line_names_the_subset_and_the_ground_truth():
         "nordland_64x32, every 50th place: 3 of 3 queries with ground truth, tolerance 0, "
         "protocol ratio"
     )
+
+
+def _fake_run(label, sim, gt, method=None, weighting=None, metrics=None):
+    from types import SimpleNamespace
+
+    from vpr_core.evaluation import evaluate, pr_curve
+
+    return SimpleNamespace(
+        label=label,
+        method=method,
+        config=SimpleNamespace(matching=SimpleNamespace(weighting=weighting)),
+        similarity=sim,
+        ground_truth=gt,
+        dataset="toy",
+        tolerance=0,
+        protocol="ratio",
+        metrics=metrics if metrics is not None else evaluate(sim, gt),
+        intervals={},
+        curve=lambda: pr_curve(sim, gt, warn=False),
+    )
+
+
+def test_pr_curves_colour_per_method_style_per_weighting_and_coinciding_curves_said():
+    """Issue 54 item 4: runs varying in method and weighting read at a glance (the colour is
+    the method, the line style the weighting); a curve that coincides with another one's,
+    though not the same result, is drawn over it and its legend says so."""
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import to_hex
+
+    plt.close("all")
+    rng = np.random.default_rng(0)
+    gt = np.eye(8, dtype=bool)
+    sims = [0.6 * gt + rng.random((8, 8)) for _ in range(4)]
+    runs = [
+        _fake_run(f"{m}{' (weighting: ' + w + ')' if w else ''}", sims[i + 2 * j], gt, m, w)
+        for i, m in enumerate(("dense", "classical"))
+        for j, w in enumerate((None, "contrast"))
+    ]
+    fig = viz.plot_pr_curves(runs)
+    lines = {ln.get_label().split("  ")[0]: ln for ln in fig.axes[0].get_lines()}
+    colour = {k: to_hex(v.get_color()) for k, v in lines.items() if not k.startswith("chance")}
+    assert colour["dense"] == colour["dense (weighting: contrast)"] != colour["classical"]
+    assert colour["classical"] == colour["classical (weighting: contrast)"]
+    style = {k: str(v.get_linestyle()) for k, v in lines.items()}
+    assert style["dense"] == style["classical"] != style["dense (weighting: contrast)"]
+    plt.close(fig)
+    # the same curve, another result (its metrics differ, e.g. a tie broken otherwise)
+    same = _fake_run("dense (geometry: consistency)", sims[0] * 2, gt, metrics={"R@1": 0.0})
+    fig = viz.plot_pr_curves([runs[0], same])
+    labels = (
+        [t.get_text() for t in fig.legends[0].get_texts()]
+        if fig.legends
+        else [ln.get_label() for ln in fig.axes[0].get_lines()]
+    )
+    assert any("same curve as dense" in t for t in labels), labels
+    plt.close(fig)

@@ -108,12 +108,14 @@ def find_input(path: str | os.PathLike) -> Path:
 
 
 @contextmanager
-def study_outputs() -> Iterator[None]:
+def study_outputs(study: bool = True) -> Iterator[None]:
     """Within the block figures and tables go to the study's ``figures/`` and ``results/`` of
-    the output root (the CLI's commands and the benchmarks), never to :data:`USER_AREA`."""
+    the output root (the CLI's commands and the benchmarks), never to :data:`USER_AREA`;
+    ``study=False``: to :data:`USER_AREA` (a label the study does not commit) unless a root
+    was chosen."""
     global _study
     saved = _study
-    _study = True
+    _study = study
     try:
         yield
     finally:

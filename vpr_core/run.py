@@ -191,6 +191,12 @@ def _match(
     return sim, {"pairs": float(len(pairs)), "shortlist_s": t1 - t0, "matching_s": t2 - t1}
 
 
+def _from_cache(wall: float, recorded: float) -> bool:
+    """Whether a stage that took ``wall`` seconds in this call, and whose cached entries record
+    ``recorded`` seconds of computation, was read from the cache (under half the time)."""
+    return recorded > 0 and wall < 0.5 * recorded
+
+
 def _records_warnings(run: Callable[P, MethodResult]) -> Callable[P, MethodResult]:
     """Hand every warning of ``run`` on to the caller's filters and record the
     :class:`~vpr_core.notices.VPRWarning` ones on the result (``.warnings``)."""
@@ -289,8 +295,11 @@ def run_method(
     images = images_fingerprint(dataset)  # the matrix cache's folder: not the ground truth
     weights_sha256 = str(landmark_encoder.config.get("weights_sha256", ""))
     edge_model = edge_model_id() if isinstance(conf.landmarks, CandidateScheme) else "none"
+    t_stage = time.perf_counter()
     boxes = extract_landmarks(conf.landmarks, dataset)
+    wall_lm = time.perf_counter() - t_stage
     feats, glob = _features(boxes, dataset, landmark_encoder, k, executor)
+    wall_ft = time.perf_counter() - t_stage - wall_lm
     # keyed by what goes in: the images (folder), the boxes and descriptors (content), the
     # Matching value; not the ground truth, so another tolerance reuses the matrix
     inputs = [
@@ -346,7 +355,13 @@ def run_method(
     metrics = evaluate(sim, gt, evaluation)
     n_boot = evaluation.n_bootstrap
     intervals = bootstrap_metrics(sim, gt, n=n_boot, protocol=protocol) if n_boot else {}
-    saturation_notice(gt, intervals, evaluation, soft=dataset.soft_only)
+    saturation_notice(
+        gt,
+        intervals,
+        evaluation,
+        soft=dataset.soft_only,
+        tolerance=getattr(dataset, "tolerance", None),
+    )
     n_img = nq + nr
     timings = {
         "landmarks_s_per_image": float(sum(map(sum, boxes["seconds"].values())) / n_img),
@@ -355,15 +370,26 @@ def run_method(
         "landmarks_per_image": float(np.mean([len(b) for s in SIDES for b in boxes[s]])),
         "pairs": n_pairs,
     }
+    earlier = [
+        stage
+        for stage, wall, key in (
+            ("landmarks", wall_lm, "landmarks_s_per_image"),
+            ("features", wall_ft, "features_s_per_image"),
+        )
+        if _from_cache(wall, timings[key] * n_img)
+    ]
     logger.info(
         "%s on %s: %d images, %.0f landmarks/img; landmarks %.2f s/img, features %.3f "
-        "s/img, Eq. (1) on %d pairs%s; AUC(%s) %.3f, R@1 %.3f",
+        "s/img%s, Eq. (1) on %d pairs%s; AUC(%s) %.3f, R@1 %.3f",
         label or method_label(conf),
         dataset.name,
         n_img,
         timings["landmarks_per_image"],
         timings["landmarks_s_per_image"],
         timings["features_s_per_image"],
+        f" ({' and '.join(earlier)} cached: the seconds of the earlier run that computed them)"
+        if earlier
+        else "",
         int(n_pairs),
         " (read from the cache)" if cached is not None else "",
         protocol,

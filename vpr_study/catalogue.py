@@ -2,12 +2,15 @@
 the notebooks run for it (and the ``vpr-study`` commands of the Makefile), hence every figure and
 table; anything else in those folders is not the study's (a user's or a test's stray file).
 
-The figures are :data:`vpr_study.figures.FIGURES` (the runner checks after each notebook that
-they were written); the tables are :data:`TABLES`. ``tests/test_study_outputs.py`` keeps the
-catalogue and the committed folders equal both ways (a file there that the catalogue does not
-name fails, and so does a catalogued file that is missing), and checks the label lists below
-against the Makefile's commands, so a notebook or command that starts writing a new file fails
-the tests at the next ``make study`` until the catalogue names it."""
+The study's notebooks are the list :data:`vpr_study.figures.NOTEBOOKS` (``notebooks/<stem>.ipynb``:
+the runner, the memo, the save hook and the git filter read it; any other notebook in
+``notebooks/`` or ``user/`` is the user's, and a label not in :data:`LABEL_NOTEBOOKS` writes under
+``user/``). The figures are :data:`vpr_study.figures.FIGURES` (the runner checks after each
+notebook that they were written); the tables are :data:`TABLES`. ``tests/test_study_outputs.py``
+keeps the catalogue and the committed folders equal both ways (a file there that the catalogue
+does not name fails, and so does a catalogued file that is missing), and checks the label lists
+below against the Makefile's commands, so a notebook or command that starts writing a new file
+fails the tests at the next ``make study`` until the catalogue names it."""
 
 from __future__ import annotations
 

@@ -48,6 +48,7 @@ from vpr_study.viz.base import save_all
 __all__ = [
     "HEADLINE",
     "INTERRUPTED",
+    "PIPED_WIDTH",
     "PROGRESS_INTERVAL_S",
     "build_parser",
     "changed_settings",
@@ -60,6 +61,7 @@ __all__ = [
     "fit_text",
     "format_table",
     "main",
+    "output_width",
     "say",
     "StageLines",
 ]
@@ -260,6 +262,19 @@ def _matrix_entries() -> dict[str, tuple[int, int, int]]:
     return found
 
 
+#: Columns of ``eval``'s text when stdout is piped or redirected and ``$COLUMNS`` is unset: a
+#: log keeps each table's rows whole instead of wrapping them at a terminal's default 80.
+PIPED_WIDTH = 160
+
+
+def output_width() -> int:
+    """The columns ``eval`` fits its text to: ``$COLUMNS``, else the terminal's, else (stdout
+    piped or redirected) :data:`PIPED_WIDTH`."""
+    if os.environ.get("COLUMNS", "").strip().isdigit() or sys.stdout.isatty():
+        return shutil.get_terminal_size().columns
+    return PIPED_WIDTH
+
+
 #: Outside a terminal: a line when each stage of ``eval`` starts, and one every this many
 #: seconds while it runs (:class:`StageLines`).
 PROGRESS_INTERVAL_S = 10.0
@@ -268,7 +283,8 @@ PROGRESS_INTERVAL_S = 10.0
 class StageLines:
     """Progress without a terminal: one ``[vpr-study] <stage>`` line on stderr when a stage
     starts and a ``still running`` line every :data:`PROGRESS_INTERVAL_S` seconds while it
-    runs; nothing on a terminal (its progress bars show live)."""
+    runs, the only progress lines then (the stage's own progress lines are off: piped output
+    does not mix the two); nothing on a terminal (its progress bars show live)."""
 
     def __init__(self) -> None:
         self.enabled = not getattr(sys.stderr, "isatty", lambda: False)()
@@ -292,9 +308,15 @@ class StageLines:
 
         thread = threading.Thread(target=beat, name="vpr-study-progress", daemon=True)
         thread.start()
+        saved = os.environ.get("TQDM_DISABLE")
+        os.environ["TQDM_DISABLE"] = "1"  # vpr_core.utils.progress: these lines say it
         try:
             yield
         finally:
+            if saved is None:
+                os.environ.pop("TQDM_DISABLE", None)
+            else:
+                os.environ["TQDM_DISABLE"] = saved
             stop.set()
             thread.join()
 
@@ -379,7 +401,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         dataset.ground_truth, dataset.tolerance, bool(dataset.meta.get("ground_truth_file"))
     )
     loader = "" if dataset.name == args.dataset else f" (loader {args.dataset})"
-    width = shutil.get_terminal_size().columns  # $COLUMNS, the terminal, else 80
+    width = output_width()
     say(
         f"dataset: {label}{loader}  queries={len(dataset.query_paths)} "
         f"references={len(dataset.reference_paths)}  {truth}",

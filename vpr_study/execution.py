@@ -24,13 +24,14 @@ logger = logging.getLogger("vpr_core")
 
 
 def kernel_settings(shared: bool = False) -> dict[str, str]:
-    """The ``env=`` settings of the notebook kernels: the absolute output and cache roots (a
-    kernel in ``notebooks/`` writes where the caller does), inline figures even under
+    """The ``env=`` settings of the notebook kernels: the absolute figures and cache roots (a
+    kernel in ``notebooks/`` writes where the caller does: a label the study does not commit
+    under ``user/``, :func:`vpr_core.paths.figures_root`), inline figures even under
     ``MPLBACKEND=Agg``, and text progress bars the saved notebooks can show. ``shared``: kernels
     run side by side, so torch's OpenMP threads sleep when idle instead of spinning (two
     spinning kernels on 2 cores run crop features 1.8x slower; same bits either way)."""
     env = {
-        settings.OUTPUT_ENV: str(paths.output_root()),
+        settings.OUTPUT_ENV: str(paths.figures_root()),
         settings.CACHE_ENV: str(paths.cache_root()),
         "MPLBACKEND": "module://matplotlib_inline.backend_inline",
         settings.PROGRESS_ENV: "text",

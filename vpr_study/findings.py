@@ -13,7 +13,13 @@ import numpy as np
 import pandas as pd
 
 from vpr_core import get_method, paper, paths, run_key
-from vpr_core.evaluation import N_BOOTSTRAP, VERDICTS, difference_verdict, needs_text
+from vpr_core.evaluation import (
+    IDENTICAL,
+    N_BOOTSTRAP,
+    VERDICTS,
+    difference_verdict,
+    needs_text,
+)
 
 __all__ = [
     "CELL_WORDS",
@@ -165,7 +171,7 @@ def _verdict(
     if not (np.isfinite(lo) and np.isfinite(hi)):
         return "not run"
     if delta == 0 and lo == 0 and hi == 0:
-        return "not testable (identical results)"
+        return IDENTICAL  # compare's words for the same case
     word = difference_verdict(lo, hi, queries)
     if word.startswith("too few"):
         return word
@@ -366,10 +372,11 @@ def findings_table(labels: Sequence[str], out: str | Path | None = None) -> pd.D
 #: The line above the Markdown findings table: how to read a cell.
 LEGEND = (
     "Each cell: the difference `method - baseline` (AUC; Obs. 1: CMR) [95% interval] p, then "
-    "the verdict: **higher** or **lower** when the interval lies above or below 0, else "
-    "**inconclusive** (with the queries a verdict would need); a claim of parity is **on par** "
-    f'only when the whole interval lies inside ±{ON_PAR_MARGIN} AUC. "(as the paper says)" or '
-    '"(paper: lower)" sets the verdict beside the paper\'s claim (docs/DEFINITIONS.md, '
+    "the verdict, by the first of these rules that applies: **not testable** when the two runs "
+    "give identical results; for a claim of parity, **on par** when the whole interval lies "
+    f"inside ±{ON_PAR_MARGIN} AUC; **higher** or **lower** when the interval lies above or below "
+    '0; else **inconclusive** (with the queries a verdict would need). "(as the paper says)" '
+    'or "(paper: lower)" sets the verdict beside the paper\'s claim (docs/DEFINITIONS.md, '
     '"Verdicts").'
 )
 

@@ -13,6 +13,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from vpr_core import paths, utils
+from vpr_study.figures import NOTEBOOKS
 
 __all__ = ["inputs_key", "notebook_key", "record", "up_to_date", "written_since"]
 
@@ -136,11 +137,23 @@ def inputs_key(params: dict) -> str:
     return hashlib.sha256(json.dumps(parts, sort_keys=True, default=str).encode()).hexdigest()
 
 
+def _users(path: Path, folder: Path) -> bool:
+    """Whether ``path`` in the notebooks' ``folder`` is a user's notebook or its jupytext twin
+    (a notebook outside the catalogue, :data:`vpr_study.figures.NOTEBOOKS`)."""
+    rel = path.relative_to(folder)
+    if path.suffix == ".ipynb":
+        return path.stem not in NOTEBOOKS
+    return rel.parts[:1] == ("scripts",) and path.suffix == ".py" and path.stem not in NOTEBOOKS
+
+
 def notebook_key(notebook: Path, inputs: str) -> str:
     """The content key of one execution: every file of the notebook's folder tree (the
     notebook, a module or CSV a cell reads beside it or in a subfolder, symlinked folders
-    followed) and :func:`inputs_key`."""
-    return hashlib.sha256(f"{_path_digest(notebook.parent)}|{inputs}".encode()).hexdigest()
+    followed) but a user's notebooks there (:func:`_users`: a Lab duplicate changes no key),
+    and :func:`inputs_key`."""
+    folder = notebook.parent
+    files = [p for p in _files(folder) if p.stem == notebook.stem or not _users(p, folder)]
+    return hashlib.sha256(f"{_tree_digest(files, folder)}|{inputs}".encode()).hexdigest()
 
 
 def _record_path(label: str, stem: str) -> Path:

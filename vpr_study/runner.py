@@ -13,6 +13,7 @@ import pandas as pd
 
 from vpr_core import checks, paths, settings
 from vpr_core.datasets import load_dataset
+from vpr_study.catalogue import LABEL_NOTEBOOKS
 from vpr_study.execution import run_labels
 from vpr_study.figures import FIGURES, NOTEBOOKS
 from vpr_study.findings import findings_markdown, result_labels
@@ -161,16 +162,25 @@ def notebooks_dir() -> Path:
 
 
 def notebook_paths(names: Sequence[str] | None = None) -> list[Path]:
-    """The study notebooks (``notebooks/NN_*.ipynb``) in order, optionally a subset by stem."""
+    """The study notebooks in order, optionally a subset by stem: the catalogue
+    (:data:`vpr_study.figures.NOTEBOOKS`) by path, ``notebooks/<stem>.ipynb``. Any other
+    notebook in ``notebooks/`` (a Lab duplicate, a user's own) is not the study's and never
+    runs here."""
     folder = notebooks_dir()
-    found = sorted(folder.glob("[0-9][0-9]_*.ipynb"))
-    if not found:
-        raise FileNotFoundError(f"No notebooks NN_*.ipynb in {folder}.")
+    found = [folder / f"{stem}.ipynb" for stem in NOTEBOOKS]
+    absent = [p.name for p in found if not p.is_file()]
+    if absent:
+        raise FileNotFoundError(
+            f"study notebook(s) {', '.join(absent)} missing from {folder}; restore them with "
+            f"`git checkout -- notebooks/` (the catalogue: vpr_study/figures.py NOTEBOOKS)"
+        )
     if names:
-        valid = {p.stem for p in found}
-        bad = [n for n in names if n not in valid]
+        bad = [n for n in names if n not in NOTEBOOKS]
         if bad:
-            raise ValueError(f"Unknown notebook(s) {bad}; valid: {', '.join(sorted(valid))}.")
+            raise ValueError(
+                f"Unknown notebook(s) {bad}; the study's: {', '.join(NOTEBOOKS)} (run a notebook "
+                "of your own in JupyterLab; its figures go under user/)."
+            )
         found = [p for p in found if p.stem in names]
     return found
 
@@ -278,9 +288,29 @@ def run_study(
         dataset, root, backbone, quick, label, options, pooling=pooling, shortlist=shortlist
     )
     label = params["label"]
+    # a label the study does not commit (--quick, --label mine) writes under user/
+    with paths.study_outputs(label in LABEL_NOTEBOOKS):
+        return _run_chains(
+            label, params, notebooks, kernel, real_data, quick, backbone, force, jobs, t_start
+        )
+
+
+def _run_chains(
+    label: str,
+    params: dict,
+    notebooks: Sequence[str] | None,
+    kernel: str,
+    real_data: bool,
+    quick: bool,
+    backbone: str,
+    force: bool,
+    jobs: int,
+    t_start: float,
+) -> pd.DataFrame:
+    """:func:`run_study` after its checks: every label's notebooks, findings, summary."""
     selected = notebook_paths(notebooks)
     extra = study_datasets() if real_data else {}
-    logger.info("study outputs under %s", paths.output_root())
+    logger.info("figures and tables under %s", paths.figures_root())
     chains = [(label, selected, params)]
     real_selected = [nb for nb in selected if nb.stem in REAL_DATA_NOTEBOOKS]
     for name, spec in extra.items():

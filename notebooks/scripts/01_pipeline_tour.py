@@ -24,6 +24,8 @@
 # sampling: 4 normalised scales (0.16, 0.25, 0.36, 0.49) x 25 landmarks on a 5 x 5 grid.
 #
 # All logic lives in `vpr_core`; this notebook only calls it. Every figure cell shows the
+# figure and saves it with `save`: into `figures/<label>/` when the study runs it
+# (`vpr-study run`), into the git-ignored `user/figures/<label>/` when you run it in Lab.
 
 # %%
 import numpy as np

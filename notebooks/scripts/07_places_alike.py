@@ -52,7 +52,7 @@ import pandas as pd
 from matplotlib_inline.backend_inline import set_matplotlib_formats
 
 from vpr_core.datasets import load_dataset
-from vpr_core.evaluation import compare
+from vpr_core.evaluation import compact, compare
 from vpr_core import configure_logging, run_method, tune_allocator
 from vpr_study.runner import check_parameters
 from vpr_study.viz import plot_carried_landmarks, plot_pr_curves, save
@@ -99,7 +99,7 @@ for m in ("classical", "selection_scheme1", "dense"):
 table = pd.concat(tables)
 fig = plot_pr_curves(runs, title="(not in the paper) each method without and with a weighting")
 save(fig, "places_alike_pr", label), save(table, "places_alike", label)
-table
+compact(table)  # as compare shows it, verdicts included (the CSV keeps every column)
 
 # %% [markdown]
 # ## Which landmarks carried the score

@@ -15,6 +15,7 @@ from .bootstrap import (
 )
 from .chance import chance, chance_precision
 from .compare import (
+    IDENTICAL,
     check_results,
     check_same_dataset,
     compact,
@@ -37,6 +38,7 @@ from .ranks import best_two, query_scores, ranked, true_rank
 from .spec import Evaluation, check_bootstrap_memory, refuse_tolerance
 
 __all__ = [
+    "IDENTICAL",
     "N_BOOTSTRAP",
     "PROTOCOLS",
     "VERDICTS",

@@ -181,22 +181,28 @@ def saturation_notice(
     intervals: Mapping | Sequence[Mapping] | None = None,
     evaluation: Evaluation | str = "ratio",
     soft: np.ndarray | None = None,
+    labels: Sequence[str] | None = None,
+    tolerance: int | None = None,
 ) -> str | None:
     """Warn (:func:`~vpr_core.notices.notice`) when the ground truth makes the metrics meaningless.
 
     Three cases: a random ranking's R@1 (:func:`chance`) is at least :data:`SATURATION_SHARE`;
     every interval of every run is ``[1, 1]``; or, given the runs of a comparison (a sequence),
     the chance level of a metric of :data:`CHANCE_CHECKED` lies inside every run's interval
-    (the set cannot tell these runs from a random ranking). One run's intervals (a mapping)
-    are not checked against chance: its table prints the chance level beside it.
+    (the set cannot tell these runs from a random ranking; the notice names each run with its
+    interval, so it can be read against the table). One run's intervals (a mapping) are not
+    checked against chance: its table prints the chance level beside it.
 
     Args:
         ground_truth: ``bool (Nq, Nr)``.
         intervals: one run's ``{"auc": (value, lo, hi), ...}`` (:func:`bootstrap_metrics`), or a
-            sequence of them (the runs being compared).
+            sequence of them (the runs being compared; a run without intervals: ``{}``).
         evaluation: the protocol of the intervals' AUC (an
             :class:`~vpr_core.evaluation.Evaluation` or its name).
         soft: optional soft ground truth (as :func:`chance`).
+        labels: the runs' labels, in the order of ``intervals`` (default ``run 1``, ...).
+        tolerance: the ground truth's frame tolerance, when known: a smaller one is advised
+            only when it is above 0.
 
     Returns:
         The message, or None when the metrics are not saturated.
@@ -206,19 +212,31 @@ def saturation_notice(
         return None
     share = _chance_recall(gt, 1, soft)
     if share >= SATURATION_SHARE:
+        fix = (
+            "a larger set (the tolerance is already 0)"
+            if tolerance == 0
+            else "a smaller tolerance (e.g. tolerance=0) or a larger set"
+        )
         return notice(
             f"saturated ground truth: on average {share:.0%} of the {gt.shape[1]} "
             f"references count as correct for a query, so a random ranking gets R@1 "
-            f"~{share:.2f} and AUC near 1; the metrics cannot rank methods. Use a smaller "
-            "tolerance (e.g. tolerance=0) or a larger set.",
+            f"~{share:.2f} and AUC near 1; the metrics cannot rank methods. Use {fix}.",
             stacklevel=4,
         )
     runs = [intervals] if isinstance(intervals, Mapping) else list(intervals or [])
     ivs = [v for run in runs for v in run.values() if len(v) == 3 and np.isfinite(v[1])]
+    harder = "a harder set or more places" + (", or tolerance=0" if tolerance else "")
     if ivs and all(lo == 1.0 and hi == 1.0 for _, lo, hi in ivs):
+        if isinstance(intervals, Mapping):  # one run: a verdict against a lower run holds
+            return notice(
+                "saturated result: every metric of this run is 1.0 with interval [1.0, 1.0]; "
+                "the set cannot rank it against another perfect run (a paired verdict against "
+                f"a run below it still holds). To rank the best methods use {harder}.",
+                stacklevel=4,
+            )
         return notice(
-            "saturated result: every metric is 1.0 with interval [1.0, 1.0]; this set "
-            "cannot tell methods apart. Use a harder set, more places, or tolerance=0.",
+            "saturated result: every metric of every run is 1.0 with interval [1.0, 1.0]; "
+            f"this set cannot tell these runs apart. Use {harder}.",
             stacklevel=4,
         )
     if isinstance(intervals, Mapping) or not runs:
@@ -231,11 +249,21 @@ def saturation_notice(
         if all(key in run and _inside(level[key], run[key]) for run in runs)
     ]
     if at_chance:
+        names = list(labels) if labels is not None else [f"run {i + 1}" for i in range(len(runs))]
         named = ", ".join(f"{key.upper()} {level[key]:.3f}" for key in at_chance)
+        each = "; ".join(
+            f"{key.upper()}: "
+            + ", ".join(
+                f"{n} {run[key][0]:.3f} [{run[key][1]:.3f}, {run[key][2]:.3f}]"
+                for n, run in zip(names, runs, strict=False)
+            )
+            for key in at_chance
+        )
         return notice(
             f"at chance level: a random ranking of this ground truth scores {named} "
-            f"(protocol {evaluation.protocol}), inside the 95% interval of every run; this set "
-            "cannot tell these runs from chance. Use more queries or a harder set.",
+            f"(protocol {evaluation.protocol}), inside the 95% interval of every run ({each}); "
+            "this set cannot tell these runs from chance on that metric. Use more queries or "
+            "a harder set.",
             stacklevel=4,
         )
     return None

@@ -25,6 +25,7 @@ from .spec import check_bootstrap_memory
 
 __all__ = [
     "DIFFERENCES",
+    "IDENTICAL",
     "METRICS",
     "ComparisonTable",
     "check_results",
@@ -64,6 +65,12 @@ def _same_result(a: Any, b: Any) -> bool:
     return _same(np.asarray(ca.recall), np.asarray(cb.recall)) and _same(
         np.asarray(ca.precision), np.asarray(cb.precision)
     )
+
+
+#: The verdict of a run against a baseline it is identical to (the same similarity matrix, or
+#: the same curve and metrics): no number of queries could tell them apart. ``compare`` and
+#: the findings table say it in these words.
+IDENTICAL = "not testable (identical results)"
 
 
 def identical_to(results: Sequence[Any]) -> list[str | None]:
@@ -250,7 +257,15 @@ def compare(
     protocol = protocols[0]
     soft = getattr(base, "soft_only", None)  # soft-only pairs: neither right nor wrong
     level = chance(gt, protocol, ks=(1, 5), soft=soft)
-    saturation_notice(gt, [r.intervals for r in results if r.intervals], protocol, soft)
+    tolerances = {getattr(r, "tolerance", None) for r in results}
+    saturation_notice(
+        gt,
+        [r.intervals or {} for r in results],  # a run without intervals: not "every run"
+        protocol,
+        soft,
+        labels=[r.label for r in results],
+        tolerance=tolerances.pop() if len(tolerances) == 1 else None,
+    )
     twins = identical_to(results)
     rows = []
     for r, twin in zip(results, twins, strict=False):
@@ -262,6 +277,7 @@ def compare(
                 r.similarity, base.similarity, gt, n_bootstrap, seed, protocol, ks=(1,)
             )
             cols = bootstrap_columns({k: diff[k] for k in DIFFERENCES.values()}, prefix="d")
+            same = _same_result(r, base)  # no query could ever tell them apart
             for name, key in DIFFERENCES.items():
                 lo, hi = cols[f"{name} lo"], cols[f"{name} hi"]
                 row.update(
@@ -270,7 +286,9 @@ def compare(
                         f"{name} lo": lo,
                         f"{name} hi": hi,
                         f"{name} p": cols[f"{name} p"],
-                        f"{name} verdict": difference_verdict(lo, hi, queries),
+                        f"{name} verdict": IDENTICAL
+                        if same
+                        else difference_verdict(lo, hi, queries),
                         f"{name} needs": getattr(diff[key], "queries_needed", np.nan),
                     }
                 )

@@ -8,15 +8,18 @@ import filecmp
 import logging
 import os
 import re
+import sys
 import tempfile
 from collections.abc import Callable, Sequence
 from functools import partial
 from pathlib import Path
 
 import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
 from vpr_core import notice, paths, utils
@@ -302,7 +305,7 @@ def save_all(
         TypeError: an item is neither a Figure nor a DataFrame, or ``label`` / a name not a
             string.
         ValueError: ``label`` is not one folder name or a name not one file name (``../x``,
-            ``/tmp/x``, ``a/b``); nothing is written then.
+            ``/tmp/x``, ``a/b``), or a figure has no axes; nothing is written then.
     """
     items = list(items)
     for name, _ in items:
@@ -320,6 +323,13 @@ def save_all(
     try:
         for name, obj in items:
             if isinstance(obj, matplotlib.figure.Figure):
+                if not obj.axes:
+                    raise ValueError(
+                        f"save({name!r}): the figure has no axes, so its PNG would be blank (a "
+                        "plt.gcf() in a later cell is a new, empty figure): save the figure the "
+                        "plot_* call returned, e.g. fig = plot_pr_curves(runs); save(fig, "
+                        f"{name!r}, label)"
+                    )
                 for problem in layout_problems(obj):
                     notice(f"layout of {name}: {problem}")
                 path = paths.make_dir(root / "figures" / label, paths.OUT_SETTING) / f"{name}.png"
@@ -379,7 +389,8 @@ def save(obj, name: str, label: str | None = None, out: str | Path | None = None
 
     Raises:
         TypeError: ``obj`` is neither a Figure nor a DataFrame.
-        ValueError: ``name`` or ``label`` would write outside its folder.
+        ValueError: ``name`` or ``label`` would write outside its folder, or the figure has no
+            axes (a blank PNG).
     """
     return save_all([(name, obj)], label, out)[0]
 
@@ -388,3 +399,39 @@ def draw_boxes(ax, boxes: np.ndarray, color="yellow", lw: float = 1.0, alpha: fl
     """Draw ``(K, 4)`` ``(x, y, w, h)`` boxes on an axes."""
     for x, y, w, h in np.asarray(boxes, dtype=float).reshape(-1, 4):
         ax.add_patch(Rectangle((x, y), w, h, fill=False, edgecolor=color, lw=lw, alpha=alpha))
+
+
+def _show_once(fig: matplotlib.figure.Figure) -> None:
+    """IPython's display of a figure (a cell's value, ``display(fig)``, the inline backend's
+    end-of-cell flush): the picture in the formats the inline backend is set to (PNG, JPEG...),
+    then the figure leaves pyplot, so a ``plot_*`` call as a cell's last expression shows once,
+    not twice."""
+    from IPython import get_ipython
+    from IPython.display import publish_display_data
+
+    ip = get_ipython()
+    if ip is None:
+        return
+    hook = ip.display_formatter.ipython_display_formatter
+    hook.enabled = False  # the other formatters render it, not this one again
+    try:
+        data, metadata = ip.display_formatter.format(fig)
+    finally:
+        hook.enabled = True
+    publish_display_data(data, metadata)
+    if "inline" in matplotlib.get_backend():  # "inline" or "module://matplotlib_inline..."
+        plt.close(fig)  # shown: the end-of-cell flush would show it again
+
+
+def _show_figures_once() -> None:
+    """In an IPython kernel, display every figure through :func:`_show_once` (outside one,
+    IPython is not imported)."""
+    ipython = sys.modules.get("IPython")
+    if ipython is None:
+        return
+    ip = ipython.get_ipython()
+    if ip is not None and hasattr(ip, "display_formatter"):
+        ip.display_formatter.ipython_display_formatter.for_type(Figure, _show_once)
+
+
+_show_figures_once()

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import textwrap
+from typing import Any
 
 import matplotlib
 import matplotlib.pyplot as plt
@@ -26,6 +27,7 @@ from ._shared import wrapped
 from .base import METHOD_COLORS, SAVE_DPI
 
 __all__ = [
+    "WEIGHTING_STYLES",
     "dataset_line",
     "plot_metric_bars",
     "plot_pr_curves",
@@ -156,6 +158,35 @@ def _from_last_zero(recall: np.ndarray, precision: np.ndarray) -> tuple[np.ndarr
     return r[start:], np.asarray(precision, dtype=float)[start:]
 
 
+#: Line style of each database weighting when a figure's runs vary in both method and weighting
+#: (the colour is the method's); the chance line is grey and dashed.
+WEIGHTING_STYLES = {"": "-", "contrast": (0, (6, 2)), "idf": (0, (1, 1.5))}
+
+
+def _weighting(r) -> str:
+    matching = getattr(getattr(r, "config", None), "matching", None)
+    return str(getattr(matching, "weighting", None) or "")
+
+
+def _by_method(results):
+    """``run -> (method, line style)`` when the runs vary in both method and weighting (colour
+    per method, line style per weighting), else None."""
+    methods = {getattr(r, "method", None) for r in results}
+    weightings = {_weighting(r) for r in results}
+    if None in methods or len(methods) < 2 or len(weightings) < 2:
+        return None
+    extra = iter([(0, (3, 1, 1, 1)), (0, (8, 2, 1, 2)), (0, (2, 3))])
+    styles = {w: WEIGHTING_STYLES.get(w) or next(extra, "-.") for w in sorted(weightings)}
+    return lambda r: (r.method, styles[_weighting(r)])
+
+
+def _same_xy(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray]) -> bool:
+    """Two drawn curves that coincide point for point (one would hide the other)."""
+    return all(
+        len(x) == len(y) and np.allclose(x, y, rtol=0, atol=1e-9) for x, y in zip(a, b, strict=True)
+    )
+
+
 def plot_pr_curves(
     results, title: str | None = None, colors: dict | None = None
 ) -> matplotlib.figure.Figure:
@@ -172,7 +203,10 @@ def plot_pr_curves(
 
     A result whose similarity matrix equals an earlier one's has the same curve: it is drawn
     once and its legend entry, with the earlier one's line sample, says ``same curve as
-    <earlier label>``.
+    <earlier label>``; a different result whose curve coincides with an earlier one is drawn
+    dotted over it, its legend entry saying ``same curve as <earlier label>``. Runs that vary
+    in both method and weighting get one colour per method and one line style per weighting
+    (:data:`WEIGHTING_STYLES`).
 
     Args:
         results: :class:`~vpr_core.MethodResult` objects (``.label``, ``.curve()``,
@@ -199,7 +233,10 @@ def plot_pr_curves(
     spare = iter([f"C{i}" for i in range(10)] + [plt.cm.tab20(i) for i in range(20)])
     used: set[str] = set()
     drawn: dict[str, Line2D] = {}
+    curves: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     handles: list[Line2D] = []
+    by_method = _by_method(results)  # colour per method, line style per weighting
+    method_color: dict[str, Any] = {}
     for r, twin in zip(results, identical_to(results), strict=False):
         iv = getattr(r, "intervals", {}).get("auc")
         auc = (
@@ -215,23 +252,32 @@ def plot_pr_curves(
                     [],
                     color=like.get_color(),
                     lw=like.get_linewidth(),
+                    ls=like.get_linestyle(),
                     label=f"{r.label}  {auc}, same curve as {twin}",
                 )
             )
             continue
-        color = colors.get(r.label) or METHOD_COLORS.get(r.label)
-        if color is None or to_hex(color) in used:
+        method, style = by_method(r) if by_method else ("", "-")
+        color = colors.get(r.label) or (
+            method_color.get(method) if method else METHOD_COLORS.get(r.label)
+        )
+        if color is None and method:
+            color = METHOD_COLORS.get(method)
+        if color is None or (to_hex(color) in used and method_color.get(method) != color):
             color = next(c for c in spare if to_hex(c) not in used)
         used.add(to_hex(color))
+        if method:
+            method_color.setdefault(method, color)
         curve = r.curve()
+        xy = _from_last_zero(curve.recall, curve.precision)
         note = _curve_note(curve.recall, curve.precision)  # an AUC-0 curve lies on the axis
-        (line,) = ax.plot(
-            *_from_last_zero(curve.recall, curve.precision),
-            lw=1.6,
-            color=color,
-            label=f"{r.label}  {auc}{note}",
-        )
+        alike = next((k for k, c in curves.items() if _same_xy(c, xy)), None)
+        if alike is not None:  # not the same result, but the same curve: both drawn, said
+            note += f", same curve as {alike}"
+            style = (0, (2, 2))
+        (line,) = ax.plot(*xy, lw=1.6, color=color, ls=style, label=f"{r.label}  {auc}{note}")
         drawn[r.label] = line
+        curves[r.label] = xy
         handles.append(line)
     protocol = getattr(results[0], "protocol", "ratio")
     level = chance_precision(

@@ -203,6 +203,12 @@ def plot_dense_scales(
     return fig
 
 
+def _contour_levels(top: float) -> np.ndarray:
+    """The coverage outlines of a colour scale ``0..top``: at most 4 box counts, as contour
+    levels half a box below each (the outline encloses the pixels with at least that many)."""
+    return np.unique(np.linspace(0.5, top - 0.5, 4).round() + 0.5) if top > 1 else np.array([0.5])
+
+
 def plot_coverage(
     image: np.ndarray,
     boxes: np.ndarray,
@@ -210,9 +216,12 @@ def plot_coverage(
     cmap: str = "viridis",
     alpha: float = 0.35,
     title: str | None = None,
+    vmax: float | None = None,
 ) -> Figure:
     """Fig. 14: how many landmarks cover each pixel, as a translucent heatmap over the (grey)
-    image with white outlines at a few coverage levels, so the image stays visible.
+    image with white outlines at a few coverage levels (marked on the colour bar, which says
+    what they are), so the image stays visible. ``vmax``: the top of the colour scale (default
+    this image's most-covered pixel; panels that are compared share one).
 
     The default title gives the share of pixels covered by at least one box.
     """
@@ -224,11 +233,20 @@ def plot_coverage(
         fig = ax.figure
     _show_canvas(ax, img, size, gray=True)
     shown = np.ma.masked_where(cov <= 0, cov)  # uncovered pixels show the plain image
-    top = max(1.0, float(cov.max()))
+    top = max(1.0, float(cov.max()) if vmax is None else float(vmax))
     im = ax.imshow(shown, cmap=cmap, alpha=alpha, vmin=0, vmax=top)
-    levels = np.unique(np.linspace(0.5, top - 0.5, 4).round() + 0.5) if top > 1 else [0.5]
-    ax.contour(cov, levels=levels, colors="white", linewidths=0.8, alpha=0.9)
-    fig.colorbar(im, ax=ax, fraction=0.046, pad=0.02, label="boxes covering the pixel")
+    levels = _contour_levels(top)
+    counts = ", ".join(f"{int(v + 0.5)}" for v in levels)
+    bar = fig.colorbar(
+        im,
+        ax=ax,
+        fraction=0.046,
+        pad=0.02,
+        label=f"boxes covering the pixel\n(white outlines: at least {counts})",
+    )
+    if cov.max() > levels.min():
+        lines = ax.contour(cov, levels=levels, colors="white", linewidths=0.8, alpha=0.9)
+        bar.add_lines(lines)
     covered = float((cov > 0).mean())
     ax.set_title(
         title
@@ -250,9 +268,11 @@ def plot_coverage_comparison(
     """
     image = dataset.load_image(side, index)
     fig, axes = plt.subplots(1, len(results), figsize=(5.5 * len(results), 3.4), squeeze=False)
+    size = _landmark_canvas(image)[1]
+    top = max(float(landmark_coverage(r.boxes[side][index], size).max()) for r in results)
     rows = []
     for k, (ax, res) in enumerate(zip(axes[0], results, strict=False)):
-        plot_coverage(image, res.boxes[side][index], ax=ax)
+        plot_coverage(image, res.boxes[side][index], ax=ax, vmax=top)  # one colour scale
         ax.set_title(f"({chr(ord('a') + k)}) {res.label}: {len(res.boxes[side][index])} landmarks")
         shares = [
             float((landmark_coverage(b, dataset.image_size(side, i)) > 0).mean())
@@ -271,7 +291,11 @@ def plot_coverage_comparison(
         note = (
             "\nthe shortlist does not change the landmarks: the exhaustive run's figure is the same"
         )
-    fig.suptitle(f"landmark coverage of {side} {index}; {dataset_line(results)}{note}", fontsize=9)
+    fig.suptitle(
+        f"landmark coverage of {side} {index}, one colour scale (0-{max(1, round(top))} boxes) "
+        f"in every panel; {dataset_line(results)}{note}",
+        fontsize=9,
+    )
     fig.tight_layout()
     return fig, pd.DataFrame(rows).set_index("method")
 
