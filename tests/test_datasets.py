@@ -577,3 +577,19 @@ def test_download_archive_bomb_is_refused_and_nothing_is_kept(hostile_server, tm
 def test_download_deadline_must_be_finite(tmp_path):
     with pytest.raises(ValueError, match=r"deadline_s \(seconds\) must be in \(0, inf\), got inf"):
         download_dataset("x", tmp_path, url="http://127.0.0.1:9/x.zip", deadline_s=float("inf"))
+
+
+def test_a_folder_layout_root_given_to_a_traverse_loader_is_pointed_to_folder(tmp_path):
+    """Issue 54: Gardens Point mini has the query/ + reference/ layout; the gardens_point loader
+    says so and gives the 'folder' call, which then loads it."""
+    for side in ("query", "reference"):
+        (tmp_path / side).mkdir()
+        for i in range(2):
+            cv2.imwrite(
+                str(tmp_path / side / f"{i:03d}.png"), np.full((40, 60, 3), 30 * i, np.uint8)
+            )
+    with pytest.raises(FileNotFoundError) as err:
+        load_dataset("gardens_point", root=tmp_path)
+    call = f"load_dataset('folder', root={str(tmp_path)!r})"
+    assert call in str(err.value) and "traverse names" not in str(err.value)
+    assert len(eval(call, {"load_dataset": load_dataset})) == 2  # the hint works as written

@@ -74,12 +74,15 @@ def data_name(folder: Path) -> str:
 
 
 def traverse_dir(base: Path, sub: str, name: str, layout: str) -> Path:
-    """``base / sub``, which must be a folder (the error lists the folders present)."""
-    return check_folder(
-        base / sub,
-        f"{name}: traverse folder",
-        f"Expected layout: {layout}; or pass the traverse names as options.",
-    )
+    """``base / sub``, which must be a folder (the error lists the folders present; a root in
+    the ``folder`` layout is pointed to that loader, whose call the message gives)."""
+    fix = f"Expected layout: {layout}; or pass the traverse names as options."
+    if (base / "query").is_dir() and (base / "reference").is_dir():
+        fix = (
+            f"{base} holds query/ and reference/ folders, the 'folder' layout: load it with "
+            f"load_dataset('folder', root={str(base)!r}). Expected layout of {name}: {layout}."
+        )
+    return check_folder(base / sub, f"{name}: traverse folder", fix)
 
 
 def resolve_file(base: Path, path: str | os.PathLike) -> Path:
