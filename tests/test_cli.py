@@ -2,6 +2,9 @@
 
 import os
 import re
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -361,3 +364,31 @@ def test_piped_output_is_not_wrapped_at_a_terminals_default_80_columns(monkeypat
     assert cli.output_width() == cli.PIPED_WIDTH > 80
     monkeypatch.setenv("COLUMNS", "80")
     assert cli.output_width() == 80
+
+
+def test_top_level_help_answers_without_torch():
+    """Issue 54: ``vpr-study --help`` is answered from the standard library (no torch, no
+    pipeline), and says what the full parser says."""
+    code = (
+        "import sys, contextlib, io\n"
+        "from vpr_study.usage import main\n"
+        "out = io.StringIO()\n"
+        "with contextlib.redirect_stdout(out), contextlib.suppress(SystemExit):\n"
+        "    main(['--help'])\n"
+        "print(sorted(m for m in ('torch', 'vpr_core', 'numpy') if m in sys.modules))\n"
+        "print(out.getvalue())\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    loaded, _, text = done.stdout.partition("\n")
+    assert loaded == "[]"
+    from vpr_study.cli import build_parser
+
+    assert text.strip() == build_parser().format_help().strip()
+    script = Path(sys.executable).with_name("vpr-study")
+    if script.is_file():  # the installed entry point takes the same path
+        assert (
+            "usage: vpr-study"
+            in subprocess.run(
+                [str(script), "--help"], capture_output=True, text=True, check=True
+            ).stdout
+        )

@@ -14,9 +14,9 @@ from vpr_core.backbones import available_backbones, parse_backbone, weights_sha2
 from vpr_core.datasets import DATASETS
 from vpr_core.evaluation import PROTOCOLS
 from vpr_core.matching import SPATIAL_OPTIONS, WEIGHTING_OPTIONS
+from vpr_study.usage import COMMANDS, DESCRIPTION
 
 __all__ = [
-    "DESCRIPTION",
     "EVAL_EPILOG",
     "RUN_EPILOG",
     "backbone_help",
@@ -220,17 +220,6 @@ the study writes its figures/ and results/ (and runs/<label>/, the executed note
 
 
 #: ``vpr-study --help``'s description.
-DESCRIPTION = """vpr-study eval: methods on a dataset; run: the study; findings: claims vs results.
-
-Examples::
-
-    vpr-study eval --dataset synthetic --method dense   # writes under user/
-    vpr-study eval --dataset gardens_point --root ~/data/gardens_point --method classical
-    vpr-study eval --dataset nordland --root ../shared/data/nordland_64x32 --method dense \\
-        --pooling roi --shortlist 25             # all 3,576 x 3,576 places
-    vpr-study run --dataset synthetic            # all notebooks, figures/ and results/
-    vpr-study run --dataset synthetic --quick    # the small headless run used by the tests
-"""
 
 
 def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse.ArgumentParser:
@@ -289,7 +278,7 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
             help="any other loader option, e.g. --opt query=winter (repeatable)",
         )
 
-    e = command("eval", "evaluate one or more methods on a dataset", EVAL_EPILOG)
+    e = command("eval", COMMANDS["eval"], EVAL_EPILOG)
     common(e)
     e.add_argument(
         "--study",
@@ -427,7 +416,7 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
     )
     e.set_defaults(func=handlers["eval"])
 
-    r = command("run", "execute the study notebooks and regenerate figures/", RUN_EPILOG)
+    r = command("run", COMMANDS["run"], RUN_EPILOG)
     common(r)
     r.add_argument("--quick", action="store_true", help="small synthetic set (used by tests)")
     r.add_argument("--notebooks", nargs="*", help="subset of notebooks (file stems)")
@@ -475,7 +464,7 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
     )
     r.set_defaults(func=handlers["run"])
 
-    f = command("findings", "the paper's claims vs results/<dataset>/ (Markdown)")
+    f = command("findings", COMMANDS["findings"])
     f.add_argument("--labels", nargs="*", help="result folders (default: all but *_quick)")
     f.add_argument("--write", action="store_true", help="also write results/findings.md")
     f.add_argument("--out", default=None, help="output root (default: as for eval and run)")
