@@ -136,6 +136,35 @@ def term_weights(weighting, desc_q, reference_descs):
     return lambda i, c: idf[i]
 
 
+def reference_contrast(rd, r, refs):
+    """(Not in the paper) ``(mu_j, sigma_j)`` of reference ``r``'s landmarks: their best cosines
+    over the references ``refs`` other than ``r`` with landmarks (0, 0 when there are none)."""
+    others = [rd[t] for t in refs if t != r and len(rd[t])]
+    k = len(rd[r])
+    if not others or k == 0:
+        return np.zeros(k), np.zeros(k)
+    b = np.stack([cosine_similarity(rd[r], d).max(axis=1) for d in others], axis=1)
+    return b.mean(axis=1), b.std(axis=1)
+
+
+def pair_weights(weighting, desc_q, rd, r, refs=None):
+    """(Not in the paper) ``f(i, c, j)``: the weight of match ``(i, j)`` with cosine ``c`` of a
+    query and reference ``r``; statistics over the references ``refs`` (default: all)."""
+    refs = range(len(rd)) if refs is None else refs
+    if weighting != "two_sided":
+        f = term_weights(weighting, desc_q, [rd[t] for t in refs])
+        return lambda i, c, j: f(i, c)
+    fq = term_weights("contrast", desc_q, [rd[t] for t in refs])
+    mu, sd = reference_contrast(rd, r, refs)
+
+    def two_sided(i, c, j):
+        ok = sd[j] > CONTRAST_SIGMA_MIN
+        wr = np.where(ok, np.maximum(0.0, (c - mu[j]) / np.where(ok, sd[j], 1.0)), 0.0)
+        return (1.0 + fq(i, c)) * (1.0 + wr)
+
+    return two_sided
+
+
 def match_landmarks(
     desc_a,
     boxes_a,
@@ -147,7 +176,7 @@ def match_landmarks(
     weights=None,
 ):
     """``dict`` of matches, distances, shape, raw_scores, weights, db_weights, scores, similarity,
-    n_a, n_b; ``weights``: None or a :func:`term_weights` function."""
+    n_a, n_b; ``weights``: None or a :func:`pair_weights` function."""
     a, b = np.asarray(desc_a, np.float64), np.asarray(desc_b, np.float64)
     ba = np.asarray(boxes_a, np.float64).reshape(-1, 4)
     bb = np.asarray(boxes_b, np.float64).reshape(-1, 4)
@@ -159,7 +188,7 @@ def match_landmarks(
     raw = 1.0 - dist * shp
     assert spatial in (None, "consistency")
     w = np.ones(len(m)) if spatial is None else consistency_weights(ba, bb, m)
-    wd = np.ones(len(m)) if weights is None else weights(i, 1.0 - dist)
+    wd = np.ones(len(m)) if weights is None else weights(i, 1.0 - dist, j)
     scores = raw * w * wd
     if soft_nms_iou is not None and len(m) > 1:
         scores = soft_nms_scores(scores, match_overlaps(ba, bb, m), soft_nms_iou, sigma)
@@ -190,10 +219,10 @@ def image_similarity(
 def similarity_matrix(qd, qb, rd, rb, weighting=None, sample=None, **kw):
     """``(Nq, Nr)`` Eq. (1); with ``weighting``, statistics over the references ``sample``
     (default: all)."""
-    stats_refs = [rd[j] for j in (range(len(rd)) if sample is None else sample)]
+    refs = list(range(len(rd)) if sample is None else sample)
     out = np.zeros((len(qd), len(rd)))
     for i in range(len(qd)):
-        w = None if weighting is None else term_weights(weighting, qd[i], stats_refs)
         for j in range(len(rd)):
+            w = None if weighting is None else pair_weights(weighting, qd[i], rd, j, refs)
             out[i, j] = match_landmarks(qd[i], qb[i], rd[j], rb[j], weights=w, **kw)["similarity"]
     return out

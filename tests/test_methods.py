@@ -137,6 +137,7 @@ def test_options_derive_from_the_fields():
         "n_candidates",
         "spatial",
         "weighting",
+        "normalise",
     )
     assert _method_options(get_method("overlap_scheme2")) == (
         "n",
@@ -145,8 +146,9 @@ def test_options_derive_from_the_fields():
         "sigma",
         "spatial",
         "weighting",
+        "normalise",
     )
-    assert _method_options(get_method("global")) == ("spatial", "weighting")
+    assert _method_options(get_method("global")) == ("spatial", "weighting", "normalise")
 
 
 @pytest.mark.parametrize(
@@ -157,15 +159,15 @@ def test_options_derive_from_the_fields():
         (
             "dense",
             {"iou_threshold": 0.1},
-            "'iou_threshold'; valid: scales, per_scale, spatial, weighting$",
+            "'iou_threshold'; valid: scales, per_scale, spatial, weighting, normalise$",
         ),
         (
             "classical",
             {"min_index": 7},
-            "'min_index'; valid: n, n_candidates, spatial, weighting$",
+            "'min_index'; valid: n, n_candidates, spatial, weighting, normalise$",
         ),
         ("classical", {"soft_nms_iou": 0.3}, "method 'classical' option\\(s\\) 'soft_nms_iou'"),
-        ("global", {"n": 5}, "'n'; valid: spatial, weighting$"),
+        ("global", {"n": 5}, "'n'; valid: spatial, weighting, normalise$"),
         ("dense", {"scales": 0.25}, "method 'dense': Dense.scales must be .*, got 0.25"),
         ("overlap_scheme1", {"iou_threshold": 1.5}, "ReduceOverlap.iou_threshold .*, got 1.5"),
         ("dense", {"per_scale": "25"}, "Dense.per_scale must be .*, got '25'"),

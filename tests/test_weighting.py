@@ -24,6 +24,9 @@ from vpr_core.matching.core import Problem
 from vpr_core.matching.weighting import (
     CONTRAST_SAMPLE,
     WEIGHTING_SAMPLE,
+    clear_reference_cache,
+    reference_cache_keys,
+    reference_stats,
     sample_matches,
     weighting_sample,
 )
@@ -53,7 +56,8 @@ def test_similarity_matrix_equals_oracle(weighting, t, spatial):
     )
     kw = {"matching": Matching(t, spatial=spatial, weighting=weighting)}
     got = similarity_matrix(qd, qb, rd, rb, **kw, compute=Compute(batch_size=4, ref_batch_size=3))
-    np.testing.assert_allclose(got, want, atol=1e-6, rtol=0)
+    # float32 cosines: relative error ~1e-7, and two_sided's weights reach ~30x a term
+    np.testing.assert_allclose(got, want, atol=1e-6, rtol=1e-6)
     np.testing.assert_allclose(
         similarity_matrix(qd, qb, rd, rb, **kw, compute=F64),
         want,
@@ -66,17 +70,24 @@ def test_similarity_matrix_equals_oracle(weighting, t, spatial):
     # the listed pairs give the same values (statistics over all 7 references, <= 256)
     pairs = np.array([[0, 1], [3, 2], [4, 6], [3, 2], [5, 0], [1, 1]])
     got_p = similarity_pairs(qd, qb, rd, rb, pairs, **kw, compute=Compute(ref_batch_size=2))
-    np.testing.assert_allclose(got_p, got[pairs[:, 0], pairs[:, 1]], atol=1e-7, rtol=0)
+    np.testing.assert_allclose(got_p, got[pairs[:, 0], pairs[:, 1]], atol=1e-7, rtol=1e-7)
     # and weighted_matches gives each pair's terms with their weights
     for (i, j), res in zip(
         pairs, weighted_matches(qd, qb, rd, rb, pairs, kw["matching"]), strict=True
     ):
         o = oracle.match_landmarks(
-            qd[i], qb[i], rd[j], rb[j], t, 0.5, spatial, oracle.term_weights(weighting, qd[i], rd)
+            qd[i],
+            qb[i],
+            rd[j],
+            rb[j],
+            t,
+            0.5,
+            spatial,
+            oracle.pair_weights(weighting, qd[i], rd, j),
         )
         np.testing.assert_array_equal(res.matches, o["matches"])
-        np.testing.assert_allclose(res.weights, o["db_weights"], atol=1e-5, rtol=0)
-        assert res.similarity == pytest.approx(want[i, j], abs=1e-6)
+        np.testing.assert_allclose(res.weights, o["db_weights"], atol=1e-5, rtol=1e-6)
+        assert res.similarity == pytest.approx(want[i, j], abs=1e-6, rel=1e-6)
 
 
 @pytest.mark.parametrize("weighting", WEIGHTING_OPTIONS)
@@ -363,9 +374,9 @@ def test_cli_eval_weighting_both_pairs_each_method_with_itself(tmp_path, capsys)
     got = dict(pd.read_csv(table)[["run", "baseline"]].itertuples(index=False))
     assert got["dense(weighting=contrast)"] == "dense"
     assert got["global(spatial=consistency, weighting=idf)"] == "global (geometry: consistency)"
-    assert len(got) == 2 * 2 * 2  # methods x spatial x weightings
+    assert len(got) == 2 * 2 * len(WEIGHTING_OPTIONS)  # methods x spatial x weightings
     (geometry,) = folder.glob("eval_*_geometry.csv")
-    assert len(pd.read_csv(geometry)) == 2 * 3  # methods x weightings
+    assert len(pd.read_csv(geometry)) == 2 * (1 + len(WEIGHTING_OPTIONS))  # methods x weightings
 
 
 def test_plot_weighted_matches_colours_the_fixed_queries():
@@ -387,3 +398,86 @@ def test_plot_weighted_matches_colours_the_fixed_queries():
     with pytest.raises(ValueError, match="has no weighting"):
         plot_weighted_matches(ds, plain, plain)
     matplotlib.pyplot.close("all")
+
+
+# ---- (not in the paper) two-sided contrast (issue 55) --------------------------------------
+TWO = Matching(weighting="two_sided")
+
+
+def test_two_sided_reference_statistics_equal_the_oracle_and_exclude_the_reference_itself():
+    qd, qb, rd, rb = _sets(31, nq=4, nr=9, dim=24)
+    rd[5], rb[5] = np.zeros((0, 24), np.float32), np.zeros((0, 4))  # no landmark: not counted
+    prob = Problem.build(qd, qb, rd, rb, TWO, F64)
+    for ids in (np.arange(9), np.array([0, 2, 5, 8])):
+        mu, sd = reference_stats(prob.r, ids)
+        for r in range(9):
+            want_mu, want_sd = oracle.reference_contrast(rd, r, ids)
+            k = len(rd[r])
+            np.testing.assert_allclose(mu[r, :k].numpy(), want_mu, atol=1e-12, rtol=0)
+            np.testing.assert_allclose(sd[r, :k].numpy(), want_sd, atol=1e-12, rtol=0)
+    # one reference: no other one, so w_r = 0 and the weight is 1 + w_q
+    one = similarity_matrix(qd, qb, rd[:1], rb[:1], matching=TWO, compute=F64)
+    want = oracle.similarity_matrix(qd, qb, rd[:1], rb[:1], weighting="two_sided")
+    np.testing.assert_allclose(one, want, atol=1e-12, rtol=0)
+
+
+def test_two_sided_reference_statistics_are_cached_by_the_database_content():
+    qd, qb, rd, rb = _sets(33, nq=4, nr=6, dim=16)
+    clear_reference_cache()
+    first = similarity_matrix(qd, qb, rd, rb, matching=TWO, compute=F64)
+    assert len(reference_cache_keys()) == 1
+    (key,) = reference_cache_keys()
+    again = similarity_matrix(qd, qb, rd, rb, matching=TWO, compute=F64)
+    np.testing.assert_array_equal(first, again)
+    assert reference_cache_keys() == [key]  # read, not recomputed
+    # editing one reference's descriptors gives another key and new statistics
+    rd2 = [d.copy() for d in rd]
+    rd2[4][0] = -rd2[4][0]
+    edited = similarity_matrix(qd, qb, rd2, rb, matching=TWO, compute=F64)
+    assert len(reference_cache_keys()) == 2 and key in reference_cache_keys()
+    want = oracle.similarity_matrix(qd, qb, rd2, rb, weighting="two_sided")
+    np.testing.assert_allclose(edited, want, atol=1e-12, rtol=0)
+    # the cached statistics equal a fresh computation on an empty cache
+    clear_reference_cache()
+    np.testing.assert_array_equal(
+        similarity_matrix(qd, qb, rd2, rb, matching=TWO, compute=F64), edited
+    )
+
+
+def test_two_sided_shortlist_equals_exhaustive_up_to_12_references():
+    qd, qb, rd, rb = _sets(35, nq=5, nr=12, dim=24)
+    pairs = np.array([[q, r] for q in range(5) for r in (0, 3, 7, 11)])
+    full = similarity_matrix(qd, qb, rd, rb, matching=TWO, compute=F64)
+    got = similarity_pairs(qd, qb, rd, rb, pairs, matching=TWO, compute=F64)
+    # the same statistics; the query side's best cosines come from another float64 matmul
+    np.testing.assert_allclose(got, full[pairs[:, 0], pairs[:, 1]], atol=1e-9, rtol=0)
+    # 13 references: the shortlist's statistics are the 12-reference sample's (oracle)
+    qd, qb, rd, rb = _sets(35, nq=5, nr=13, dim=24)
+    sample = weighting_sample(13, "two_sided")
+    assert len(sample) == 12
+    got = similarity_pairs(qd, qb, rd, rb, pairs, matching=TWO, compute=F64)
+    want = oracle.similarity_matrix(qd, qb, rd, rb, weighting="two_sided", sample=sample)
+    np.testing.assert_allclose(got, want[pairs[:, 0], pairs[:, 1]], atol=1e-9, rtol=0)
+
+
+def test_two_sided_by_hand_an_ordinary_match_keeps_its_plain_term():
+    """A reference landmark equally close to every other reference has w_r = 0 (sigma 0): the
+    weight is 1 + w_q; contrast would give w_q alone (0 for an ordinary query landmark)."""
+    e = np.eye(4, dtype=np.float32)
+    q = [e[[0]]]
+    refs = [e[[0]], e[[1]], e[[1]]]  # query landmark = reference 0's; others share another
+    boxes = [np.array([BOX])] * 3
+    sim = similarity_matrix(q, [np.array([BOX])], refs, boxes, matching=TWO, compute=F64)
+    # query side: b = (1, 0, 0): mu 1/3, sd sqrt(2)/3 -> w_q = (1 - 1/3) / (sqrt(2)/3) = sqrt(2)
+    # reference 0's landmark vs refs 1, 2: cosines (0, 0): sd 0 -> w_r = 0
+    assert sim[0, 0] == pytest.approx(1.0 + math.sqrt(2), abs=1e-12)
+    plain = similarity_matrix(q, [np.array([BOX])], refs, boxes, compute=F64)
+    assert plain[0, 0] == pytest.approx(1.0)
+
+
+def test_two_sided_refuses_a_distributed_shortlist():
+    from vpr_study.cluster.blocks import similarity_pairs_distributed
+
+    qd, qb, rd, rb = _sets(37, nq=4, nr=3, dim=8)
+    with pytest.raises(ValueError, match="two_sided"):
+        similarity_pairs_distributed(object(), qd, qb, rd, rb, np.array([[0, 1]]), TWO)

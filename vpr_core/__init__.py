@@ -21,6 +21,7 @@ _FACE = {
     "run_method": "run",
     "MethodResult": "result",
     "constant_notice": "result",
+    "normalise_result": "result",
     "Method": "methods",
     "available_methods": "methods",
     "get_method": "methods",
@@ -49,6 +50,7 @@ __all__ = [
     "dataset_fingerprint",
     "get_method",
     "make_deterministic",
+    "normalise_result",
     "notice",
     "paper",
     "paths",
@@ -79,7 +81,7 @@ if TYPE_CHECKING:
     from .cache import dataset_fingerprint
     from .methods import Method, available_methods, get_method, run_key
     from .notices import VPRWarning, notice
-    from .result import MethodResult, constant_notice
+    from .result import MethodResult, constant_notice, normalise_result
     from .run import Executor, run_method
     from .statistics import check_per_match, scale_statistics
     from .utils import configure_logging, make_deterministic, tune_allocator

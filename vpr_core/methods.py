@@ -119,8 +119,8 @@ def as_method(method: Any, **overrides: Any) -> Method:
     """
     if isinstance(method, str):
         return get_method(method, **overrides)
-    if overrides and set(overrides) <= {"spatial", "weighting"}:  # matching options of every
-        base = as_method(method)  # method, schemes included
+    if overrides and set(overrides) <= {"spatial", "weighting", "normalise"}:  # matching options
+        base = as_method(method)  # of every method, schemes included
         return dataclasses.replace(base, matching=dataclasses.replace(base.matching, **overrides))
     if overrides:
         raise ValueError(

@@ -1,22 +1,21 @@
-"""What a run produces: :class:`MethodResult` (one method on one dataset) and
-:func:`peer_result` (another technique's similarity matrix as a result beside ours)."""
+"""What a run produces: :class:`MethodResult` (one method on one dataset), the notice of a
+constant matrix, and :func:`normalise_result` (a result's matrix normalised; not in the paper)."""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from .datasets.ground_truth import ground_truth_text
-from .evaluation import (
-    format_interval,
-    pr_curve,
-)
+from .evaluation import Evaluation, bootstrap_metrics, evaluate, format_interval, pr_curve
+from .matching.normalise import normalise_matrix
 from .methods import Method, run_key
 from .notices import notice
 
-__all__ = ["INTERVAL_COLUMNS", "MethodResult", "constant_notice"]
+__all__ = ["INTERVAL_COLUMNS", "MethodResult", "constant_notice", "normalise_result"]
 
 
 #: Interval columns of :meth:`MethodResult.row` (95% bootstrap over queries).
@@ -160,3 +159,49 @@ def constant_notice(sim: np.ndarray) -> str | None:
             "peer's matrix file"
         )
     return None
+
+
+def normalise_result(
+    result: MethodResult,
+    how: str,
+    database: np.ndarray | None = None,
+    evaluation: Evaluation | None = None,
+    label: str | None = None,
+) -> MethodResult:
+    """(Not in the paper.) A result with its matrix normalised (any method's or a peer's;
+    docs/DEFINITIONS.md): metrics and intervals recomputed on the same ground truth.
+
+    Args:
+        result: a :class:`MethodResult` (``run_method`` or :func:`vpr_study.peer_result`).
+        how: one of :data:`~vpr_core.matching.NORMALISE_OPTIONS`; ``"query_batch"`` needs the
+            batch of queries (``compare`` marks it).
+        database: ``(Nr, Nr)`` the references scored against each other by the same technique
+            (``"database"`` only; for a peer from descriptors: ``peer_from_descriptors(db, db)``).
+        evaluation: protocol and resamples (default: the result's protocol, ``N_BOOTSTRAP``
+            resamples where it has intervals, else none).
+        label: default ``"<label> (normalised: <how>)"``.
+    """
+    if result.config is not None and isinstance(result.config, Method):
+        if result.config.matching.normalise is not None:
+            raise ValueError(f"{result.label!r} is already normalised")
+        matching = dataclasses.replace(result.config.matching, normalise=how)
+        config: Method | dict = dataclasses.replace(result.config, matching=matching)
+    else:
+        config = {**dict(result.config), "normalise": how}
+    sim = normalise_matrix(result.similarity, how, database=database)
+    n_boot = len(result.intervals) and Evaluation().n_bootstrap
+    evaluation = evaluation or Evaluation(protocol=result.protocol, n_bootstrap=n_boot)
+    gt = np.asarray(result.ground_truth, dtype=bool)
+    return dataclasses.replace(
+        result,
+        label=label or f"{result.label} (normalised: {how})",
+        config=config,
+        similarity=sim,
+        metrics=evaluate(sim, gt, evaluation),
+        intervals=(
+            bootstrap_metrics(sim, gt, n=evaluation.n_bootstrap, protocol=evaluation.protocol)
+            if evaluation.n_bootstrap
+            else {}
+        ),
+        protocol=evaluation.protocol,
+    )

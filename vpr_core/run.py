@@ -30,7 +30,7 @@ from .features.stage import extract_features, get_encoder
 from .landmarks.edge_boxes import edge_model_id
 from .landmarks.schemes import CandidateScheme, LandmarkScheme
 from .landmarks.stage import extract_landmarks
-from .matching import similarity_matrix, similarity_pairs
+from .matching import normalise_matrix, similarity_matrix, similarity_pairs
 from .matching.shortlist import (
     rerank,
     shortlist_pairs,
@@ -191,6 +191,79 @@ def _match(
     return sim, {"pairs": float(len(pairs)), "shortlist_s": t1 - t0, "matching_s": t2 - t1}
 
 
+def _cached_matrix(
+    folder, name: str, key: dict, shape: tuple[int, int], compute: Callable
+) -> tuple[np.ndarray, float, float, bool]:
+    """``(similarity, seconds per pair, pairs, read from the cache)`` of the matrix ``key``
+    names: read from ``folder`` or computed by ``compute()`` and stored."""
+    path = folder / f"{config_slug(name, key)}.npz"
+    identity = f"results {path.parent.name} {path.stem}"
+
+    def check(a: dict) -> str | None:
+        got = a["similarity"].shape
+        return (
+            None
+            if got == shape
+            else f"a similarity matrix of shape {got}, expected {shape} for this dataset"
+        )
+
+    cached = load_npz(
+        path, ("similarity", "seconds_per_pair", "pairs"), identity=identity, check=check
+    )
+    if cached is not None:
+        return (
+            cached["similarity"],
+            float(cached["seconds_per_pair"]),
+            float(cached["pairs"]),
+            True,
+        )
+    sim, match_s, n_pairs = compute()
+    atomic_savez(
+        path,
+        identity=identity,
+        similarity=sim,
+        seconds_per_pair=np.array(match_s),
+        pairs=np.array(n_pairs),
+    )
+    return sim, float(match_s), float(n_pairs), False
+
+
+def _normalised(
+    sim: np.ndarray,
+    how: str,
+    folder,
+    name: str,
+    key: dict,
+    boxes: dict,
+    feats: dict,
+    plain: Matching,
+    k: int | None,
+    glob: dict | None,
+    executor: Executor | None,
+) -> np.ndarray:
+    """(Not in the paper.) ``sim`` normalised (docs/DEFINITIONS.md); ``database`` scores the
+    references against each other by the same matching and shortlist (cached like Eq. (1))."""
+    database = None
+    if how == "database":
+        ref = {"query": boxes["reference"], "reference": boxes["reference"]}
+        ref_feats = {"query": feats["reference"], "reference": feats["reference"]}
+        ref_glob = None if glob is None else {s: glob["reference"] for s in SIDES}
+        nr = len(feats["reference"])
+        kk = None if k is None or k >= nr else k
+
+        def compute() -> tuple[np.ndarray, float, float]:
+            db, info = _match(ref, ref_feats, plain, kk, ref_glob, executor)
+            return (
+                db,
+                (info["matching_s"] + info["shortlist_s"]) / max(info["pairs"], 1),
+                info["pairs"],
+            )
+
+        db_key = {**key, "database_self": True}
+        database = _cached_matrix(folder, f"{name}-database", db_key, (nr, nr), compute)[0]
+    return normalise_matrix(sim, how, database=database)
+
+
 def _from_cache(wall: float, recorded: float) -> bool:
     """Whether a stage that took ``wall`` seconds in this call, and whose cached entries record
     ``recorded`` seconds of computation, was read from the cache (under half the time)."""
@@ -307,47 +380,39 @@ def run_method(
     ]
     if glob is not None:
         inputs += [glob[side] for side in SIDES]
+    # the normalisation (not in the paper) is a step after the matrix: the Eq. (1) matrix is
+    # cached without it, so every normalisation of a method reuses it
+    plain = dataclasses.replace(conf.matching, normalise=None)
     key = {
         "inputs": array_sha256(inputs),
-        "matching": dataclasses.asdict(conf.matching),
+        "matching": dataclasses.asdict(plain),
         "shortlist": k,
         "code": code_version("matching"),
     }
     folder = cache_dir("results", f"{dataset.name}-{images}")
-    path = folder / f"{config_slug(conf.name, key)}.npz"
-    identity = f"results {path.parent.name} {path.stem}"
 
-    def check(a: dict) -> str | None:
-        shape = a["similarity"].shape
+    def compute() -> tuple[np.ndarray, float, float]:
+        sim, info = _match(boxes, feats, plain, shortlist=k, global_desc=glob, executor=executor)
         return (
-            None
-            if shape == (nq, nr)
-            else f"a similarity matrix of shape {shape}, expected ({nq}, {nr}) for this dataset"
+            sim,
+            (info["matching_s"] + info["shortlist_s"]) / max(info["pairs"], 1),
+            info["pairs"],
         )
 
-    cached = load_npz(
-        path, ("similarity", "seconds_per_pair", "pairs"), identity=identity, check=check
-    )
-    if cached is not None:
-        sim, match_s = cached["similarity"], float(cached["seconds_per_pair"])
-        n_pairs = float(cached["pairs"])
-    else:
-        sim, info = _match(
+    sim, match_s, n_pairs, cached = _cached_matrix(folder, conf.name, key, (nq, nr), compute)
+    if conf.matching.normalise is not None:
+        sim = _normalised(
+            sim,
+            conf.matching.normalise,
+            folder,
+            conf.name,
+            key,
             boxes,
             feats,
-            conf.matching,
-            shortlist=k,
-            global_desc=glob,
-            executor=executor,
-        )
-        n_pairs = info["pairs"]
-        match_s = (info["matching_s"] + info["shortlist_s"]) / max(n_pairs, 1)
-        atomic_savez(
-            path,
-            identity=identity,
-            similarity=sim,
-            seconds_per_pair=np.array(match_s),
-            pairs=np.array(n_pairs),
+            plain,
+            k,
+            glob,
+            executor,
         )
     sim = _exclude_empty(np.asarray(sim, dtype=np.float64), boxes, dataset)
     sim = dataset.ignore_soft(sim)  # soft positives: neither right nor wrong, in every metric
@@ -391,7 +456,7 @@ def run_method(
         if earlier
         else "",
         int(n_pairs),
-        " (read from the cache)" if cached is not None else "",
+        " (read from the cache)" if cached else "",
         protocol,
         metrics["auc"],
         metrics["r@1"],

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 _FACE = {
     "cost_table": "cost",
     "per_query": "insight",
+    "step_changes": "changes",
     "peer_result": "peers",
     "peer_from_matrix": "peers",
     "peer_from_descriptors": "peers",
@@ -31,6 +32,7 @@ __all__ = [
     "peer_from_matrix",
     "peer_result",
     "per_query",
+    "step_changes",
 ]
 
 
@@ -47,6 +49,7 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:
+    from .changes import step_changes
     from .cluster import DaskExecutor
     from .cost import cost_table
     from .download import download_dataset

@@ -13,7 +13,7 @@ from vpr_core import available_methods, paper, paths, settings
 from vpr_core.backbones import available_backbones, parse_backbone, weights_sha256
 from vpr_core.datasets import DATASETS
 from vpr_core.evaluation import PROTOCOLS
-from vpr_core.matching import SPATIAL_OPTIONS, WEIGHTING_OPTIONS
+from vpr_core.matching import NORMALISE_OPTIONS, SPATIAL_OPTIONS, WEIGHTING_OPTIONS
 from vpr_study.usage import COMMANDS, DESCRIPTION
 
 __all__ = [
@@ -196,6 +196,8 @@ EVAL_EPILOG = """examples:
       the paper's two methods on the built-in synthetic set (no download)
   vpr-study eval --dataset synthetic --method dense --weighting both
       with and without each database weighting, and the paired differences
+  vpr-study eval --dataset synthetic --method dense --normalise both
+      with and without each normalisation of the matrix (query_batch needs the query batch)
   vpr-study eval --dataset folder --root ~/photos/route --method dense
       your own images: a folder holding query/ and reference/ image folders
   vpr-study eval --dataset synthetic --method dense --peer MyNet=sim.npy
@@ -345,6 +347,16 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
         "query landmark matches this reference than the others (docs/DEFINITIONS.md); 'both': "
         "every method without and with each weighting, and the paired differences; default "
         "none: Eq. (1) as the paper",
+    )
+    e.add_argument(
+        "--normalise",
+        default="none",
+        choices=("none", *NORMALISE_OPTIONS, "both"),
+        help="(not in the paper) normalise every method's similarity matrix after Eq. (1) "
+        "(docs/DEFINITIONS.md): query_batch z-scores over references and over the batch of "
+        "queries (needs the query batch; also applied to peers), database subtracts each "
+        "reference's mean similarity to its 10 nearest references (a single live query); "
+        "'both': every method without and with each, and the paired differences",
     )
     e.add_argument(
         "--wide",

@@ -58,7 +58,12 @@ TABLES: dict[str, tuple[str, ...]] = {
         "weighting_dense",
         "weighting_classical",
     ),
-    "07_places_alike": ("places_alike", "places_alike_carried"),
+    "07_places_alike": (
+        "places_alike",
+        "places_alike_carried",
+        "places_alike_steps",
+        "places_alike_changes",
+    ),
 }
 
 #: Tables of timings only (``<stem>.timings.csv``, git-ignored; no ``<stem>.csv``).

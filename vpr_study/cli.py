@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from vpr_core import VPRWarning, paths, run_method, settings, utils
+from vpr_core import VPRWarning, normalise_result, paths, run_method, settings, utils
 from vpr_core.datasets import ground_truth_text, load_dataset
 from vpr_core.evaluation import (
     check_bootstrap_memory,
@@ -31,7 +31,7 @@ from vpr_core.evaluation import (
     compare_pairs,
     ground_truth_coverage,
 )
-from vpr_core.matching import SPATIAL_OPTIONS, WEIGHTING_OPTIONS
+from vpr_core.matching import NORMALISE_OPTIONS, SPATIAL_OPTIONS, WEIGHTING_OPTIONS
 from vpr_study.arguments import check_names, command_parser, dataset_options, given_once, parser
 from vpr_study.cluster import DaskExecutor
 from vpr_study.findings import findings_markdown, result_labels
@@ -413,12 +413,15 @@ def cmd_eval(args: argparse.Namespace) -> int:
     spatial = [None, *SPATIAL_OPTIONS] if args.spatial == "both" else [args.spatial]
     choices: dict[str, list[str | None]] = {"none": [None], "both": [None, *WEIGHTING_OPTIONS]}
     weighting = choices.get(args.weighting, [args.weighting])
+    norms: dict[str, list[str | None]] = {"none": [None], "both": [None, *NORMALISE_OPTIONS]}
+    normalise = norms.get(args.normalise, [args.normalise])
     results, computed, wall, run_of = [], {}, {}, {}
-    todo = list(itertools.product(args.method, spatial, weighting))
+    todo = list(itertools.product(args.method, spatial, weighting, normalise))
     with ExitStack() as stack:  # a Dask executor is closed however the runs end
         executor = stack.enter_context(DaskExecutor(scheduler)) if scheduler else None
-        for n, (m, s, w) in enumerate(todo, 1):
-            options = ", ".join(f"{k} {v}" for k, v in (("spatial", s), ("weighting", w)) if v)
+        for n, (m, s, w, z) in enumerate(todo, 1):
+            named = (("spatial", s), ("weighting", w), ("normalise", z))
+            options = ", ".join(f"{k} {v}" for k, v in named if v)
             before, t0 = _matrix_entries(), time.perf_counter()
             with lines.stage(
                 f"{m}{f' ({options})' if options else ''} on {label}",
@@ -439,14 +442,18 @@ def cmd_eval(args: argparse.Namespace) -> int:
                     protocol=args.protocol,
                     spatial=s,
                     weighting=w,
+                    normalise=z,
                 )
             results.append(r)
-            run_of[m, s, w] = r
+            run_of[m, s, w, z] = r
             computed[r.label] = _matrix_entries() != before
             wall[r.label] = time.perf_counter() - t0
     if args.peers or args.peer_dataset or args.peer:
         with lines.stage("peers"):
-            results += _peer_results(args, dataset) + _user_peers(args, dataset)
+            peers = _peer_results(args, dataset) + _user_peers(args, dataset)
+            if "query_batch" in normalise:  # a peer's matrix normalised the same way
+                peers += [normalise_result(p, "query_batch") for p in peers]
+            results += peers
         labels = [r.label for r in results]
         twice = sorted({x for x in labels if labels.count(x) > 1})
         if twice:  # compare() would advise label=..., which a command line cannot pass
@@ -491,8 +498,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
     items: list = [(stem, table), (stem, fig)]
     if args.spatial == "both":
         pairs = [
-            (run_of[m, None, w], run_of[m, s, w])
-            for m, w in itertools.product(args.method, weighting)
+            (run_of[m, None, w, z], run_of[m, s, w, z])
+            for m, w, z in itertools.product(args.method, weighting, normalise)
             for s in SPATIAL_OPTIONS
         ]
         geometry = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
@@ -501,14 +508,28 @@ def cmd_eval(args: argparse.Namespace) -> int:
         items.append((f"{stem}_geometry", geometry))
     if args.weighting == "both":
         pairs = [
-            (run_of[m, s, None], run_of[m, s, w])
-            for m, s in itertools.product(args.method, spatial)
+            (run_of[m, s, None, z], run_of[m, s, w, z])
+            for m, s, z in itertools.product(args.method, spatial, normalise)
             for w in WEIGHTING_OPTIONS
         ]
         weighted = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
         say("\n(not in the paper) database weighting, each method with minus without:", width)
         print(fit_text(compact(weighted), width, HEADLINE, wide=args.wide))
         items.append((f"{stem}_weighting", weighted))
+    if args.normalise == "both":
+        pairs = [
+            (run_of[m, s, w, None], run_of[m, s, w, z])
+            for m, s, w in itertools.product(args.method, spatial, weighting)
+            for z in NORMALISE_OPTIONS
+        ]
+        normalised = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
+        say(
+            "\n(not in the paper) normalisation, each method with minus without "
+            "(query_batch needs the query batch):",
+            width,
+        )
+        print(fit_text(compact(normalised), width, HEADLINE, wide=args.wide))
+        items.append((f"{stem}_normalise", normalised))
     with lines.stage("writing the figure and tables"):
         written = save_all(items, label, out=args.out)
     root = paths.figures_root() if args.out is None else Path(args.out).expanduser().resolve()

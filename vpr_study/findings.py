@@ -24,6 +24,7 @@ from vpr_core.evaluation import (
 __all__ = [
     "CELL_WORDS",
     "CLAIMS",
+    "STEPS",
     "LEGEND",
     "MATCHES_TABLE",
     "OBSERVATION_1",
@@ -79,6 +80,17 @@ _T2, _T3, _T4 = "fig10_scale_levels", "fig11_landmarks_per_scale", "fig12_normal
 _O1, _O2 = "overlap_scheme1", "overlap_scheme2"
 _F13 = "fig13_comparison"
 
+#: (Not in the paper.) The steps of issue 55 judged in notebook 07's ``places_alike_steps``.
+STEPS: dict[str, dict] = {
+    "two-sided contrast": {"weighting": "two_sided"},
+    "query-batch normalisation (needs the query batch)": {"normalise": "query_batch"},
+    "database normalisation": {"normalise": "database"},
+    "two-sided + query-batch (needs the query batch)": {
+        "weighting": "two_sided",
+        "normalise": "query_batch",
+    },
+}
+
 #: The paper's claims, in paper order (observation 1 is handled by :func:`cmr_difference`).
 # fmt: off
 CLAIMS: tuple[Claim, ...] = (
@@ -119,6 +131,14 @@ CLAIMS: tuple[Claim, ...] = (
         Claim(f"(not in the paper) weighting {w}: {m} with vs without", f"weighting_{m}",
               (m, {"weighting": w}), base, "?")
         for m, base in (("dense", _D), ("classical", _C)) for w in ("contrast", "idf")
+    ),
+    # issue 55: each method without and with each step (settings fixed in DEFINITIONS.md)
+    *(
+        Claim(f"(not in the paper) {text}: {m} with vs without", "places_alike_steps",
+              (m, opts), (m, {}), "?", metric)
+        for m in ("dense", "classical", "selection_scheme1")
+        for text, opts in STEPS.items()
+        for metric in ("dAUC", "dR@1")
     ),
 )
 # fmt: on

@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 from ..checks import check_int
+from ..matching.normalise import needs_query_batch
 from .bootstrap import (
     N_BOOTSTRAP,
     bootstrap_columns,
@@ -35,6 +36,7 @@ __all__ = [
     "compare",
     "compare_pairs",
     "identical_to",
+    "normalise_of",
 ]
 
 #: The metric columns of :func:`compare` (column name -> metric key).
@@ -146,6 +148,15 @@ def _with_chance(row: dict, level: dict[str, float]) -> dict:
     return out
 
 
+def normalise_of(r: Any) -> str | None:
+    """The normalisation of a result's matrix (not in the paper): its ``Matching``'s, or a
+    peer's recorded one; None when it has none."""
+    cfg = getattr(r, "config", None)
+    if isinstance(cfg, dict):
+        return cfg.get("normalise")
+    return getattr(getattr(cfg, "matching", None), "normalise", None)
+
+
 def _is_result(obj: Any) -> bool:
     return all(hasattr(obj, a) for a in ("label", "similarity", "ground_truth"))
 
@@ -209,7 +220,8 @@ def compare(
         ``lo``, ``hi``, ``p``, ``verdict`` (``higher`` / ``lower`` when the interval lies
         above / below 0, else ``inconclusive``; ``not computed`` without resamples) and
         ``needs`` (queries at which an inconclusive interval would exclude 0, where known),
-        then the context columns and ``warnings``.
+        then the context columns and ``warnings``; ``query batch``: ``needed`` where the matrix
+        was normalised over the batch of queries (not a single-query result, not in the paper).
         A notice is raised when chance lies inside every run's interval
         (:func:`~vpr_core.evaluation.saturation_notice`).
 
@@ -270,6 +282,8 @@ def compare(
     rows = []
     for r, twin in zip(results, twins, strict=False):
         row = {**_with_chance(r.row(), level), "identical to": twin, "baseline": None}
+        # (not in the paper) a normalisation over the query batch is not a single-query result
+        row["query batch"] = "needed" if needs_query_batch(normalise_of(r)) else "not needed"
         if r is not base:
             row["baseline"] = base.label
             queries = int(gt.any(axis=1).sum())
@@ -335,13 +349,15 @@ def compact(table: pd.DataFrame) -> pd.DataFrame:
             row[f"{name} vs {base}"] = _difference_text(r, name)
         twin = r.get("identical to")
         row["note"] = f"= {twin}" if isinstance(twin, str) else ""
+        row["query batch"] = "needed" if r.get("query batch") == "needed" else ""
         rows[str(label)] = row
     if f"{next(iter(METRICS))} chance" in table.columns:
         first = table.iloc[0]
         rows[CHANCE_ROW] = {heads[n]: f"{first[f'{n} chance']:.3f}" for n in METRICS}
     out = pd.DataFrame.from_dict(rows, orient="index").fillna("")
-    if not out["note"].str.len().any():
-        out = out.drop(columns="note")
+    for col in ("note", "query batch"):
+        if not out[col].str.len().any():
+            out = out.drop(columns=col)
     out.index.name = "method"
     return out
 

@@ -1,16 +1,17 @@
 """Landmark matching: Eq. (1)-(2), reciprocal nearest neighbours and Algorithm 4, for one image
 pair in :mod:`.pairwise` (the float64 reference that reads like the paper) and for blocks of pairs
 in the torch engine (:mod:`.core`, the same numbers); the public functions are in
-:mod:`.similarity`. The engine's inputs are parsed in the package-private :mod:`._sides`; its
-rules that :mod:`vpr_study.cluster` shares are exported here (``landmark_lists``,
-``check_same_dim``, ``rescale_rows``)."""
+:mod:`.similarity`. The engine's inputs are parsed in the package-private :mod:`._sides`; the
+shortlist is :mod:`.shortlist`, the database weighting :mod:`.weighting` and the matrix
+normalisation :mod:`.normalise` (not in the paper)."""
 
 from __future__ import annotations
 
 from ._sides import landmark_lists
 from .core import Problem
+from .normalise import needs_query_batch, normalise_matrix, zscore
 from .pairwise import cosine_similarity
-from .shortlist import shortlist_pairs, split_whole_image, with_whole_image_boxes
+from .shortlist import rerank, shortlist_pairs, split_whole_image, with_whole_image_boxes
 from .similarity import (
     check_pairs,
     cosine_distance,
@@ -22,11 +23,19 @@ from .similarity import (
     similarity_pairs,
     weighted_matches,
 )
-from .spec import SPATIAL_OPTIONS, WEIGHTING_OPTIONS, Compute, Matching
-from .weighting import CONTRAST_SAMPLE, WEIGHTING_SAMPLE, sample_matches, weighting_sample
+from .spec import NORMALISE_OPTIONS, SPATIAL_OPTIONS, WEIGHTING_OPTIONS, Compute, Matching
+from .weighting import (
+    CONTRAST_SAMPLE,
+    WEIGHTING_SAMPLE,
+    clear_reference_cache,
+    reference_stats,
+    sample_matches,
+    weighting_sample,
+)
 
 __all__ = [
     "CONTRAST_SAMPLE",
+    "NORMALISE_OPTIONS",
     "SPATIAL_OPTIONS",
     "WEIGHTING_OPTIONS",
     "WEIGHTING_SAMPLE",
@@ -39,7 +48,12 @@ __all__ = [
     "image_similarity",
     "landmark_lists",
     "match_landmarks",
+    "needs_query_batch",
+    "normalise_matrix",
     "reciprocal_matches",
+    "rerank",
+    "reference_stats",
+    "clear_reference_cache",
     "sample_matches",
     "shape_penalty",
     "shortlist_pairs",
@@ -47,6 +61,7 @@ __all__ = [
     "similarity_pairs",
     "split_whole_image",
     "weighted_matches",
+    "zscore",
     "weighting_sample",
     "with_whole_image_boxes",
 ]

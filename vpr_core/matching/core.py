@@ -350,6 +350,9 @@ class Problem:
     empty: bool
     #: the references of :meth:`best_cosines`, gathered once per call (key: indices, chunk size)
     gathered: dict = field(default_factory=dict, repr=False)
+    #: (not in the paper) ``two_sided``'s reference statistics ``(mu, sigma)`` ``(Nr, Kr)``
+    #: (:func:`.weighting.prepare_reference_stats`), None otherwise
+    ref_stats: tuple[torch.Tensor, torch.Tensor] | None = field(default=None, repr=False)
 
     @classmethod
     def build(

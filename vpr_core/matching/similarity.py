@@ -5,6 +5,7 @@ float64 reference of :mod:`.pairwise` (:func:`match_landmarks`, :func:`image_sim
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from functools import partial
@@ -17,9 +18,15 @@ from ..paper import SOFT_NMS_SIGMA
 from ..utils import progress
 from ._sides import LandmarkSets, check_same_dim, rescale_rows, unit_rows
 from .core import BLOCK_BYTES, BlockPairs, Problem, shape_terms
+from .normalise import normalise_matrix, refuse_normalise
 from .pairwise import MatchResult, match_pair
-from .spec import Compute, Matching, as_matching
-from .weighting import sample_matches, weighted_block, weighting_sample
+from .spec import WEIGHTING_OPTIONS, Compute, Matching, as_matching
+from .weighting import (
+    prepare_reference_stats,
+    sample_matches,
+    weighted_block,
+    weighting_sample,
+)
 
 __all__ = [
     "check_pairs",
@@ -65,26 +72,51 @@ def similarity_matrix(
         reference_boxes: sequence of ``(K_r, 4)`` arrays, or ``(Nr, K, 4)``.
         soft_nms_iou, sigma: Algorithm 4 (the paper's shorthand for ``Matching(soft_nms_iou,
             sigma)``).
-        matching: a :class:`~.spec.Matching` (Algorithm 4 and, not in the paper, ``spatial``
-            and ``weighting``; docs/DEFINITIONS.md) instead of ``soft_nms_iou``/``sigma``. With
-            a weighting each term's statistics cover every reference.
+        matching: a :class:`~.spec.Matching` (Algorithm 4 and, not in the paper, ``spatial``,
+            ``weighting`` and ``normalise``; docs/DEFINITIONS.md) instead of
+            ``soft_nms_iou``/``sigma``. With a weighting each term's statistics cover every
+            reference; ``normalise`` is applied to the whole matrix after Eq. (1)
+            (``"database"`` also scores the references against each other).
         compute: device, block sizes, matmul precision and progress bar (:class:`~.spec.Compute`).
 
     Returns:
         ``(Nq, Nr)`` float64 similarities; 0 for a pair where an image has no landmark.
     """
+    matching = as_matching(soft_nms_iou, sigma, matching)
+    if matching.normalise is not None:  # (not in the paper) a step after the matrix
+        plain = dataclasses.replace(matching, normalise=None)
+        sim = similarity_matrix(
+            query_desc,
+            query_boxes,
+            reference_desc,
+            reference_boxes,
+            matching=plain,
+            compute=compute,
+        )
+        db = None
+        if matching.normalise == "database":
+            db = similarity_matrix(
+                reference_desc,
+                reference_boxes,
+                reference_desc,
+                reference_boxes,
+                matching=plain,
+                compute=compute,
+            )
+        return normalise_matrix(sim, matching.normalise, database=db)
     prob = Problem.build(
         query_desc,
         query_boxes,
         reference_desc,
         reference_boxes,
-        as_matching(soft_nms_iou, sigma, matching),
+        matching,
         compute,
     )
     q, r = prob.q, prob.r
     out = torch.zeros((q.n, r.n), dtype=torch.float64, device=prob.dev)
     if prob.empty:  # no landmark anywhere on one side
         return out.cpu().numpy()
+    prepare_reference_stats(prob, np.arange(r.n))  # two_sided: every other reference
     bq = compute.batch_size or 8
     br = compute.ref_batch_size or max(1, BLOCK_BYTES // (4 * bq * q.k * r.k))
     br = max(1, min(br, r.n))
@@ -134,6 +166,7 @@ def similarity_pairs(
     Returns:
         ``(P,)`` float64 similarities, in the order of ``pairs``.
     """
+    refuse_normalise(matching, "similarity_pairs")
     prob = Problem.build(
         query_desc, query_boxes, reference_desc, reference_boxes, matching, compute
     )
@@ -145,6 +178,7 @@ def similarity_pairs(
     out = np.zeros(pr.shape[0], dtype=np.float64)
     if prob.empty or pr.shape[0] == 0:
         return out
+    prepare_reference_stats(prob, ids)  # two_sided: the sample, computed once per database
     br = compute.ref_batch_size or max(1, BLOCK_BYTES // (4 * q.k * r.k))
     order = np.argsort(pr[:, 0], kind="stable")
     starts = np.flatnonzero(np.r_[True, pr[order[1:], 0] != pr[order[:-1], 0]])
@@ -275,8 +309,10 @@ def weighted_matches(
     """
     if getattr(matching, "weighting", None) is None:
         raise ValueError(
-            f"weighted_matches needs Matching(weighting='contrast' or 'idf'), got {matching!r}"
+            f"weighted_matches needs Matching(weighting=one of {WEIGHTING_OPTIONS}), got "
+            f"{matching!r}"
         )
+    refuse_normalise(matching, "weighted_matches")
     prob = Problem.build(
         query_desc, query_boxes, reference_desc, reference_boxes, matching, _DEFAULT
     )
@@ -287,6 +323,7 @@ def weighted_matches(
     )
     samp = torch.from_numpy(ids)
     br = max(1, BLOCK_BYTES // (4 * q.k * r.k))
+    prepare_reference_stats(prob, ids)
     stats: dict[int, tuple] = {}
     out = []
     for qi, rj in pr.tolist():
@@ -324,6 +361,7 @@ def match_landmarks(
         matching: a :class:`~.spec.Matching` without a weighting (that needs the references:
             :func:`weighted_matches`).
     """
+    refuse_normalise(matching, "match_landmarks")
     if matching.weighting is not None:
         raise ValueError(
             f"weighting={matching.weighting!r} needs statistics over every reference, which one "

@@ -8,14 +8,25 @@ import dataclasses
 from ..checks import check_choice, check_device, check_int, is_number
 from ..paper import SOFT_NMS_SIGMA
 
-__all__ = ["SPATIAL_OPTIONS", "WEIGHTING_OPTIONS", "Compute", "Matching", "as_matching"]
+__all__ = [
+    "NORMALISE_OPTIONS",
+    "SPATIAL_OPTIONS",
+    "WEIGHTING_OPTIONS",
+    "Compute",
+    "Matching",
+    "as_matching",
+]
 
 #: (Not in the paper.) Names of the geometry-aware re-scorings of ``spatial=``
 #: (docs/DEFINITIONS.md, "(not in the paper) geometry-aware score").
 SPATIAL_OPTIONS = ("consistency",)
 #: (Not in the paper.) Names of the database weightings of the Eq. (1) terms (``weighting=``;
 #: docs/DEFINITIONS.md, "(not in the paper) database weighting").
-WEIGHTING_OPTIONS = ("contrast", "idf")
+WEIGHTING_OPTIONS = ("contrast", "idf", "two_sided")
+#: (Not in the paper.) Names of the normalisations of a whole similarity matrix (``normalise=``;
+#: docs/DEFINITIONS.md, "(not in the paper) normalisation"); ``query_batch`` needs the batch of
+#: queries, ``database`` only the database.
+NORMALISE_OPTIONS = ("query_batch", "database")
 
 
 def _bad(obj: object, key: str, expected: str) -> ValueError:
@@ -35,12 +46,14 @@ class Matching:
     scores) at IoU ``soft_nms_iou`` and Gaussian ``sigma`` when ``soft_nms_iou`` is set, and
     (not in the paper) a geometry-aware re-scoring of the matches when ``spatial`` is set
     (:data:`SPATIAL_OPTIONS`) and a database weighting of the terms when ``weighting`` is set
-    (:data:`WEIGHTING_OPTIONS`; docs/DEFINITIONS.md)."""
+    (:data:`WEIGHTING_OPTIONS`), and a normalisation of the whole matrix after Eq. (1) when
+    ``normalise`` is set (:data:`NORMALISE_OPTIONS`; docs/DEFINITIONS.md)."""
 
     soft_nms_iou: float | None = None
     sigma: float = SOFT_NMS_SIGMA
     spatial: str | None = None
     weighting: str | None = None
+    normalise: str | None = None
 
     def __post_init__(self) -> None:
         iou, sigma = self.soft_nms_iou, self.sigma
@@ -65,12 +78,19 @@ class Matching:
                 f"None or one of {_names(WEIGHTING_OPTIONS)} (database "
                 "weighting, not in the paper)",
             )
+        if self.normalise is not None and self.normalise not in NORMALISE_OPTIONS:
+            raise _bad(
+                self,
+                "normalise",
+                f"None or one of {_names(NORMALISE_OPTIONS)} (matrix normalisation, not in "
+                "the paper)",
+            )
 
     def options(self) -> tuple[str, ...]:
-        """The options that change a result: ``spatial`` and ``weighting`` always, the soft-NMS
-        pair with it on."""
+        """The options that change a result: ``spatial``, ``weighting`` and ``normalise``
+        always, the soft-NMS pair with it on."""
         nms = ("soft_nms_iou", "sigma") if self.soft_nms_iou is not None else ()
-        return (*nms, "spatial", "weighting")
+        return (*nms, "spatial", "weighting", "normalise")
 
     def note(self) -> str:
         """Its legend text: soft-NMS IoU, geometry and weighting; empty at the paper's Eq. (1)."""
@@ -79,6 +99,10 @@ class Matching:
             parts.append(f"geometry: {self.spatial}")
         if self.weighting is not None:
             parts.append(f"weighting: {self.weighting}")
+        if self.normalise is not None:
+            parts.append(f"normalised: {self.normalise}")
+        if self.normalise == "query_batch":
+            parts.append("needs the query batch")
         return ", ".join(parts)
 
 

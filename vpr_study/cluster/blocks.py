@@ -181,6 +181,11 @@ def similarity_pairs_distributed(
         return similarity_pairs(
             query_desc, query_boxes, reference_desc, reference_boxes, pairs, matching
         )
+    if matching.weighting == "two_sided":  # a task holds a few references, not the database
+        raise ValueError(
+            "weighting='two_sided' with a shortlist runs in-process only (its reference "
+            "statistics need the whole database): run without a Dask scheduler"
+        )
     qd, qb = landmark_lists(query_desc, query_boxes, "query")
     rd, rb = landmark_lists(reference_desc, reference_boxes, "reference")
     pr = check_pairs(pairs, len(qd), len(rd))

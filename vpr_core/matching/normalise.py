@@ -1,0 +1,137 @@
+"""(Not in the paper.) Normalisation of a whole similarity matrix after Eq. (1), ``normalise=``:
+``query_batch`` (needs the batch of queries) and ``database`` (CSLS-like, a single live query);
+definitions in docs/DEFINITIONS.md, "(not in the paper) normalisation of a similarity matrix"."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..checks import check_int, check_shape
+from .spec import NORMALISE_OPTIONS, Matching
+
+__all__ = [
+    "NEEDS_QUERY_BATCH",
+    "NORMALISE_K",
+    "NORMALISE_SIGMA_MIN",
+    "database_normalise",
+    "database_offsets",
+    "needs_query_batch",
+    "normalise_matrix",
+    "query_batch_normalise",
+    "refuse_normalise",
+    "zscore",
+]
+
+#: (Not in the paper.) ``database``: the nearest database neighbours whose mean similarity is
+#: subtracted (CSLS's published default, fixed before any result; docs/DEFINITIONS.md).
+NORMALISE_K = 10
+#: (Not in the paper.) A standard deviation at or below this makes its z-score term 0.
+NORMALISE_SIGMA_MIN = 1e-12
+#: The normalisations that need the batch of queries (every table that shows one says so).
+NEEDS_QUERY_BATCH = ("query_batch",)
+
+
+def needs_query_batch(normalise: str | None) -> bool:
+    """True when the normalisation ``normalise`` uses the other queries of the batch."""
+    return normalise in NEEDS_QUERY_BATCH
+
+
+def zscore(s: np.ndarray, axis: int) -> np.ndarray:
+    """``(s - mean) / std`` along ``axis`` over ranked (finite) entries, population std; 0 where
+    the std is <= :data:`NORMALISE_SIGMA_MIN` or no entry is ranked; NaN stays NaN."""
+    ok = np.isfinite(s)
+    n = ok.sum(axis, keepdims=True)
+    x = np.where(ok, s, 0.0)
+    mean = x.sum(axis, keepdims=True) / np.maximum(n, 1)
+    var = (np.where(ok, s - mean, 0.0) ** 2).sum(axis, keepdims=True) / np.maximum(n, 1)
+    sd = np.sqrt(var)
+    good = (n > 0) & (sd > NORMALISE_SIGMA_MIN)
+    z = (s - mean) / np.where(good, sd, 1.0)
+    return np.where(good, z, np.where(ok, 0.0, np.nan))
+
+
+def query_batch_normalise(similarity: np.ndarray) -> np.ndarray:
+    """``z_row + z_col`` of ``(Nq, Nr)`` (before the final ``exp``): each entry z-normalised
+    over its query's references plus over the batch of queries (**needs the query batch**)."""
+    s = np.asarray(similarity, dtype=np.float64)
+    return zscore(s, 1) + zscore(s, 0)
+
+
+def database_offsets(database: np.ndarray, k: int = NORMALISE_K) -> np.ndarray:
+    """``(Nr,)`` ``rho_r``: the mean of reference ``r``'s ``k`` largest similarities to the other
+    references (the diagonal and NaN entries left out; fewer when fewer are ranked, 0 when none).
+
+    Args:
+        database: ``(Nr, Nr)`` similarities of the references to each other by the same method.
+        k: neighbours (:data:`NORMALISE_K`).
+    """
+    db = np.array(database, dtype=np.float64)
+    k = check_int(k, "k (nearest database neighbours)", 1)
+    if db.ndim != 2 or db.shape[0] != db.shape[1]:
+        raise ValueError(f"database must be a square (Nr, Nr) matrix, got shape {db.shape}")
+    np.fill_diagonal(db, np.nan)
+    ranked = np.isfinite(db)
+    srt = -np.sort(-np.where(ranked, db, -np.inf), axis=1)  # descending, unranked last
+    kk = np.minimum(k, ranked.sum(1))  # (Nr,)
+    take = np.arange(db.shape[1])[None, :] < kk[:, None]
+    total = np.where(take, srt, 0.0).sum(1)
+    return np.where(kk > 0, total / np.maximum(kk, 1), 0.0)
+
+
+def database_normalise(
+    similarity: np.ndarray, database: np.ndarray, k: int = NORMALISE_K
+) -> np.ndarray:
+    """``S[q, r] - rho_r`` (before the final ``exp``): the database-only variant, for a single
+    live query (:func:`database_offsets`)."""
+    s = np.asarray(similarity, dtype=np.float64)
+    rho = database_offsets(database, k)
+    if rho.shape[0] != s.shape[1]:
+        raise ValueError(
+            f"database is ({rho.shape[0]}, {rho.shape[0]}) but the matrix has {s.shape[1]} "
+            "references: score the same references against each other"
+        )
+    return s - rho[None, :]
+
+
+def normalise_matrix(
+    similarity: np.ndarray,
+    how: str | None,
+    database: np.ndarray | None = None,
+    k: int = NORMALISE_K,
+) -> np.ndarray:
+    """A similarity matrix normalised (docs/DEFINITIONS.md): ``exp`` of
+    :func:`query_batch_normalise` or :func:`database_normalise`; ``how=None``: unchanged.
+
+    Args:
+        similarity: ``(Nq, Nr)`` any method's or a peer's similarities (NaN: not ranked).
+        how: None or one of :data:`~.spec.NORMALISE_OPTIONS`; ``"query_batch"`` needs the batch
+            of queries (its rows change when the other queries change).
+        database: ``(Nr, Nr)`` the references scored against each other by the same method
+            (``"database"`` only).
+        k: ``"database"``'s neighbours.
+
+    Returns:
+        ``(Nq, Nr)`` float64, positive where ranked, each row's ranking kept for ``database``.
+    """
+    s = check_shape(similarity, "Nq Nr", "similarity", dtype=np.float64)
+    if how is None:
+        return s
+    Matching(normalise=how)  # the one check of the name
+    if how == "query_batch":
+        return np.exp(query_batch_normalise(s))
+    if database is None:
+        raise ValueError(
+            "normalise='database' needs the references scored against each other (database=, "
+            "an (Nr, Nr) matrix by the same method)"
+        )
+    return np.exp(database_normalise(s, database, k))
+
+
+def refuse_normalise(matching: Matching, caller: str) -> None:
+    """Refuse ``normalise`` where there is no whole matrix (one pair, listed pairs)."""
+    if getattr(matching, "normalise", None) is not None:
+        raise ValueError(
+            f"{caller}: normalise={matching.normalise!r} is a step on a whole (Nq, Nr) matrix: "
+            f"use similarity_matrix or normalise_matrix on the result (valid names: "
+            f"{', '.join(NORMALISE_OPTIONS)})"
+        )
