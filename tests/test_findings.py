@@ -84,6 +84,14 @@ def test_verdicts_follow_the_interval_and_the_claims_direction(tmp_path):
     assert "**inconclusive** (needs ~1,200 queries)" in md
     words = {"holds", "does not hold", "finding"}
     assert not any(w in md.replace("(as the paper says)", "") for w in words), md
+    # results/findings.md: the paper's claims (the README's table), then issue 55's steps in a
+    # table of their own (a label without notebook 07's table: not run)
+    doc = findings.findings_document(["d"], out=tmp_path)
+    assert doc.startswith(md) and "| (not in the paper) step | d |" in doc
+    steps = [ln for ln in doc[len(md) :].splitlines() if ln.startswith("| ") and "with vs" in ln]
+    assert len(steps) == len(findings.STEP_CLAIMS) == 24
+    assert all(ln.endswith("**not run** |") for ln in steps)
+    assert not any(c.text in md for c in findings.STEP_CLAIMS)
 
 
 _PAR = "Fig. 7a: NMS at IoU 0.7 is on par with classical"

@@ -34,7 +34,7 @@ from vpr_core.evaluation import (
 from vpr_core.matching import NORMALISE_OPTIONS, SPATIAL_OPTIONS, WEIGHTING_OPTIONS
 from vpr_study.arguments import check_names, command_parser, dataset_options, given_once, parser
 from vpr_study.cluster import DaskExecutor
-from vpr_study.findings import findings_markdown, result_labels
+from vpr_study.findings import findings_document, result_labels
 from vpr_study.peers import (
     find_vprbench_peers,
     peer_from_descriptors,
@@ -560,7 +560,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def cmd_findings(args: argparse.Namespace) -> int:
     labels = args.labels or result_labels(["synthetic", *study_datasets()])
-    text = findings_markdown(labels)
+    text = findings_document(labels)
     print(text)
     if args.write:
         out = paths.results_dir() / "findings.md"

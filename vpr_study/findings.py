@@ -25,12 +25,14 @@ __all__ = [
     "CELL_WORDS",
     "CLAIMS",
     "STEPS",
+    "STEP_CLAIMS",
     "LEGEND",
     "MATCHES_TABLE",
     "OBSERVATION_1",
     "ON_PAR_MARGIN",
     "Claim",
     "cmr_difference",
+    "findings_document",
     "findings_markdown",
     "findings_table",
     "markdown_cell",
@@ -132,14 +134,16 @@ CLAIMS: tuple[Claim, ...] = (
               (m, {"weighting": w}), base, "?")
         for m, base in (("dense", _D), ("classical", _C)) for w in ("contrast", "idf")
     ),
-    # issue 55: each method without and with each step (settings fixed in DEFINITIONS.md)
-    *(
-        Claim(f"(not in the paper) {text}: {m} with vs without", "places_alike_steps",
-              (m, opts), (m, {}), "?", metric)
-        for m in ("dense", "classical", "selection_scheme1")
-        for text, opts in STEPS.items()
-        for metric in ("dAUC", "dR@1")
-    ),
+)
+
+#: (Not in the paper; issue 55.) Each method without and with each step of notebook 07 (settings
+#: fixed in DEFINITIONS.md), AUC and R@1: a table of its own in ``results/findings.md``, beside
+#: the paper's claims (which the README shows).
+STEP_CLAIMS: tuple[Claim, ...] = tuple(
+    Claim(f"{text}: {m} with vs without", "places_alike_steps", (m, opts), (m, {}), "?", metric)
+    for m in ("dense", "classical", "selection_scheme1")
+    for text, opts in STEPS.items()
+    for metric in ("dAUC", "dR@1")
 )
 # fmt: on
 
@@ -366,9 +370,11 @@ def result_labels(first: Sequence[str] = (), out: str | Path | None = None) -> l
     return head + [lab for lab in found if lab not in head]
 
 
-def findings_table(labels: Sequence[str], out: str | Path | None = None) -> pd.DataFrame:
-    """One row per claim (the index), two columns per result folder label under
-    ``<output root>/results/`` (value and verdict)."""
+def findings_table(
+    labels: Sequence[str], out: str | Path | None = None, claims: tuple[Claim, ...] = CLAIMS
+) -> pd.DataFrame:
+    """One row per claim (the index; observation 1 first with the paper's :data:`CLAIMS`), two
+    columns per result folder label under ``<output root>/results/`` (value and verdict)."""
     root = paths.output_root() if out is None else Path(out)
     for label in labels:
         paths.check_label(label)  # a folder name on disk is a label too: no markup, no column
@@ -379,7 +385,7 @@ def findings_table(labels: Sequence[str], out: str | Path | None = None) -> pd.D
                 f"results: {', '.join(found) or 'none'}"
             )
     rows = []
-    for claim in (None, *CLAIMS):
+    for claim in (None, *claims) if claims is CLAIMS else claims:
         row = {"claim": OBSERVATION_1 if claim is None else claim.text}
         for label in labels:
             folder = root / "results" / label
@@ -401,6 +407,19 @@ LEGEND = (
 )
 
 
+def findings_document(labels: Sequence[str], out: str | Path | None = None) -> str:
+    """``results/findings.md``: the paper's claims (:func:`findings_markdown`, the README's
+    table), then the steps of notebook 07 (:data:`STEP_CLAIMS`, not in the paper)."""
+    steps = findings_markdown(labels, out=out, claims=STEP_CLAIMS).split("\n", 2)[2]
+    return (
+        findings_markdown(labels, out=out)
+        + "\n\n## Not in the paper: two-sided contrast and normalisation (notebook 07)\n\n"
+        + "Each method with minus without each step; `query_batch` needs the batch of queries "
+        + "(docs/DEFINITIONS.md). Cells read as above.\n\n"
+        + steps
+    )
+
+
 def markdown_cell(text: object) -> str:
     """``text`` as one Markdown table cell: HTML (``&``, ``<``, ``>``), ``|``, ``\\`` and the
     link / image syntax ``](`` ``][`` escaped, each line break (CR, LF, CRLF) a ``<br>``: a label
@@ -418,11 +437,14 @@ def _bold_verdict(verdict: str) -> str:
     return f"**{markdown_cell(word)}**{markdown_cell(rest)}"
 
 
-def findings_markdown(labels: Sequence[str], out: str | Path | None = None) -> str:
+def findings_markdown(
+    labels: Sequence[str], out: str | Path | None = None, claims: tuple[Claim, ...] = CLAIMS
+) -> str:
     """:func:`findings_table` as Markdown: :data:`LEGEND`, then the table (value and verdict in
     one cell; every header and cell escaped by :func:`markdown_cell`)."""
-    table = findings_table(labels, out=out)
-    head = "| paper's claim | " + " | ".join(markdown_cell(lab) for lab in labels) + " |"
+    table = findings_table(labels, out=out, claims=claims)
+    first = "paper's claim" if claims is CLAIMS else "(not in the paper) step"
+    head = f"| {first} | " + " | ".join(markdown_cell(lab) for lab in labels) + " |"
     sep = "|---" * (len(labels) + 1) + "|"
     lines = [LEGEND, "", head, sep]
     for claim, r in table.iterrows():

@@ -16,7 +16,7 @@ from vpr_core.datasets import load_dataset
 from vpr_study.catalogue import LABEL_NOTEBOOKS
 from vpr_study.execution import run_labels
 from vpr_study.figures import FIGURES, NOTEBOOKS
-from vpr_study.findings import findings_markdown, result_labels
+from vpr_study.findings import findings_document, result_labels
 
 __all__ = [
     "NORDLAND_STUDY",
@@ -224,7 +224,7 @@ REAL_DATA_NOTEBOOKS = NOTEBOOKS[2:]
 def _write_findings(labels: Sequence[str]) -> None:
     """``results/findings.md``: the paper's claims against these labels' paired differences."""
     labels = result_labels(labels)  # this run's, then every other result folder
-    text = findings_markdown(labels)
+    text = findings_document(labels)
     out = paths.results_dir() / "findings.md"
     out.write_text(text + "\n")
     print(f"\nThe paper's claims (dAUC [95% CI], paired bootstrap), also in {out}:\n{text}")
