@@ -139,6 +139,8 @@ def test_a_peer_normalised_and_compare_says_where_the_batch_is_needed():
     d = normalise_result(peer, "database", database=m.T @ m)
     table = compare([peer, q, d], n_bootstrap=50)
     assert list(table["query batch"]) == ["not needed", "needed", "not needed"]
+    # a table without a query-batch normalisation keeps the paper's columns (byte-identical)
+    assert "query batch" not in compare([peer, d], n_bootstrap=50).columns
     shown = compact(table)
     assert shown.loc[q.label, "query batch"] == "needed"
     assert shown.loc[peer.label, "query batch"] == ""

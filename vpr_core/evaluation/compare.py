@@ -220,8 +220,8 @@ def compare(
         ``lo``, ``hi``, ``p``, ``verdict`` (``higher`` / ``lower`` when the interval lies
         above / below 0, else ``inconclusive``; ``not computed`` without resamples) and
         ``needs`` (queries at which an inconclusive interval would exclude 0, where known),
-        then the context columns and ``warnings``; ``query batch``: ``needed`` where the matrix
-        was normalised over the batch of queries (not a single-query result, not in the paper).
+        then the context columns and ``warnings``; where any run's matrix was normalised over
+        the batch of queries (not in the paper), ``query batch``: ``needed`` or ``not needed``.
         A notice is raised when chance lies inside every run's interval
         (:func:`~vpr_core.evaluation.saturation_notice`).
 
@@ -279,11 +279,14 @@ def compare(
         tolerance=tolerances.pop() if len(tolerances) == 1 else None,
     )
     twins = identical_to(results)
+    # (not in the paper) a normalisation over the query batch is not a single-query result: a
+    # table holding one says so per row (a table without one is the paper's, column for column)
+    batch = [needs_query_batch(normalise_of(r)) for r in results]
     rows = []
-    for r, twin in zip(results, twins, strict=False):
+    for r, twin, needs in zip(results, twins, batch, strict=True):
         row = {**_with_chance(r.row(), level), "identical to": twin, "baseline": None}
-        # (not in the paper) a normalisation over the query batch is not a single-query result
-        row["query batch"] = "needed" if needs_query_batch(normalise_of(r)) else "not needed"
+        if any(batch):
+            row["query batch"] = "needed" if needs else "not needed"
         if r is not base:
             row["baseline"] = base.label
             queries = int(gt.any(axis=1).sum())
@@ -356,7 +359,7 @@ def compact(table: pd.DataFrame) -> pd.DataFrame:
         rows[CHANCE_ROW] = {heads[n]: f"{first[f'{n} chance']:.3f}" for n in METRICS}
     out = pd.DataFrame.from_dict(rows, orient="index").fillna("")
     for col in ("note", "query batch"):
-        if not out[col].str.len().any():
+        if col in out and not out[col].str.len().any():
             out = out.drop(columns=col)
     out.index.name = "method"
     return out
@@ -411,7 +414,10 @@ def compare_pairs(
         names its own first).
     """
     rows = [compare(p, n_bootstrap=n_bootstrap, seed=seed).iloc[1:] for p in pairs]
-    return ComparisonTable(pd.concat(rows))
+    table = pd.concat(rows)
+    if "query batch" in table.columns:  # pairs without a query-batch normalisation need none
+        table["query batch"] = table["query batch"].fillna("not needed")
+    return ComparisonTable(table)
 
 
 class ComparisonTable(pd.DataFrame):
