@@ -293,7 +293,7 @@ def plot_coverage_comparison(
         )
     fig.suptitle(
         f"landmark coverage of {side} {index}, one colour scale (0-{max(1, round(top))} boxes) "
-        f"in every panel; {dataset_line(results)}{note}",
+        f"in every panel\n{dataset_line(results)}{note}",
         fontsize=9,
     )
     fig.tight_layout()
