@@ -103,6 +103,13 @@ def test_every_committed_run_key_is_reproduced():
         for m in ("dense", "classical", "selection_scheme1")  # notebooks 06 and 07
         for w in ("contrast", "idf")
     }
+    from vpr_study.findings import STEPS
+
+    made |= {  # notebook 07's steps (issue 55)
+        run_key(get_method(m, **opts))
+        for m in ("dense", "classical", "selection_scheme1")
+        for opts in [*STEPS.values(), {"weighting": "two_sided", "normalise": "database"}]
+    }
     made.add("CentreGrid")  # the scheme class written in notebook 05's "try your own" cell
     results = Path(__file__).resolve().parents[1] / "results"
     committed = {
