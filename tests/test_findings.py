@@ -85,12 +85,24 @@ def test_verdicts_follow_the_interval_and_the_claims_direction(tmp_path):
     words = {"holds", "does not hold", "finding"}
     assert not any(w in md.replace("(as the paper says)", "") for w in words), md
     # results/findings.md: the paper's claims (the README's table), then issue 55's steps in a
-    # table of their own (a label without notebook 07's table: not run)
+    # table of their own, with a column for each folder that holds notebook 07's table only
     doc = findings.findings_document(["d"], out=tmp_path)
-    assert doc.startswith(md) and "| (not in the paper) step | d |" in doc
+    assert doc.startswith(md) and "No result folder holds notebook 07's table yet" in doc
+    e = [("dense(weighting=contrast)", "c", 0.1, 0.0, 0.2)]  # no step of issue 55 run
+    _table(tmp_path / "results" / "e", findings.STEPS_TABLE, e, "dense")
+    csv = tmp_path / "results" / "e" / f"{findings.STEPS_TABLE}.csv"
+    t = pd.read_csv(csv)
+    t.assign(**{c.replace("AUC", "R@1"): t[c] for c in t.columns if c.startswith("dAUC")}).to_csv(
+        csv, index=False
+    )
+    doc = findings.findings_document(["d"], out=tmp_path)
+    assert doc.startswith(md) and "| (not in the paper) step | e |" in doc
     steps = [ln for ln in doc[len(md) :].splitlines() if ln.startswith("| ") and "with vs" in ln]
     assert len(steps) == len(findings.STEP_CLAIMS) == 24
     assert all(ln.endswith("**not run** |") for ln in steps)
+    assert sum(ln.startswith("| two-sided contrast: dense with vs without (AUC) |") for ln in steps)
+    assert sum(ln.startswith("| two-sided contrast: dense with vs without (R@1) |") for ln in steps)
+    assert len({ln.split(" | ")[0] for ln in steps}) == 24  # a row's claim names its metric
     assert not any(c.text in md for c in findings.STEP_CLAIMS)
 
 

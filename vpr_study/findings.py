@@ -25,6 +25,7 @@ __all__ = [
     "CELL_WORDS",
     "CLAIMS",
     "STEPS",
+    "STEPS_TABLE",
     "STEP_CLAIMS",
     "LEGEND",
     "MATCHES_TABLE",
@@ -38,6 +39,7 @@ __all__ = [
     "markdown_cell",
     "read_table",
     "result_labels",
+    "step_labels",
 ]
 
 
@@ -82,7 +84,10 @@ _T2, _T3, _T4 = "fig10_scale_levels", "fig11_landmarks_per_scale", "fig12_normal
 _O1, _O2 = "overlap_scheme1", "overlap_scheme2"
 _F13 = "fig13_comparison"
 
-#: (Not in the paper.) The steps of issue 55 judged in notebook 07's ``places_alike_steps``.
+#: (Not in the paper.) Notebook 07's table of each method without and with each step.
+STEPS_TABLE = "places_alike_steps"
+
+#: (Not in the paper.) The steps of issue 55 judged in notebook 07's :data:`STEPS_TABLE`.
 STEPS: dict[str, dict] = {
     "two-sided contrast": {"weighting": "two_sided"},
     "query-batch normalisation (needs the query batch)": {"normalise": "query_batch"},
@@ -140,7 +145,14 @@ CLAIMS: tuple[Claim, ...] = (
 #: fixed in DEFINITIONS.md), AUC and R@1: a table of its own in ``results/findings.md``, beside
 #: the paper's claims (which the README shows).
 STEP_CLAIMS: tuple[Claim, ...] = tuple(
-    Claim(f"{text}: {m} with vs without", "places_alike_steps", (m, opts), (m, {}), "?", metric)
+    Claim(
+        f"{text}: {m} with vs without ({metric[1:]})",
+        STEPS_TABLE,
+        (m, opts),
+        (m, {}),
+        "?",
+        metric,
+    )
     for m in ("dense", "classical", "selection_scheme1")
     for text, opts in STEPS.items()
     for metric in ("dAUC", "dR@1")
@@ -407,15 +419,39 @@ LEGEND = (
 )
 
 
+def step_labels(labels: Sequence[str], out: str | Path | None = None) -> list[str]:
+    """The result folders holding notebook 07's :data:`STEPS_TABLE`: those of ``labels`` in
+    that order, then the others under ``results/`` sorted (quick runs left out)."""
+    root = (paths.output_root() if out is None else Path(out)) / "results"
+    found = (
+        sorted(
+            p.name
+            for p in root.iterdir()
+            if p.is_dir() and not p.name.endswith("_quick") and (p / f"{STEPS_TABLE}.csv").is_file()
+        )
+        if root.is_dir()
+        else []
+    )
+    head = [lab for lab in labels if lab in found]
+    return head + [lab for lab in found if lab not in head]
+
+
 def findings_document(labels: Sequence[str], out: str | Path | None = None) -> str:
-    """``results/findings.md``: the paper's claims (:func:`findings_markdown`, the README's
-    table), then the steps of notebook 07 (:data:`STEP_CLAIMS`, not in the paper)."""
-    steps = findings_markdown(labels, out=out, claims=STEP_CLAIMS).split("\n", 2)[2]
+    """``results/findings.md``: the paper's claims (:func:`findings_markdown` of ``labels``, the
+    README's table), then the steps of notebook 07 (:data:`STEP_CLAIMS`, not in the paper) for
+    every folder that holds its table (:func:`step_labels`)."""
+    found = step_labels(labels, out=out)
+    steps = (
+        findings_markdown(found, out=out, claims=STEP_CLAIMS).split("\n", 2)[2]
+        if found
+        else "No result folder holds notebook 07's table yet: run notebook 07."
+    )
     return (
         findings_markdown(labels, out=out)
         + "\n\n## Not in the paper: two-sided contrast and normalisation (notebook 07)\n\n"
-        + "Each method with minus without each step; `query_batch` needs the batch of queries "
-        + "(docs/DEFINITIONS.md). Cells read as above.\n\n"
+        + "Each method with minus without each step, AUC and R@1; `query_batch` needs the batch "
+        + "of queries (docs/DEFINITIONS.md). Cells read as above; a column for every result "
+        + "folder that holds notebook 07's table.\n\n"
         + steps
     )
 
