@@ -57,7 +57,7 @@ study-check: study
 study-nordland: $(STAMP)
 	MPLBACKEND=Agg $(VENV)/bin/vpr-study run --dataset nordland --root ../shared/data/nordland_64x32 \
 		--step 5 --tolerance 0 --pooling roi --shortlist 25 --label nordland_step5 \
-		--notebooks 05_dense_sampling_parameters 06_comparison
+		--notebooks 05_dense_sampling_parameters 06_comparison 07_places_alike
 	$(VENV)/bin/vpr-study findings --write
 
 test: $(STAMP)

@@ -159,7 +159,12 @@ def test_notebook_07_runs_on_every_study_label():
     assert "07_places_alike" in runner.REAL_DATA_NOTEBOOKS
     for label in ("synthetic", "gardens_point_mini", "nordland_step50"):
         assert "07_places_alike" in catalogue.LABEL_NOTEBOOKS[label], label
-    assert expected_figures()["07_places_alike"] == ["places_alike_pr", "places_alike_carried"]
+    assert expected_figures()["07_places_alike"] == [
+        "places_alike_pr",
+        "places_alike_carried",
+        "places_alike_steps",
+        "places_alike_changes",
+    ]
     assert catalogue.TABLES["07_places_alike"] == (
         "places_alike",
         "places_alike_carried",

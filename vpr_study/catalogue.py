@@ -71,15 +71,16 @@ TIMINGS_ONLY: dict[str, tuple[str, ...]] = {"06_comparison": ("table5_cost",)}
 
 #: The notebooks run for each label of the committed study: ``make study`` runs every notebook on
 #: ``synthetic`` and notebooks 03-07 on each real dataset beside the project
-#: (:func:`vpr_study.runner.study_datasets`); ``make study-nordland`` runs 05-06 on
-#: ``nordland_step5``; ``nordland_step50_k25`` is the same shortlist on the 72-place subset
-#: (:data:`ONE_OFF`).
+#: (:func:`vpr_study.runner.study_datasets`); ``make study-nordland`` runs 05-07 on
+#: ``nordland_step5``; ``nordland_step50_k25`` is the same shortlist on the 72-place subset and
+#: ``nordland_step1`` notebook 07 on all 3,576 places (:data:`ONE_OFF`).
 LABEL_NOTEBOOKS: dict[str, tuple[str, ...]] = {
     "synthetic": NOTEBOOKS,
     "gardens_point_mini": NOTEBOOKS[2:],
     "nordland_step50": NOTEBOOKS[2:],
-    "nordland_step5": NOTEBOOKS[4:6],
+    "nordland_step5": NOTEBOOKS[4:],
     "nordland_step50_k25": NOTEBOOKS[4:6],
+    "nordland_step1": NOTEBOOKS[6:],
 }
 
 #: Labels no Makefile target writes, with the command that wrote them.
@@ -88,6 +89,11 @@ ONE_OFF: dict[str, str] = {
         "vpr-study run --dataset nordland --root ../shared/data/nordland_64x32 --step 50 "
         "--tolerance 0 --pooling roi --shortlist 25 --label nordland_step50_k25 "
         "--notebooks 05_dense_sampling_parameters 06_comparison"
+    ),
+    "nordland_step1": (
+        "vpr-study run --dataset nordland --root ../shared/data/nordland_64x32 --step 1 "
+        "--tolerance 0 --pooling roi --shortlist 25 --label nordland_step1 "
+        "--notebooks 07_places_alike"
     ),
 }
 

@@ -65,6 +65,8 @@ FIGURES: tuple[FigureSpec, ...] = (
     FigureSpec("weighting_classical", _NB6, "not in the paper: database weighting"),
     FigureSpec("places_alike_pr", _NB7, "beyond the paper: each method with each weighting"),
     FigureSpec("places_alike_carried", _NB7, "beyond the paper: landmarks that carried a top-1"),
+    FigureSpec("places_alike_steps", _NB7, "beyond the paper: each method with each step"),
+    FigureSpec("places_alike_changes", _NB7, "beyond the paper: what each step changed"),
 )
 
 

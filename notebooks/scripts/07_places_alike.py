@@ -56,7 +56,13 @@ from vpr_core.evaluation import compact, compare
 from vpr_core import configure_logging, run_method, tune_allocator
 from vpr_study import step_changes
 from vpr_study.runner import check_parameters
-from vpr_study.viz import plot_carried_landmarks, plot_pr_curves, save
+from vpr_study.viz import (
+    plot_carried_landmarks,
+    plot_paired_differences,
+    plot_pr_curves,
+    plot_step_changes,
+    save,
+)
 
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits
@@ -139,7 +145,8 @@ carried
 # ratio-AUC): SPEDTest thumbnails (604) dense 0.795 / 0.964, two-sided 0.785 / 0.961,
 # two-sided + query batch 0.829 / 0.977; indoor corridor (111) dense 0.604, two-sided 0.928,
 # + query batch 0.955. Each block of rows below is one `compare` against the method's own plain
-# run: `higher` / `lower` only where the 95% paired interval excludes 0.
+# run: `higher` / `lower` only where the 95% paired interval excludes 0. The figure draws each
+# difference with its interval (green higher, red lower, grey: the interval holds 0).
 
 # %%
 steps = {
@@ -157,8 +164,11 @@ for m in ("classical", "selection_scheme1", "dense"):
     step_runs[m] = group
     step_tables.append(compare(group, baseline=m))
 step_table = pd.concat(step_tables)
-save(step_table, "places_alike_steps", label)
-step_table
+fig = plot_paired_differences(
+    step_table, title=f"(not in the paper) each method with minus without each step: {label}"
+)
+save(fig, "places_alike_steps", label), save(step_table, "places_alike_steps", label)
+compact(step_table)
 
 # %% [markdown]
 # ## What each step changed, query by query
@@ -168,7 +178,9 @@ step_table
 # reference-side (`w_r`) weights of the pair's matches; for the query-batch normalisation the
 # reference's row and column z-scores (a reference that scores high for every query of the
 # batch falls); for the database normalisation `rho`, the reference's mean similarity to its
-# nearest references. Beside it, today's per-landmark view for the two-sided contrast.
+# nearest references. The figure draws each shown reference's rank before and after (the
+# correct ones green); the table's `why` column says what moved it. Below, today's
+# per-landmark view for the two-sided contrast.
 
 # %%
 two_sided = run_method("dense", ds, weighting="two_sided", keep_descriptors=True, **run_options)
@@ -179,8 +191,11 @@ changes = pd.concat(
         step_changes(plain, step_runs["dense"][4]).assign(step="database"),
     ]
 )
-save(changes, "places_alike_changes", label)
-changes
+fig = plot_step_changes(
+    changes, title=f"(not in the paper) what each step changed for dense sampling: {label}"
+)
+save(fig, "places_alike_changes", label), save(changes, "places_alike_changes", label)
+changes  # the `why` column: what moved each reference
 
 # %%
 fig, carried_two = plot_carried_landmarks(ds, plain, two_sided, n_queries=2, k=5)

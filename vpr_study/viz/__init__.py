@@ -23,6 +23,7 @@ from .matches import (
 )
 from .recall import plot_recall_at_n
 from .statistics import plot_asl, plot_cls, plot_cmr, plot_scale_statistics
+from .steps import plot_paired_differences, plot_step_changes
 from .weighting import plot_weighted_matches
 from .widgets import label_widget, pair_label_widget
 
@@ -50,11 +51,13 @@ __all__ = [
     "plot_metric_bars",
     "pair_label_widget",
     "plot_pair",
+    "plot_paired_differences",
     "plot_pair_terms",
     "plot_pr_curves",
     "plot_recall_at_n",
     "plot_scale_distribution",
     "plot_scale_statistics",
+    "plot_step_changes",
     "plot_weighted_matches",
     "save",
     "save_figure",
