@@ -163,11 +163,13 @@ def test_notebook_07_runs_on_every_study_label():
         "places_alike_pr",
         "places_alike_carried",
         "places_alike_steps",
+        "places_alike_vs_contrast",
         "places_alike_changes",
     ]
     assert catalogue.TABLES["07_places_alike"] == (
         "places_alike",
         "places_alike_carried",
         "places_alike_steps",
+        "places_alike_vs_contrast",
         "places_alike_changes",
     )

@@ -57,12 +57,24 @@ def test_paired_differences_draw_each_interval_in_its_verdicts_colour():
     labels = [t.get_text().replace("\n", " ") for t in ax_auc.get_yticklabels()]
     assert labels[0] == "dense: weighting: two_sided"
     assert labels[1] == "dense: normalised: database"
-    assert ax_auc.get_xlabel().startswith("dAUC") and ax_r1.get_xlabel().startswith("dR@1")
+    assert ax_auc.get_xlabel().startswith("dAUC minus the method without the step")
+    assert ax_r1.get_xlabel().startswith("dR@1")
     plt.close(fig)
     # compare() returns the method as the index: the same figure
     again = plot_paired_differences(_steps_table().set_index("method"), title="t")
     assert _segments(again.axes[0]) == _segments(ax_auc)
     plt.close(again)
+
+
+def test_paired_differences_name_each_row_by_its_method_and_step_against_any_baseline():
+    t = _steps_table()
+    t.loc[1:, "baseline"] = "dense (weighting: contrast)"  # paired against today's contrast
+    fig = plot_paired_differences(t, baseline="the method with contrast")
+    labels = [x.get_text().replace("\n", " ") for x in fig.axes[0].get_yticklabels()]
+    assert labels[0] == "dense: weighting: two_sided"
+    assert labels[2] == "dense: normalised: query_batch, needs the query batch"
+    assert "minus the method with contrast" in fig.axes[0].get_xlabel().replace("\n", " ")
+    plt.close(fig)
 
 
 def test_paired_differences_refuse_tables_without_a_baseline_or_metric():

@@ -62,6 +62,7 @@ TABLES: dict[str, tuple[str, ...]] = {
         "places_alike",
         "places_alike_carried",
         "places_alike_steps",
+        "places_alike_vs_contrast",
         "places_alike_changes",
     ),
 }

@@ -66,6 +66,7 @@ FIGURES: tuple[FigureSpec, ...] = (
     FigureSpec("places_alike_pr", _NB7, "beyond the paper: each method with each weighting"),
     FigureSpec("places_alike_carried", _NB7, "beyond the paper: landmarks that carried a top-1"),
     FigureSpec("places_alike_steps", _NB7, "beyond the paper: each method with each step"),
+    FigureSpec("places_alike_vs_contrast", _NB7, "beyond the paper: each step against contrast"),
     FigureSpec("places_alike_changes", _NB7, "beyond the paper: what each step changed"),
 )
 

@@ -171,6 +171,24 @@ save(fig, "places_alike_steps", label), save(step_table, "places_alike_steps", l
 compact(step_table)
 
 # %% [markdown]
+# ## Against today's contrast
+# The outside prototype's question: does the two-sided contrast, alone or with a normalisation,
+# beat the `contrast` weighting each method already has? The same runs, each block now paired
+# against the method with `contrast` (`higher`: better than today's contrast).
+
+# %%
+vs_contrast = pd.concat(
+    [compare([group[1], group[2], group[5], group[6]], baseline=0) for group in step_runs.values()]
+)
+fig = plot_paired_differences(
+    vs_contrast,
+    title=f"(not in the paper) each step minus today's contrast weighting: {label}",
+    baseline="the method with contrast",
+)
+save(fig, "places_alike_vs_contrast", label), save(vs_contrast, "places_alike_vs_contrast", label)
+compact(vs_contrast)
+
+# %% [markdown]
 # ## What each step changed, query by query
 # For dense sampling: the queries whose top-1 a step changed (first one it fixed, then one it
 # broke, if any), each reference in the top 5 before or after with its rank and score before and

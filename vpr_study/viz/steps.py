@@ -20,11 +20,13 @@ VERDICT_COLORS = {"higher": "tab:green", "lower": "tab:red"}
 _OTHER = "0.45"
 
 
-def _step_text(method: str, baseline: str) -> str:
-    """``"dense (weighting: two_sided)"`` with baseline ``dense`` -> ``"weighting: two_sided"``."""
-    head = f"{baseline} ("
+def _row_text(method: str, baseline: str) -> str:
+    """A row's name: ``"dense (weighting: two_sided)"`` beside baseline ``dense`` or ``"dense
+    (weighting: contrast)"`` -> ``"dense: weighting: two_sided"`` (the method, then its step)."""
+    name = baseline.split(" (", 1)[0]
+    head = f"{name} ("
     if method.startswith(head) and method.endswith(")"):
-        return method[len(head) : -1]
+        return f"{name}: {method[len(head) : -1]}"
     return method
 
 
@@ -34,7 +36,10 @@ def _verdict_colour(verdict: object) -> str:
 
 
 def plot_paired_differences(
-    table: pd.DataFrame, metrics: tuple[str, ...] = ("dAUC", "dR@1"), title: str | None = None
+    table: pd.DataFrame,
+    metrics: tuple[str, ...] = ("dAUC", "dR@1"),
+    title: str | None = None,
+    baseline: str = "the method without the step",
 ) -> matplotlib.figure.Figure:
     """Each row of ``compare`` tables (several concatenated: one block per baseline) that has a
     baseline, as its paired difference with the 95% interval, one panel per metric; green:
@@ -47,6 +52,7 @@ def plot_paired_differences(
             value, ``lo``, ``hi`` and ``verdict`` columns.
         metrics: the difference columns drawn (``dAUC``, ``dR@100P``, ``dR@1``, ...).
         title: the figure's title.
+        baseline: what the rows are paired against, in the axis labels.
     """
     if "method" not in table.columns and table.index.name == "method":  # as compare() returns
         table = table.reset_index()
@@ -65,13 +71,13 @@ def plot_paired_differences(
                 f"{', '.join(c for c in rows.columns if c.startswith('d') and ' ' not in c)}"
             )
     labels = [
-        f"{b}: {_step_text(str(m), str(b))}"
+        wrapped(_row_text(str(m), str(b)), 3.6, FONT - 1)
         for m, b in zip(rows["method"], rows["baseline"], strict=True)
     ]
     n = len(rows)
     y = np.arange(n)[::-1]
-    width_labels = 3.6
-    height = 0.28 * n + 1.4 + 0.2 * (title or "").count("\n")
+    row_h = 0.14 * max(t.count("\n") + 1 for t in labels) + 0.14
+    height = row_h * n + 1.6 + 0.2 * (title or "").count("\n")
     fig, axes = plt.subplots(1, len(metrics), figsize=(FIG_WIDTH, height), sharey=True)
     axes = np.atleast_1d(axes)
     groups = np.flatnonzero(rows["baseline"].to_numpy()[1:] != rows["baseline"].to_numpy()[:-1])
@@ -85,12 +91,12 @@ def plot_paired_differences(
             ax.plot(d[k], y[k], "o", color=colours[k], ms=4)
         for g in groups:
             ax.axhline(y[g] - 0.5, color="0.8", lw=0.6)
-        ax.set_xlabel(f"{m} (with - without), 95% paired interval", fontsize=FONT)
+        ax.set_xlabel(wrapped(f"{m} minus {baseline}, 95% paired interval", 3.0), fontsize=FONT)
         ax.tick_params(labelsize=FONT - 1)
         ax.grid(axis="x", alpha=0.3)
         ax.set_ylim(-0.7, n - 0.3)
     axes[0].set_yticks(y)
-    axes[0].set_yticklabels([wrapped(t, width_labels, FONT - 1) for t in labels], fontsize=FONT - 1)
+    axes[0].set_yticklabels(labels, fontsize=FONT - 1)
     handles = [
         Line2D([], [], color=c, marker="o", lw=2.0, label=w)
         for w, c in (*VERDICT_COLORS.items(), ("inconclusive or not testable", _OTHER))
@@ -101,7 +107,7 @@ def plot_paired_differences(
     )  # fmt: skip
     if title:
         fig.suptitle(title, fontsize=FONT + 1)
-    fig.tight_layout(rect=(0.0, 0.6 / height, 1.0, 1.0))
+    fig.tight_layout(rect=(0.0, 0.45 / height, 1.0, 1.0))
     return fig
 
 
