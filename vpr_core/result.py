@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from .datasets.ground_truth import ground_truth_text
-from .evaluation import Evaluation, bootstrap_metrics, evaluate, format_interval, pr_curve
+from .evaluation import Evaluation, format_interval, metrics_and_intervals, pr_curve
 from .matching.normalise import normalise_matrix
 from .methods import Method, run_key
 from .notices import notice
@@ -192,16 +192,13 @@ def normalise_result(
     n_boot = len(result.intervals) and Evaluation().n_bootstrap
     evaluation = evaluation or Evaluation(protocol=result.protocol, n_bootstrap=n_boot)
     gt = np.asarray(result.ground_truth, dtype=bool)
+    metrics, intervals = metrics_and_intervals(sim, gt, evaluation)
     return dataclasses.replace(
         result,
         label=label or f"{result.label} (normalised: {how})",
         config=config,
         similarity=sim,
-        metrics=evaluate(sim, gt, evaluation),
-        intervals=(
-            bootstrap_metrics(sim, gt, n=evaluation.n_bootstrap, protocol=evaluation.protocol)
-            if evaluation.n_bootstrap
-            else {}
-        ),
+        metrics=metrics,
+        intervals=intervals,
         protocol=evaluation.protocol,
     )

@@ -17,9 +17,8 @@ from vpr_core import MethodResult, checks, constant_notice, dataset_fingerprint,
 from vpr_core.datasets import read_npy
 from vpr_core.evaluation import (
     Evaluation,
-    bootstrap_metrics,
-    evaluate,
     ground_truth_coverage,
+    metrics_and_intervals,
     refuse_tolerance,
 )
 
@@ -394,6 +393,7 @@ def peer_result(
         "pairs": float(nq * nr),
     }
     source = None if peer.source is None else str(peer.source)
+    metrics, intervals = metrics_and_intervals(sim, gt, evaluation)
     return MethodResult(
         method=f"peer:{peer.name}",
         label=label or f"{peer.name} (VPR-Bench)",
@@ -404,13 +404,9 @@ def peer_result(
         ground_truth=gt,
         soft_only=dataset.soft_only,
         boxes={"query": [], "reference": []},
-        metrics=evaluate(sim, gt, evaluation),
+        metrics=metrics,
         timings=timings,
-        intervals=(
-            bootstrap_metrics(sim, gt, n=evaluation.n_bootstrap, protocol=protocol)
-            if evaluation.n_bootstrap
-            else {}
-        ),
+        intervals=intervals,
         queries_with_gt=ground_truth_coverage(gt),
         tolerance=dataset.tolerance,
         root=None if dataset.root is None else str(dataset.root),

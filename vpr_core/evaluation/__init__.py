@@ -10,6 +10,7 @@ from .bootstrap import (
     bootstrap_metrics,
     difference_verdict,
     format_interval,
+    metrics_and_intervals,
     needs_text,
     paired_bootstrap,
 )
@@ -59,6 +60,7 @@ __all__ = [
     "evaluate",
     "format_interval",
     "ground_truth_coverage",
+    "metrics_and_intervals",
     "identical_to",
     "needs_text",
     "paired_bootstrap",

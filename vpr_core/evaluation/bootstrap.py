@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..checks import check_int
-from .curves import Scored
+from .curves import Scored, evaluate
 from .ranks import query_scores, ranked, true_rank
 from .spec import BOOTSTRAP_PROTOCOLS, N_BOOTSTRAP, Evaluation
 
@@ -24,6 +24,7 @@ __all__ = [
     "bootstrap_metrics",
     "difference_verdict",
     "format_interval",
+    "metrics_and_intervals",
     "needs_text",
     "paired_bootstrap",
     "VERDICTS",
@@ -174,6 +175,17 @@ def _interval(vals: list[np.ndarray]) -> tuple[float, float]:
         return np.nan, np.nan
     lo, hi = np.nanpercentile(np.concatenate(vals), [2.5, 97.5])
     return float(lo), float(hi)
+
+
+def metrics_and_intervals(
+    similarity: np.ndarray, ground_truth: np.ndarray, evaluation: Evaluation
+) -> tuple[dict[str, float], dict[str, tuple[float, float, float]]]:
+    """A matrix's :func:`~vpr_core.evaluation.curves.evaluate` metrics and, when
+    ``evaluation.n_bootstrap`` > 0, their :func:`bootstrap_metrics` intervals (else ``{}``):
+    the two fields of a result."""
+    metrics = evaluate(similarity, ground_truth, evaluation)
+    n, protocol = evaluation.n_bootstrap, evaluation.protocol
+    return metrics, bootstrap_metrics(similarity, ground_truth, n=n, protocol=protocol) if n else {}
 
 
 def bootstrap_metrics(
