@@ -50,10 +50,10 @@ study-check: study
 		"can differ: docs/MEASUREMENTS.md, Across CPU families; git diff shows which)"; \
 		exit 1; fi; echo "study-check: every committed figure and table is byte-identical"
 
-# Notebooks 05-06 on 716 Nordland places (every 5th of nordland_64x32, winter vs summer), roi
+# Notebooks 05-07 on 716 Nordland places (every 5th of nordland_64x32, winter vs summer), roi
 # pooling, each query's top 25 references re-ranked by Eq. (1): 16 min 10 s from an empty cache
-# on a 2-core machine (docs/MEASUREMENTS.md, study-nordland). Then the findings table with every
-# result folder.
+# on a 2-core machine for 05-06, and about 5 min more for 07 (docs/MEASUREMENTS.md,
+# study-nordland). Then the findings table with every result folder.
 study-nordland: $(STAMP)
 	MPLBACKEND=Agg $(VENV)/bin/vpr-study run --dataset nordland --root ../shared/data/nordland_64x32 \
 		--step 5 --tolerance 0 --pooling roi --shortlist 25 --label nordland_step5 \
