@@ -91,8 +91,8 @@ ONE_OFF: dict[str, str] = {
         "--tolerance 0 --pooling roi --shortlist 25 --label nordland_step50_k25 "
         "--notebooks 05_dense_sampling_parameters 06_comparison"
     ),
-    "nordland_step1": (
-        "vpr-study run --dataset nordland --root ../shared/data/nordland_64x32 --step 1 "
+    "nordland_step1": (  # about 22 GB of memory at its peak (docs/MEASUREMENTS.md)
+        "VPR_TUNE_MALLOC=0 vpr-study run --dataset nordland --root ../shared/data/nordland_64x32 --step 1 "
         "--tolerance 0 --pooling roi --shortlist 25 --label nordland_step1 "
         "--notebooks 07_places_alike"
     ),
