@@ -6,11 +6,12 @@ Eq. (1) seconds (the least of ``--repeat`` calls, 2 by default: the first also w
 unweighted matching beside: the ``two_sided`` reference statistics alone
 (:func:`~vpr_core.matching.weighting.reference_stats`, cache emptied first), the whole
 ``contrast`` and ``two_sided`` matchings (``two_sided`` with its statistics computed in the call,
-then kept from that call), the ``query_batch`` normalisation of the matrix and the
-``database`` normalisation (the references scored against each other, then the offsets); each
-as a ratio to the unweighted matching of the same path. Paths: exhaustive (``similarity_matrix``,
-every reference; skipped above ``--max-exhaustive`` places) and shortlist top-``--k``
-(``similarity_pairs``; the statistics over the 12-reference sample). Writes ``--out``
+then kept from that call: that one interleaved with ``contrast``), the ``query_batch``
+normalisation of the matrix and the ``database`` normalisation (the references scored against
+each other, then the offsets); each as a ratio to the unweighted matching of the same path.
+Paths: exhaustive (``similarity_matrix``, every reference; skipped above ``--max-exhaustive``
+places) and shortlist top-``--k`` (``similarity_pairs``; the statistics over the 12-reference
+sample). Writes ``--out``
 (default ``results/benchmarks/two_sided_cost_<places>.csv``). Run:
 ``.venv/bin/python benchmarks/bench_two_sided.py --step 5`` (716 places; ``--step 1``: all
 3,576, shortlist only: the exhaustive paths are skipped above ``--max-exhaustive`` places,
@@ -54,10 +55,11 @@ QUIET = Compute(show_progress=False)
 REPEAT = [2]  # --repeat: each time is the least of this many calls (the first warms up)
 
 
-def _timed(fn, setup=None):
-    """``(fn()'s output, the least seconds of REPEAT calls)``; ``setup()`` untimed before each."""
+def _timed(fn, setup=None, once: bool = False):
+    """``(fn()'s output, the least seconds of REPEAT calls, or of one when ``once``)``;
+    ``setup()`` untimed before each."""
     best = float("inf")
-    for _ in range(REPEAT[0]):
+    for _ in range(1 if once else REPEAT[0]):
         if setup is not None:
             setup()
         t0 = time.perf_counter()
@@ -78,13 +80,18 @@ def _weighted(match) -> list[tuple[str, float]]:
     """Seconds of ``match(Matching)`` with ``contrast``, then ``two_sided`` twice: its reference
     statistics computed in the call (the first query batch against a database), then already
     computed for this database (every later batch: they are kept by the database's content)."""
-    rows = [("contrast", _timed(lambda: match(Matching(weighting="contrast")))[1])]
-    two = Matching(weighting="two_sided")
+    contrast, two = Matching(weighting="contrast"), Matching(weighting="two_sided")
     cold = _timed(lambda: match(two), setup=clear_reference_cache)[1]
-    rows.append(("two_sided, statistics computed in the call", cold))
-    rows.append(("two_sided, statistics kept for this database", _timed(lambda: match(two))[1]))
+    best = {"contrast": float("inf"), "kept": float("inf")}
+    for _ in range(REPEAT[0]):  # interleaved: load from other processes hits both alike
+        best["contrast"] = min(best["contrast"], _timed(lambda: match(contrast), once=True)[1])
+        best["kept"] = min(best["kept"], _timed(lambda: match(two), once=True)[1])
     clear_reference_cache()
-    return rows
+    return [
+        ("contrast", best["contrast"]),
+        ("two_sided, statistics computed in the call", cold),
+        ("two_sided, statistics kept for this database", best["kept"]),
+    ]
 
 
 def _exhaustive(args: tuple, ref: tuple, nr: int) -> list[dict]:

@@ -92,8 +92,8 @@ ONE_OFF: dict[str, str] = {
         "--notebooks 05_dense_sampling_parameters 06_comparison"
     ),
     "nordland_step1": (  # about 22 GB of memory at its peak (docs/MEASUREMENTS.md)
-        "VPR_TUNE_MALLOC=0 vpr-study run --dataset nordland --root ../shared/data/nordland_64x32 --step 1 "
-        "--tolerance 0 --pooling roi --shortlist 25 --label nordland_step1 "
+        "VPR_TUNE_MALLOC=0 vpr-study run --dataset nordland --root ../shared/data/nordland_64x32 "
+        "--step 1 --tolerance 0 --pooling roi --shortlist 25 --label nordland_step1 "
         "--notebooks 07_places_alike"
     ),
 }
@@ -114,6 +114,8 @@ RESULTS_FILES: tuple[str, ...] = (
     "benchmarks/weighting_scaling.csv",
     "benchmarks/nordland_full.csv",
     "benchmarks/nordland_full_contrast.csv",
+    "benchmarks/two_sided_cost_716.csv",
+    "benchmarks/two_sided_cost_3576.csv",
 )
 
 #: Files directly under ``figures/``: the benchmark figures (``benchmarks/bench_*.py``).
