@@ -459,3 +459,37 @@ def test_the_readme_says_what_make_clean_removes_and_names_the_insight_calls():
 
     args = cli.build_parser().parse_args(shlex.split(command)[1:])
     assert args.quick and args.notebooks == ["03_landmark_selection"]
+
+
+def _step_rows(label: str) -> list[str]:
+    """(Not in the paper; issue 55) the rows of MEASUREMENTS' table of notebook 07's steps at
+    scale: each dense and classical run of ``places_alike_steps`` with its difference against
+    the plain method and, for the two-sided runs, against the method with ``contrast``."""
+    steps = _csv(f"{label}/places_alike_steps.csv")
+    versus = _csv(f"{label}/places_alike_vs_contrast.csv").set_index("run")
+    rows = []
+    for _, r in steps[steps["method"].str.match(r"(dense|classical)\b")].iterrows():
+        cells = [label, str(r["method"])]
+        cells += [_iv(r[m], r[f"{m} lo"], r[f"{m} hi"], False) for m in ("AUC", "R@1")]
+        plain = pd.isna(r["baseline"])
+        cells += ["" if plain else _iv(r[m], r[f"{m} lo"], r[f"{m} hi"]) for m in ("dAUC", "dR@1")]
+        v = versus.loc[r["run"]] if r["run"] in versus.index else None
+        vs = v is not None and not pd.isna(v["baseline"])
+        cells += [_iv(v[m], v[f"{m} lo"], v[f"{m} hi"]) if vs else "" for m in ("dAUC", "dR@1")]
+        rows.append("| " + " | ".join(cells) + " |")
+    return rows
+
+
+def test_step_tables_at_scale_are_notebook_07s():
+    rows = _step_rows("nordland_step5") + _step_rows("nordland_step1")
+    assert len(rows) == 28
+    assert all(row in MEASUREMENTS for row in rows), _paste(rows)
+
+
+def test_two_sided_cost_tables_are_the_benchmark_tables():
+    rows = []
+    for places in (716, 3576):
+        for _, r in _csv(f"benchmarks/two_sided_cost_{places}.csv").iterrows():
+            cells = [f"{places:,}", r["path"], r["step"], f"{r['seconds']:.1f} s"]
+            rows.append("| " + " | ".join(cells) + f" | {r['ratio']:.2f}x |")
+    assert all(row in MEASUREMENTS for row in rows), _paste(rows)
