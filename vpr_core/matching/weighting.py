@@ -141,7 +141,7 @@ def _database_key(r: Side, ids: np.ndarray) -> str:
     """Content key of a database's reference statistics: descriptors, counts, sample, dtype."""
     h = hashlib.sha256()
     h.update(str((r.n, r.k, r.dim, str(r.d32.dtype))).encode())
-    h.update(memoryview(np.ascontiguousarray(r.d32.cpu().numpy()).reshape(-1)).cast("B"))
+    h.update(np.ascontiguousarray(r.d32.cpu().numpy()).reshape(-1).view(np.uint8).data)
     h.update(r.count.cpu().numpy().tobytes())
     h.update(np.asarray(ids, dtype=np.int64).tobytes())
     return h.hexdigest()
