@@ -12,7 +12,8 @@ each other, then the offsets); each as a ratio to the unweighted matching of the
 Paths: exhaustive (``similarity_matrix``, every reference; skipped above ``--max-exhaustive``
 places) and shortlist top-``--k`` (``similarity_pairs``; the statistics over the 12-reference
 sample). Writes ``--out``
-(default ``results/benchmarks/two_sided_cost_<places>.csv``). Run:
+(default ``results/benchmarks/two_sided_cost_<places>.csv``: ``two_sided_cost_716.csv`` and
+``two_sided_cost_3576.csv``). Run:
 ``.venv/bin/python benchmarks/bench_two_sided.py --step 5`` (716 places; ``--step 1``: all
 3,576, shortlist only: the exhaustive paths are skipped above ``--max-exhaustive`` places,
 their matrices alone being about 25 times those at 716).

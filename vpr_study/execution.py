@@ -11,7 +11,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 from pathlib import Path
 
 from vpr_core import paths, settings
@@ -225,6 +225,9 @@ def run_labels(
             for n, (label, nbs, params) in enumerate(chains)
         ]
         try:
+            pending = set(futures)
+            while pending:  # timed waits: a Ctrl-C that reached a label's thread is seen here
+                pending = wait(pending, timeout=0.2)[1]
             done = [f.exception() for f in futures]
         except BaseException:  # Ctrl-C: the running kernels got it too; start no other label
             pool.shutdown(cancel_futures=True)

@@ -56,13 +56,8 @@ from vpr_core.evaluation import compact, compare
 from vpr_core import configure_logging, run_method, tune_allocator
 from vpr_study import step_changes
 from vpr_study.runner import check_parameters
-from vpr_study.viz import (
-    plot_carried_landmarks,
-    plot_paired_differences,
-    plot_pr_curves,
-    plot_step_changes,
-    save,
-)
+from vpr_study.viz import plot_carried_landmarks, plot_pr_curves, save
+from vpr_study.viz import plot_paired_differences, plot_step_changes
 
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits
