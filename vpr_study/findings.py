@@ -368,12 +368,18 @@ def _observation_1(folder: Path) -> tuple[str, str]:
 def result_labels(first: Sequence[str] = (), out: str | Path | None = None) -> list[str]:
     """The result folders that hold comparison tables (``results/<label>/fig*.csv``), not quick
     runs: ``first`` (those present, in that order), then the others sorted."""
+    return _labels_holding("fig*.csv", first, out)
+
+
+def _labels_holding(pattern: str, first: Sequence[str], out: str | Path | None) -> list[str]:
+    """The folders under ``<output root>/results/`` (quick runs left out) holding a file that
+    matches ``pattern``: those of ``first`` in that order, then the others sorted."""
     root = (paths.output_root() if out is None else Path(out)) / "results"
     found = (
         sorted(
             p.name
             for p in root.iterdir()
-            if p.is_dir() and not p.name.endswith("_quick") and any(p.glob("fig*.csv"))
+            if p.is_dir() and not p.name.endswith("_quick") and any(p.glob(pattern))
         )
         if root.is_dir()
         else []
@@ -422,18 +428,7 @@ LEGEND = (
 def step_labels(labels: Sequence[str], out: str | Path | None = None) -> list[str]:
     """The result folders holding notebook 07's :data:`STEPS_TABLE`: those of ``labels`` in
     that order, then the others under ``results/`` sorted (quick runs left out)."""
-    root = (paths.output_root() if out is None else Path(out)) / "results"
-    found = (
-        sorted(
-            p.name
-            for p in root.iterdir()
-            if p.is_dir() and not p.name.endswith("_quick") and (p / f"{STEPS_TABLE}.csv").is_file()
-        )
-        if root.is_dir()
-        else []
-    )
-    head = [lab for lab in labels if lab in found]
-    return head + [lab for lab in found if lab not in head]
+    return _labels_holding(f"{STEPS_TABLE}.csv", labels, out)
 
 
 def findings_document(labels: Sequence[str], out: str | Path | None = None) -> str:
