@@ -58,9 +58,10 @@ def main() -> None:
     args = p.parse_args()
     os.environ.setdefault("TQDM_DISABLE", "1")
 
-    from vpr_core import paths, run_method
+    from vpr_core import run_method
     from vpr_core.datasets import load_dataset
     from vpr_core.evaluation import difference_verdict, paired_bootstrap
+    from vpr_study import outputs
 
     if not args.root.is_dir():
         raise SystemExit(
@@ -68,8 +69,8 @@ def main() -> None:
         )
     ds = load_dataset("nordland", args.root, step=args.step, tolerance=args.tolerance)
     name = f"nordland_step{args.step}_tol{args.tolerance}"
-    with paths.study_outputs():  # the committed results/benchmarks/, not the user area
-        out = paths.results_dir("benchmarks") / "descriptor_paired.csv"
+    with outputs.study_outputs():  # the committed results/benchmarks/, not the user area
+        out = outputs.results_dir("benchmarks") / "descriptor_paired.csv"
     print(
         f"{name}: {len(ds.query_paths)} queries x {len(ds.reference_paths)} references, "
         f"pooling {args.pooling}, shortlist {args.shortlist}"

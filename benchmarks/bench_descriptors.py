@@ -183,13 +183,14 @@ def main() -> None:
     p.add_argument("--repeats", type=int, default=3)
     args = p.parse_args()
     os.environ.setdefault("TQDM_DISABLE", "1")
-    from vpr_core import paths, utils
+    from vpr_core import utils
     from vpr_core.evaluation import bootstrap_metrics
+    from vpr_study import outputs
 
     data = datasets(args.nordland_step, args.nordland_tolerance)
     options = [o for o in OPTIONS if args.options is None or o[0] in args.options]
-    with paths.study_outputs():  # the committed results/benchmarks/, not the user area
-        out = paths.results_dir("benchmarks") / "descriptor_choice.csv"
+    with outputs.study_outputs():  # the committed results/benchmarks/, not the user area
+        out = outputs.results_dir("benchmarks") / "descriptor_choice.csv"
     print(
         f"torch threads {torch.get_num_threads()}, load average {os.getloadavg()}; datasets: "
         + ", ".join(

@@ -43,7 +43,7 @@ def nordland_study(root: str, repeat: int) -> None:
     """Block engine vs pair by pair, and the weightings, on the study's Nordland descriptors."""
     from vpr_core import run_method
     from vpr_core.datasets import load_dataset
-    from vpr_core.matching import WEIGHTING_OPTIONS
+    from vpr_core.matching import WEIGHTINGS as WEIGHTING_TABLE
 
     ds = load_dataset("nordland", root=root, step=50, tolerance=0)
     r = run_method("dense", ds, pooling="roi", keep_descriptors=True, n_bootstrap=0)
@@ -76,7 +76,7 @@ def nordland_study(root: str, repeat: int) -> None:
         f"(image_similarity) {t_pair:.2f} s, block engine (similarity_matrix) {t_block:.3f} s: "
         f"{t_pair / t_block:.1f}x"
     )
-    times: dict = {w: [] for w in (None, *WEIGHTING_OPTIONS)}
+    times: dict = {w: [] for w in (None, *WEIGHTING_TABLE)}
     for _ in range(repeat):
         for w in times:
             times[w].append(
@@ -87,7 +87,7 @@ def nordland_study(root: str, repeat: int) -> None:
                 )[0]
             )
     base = statistics.median(times[None])
-    for w in WEIGHTING_OPTIONS:
+    for w in WEIGHTING_TABLE:
         print(
             f"weighting={w}: median {statistics.median(times[w]):.3f} s vs {base:.3f} s without: "
             f"{statistics.median(times[w]) / base:.2f}x (target <= 1.2x), {repeat} interleaved runs"

@@ -27,9 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
-from vpr_core import paths, run_method
+from vpr_core import run_method
 from vpr_core.datasets import load_dataset
 from vpr_core.evaluation import bootstrap_metrics, paired_bootstrap
+from vpr_study import outputs
 
 DEFAULT_ROOT = Path(__file__).resolve().parents[2] / "shared" / "data" / "nordland_64x32"
 
@@ -121,8 +122,8 @@ def main(argv: list[str] | None = None) -> int:
         )
     import pandas as pd
 
-    with paths.study_outputs():  # the committed results/benchmarks/, not the user area
-        out = paths.results_dir("benchmarks") / "nordland_shortlist.csv"
+    with outputs.study_outputs():  # the committed results/benchmarks/, not the user area
+        out = outputs.results_dir("benchmarks") / "nordland_shortlist.csv"
     pd.DataFrame(rows).to_csv(out, index=False, float_format="%.6f")
     print(f"wrote {out}")
     return 0

@@ -41,7 +41,6 @@ from vpr_core.features import Encoder, extract_features, get_encoder
 from vpr_core.landmarks import extract_landmarks
 from vpr_core.matching import (
     CONTRAST_SAMPLE,
-    WEIGHTING_OPTIONS,
     WEIGHTING_SAMPLE,
     Compute,
     Matching,
@@ -54,12 +53,15 @@ from vpr_core.matching import (
     weighting_sample,
     with_whole_image_boxes,
 )
+from vpr_core.matching import (
+    WEIGHTINGS as WEIGHTING_TABLE,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data"
 OUT = ROOT / "results" / "benchmarks" / "weighting.csv"
 METHODS = ("dense", "classical")
-WEIGHTINGS = (None, *WEIGHTING_OPTIONS)
+WEIGHTINGS = (None, *WEIGHTING_TABLE)
 
 #: name -> (loader, loader options, run options)
 SETS: dict[str, tuple[str, dict, dict]] = {

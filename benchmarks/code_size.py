@@ -10,12 +10,14 @@ whose only body is a ``raise``) over code lines; the anchors (hloc, LightGlue, k
 It also counts how values flow (DESIGN.md habit 5): the functions with more than 8 explicit
 parameters, and in how many signatures each option the issue names appears (target: 3).
 
-Issues 47 and 52 add what a reader meets: the package faces (each ``__init__.py``'s ``__all__``:
-what code outside the package may import) and their size, the imports by callers that reach past
-a face (target 0), the modules without ``__all__``, and the rules raised from more than one site
-(raise statements grouped by their message with the placeholders blanked; target 0), with the
-near-duplicate messages (shared words, for reading) beside them. ``--names`` prints the faces as
-docs/ARCHITECTURE.md lists them.
+Issues 47, 52 and 59 add what a reader meets: the one flat face (``vpr_core.__all__``: what code
+outside the package imports; target about 80 names), the distinct core names ``vpr_study`` uses,
+the imports by callers that reach past a face (target 0: ``vpr_study``, the notebooks, the starter
+and README / docs code import ``vpr_core``, ``vpr_study`` and ``vpr_study.viz`` only; tests and
+benchmarks may import modules), the modules without ``__all__``, and the rules raised from more
+than one site (raise statements grouped by their message with the placeholders blanked; target
+0), with the near-duplicate messages (shared words, for reading) beside them. ``--names`` prints
+the face as docs/ARCHITECTURE.md lists it.
 
 Usage::
 
@@ -23,7 +25,7 @@ Usage::
     .venv/bin/python benchmarks/code_size.py --files    # per file
     .venv/bin/python benchmarks/code_size.py --root vpr_study   # the study's tooling
     .venv/bin/python benchmarks/code_size.py --rules    # every rule raised from > 1 site
-    .venv/bin/python benchmarks/code_size.py --names    # the package faces (markdown)
+    .venv/bin/python benchmarks/code_size.py --names    # the face, by module (markdown)
 """
 
 from __future__ import annotations
@@ -132,10 +134,12 @@ def declared_all(tree: ast.Module) -> list[str] | None:
 
 
 def face(root: Path) -> dict:
-    """What issues 47 and 52 count: ``public`` ``[(module, name)]`` (functions and classes
-    outside the package faces), ``no_all`` (modules without ``__all__``), ``all`` (each module's
-    ``__all__``) and ``faces`` (each package face's ``__all__``: what callers may import)."""
-    out: dict = {"public": [], "no_all": [], "all": {}, "faces": {}}
+    """What issues 47, 52 and 59 count: ``public`` ``[(module, name)]`` (functions and classes
+    outside the package's ``__init__`` files), ``no_all`` (modules without ``__all__``), ``all``
+    (each module's ``__all__``), ``faces`` (the one face: the top-level ``__init__.py``'s
+    ``__all__``, what callers import) and ``indexes`` (each subpackage's ``__all__``: its stage's
+    names, for the package's own modules, tests and benchmarks)."""
+    out: dict = {"public": [], "no_all": [], "all": {}, "faces": {}, "indexes": {}}
     for path in sorted(root.rglob("*.py")):
         tree = ast.parse(path.read_text(encoding="utf-8"))
         mod = module_name(path, root)
@@ -144,7 +148,7 @@ def face(root: Path) -> dict:
             out["no_all"].append(mod)
         out["all"][mod] = names or []
         if path.name == "__init__.py":
-            out["faces"][mod] = names or []
+            out["faces" if mod == root.name else "indexes"][mod] = names or []
         elif not path.name.startswith("_"):
             out["public"] += [
                 (mod, n.name)
@@ -156,11 +160,12 @@ def face(root: Path) -> dict:
 
 
 def _callers(project: Path) -> list[tuple[str, str]]:
-    """``[(where, source)]`` of the code outside ``vpr_core`` that calls it: ``vpr_study``,
-    benchmarks, the notebooks and the starter (code cells), README and docs code blocks."""
+    """``[(where, source)]`` of the code outside ``vpr_core`` that must use its face:
+    ``vpr_study``, the notebooks and the starter (code cells), README and docs code blocks
+    (tests and benchmarks may import modules)."""
     found = [
         (str(p.relative_to(project)), p.read_text(encoding="utf-8"))
-        for pattern in ("vpr_study/**/*.py", "benchmarks/*.py", "notebooks/scripts/*.py")
+        for pattern in ("vpr_study/**/*.py", "notebooks/scripts/*.py")
         for p in sorted(project.glob(pattern))
     ]
     for nb in [*sorted(project.glob("notebooks/*.ipynb")), project / "vpr_study/starter.ipynb"]:
@@ -179,28 +184,50 @@ def _callers(project: Path) -> list[tuple[str, str]]:
     return found
 
 
+#: The faces of the workbench that the notebooks, the starter and README / docs code use.
+STUDY_FACES = ("vpr_study", "vpr_study.viz")
+
+
+def _imported(source: str) -> list[tuple[str, str]]:
+    """``[(module, name)]`` of every absolute import in ``source`` (``name`` "" for ``import``)."""
+    try:
+        tree = ast.parse(source)
+    except SyntaxError:
+        return []
+    out: list[tuple[str, str]] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.level == 0:
+            out += [(node.module or "", a.name) for a in node.names]
+        elif isinstance(node, ast.Import):
+            out += [(a.name, "") for a in node.names]
+    return out
+
+
 def reach_past(root: Path) -> list[str]:
-    """Imports of ``root``'s modules that are not package faces (``__init__.py``), made by the
-    code outside the package (:func:`_callers`): ``["where: module", ...]``; target none."""
-    faces = set(face(root)["faces"])
+    """Imports past a face by the code outside the package (:func:`_callers`): a ``root``
+    module other than ``root`` itself, and (outside ``vpr_study``) a ``vpr_study`` module other
+    than :data:`STUDY_FACES`: ``["where: module", ...]``; target none."""
     bad = []
     for where, source in _callers(root.parent):
-        try:
-            tree = ast.parse(source)
-        except SyntaxError:
-            continue
-        for node in ast.walk(tree):
-            mods = (
-                [node.module or ""]
-                if isinstance(node, ast.ImportFrom) and node.level == 0
-                else [a.name for a in node.names]
-                if isinstance(node, ast.Import)
-                else []
-            )
-            bad += [
-                f"{where}: {m}" for m in mods if m.split(".")[0] == root.name and m not in faces
-            ]
+        inside = where.startswith("vpr_study/")
+        for m, _ in _imported(source):
+            top = m.split(".")[0]
+            if (top == root.name and m != root.name) or (
+                top == "vpr_study" and not inside and m not in STUDY_FACES
+            ):
+                bad.append(f"{where}: {m}")
     return bad
+
+
+def core_names_used(root: Path, caller: str = "vpr_study") -> dict[str, list[str]]:
+    """``{name: [modules]}``: the distinct names of ``root`` that the package ``caller`` imports
+    (a namespace module such as ``checks`` counts as one name)."""
+    used: dict[str, list[str]] = defaultdict(list)
+    for path in sorted((root.parent / caller).rglob("*.py")):
+        for m, name in _imported(path.read_text(encoding="utf-8")):
+            if m.split(".")[0] == root.name:
+                used[f"{m}.{name}" if name else m].append(str(path.relative_to(root.parent)))
+    return dict(used)
 
 
 def _message(node: ast.expr | None) -> str | None:
@@ -257,15 +284,24 @@ def near_duplicates(sites: dict[str, list[str]], share: float = 0.6) -> list[lis
     return [g for g in groups.values() if len(g) > 1]
 
 
+def _face_modules(root: Path) -> dict[str, tuple[str, ...]]:
+    """The face's table of the modules whose names it holds (``_MODULES`` of ``__init__.py``)."""
+    tree = ast.parse((root / "__init__.py").read_text(encoding="utf-8"))
+    for node in tree.body:
+        if isinstance(node, ast.AnnAssign) and getattr(node.target, "id", "") == "_MODULES":
+            return ast.literal_eval(node.value)
+    return {}
+
+
 def names_markdown(root: Path) -> str:
-    """The names each package face exports (its ``__init__.py``'s ``__all__``), one markdown
-    row per face, and their total."""
-    faces = face(root)["faces"]
-    rows = ["| face | names (`__all__`) |", "|---|---|"]
-    for mod, names in faces.items():
-        rows.append(f"| `{mod}` | {', '.join(f'`{n}`' for n in names) or '(none)'} |")
-    total = sum(len(n) for n in faces.values())
-    return "\n".join(rows) + f"\n\n{total} names in {len(faces)} faces."
+    """The face (``__init__.py``'s ``__all__``), one markdown row per module its names come
+    from, and their total."""
+    rows = ["| from | names |", "|---|---|"]
+    for mod, names in _face_modules(root).items():
+        where = f"`{root.name}.{mod}`" if mod else "modules handed out"
+        rows.append(f"| {where} | {', '.join(f'`{n}`' for n in names)} |")
+    total = len(face(root)["faces"].get(root.name, []))
+    return "\n".join(rows) + f"\n\n{total} names in `{root.name}.__all__` (with `__version__`)."
 
 
 def main() -> None:
@@ -299,12 +335,14 @@ def main() -> None:
         print(f"  {n_params:3d}  {where}")
     print("signatures per option: " + ", ".join(f"{o} {options[o]}" for o in OPTIONS))
     f = face(root)
-    sizes = {mod: len(names) for mod, names in f["faces"].items()}
+    print(f"the face ({root.name}.__all__): {len(f['faces'].get(root.name, []))} names")
+    sizes = {mod: len(names) for mod, names in f["indexes"].items()}
     print(
-        f"package faces: {len(sizes)}, names they export: {sum(sizes.values())} ("
+        "stage indexes (subpackage __all__, for the package, tests, benchmarks): "
         + ", ".join(f"{m} {n}" for m, n in sizes.items())
-        + ")"
     )
+    if root.name == "vpr_core":
+        print(f"distinct {root.name} names vpr_study imports: {len(core_names_used(root))}")
     print(f"imports by callers past a face: {len(reach_past(root))} (target 0)")
     print(f"public functions and classes inside the package (behind its faces): {len(f['public'])}")
     print(f"modules without __all__: {len(f['no_all'])}")

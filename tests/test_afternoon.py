@@ -18,6 +18,7 @@ import pytest  # noqa: E402
 
 from vpr_core import paths  # noqa: E402
 from vpr_core.datasets import load_dataset  # noqa: E402
+from vpr_study import outputs  # noqa: E402
 from vpr_study.viz import base  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
@@ -79,10 +80,10 @@ def test_a_users_cells_save_into_the_ignored_user_area_and_the_study_keeps_its_f
         clone / "user" / "figures" / "gardens_point_mini" / "mine.png",
         clone / "user" / "results" / "gardens_point_mini" / "mine.csv",
     ]
-    assert paths.results_dir("x") == clone / "user" / "results" / "x"
+    assert outputs.results_dir("x") == clone / "user" / "results" / "x"
     assert not (clone / "figures").exists() and not (clone / "results").exists()
     # the CLI's commands (and the benchmarks) write the study's folders
-    with paths.study_outputs():
+    with outputs.study_outputs():
         assert base.save(fig, "study", "gardens_point_mini") == (
             clone / "figures" / "gardens_point_mini" / "study.png"
         )
@@ -105,14 +106,17 @@ def test_the_user_area_is_git_ignored_and_the_runner_hands_its_kernels_the_outpu
     assert tracked.returncode == 1
     # the kernels write where this label's figures go: the study's output root for the study
     # (issue 54: a label it does not commit, under user/)
-    with paths.study_outputs():
+    with outputs.study_outputs():
         assert execution.kernel_settings()["VPR_OUTPUT_DIR"] == str(paths.output_root())
-    assert execution.kernel_settings()["VPR_OUTPUT_DIR"] == str(paths.figures_root())
+    assert execution.kernel_settings()["VPR_OUTPUT_DIR"] == str(outputs.figures_root())
 
 
 def test_a_user_kernel_in_notebooks_does_not_modify_a_tracked_file(tmp_path):
     """Subprocess in the real notebooks/ with no VPR_* setting: the figure lands in user/."""
-    code = "from vpr_core import paths; print(paths.figures_root()); print(paths.output_root())"
+    code = (
+        "from vpr_core import paths; from vpr_study import outputs; "
+        "print(outputs.figures_root()); print(paths.output_root())"
+    )
     env = {"PATH": "/usr/bin:/bin", "HOME": str(tmp_path)}
     out = subprocess.run(
         [sys.executable, "-c", code],
@@ -175,22 +179,9 @@ def test_in_a_notebook_progress_is_text_a_second_tab_can_show(monkeypatch, capsy
 
 
 def _pr_result(label, sim, gt, **extra):
-    from types import SimpleNamespace
+    from fake_results import result_of
 
-    from vpr_core.evaluation import evaluate, pr_curve
-
-    return SimpleNamespace(
-        label=label,
-        similarity=sim,
-        ground_truth=gt,
-        dataset="toy",
-        tolerance=0,
-        protocol="ratio",
-        metrics=evaluate(sim, gt),
-        intervals={},
-        curve=lambda: pr_curve(sim, gt, warn=False),
-        **extra,
-    )
+    return result_of(label, sim, gt, **extra)
 
 
 def _axes_inches(fig) -> tuple[float, float]:
@@ -354,8 +345,8 @@ def test_chance_prints_rounded_and_keeps_exact_values():
 def test_per_query_says_when_top1_matches_are_nan():
     import numpy as np
 
+    from vpr_core.evaluation.queries import per_query
     from vpr_core.notices import VPRWarning
-    from vpr_study.insight import per_query
 
     gt = np.eye(4, dtype=bool)
     run = _pr_result("dense", gt + 0.1, gt, boxes=None, descriptors=None)

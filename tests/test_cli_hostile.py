@@ -19,7 +19,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import pytest  # noqa: E402
 
 from vpr_core import paths  # noqa: E402
-from vpr_study import cli  # noqa: E402
+from vpr_study import (
+    cli,  # noqa: E402
+    outputs,  # noqa: E402
+)
 
 #: The fast eval of these tests: 6 synthetic places, the handcrafted backbone.
 FAST = ["eval", "--dataset", "synthetic", "--n-places", "6", "--backbone", "hog"]
@@ -233,7 +236,7 @@ def test_a_hostile_label_is_refused_everywhere_naming_the_allowed_characters(
 
     allowed = "letters, digits, '_', '-', '.' and '+'"
     with pytest.raises(ValueError, match=re.escape(allowed)):
-        paths.check_label(label)
+        outputs.check_label(label)
     monkeypatch.setattr(datasets, "load_dataset", lambda *a, **k: pytest.fail("loaded"))
     with pytest.raises(SystemExit):
         cli.main(["eval", "--dataset", "synthetic", "--label", label])
@@ -251,13 +254,13 @@ def test_a_hostile_label_is_refused_everywhere_naming_the_allowed_characters(
     "label", ["synthetic", "gardens_point_mini", "nordland_step50_quick", "v1.2+b-c", "zürich"]
 )
 def test_the_studys_labels_and_readable_ones_pass(label):
-    assert paths.check_label(label) == label
+    assert outputs.check_label(label) == label
 
 
 def test_a_folder_datasets_name_becomes_a_valid_default_label():
     assert cli.default_label("my photos|2024") == "my_photos_2024"
     assert cli.default_label(".hidden") == "hidden"
-    assert paths.check_label(cli.default_label("<img src=x>")) == "_img_src_x_"
+    assert outputs.check_label(cli.default_label("<img src=x>")) == "_img_src_x_"
 
 
 # 45.4 an option given twice --------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""Table 5 measured on the pipeline's own stages (vpr_study.cost)."""
+"""Table 5 measured on the pipeline's own stages (vpr_core.cost)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import os
 
 import pytest
 
-from vpr_study.cost import COST_COLUMNS, cost_table
+from vpr_core.cost import COST_COLUMNS, cost_table
 
 
 def test_cost_table_times_fresh_pipeline_stages(tiny_synthetic):

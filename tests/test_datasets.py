@@ -451,7 +451,7 @@ def test_download_dataset_unknown_and_registry():
 def test_plot_examples(tiny_synthetic, tmp_path):
     import matplotlib.pyplot as plt
 
-    from vpr_study.viz import plot_dataset_overview, plot_examples
+    from vpr_study.viz import plot_examples
 
     seen = []
 
@@ -470,9 +470,6 @@ def test_plot_examples(tiny_synthetic, tmp_path):
         paths.append(p.read_bytes())
     assert paths[0] == paths[1]
     plt.close(fig)
-    fig2 = plot_dataset_overview(tiny_synthetic, n=3)
-    assert len(fig2.axes) == 6
-    plt.close(fig2)
     with pytest.raises(IndexError):
         plot_examples(tiny_synthetic, indices=(99,))
 

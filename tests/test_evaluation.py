@@ -148,13 +148,6 @@ def test_metrics_table_and_perfect_matrix():
     assert df.loc["classical", "auc"] == pytest.approx(5 / 6)
 
 
-def test_plot_metric_bars():
-    from vpr_study import viz
-
-    fig2 = viz.plot_metric_bars(metrics_table({"a": evaluate(S, GT)}), metric="auc")
-    assert fig2.axes
-
-
 # ------------------------------------------------------------------------------------------
 # bootstrap intervals
 # ------------------------------------------------------------------------------------------

@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from vpr_core import ON_PAR_MARGIN, claim_verdict, cmr_difference
 from vpr_core.methods import get_method, run_key
 from vpr_study import findings
 
@@ -136,7 +137,7 @@ def test_an_on_par_claim_holds_only_inside_the_margin(tmp_path, d, lo, hi, verdi
     df = pd.read_csv(res / "fig07a_overlap_nms.csv").assign(queries=100)
     df.to_csv(res / "fig07a_overlap_nms.csv", index=False)
     assert findings.findings_table(["d"], out=tmp_path)["d verdict"][_PAR] == verdict
-    assert findings.ON_PAR_MARGIN == 0.05
+    assert ON_PAR_MARGIN == 0.05
 
 
 @pytest.mark.parametrize(
@@ -200,11 +201,11 @@ def test_cmr_difference_bootstraps_over_queries():
                     {"query": q, "pair": "gt", "scale": scale, "correct": float(rng.random() < p)}
                 )
     rows.append({"query": 0, "pair": "irrelevant", "scale": 6, "correct": np.nan})
-    d, lo, hi = findings.cmr_difference(pd.DataFrame(rows))
+    d, lo, hi = cmr_difference(pd.DataFrame(rows))
     assert 0.45 < d < 0.6 and lo < d < hi and lo > 0.3
-    assert findings.cmr_difference(pd.DataFrame(rows)) == (d, lo, hi)  # seeded
+    assert cmr_difference(pd.DataFrame(rows)) == (d, lo, hi)  # seeded
     with pytest.raises(ValueError, match="Scales 1-3"):
-        findings.cmr_difference(pd.DataFrame([r for r in rows if r["scale"] != 6]))
+        cmr_difference(pd.DataFrame([r for r in rows if r["scale"] != 6]))
 
 
 def test_result_labels_put_the_study_first_and_skip_quick_and_other_folders(tmp_path):
@@ -230,7 +231,7 @@ def test_identical_results_have_one_verdict_in_compare_and_the_findings(tiny_syn
     a = run_method("global", tiny_synthetic, backbone="hog", n_bootstrap=50)
     b = run_method("global", tiny_synthetic, backbone="hog", n_bootstrap=50, label="again")
     table = compare([a, b], n_bootstrap=50)
-    assert table.loc["again", "dAUC verdict"] == IDENTICAL == findings._verdict("", 0.0, 0.0, 0.0)
+    assert table.loc["again", "dAUC verdict"] == IDENTICAL == claim_verdict("", 0.0, 0.0, 0.0)
     assert IDENTICAL in str(table)
     order = [
         findings.LEGEND.index(w)

@@ -13,8 +13,8 @@ import pytest
 from vpr_core import run_method
 from vpr_core.datasets import load_dataset
 from vpr_core.evaluation import compare
-from vpr_core.utils import csv_safe, read_rows, write_rows
 from vpr_study.peers import PRECOMPUTED_FILE, find_vprbench_peers, peer_from_matrix, peer_result
+from vpr_study.rows import csv_safe, read_rows, write_rows
 from vpr_study.viz.base import save_all
 
 #: Names a hostile user gives a method or a folder (issue 32.1).
@@ -403,7 +403,7 @@ def _utm_soft(root: Path):
 
 
 def test_soft_positives_are_neither_right_nor_wrong_in_every_metric(tmp_path):
-    from vpr_study.insight import per_query
+    from vpr_core.evaluation.queries import per_query
 
     ds = _utm_soft(tmp_path)
     assert (ds.ground_truth_soft & ~ds.ground_truth).sum() == 4
@@ -659,7 +659,7 @@ def test_plot_disagreements_refuses_a_dataset_the_runs_were_not_computed_on():
 
 
 def test_a_300_character_label_is_blamed_on_the_label():
-    from vpr_core.paths import check_label
+    from vpr_study.outputs import check_label
 
     with pytest.raises(ValueError, match=r"label 'aaaa.*' is 300 bytes long; .* at most 100"):
         check_label("a" * 300)

@@ -50,7 +50,7 @@ def test_one_result_instead_of_a_list_says_to_pass_a_list(runs):
 def test_compare_and_per_query_share_one_rule_for_what_results_are(runs):
     # check_results: one wording, the caller named, for compare, per_query (and plots)
     from vpr_core.evaluation.compare import check_results
-    from vpr_study.insight import per_query
+    from vpr_core.evaluation.queries import per_query
 
     for fn, name in ((compare, "compare"), (per_query, "per_query")):
         with pytest.raises(ValueError, match=rf"{name}\(\) needs at least one result"):

@@ -141,7 +141,7 @@ def test_a_difference_on_fewer_than_min_queries_is_too_few_never_higher(tmp_path
 
 
 def test_findings_say_too_few_queries_below_the_minimum():
-    from vpr_study.findings import _verdict
+    from vpr_core import claim_verdict as _verdict
 
     assert _verdict(">", 0.1, 0.3, 0.2, queries=3) == "too few queries (3 < 6)"
     assert _verdict("~", -0.01, 0.01, 0.0, queries=5) == "too few queries (5 < 6)"

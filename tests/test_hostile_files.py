@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import torch
 
-from vpr_core.utils import csv_safe, read_rows, write_rows
+from vpr_study.rows import csv_safe, read_rows, write_rows
 
 #: Formulas behind what a spreadsheet skips: CR, LF, tab, spaces, NUL, a zero-width space.
 HIDDEN_FORMULAS = (
@@ -95,7 +95,7 @@ def test_a_run_label_with_a_hidden_formula_stays_in_its_cell(tmp_path, monkeypat
     from vpr_core import run_method
     from vpr_core.datasets import load_dataset
     from vpr_core.evaluation import compare
-    from vpr_study.insight import per_query
+    from vpr_core.evaluation.queries import per_query
     from vpr_study.viz.base import save_all
 
     monkeypatch.setenv("VPR_CACHE_DIR", str(tmp_path / "cache"))

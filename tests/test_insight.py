@@ -15,9 +15,9 @@ from vpr_core import MethodResult, run_method
 from vpr_core.evaluation import bootstrap_metrics, chance, compact, compare, evaluate
 from vpr_core.evaluation.chance import chance_precision, saturation_notice
 from vpr_core.evaluation.compare import CHANCE_ROW, compact_text
+from vpr_core.evaluation.queries import per_query
 from vpr_core.matching import Matching, match_landmarks
 from vpr_core.notices import VPRWarning
-from vpr_study.insight import per_query
 from vpr_study.viz import plot_disagreements, plot_pr_curves
 
 TIMINGS = {

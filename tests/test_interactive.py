@@ -303,7 +303,7 @@ def _fake(label, sim, gt):
 def test_disagreements_show_wins_and_losses_when_both_exist():
     """Six wins shown under a title promising wins and losses (Nordland): the pick takes both
     kinds when both exist, and the title counts them."""
-    from vpr_study.insight import per_query
+    from vpr_core.evaluation.queries import per_query
     from vpr_study.viz.disagreements import _pick
 
     gt = np.eye(10, dtype=bool)
@@ -317,20 +317,3 @@ def test_disagreements_show_wins_and_losses_when_both_exist():
     assert [kind[q] for q in shown] == ["a wins"] * 2 + ["a loses"] * 4
     shown, kind, *_ = _pick(full, "a", "b", 12)  # every disagreement, then agreeing ones
     assert len(shown) == 10 and list(kind.values()).count("the runs agree") == 1
-
-
-def test_weighted_match_captions_read_at_the_displayed_size(tiny_synthetic):
-    """The issue's own figure (``plot_weighted_matches``, saved from the next cell): 8-point
-    captions on 13 inches, now every caption at least 9 points at the size Lab shows it."""
-    from vpr_core import run_method
-    from vpr_study.viz.weighting import plot_weighted_matches
-
-    kw = {"backbone": "hog", "n_bootstrap": 0, "keep_descriptors": True}
-    plain = run_method("dense", tiny_synthetic, **kw)
-    weighted = run_method("dense", tiny_synthetic, weighting="contrast", **kw)
-    fig, _ = plot_weighted_matches(tiny_synthetic, plain, weighted, n=2)
-    shown_at = min(1.0, 9.5 / fig.get_figwidth())
-    texts = [ax.title for ax in fig.axes] + [fig._suptitle]
-    assert all(t.get_fontsize() * shown_at >= 9 for t in texts if t.get_text())
-    assert viz.layout_problems(fig) == []
-    plt.close(fig)

@@ -23,7 +23,7 @@ def fake_study(tmp_path, monkeypatch):
             started = time.time()
             executed.append(nb.stem)
             for stem in expected_figures()[nb.stem]:
-                png = runner.paths.figures_dir(params["label"]) / f"{stem}.png"
+                png = runner.outputs.figures_dir(params["label"]) / f"{stem}.png"
                 png.write_bytes(f"{nb.stem} run {executed.count(nb.stem)}".encode())
             finished[nb.stem] = (started, time.time())
 
@@ -49,7 +49,7 @@ def test_changed_parameters_or_outputs_execute_it_again(fake_study):
     assert len(fake_study) == 2
     _run(pooling="roi")
     assert len(fake_study) == 2
-    figure = runner.paths.figures_dir("synthetic_quick") / "fig05_selection.png"
+    figure = runner.outputs.figures_dir("synthetic_quick") / "fig05_selection.png"
     figure.write_bytes(b"edited by hand")  # an output changed: executed again, rewritten
     _run(pooling="roi")
     assert len(fake_study) == 3 and figure.read_bytes() != b"edited by hand"

@@ -22,6 +22,7 @@ from matplotlib.figure import Figure  # noqa: E402
 
 from vpr_core import paths  # noqa: E402
 from vpr_core.datasets.ground_truth import ground_truth_text  # noqa: E402
+from vpr_study import outputs  # noqa: E402
 from vpr_study.viz import base  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
@@ -30,8 +31,8 @@ REPO = Path(__file__).resolve().parents[1]
 def test_a_kernel_in_notebooks_reads_and_writes_under_the_project_root(tmp_path):
     """A kernel started in notebooks/ (as JupyterLab does) without any VPR_* setting."""
     code = (
-        "from vpr_core import paths, utils; "
-        "print(paths.output_root()); print(paths.cache_root()); print(paths.figures_dir('x'))"
+        "from vpr_core import paths, utils; from vpr_study import outputs; "
+        "print(paths.output_root()); print(paths.cache_root()); print(outputs.figures_dir('x'))"
     )
     env = {"PATH": "/usr/bin:/bin", "HOME": str(tmp_path)}
     out = subprocess.run(
@@ -74,7 +75,7 @@ def test_a_label_is_one_folder_name(tmp_path, label):
         base.save(fig, "f", label, out=tmp_path)
     plt.close(fig)
     with pytest.raises(TypeError, match="label must be a string"):
-        paths.check_label(5)
+        outputs.check_label(5)
     assert list(tmp_path.rglob("*")) == []
 
 

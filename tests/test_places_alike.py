@@ -9,10 +9,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
+from vpr_core.evaluation.steps import CARRIED_COLUMNS, SILENT_WEIGHT
 from vpr_core.matching import weighted_matches
 from vpr_study import viz
 from vpr_study.viz._shared import FIG_WIDTH
-from vpr_study.viz.carried import CARRIED_COLUMNS, SILENT_WEIGHT
 
 
 @pytest.fixture(scope="module")
@@ -119,25 +119,22 @@ def test_the_per_query_figures_refuse_in_the_shared_wording(runs):
     """One wording per rule (issue 47): the count of queries shown, a run without descriptors."""
     ds, plain, weighted = runs
     bare = dataclasses.replace(weighted, descriptors=None)
-    for call in (viz.plot_disagreements, viz.plot_weighted_matches):
-        with pytest.raises(ValueError, match=r"n \(queries shown\) must be a positive integer"):
-            call(ds, plain, weighted, n=0)
+    with pytest.raises(ValueError, match=r"n \(queries shown\) must be a positive integer"):
+        viz.plot_disagreements(ds, plain, weighted, n=0)
     for call, name in (
         (viz.plot_disagreements, "plot_disagreements"),
-        (viz.plot_weighted_matches, "plot_weighted_matches"),
-        (viz.plot_carried_landmarks, "plot_carried_landmarks"),
+        (viz.plot_carried_landmarks, "carried_landmarks"),
     ):
         with pytest.raises(ValueError, match=rf"^{name} needs the landmark descriptors of"):
             call(ds, plain, bare)
     with pytest.raises(ValueError, match="n_queries must be a positive integer, got 0"):
         viz.plot_carried_landmarks(ds, plain, weighted, n_queries=0)
-    for call in (viz.plot_weighted_matches, viz.plot_carried_landmarks):
-        with pytest.raises(ValueError, match=r"^'dense[^']*' has no weighting: pass the run of"):
-            call(ds, plain, plain)
+    with pytest.raises(ValueError, match=r"^'dense[^']*' has no weighting: pass the run of"):
+        viz.plot_carried_landmarks(ds, plain, plain)
     from vpr_core.datasets import load_dataset
 
     other = load_dataset("synthetic", n_places=5, image_size=(64, 112), repetition=0.9)
-    for call in (viz.plot_disagreements, viz.plot_weighted_matches, viz.plot_carried_landmarks):
+    for call in (viz.plot_disagreements, viz.plot_carried_landmarks):
         with pytest.raises(ValueError, match=rf"^{call.__name__}: .* another dataset than"):
             call(other, plain, weighted)
 

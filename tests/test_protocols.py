@@ -146,25 +146,6 @@ def test_recall_rate_at_n_is_vpr_benchs():
         assert got[n - 1] == pytest.approx(want)
 
 
-def test_plot_recall_at_n():
-    from types import SimpleNamespace
-
-    from vpr_study.viz.recall import plot_recall_at_n
-
-    s, gt = _matrix(3)
-    fig = plot_recall_at_n(
-        [
-            SimpleNamespace(label="a", similarity=s, ground_truth=gt),
-            SimpleNamespace(label="b", similarity=s[:, ::-1], ground_truth=gt),
-        ],
-        title="t",
-    )
-    ax = fig.axes[0]
-    assert ax.get_title() == "t" and len(ax.lines) == 2 and ax.lines[0].get_xdata()[-1] == 20
-    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["a", "b"]
-    assert ax.get_legend().get_bbox_to_anchor().x0 > ax.get_window_extent().x1 - 1
-
-
 def test_no_resamples_no_interval_no_verdict():
     s, gt = _matrix(4, no_gt=0)
     b = bootstrap_metrics(s, gt, n=0)

@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from vpr_core import paths
-from vpr_study import execution, figures, memo, runner
+from vpr_study import execution, figures, memo, outputs, runner
 from vpr_study.figures import NOTEBOOKS
 
 
@@ -186,7 +186,7 @@ def test_kernels_get_their_settings_through_env_not_os_environ(tmp_path, monkeyp
     monkeypatch.setattr(execution.subprocess, "run", fake_run)
     before = dict(os.environ)
     nb = runner.notebook_paths(["01_pipeline_tour"])[0]
-    with runner.paths.using_output_root(tmp_path / "cli"):  # what --out does
+    with paths.using_output_root(tmp_path / "cli"):  # what --out does
         execution._execute([nb], tmp_path, {"dataset": "synthetic"}, "python3", {})
     assert dict(os.environ) == before
     assert seen["env"]["VPR_OUTPUT_DIR"] == str(tmp_path / "cli")
@@ -349,13 +349,13 @@ def test_only_the_committed_labels_write_into_figures_and_results(
     def fake_run_labels(chains, kernel, force, jobs):
         seen["labels"] = [c[0] for c in chains]
         seen["env"] = execution.kernel_settings()
-        seen["figures"] = paths.figures_dir(chains[0][0])
+        seen["figures"] = outputs.figures_dir(chains[0][0])
         return []
 
     monkeypatch.setattr(runner, "load_dataset", lambda *a, **k: None)
     monkeypatch.setattr(runner, "run_labels", fake_run_labels)
     monkeypatch.setattr(runner, "study_datasets", lambda: {})
-    with paths.study_outputs():  # as `vpr-study run` calls it
+    with outputs.study_outputs():  # as `vpr-study run` calls it
         runner.run_study(notebooks=["03_landmark_selection"], **kw)
     base = root / where if where else root
     assert seen["labels"] == [label]

@@ -2,8 +2,9 @@
 
 import pytest
 
-from vpr_core.paths import MAX_LABEL_BYTES, MAX_NAME_BYTES, check_label, check_name
-from vpr_core.utils import code_version, configure_logging, read_rows, write_rows
+from vpr_core.utils import code_version, configure_logging
+from vpr_study.outputs import MAX_LABEL_BYTES, MAX_NAME_BYTES, check_label, check_name
+from vpr_study.rows import read_rows, write_rows
 
 
 def test_rows_round_trip_with_union_of_columns(tmp_path):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -59,21 +61,9 @@ def test_descriptor_matrices_and_pair_terms(tmp_path):
 
 
 def _result(label, sim, gt, auc=None):
-    from types import SimpleNamespace
+    from fake_results import result_of
 
-    from vpr_core.evaluation import evaluate, pr_curve
-
-    return SimpleNamespace(
-        label=label,
-        similarity=sim,
-        ground_truth=gt,
-        dataset="toy",
-        tolerance=0,
-        protocol="ratio",
-        metrics=evaluate(sim, gt),
-        intervals={} if auc is None else {"auc": auc},
-        curve=lambda: pr_curve(sim, gt, warn=False),
-    )
+    return result_of(label, sim, gt, **({} if auc is None else {"intervals": {"auc": auc}}))
 
 
 def test_pr_curves_legend_below_identical_curves_said_and_dataset_named():
@@ -277,11 +267,6 @@ BAD_VIZ_CALLS = {
         ValueError,
         "panels is empty",
     ),
-    "landmarks: boxes": (
-        lambda: viz.plot_landmarks(IMG, np.zeros((2, 3))),
-        ValueError,
-        r"boxes must have shape \(K, 4\)",
-    ),
     "descriptors: shape": (
         lambda: viz.plot_descriptor_matrices({"q": np.zeros(5)}),
         ValueError,
@@ -329,18 +314,12 @@ def test_bad_viz_inputs_raise_one_clear_line(case):
 
 
 def test_dataset_line_names_the_subset_and_the_ground_truth():
-    from types import SimpleNamespace
+    from fake_results import result_of
 
     from vpr_study.viz import dataset_line
 
-    r = SimpleNamespace(
-        ground_truth=np.eye(3, dtype=bool),
-        dataset="nordland_64x32",
-        dataset_title="nordland_64x32, every 50th place",
-        tolerance=0,
-        protocol="ratio",
-        ground_truth_from_file=False,
-    )
+    r = result_of("r", np.eye(3), np.eye(3), dataset="nordland_64x32")
+    r = dataclasses.replace(r, dataset_title="nordland_64x32, every 50th place")
     line = dataset_line([r])
     assert line == (
         "nordland_64x32, every 50th place: 3 of 3 queries with ground truth, tolerance 0, "
@@ -349,23 +328,13 @@ def test_dataset_line_names_the_subset_and_the_ground_truth():
 
 
 def _fake_run(label, sim, gt, method=None, weighting=None, metrics=None):
-    from types import SimpleNamespace
+    from fake_results import result_of
 
-    from vpr_core.evaluation import evaluate, pr_curve
+    from vpr_core import Dense, Matching, Method
 
-    return SimpleNamespace(
-        label=label,
-        method=method,
-        config=SimpleNamespace(matching=SimpleNamespace(weighting=weighting)),
-        similarity=sim,
-        ground_truth=gt,
-        dataset="toy",
-        tolerance=0,
-        protocol="ratio",
-        metrics=metrics if metrics is not None else evaluate(sim, gt),
-        intervals={},
-        curve=lambda: pr_curve(sim, gt, warn=False),
-    )
+    config = Method(method or label, Dense(), Matching(weighting=weighting))
+    extra = {} if metrics is None else {"metrics": metrics}
+    return result_of(label, sim, gt, config=config, method=config.name, **extra)
 
 
 def test_pr_curves_colour_per_method_style_per_weighting_and_coinciding_curves_said():
@@ -393,7 +362,8 @@ def test_pr_curves_colour_per_method_style_per_weighting_and_coinciding_curves_s
     assert style["dense"] == style["classical"] != style["dense (weighting: contrast)"]
     plt.close(fig)
     # the same curve, another result (its metrics differ, e.g. a tie broken otherwise)
-    same = _fake_run("dense (geometry: consistency)", sims[0] * 2, gt, metrics={"R@1": 0.0})
+    same = _fake_run("dense (geometry: consistency)", sims[0] * 2, gt)
+    same = dataclasses.replace(same, metrics={**same.metrics, "r@5": -1.0})
     fig = viz.plot_pr_curves([runs[0], same])
     labels = (
         [t.get_text() for t in fig.legends[0].get_texts()]

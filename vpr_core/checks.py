@@ -15,6 +15,8 @@ import numpy as np
 import torch
 
 __all__ = [
+    "BOOTSTRAP_BYTES_PER_RESAMPLE",
+    "check_bootstrap_memory",
     "check_boxes",
     "check_choice",
     "check_descriptors_kept",
@@ -25,10 +27,13 @@ __all__ = [
     "check_image_size",
     "check_int",
     "check_options",
+    "check_per_match",
     "check_range",
+    "check_results",
     "check_shape",
     "is_int",
     "is_number",
+    "is_result",
 ]
 
 
@@ -264,3 +269,72 @@ _FILE_KINDS = (
     (stat.S_ISBLK, "a block device"),
     (stat.S_ISSOCK, "a socket"),
 )
+
+
+def is_result(obj: Any) -> bool:
+    """``obj`` is a result (``run_method``, ``peer_result``): it has a label, a matrix and a
+    ground truth."""
+    return all(hasattr(obj, a) for a in ("label", "similarity", "ground_truth"))
+
+
+def check_results(results: Any, caller: str, unique_labels: bool = False) -> list:
+    """``results`` as a non-empty list of results (what ``run_method`` and ``peer_result``
+    return: ``.label``, ``.similarity``, ``.ground_truth``), refused naming the fix when it is one
+    result, not a sequence, empty, or holds something else; ``unique_labels``: refuse a label
+    given twice. ``caller``: the function the message names, e.g. ``"compare"``."""
+    if is_result(results):
+        raise TypeError(
+            f"{caller}(): results is one result ({getattr(results, 'label', '?')!r}), not a list "
+            f"of them: pass {caller}([result]) for one, or {caller}([a, b, ...]) for several"
+        )
+    if isinstance(results, (str, bytes, dict)) or not hasattr(results, "__iter__"):
+        raise TypeError(
+            f"{caller}(): results must be a list of results (run_method or peer_result), "
+            f"got {type(results).__name__}"
+        )
+    out = list(results)
+    if not out:
+        raise ValueError(f"{caller}() needs at least one result (run_method or peer_result)")
+    bad = [i for i, r in enumerate(out) if not is_result(r)]
+    if bad:
+        raise TypeError(
+            f"{caller}(): results[{bad[0]}] is a {type(out[bad[0]]).__name__}, not a result: "
+            "pass what run_method or peer_result return"
+        )
+    labels = [r.label for r in out]
+    dup = sorted({x for x in labels if labels.count(x) > 1})
+    if unique_labels and dup:
+        raise ValueError(
+            f"{caller}(): labels must be unique, repeated: {dup}; pass label=... to "
+            "run_method to tell the runs apart"
+        )
+    return out
+
+
+#: Bytes the bootstrap keeps per resample: 4 metrics (float64) as values, their concatenation
+#: and the percentile's copy (:mod:`~vpr_core.evaluation.bootstrap`; queries go in chunks).
+BOOTSTRAP_BYTES_PER_RESAMPLE = 4 * 8 * 3
+
+
+def check_bootstrap_memory(n: int, name: str = "n_bootstrap") -> None:
+    """Refuse ``n`` resamples whose metrics would not fit in half the available memory
+    (estimated before any work; numpy failed after minutes). ``name``: the option in the
+    message (the CLI's ``--n-bootstrap``)."""
+    need = n * BOOTSTRAP_BYTES_PER_RESAMPLE
+    avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    if need > avail / 2:
+        most = int(avail / 2 / BOOTSTRAP_BYTES_PER_RESAMPLE)
+        raise ValueError(
+            f"{name} {n}: the resampled metrics need about {need / 1e9:.1f} GB of memory "
+            f"({BOOTSTRAP_BYTES_PER_RESAMPLE} bytes per resample), more than half of the "
+            f"{avail / 1e9:.1f} GB available; use at most {most:,} (1000, the default, gives "
+            "95% intervals to about +-0.01)"
+        )
+
+
+def check_per_match(values: np.ndarray, n_matches: int, name: str) -> np.ndarray:
+    """Return ``values`` (parsed, one per match, e.g. labels or scores) if it has one entry per
+    match of the ``n_matches``; else name both lengths."""
+    if len(values) != n_matches:
+        raise ValueError(f"{name} ({len(values)}) must have one entry per match ({n_matches})")
+    return values

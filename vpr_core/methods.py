@@ -49,6 +49,11 @@ class Method:
         # Matching's one rule (None: the paper's Eq. (1)); no soft-NMS given beside it
         object.__setattr__(self, "matching", as_matching(None, SOFT_NMS_SIGMA, self.matching))
 
+    @property
+    def key(self) -> str:
+        """Its configuration's identity (:func:`run_key`), as tables and the findings name it."""
+        return run_key(self)
+
 
 #: The paper's methods (Sec. 2.1, Algorithms 1-4, Sec. 4) and ``global`` (not in the paper: one
 #: whole-image descriptor from the same backbone, so a reader sees what landmarks add).

@@ -1,5 +1,5 @@
-"""What a run produces: :class:`MethodResult` (one method on one dataset), the notice of a
-constant matrix, and :func:`normalise_result` (a result's matrix normalised; not in the paper)."""
+"""What a run produces: :class:`MethodResult`, and :func:`result_from_matrix`, the one door from a
+similarity matrix to a result (a run's, a peer's, a normalised one's)."""
 
 from __future__ import annotations
 
@@ -9,13 +9,23 @@ from typing import Any
 
 import numpy as np
 
-from .datasets.ground_truth import ground_truth_text
-from .evaluation import Evaluation, format_interval, metrics_and_intervals, pr_curve
+from .cache import dataset_fingerprint
+from .datasets.ground_truth import ground_truth_coverage, ground_truth_text
+from .evaluation.bootstrap import format_interval, metrics_and_intervals
+from .evaluation.chance import chance, chance_precision, saturation_notice
+from .evaluation.curves import pr_curve
+from .evaluation.spec import Evaluation
 from .matching.normalise import normalise_matrix
 from .methods import Method, run_key
 from .notices import notice
 
-__all__ = ["INTERVAL_COLUMNS", "MethodResult", "constant_notice", "normalise_result"]
+__all__ = [
+    "INTERVAL_COLUMNS",
+    "MethodResult",
+    "constant_notice",
+    "normalise_result",
+    "result_from_matrix",
+]
 
 
 #: Interval columns of :meth:`MethodResult.row` (95% bootstrap over queries).
@@ -110,7 +120,7 @@ class MethodResult:
         nq, nr = np.shape(self.similarity)
         return (
             f"MethodResult({self.label!r} on {self.dataset!r}, "
-            f"{ground_truth_text(self.ground_truth, self.tolerance, self.ground_truth_from_file)}, "
+            f"{self.truth_text}, "
             f"{self.protocol}: {iv or 'no intervals'}; {self.queries_with_gt[0]} of "
             f"{self.queries_with_gt[1]} queries with ground truth, similarity {nq}x{nr}"
             + (f"; {len(self.warnings)} warning(s)" if self.warnings else "")
@@ -142,11 +152,44 @@ class MethodResult:
         ``similarity`` and ``ground_truth``)."""
         return pr_curve(self.similarity, self.ground_truth, self.protocol, warn=False)
 
+    @staticmethod
+    def fields_of(dataset: Any) -> dict[str, Any]:
+        """The :class:`MethodResult` fields a :class:`~vpr_core.datasets.PlaceDataset` gives: its
+        name, ground truth (tolerance applied), soft-only pairs, tolerance, folder, title and
+        fingerprint."""
+        return {
+            "dataset": dataset.name,
+            "ground_truth": np.asarray(dataset.ground_truth, dtype=bool),
+            "soft_only": dataset.soft_only,
+            "tolerance": dataset.tolerance,
+            "root": None if dataset.root is None else str(dataset.root),
+            "ground_truth_from_file": bool(dataset.meta.get("ground_truth_file")),
+            "dataset_title": dataset.title,
+            "dataset_fingerprint": dataset_fingerprint(dataset),
+        }
+
+    @property
+    def truth_text(self) -> str:
+        """How its ground truth was made, as tables and titles print it (``"tolerance 2"``, or
+        the file's correct references per query)."""
+        return ground_truth_text(self.ground_truth, self.tolerance, self.ground_truth_from_file)
+
+    def chance(self) -> dict[str, float]:
+        """What a random ranking of its ground truth scores (:func:`~vpr_core.chance`, its
+        protocol, R@1), and ``"precision"``: the flat PR curve of chance
+        (:func:`~vpr_core.evaluation.chance.chance_precision`)."""
+        out = chance(self.ground_truth, self.protocol, ks=(1,), soft=self.soft_only)
+        return {
+            **out,
+            "precision": chance_precision(self.ground_truth, self.protocol, self.soft_only),
+        }
+
 
 def constant_notice(sim: np.ndarray) -> str | None:
-    """The notice that a matrix holding one value (NaN aside) ranks arbitrarily: its metrics
-    are chance levels, whatever they read (e.g. zero descriptors, or constant ones weighted by
-    ``contrast``, or a user's constant peer matrix); returns it (None: not constant)."""
+    """The notice that a matrix ranks arbitrarily: it holds one value (NaN aside), or each query's
+    row holds one value of its own; its metrics are then chance levels, whatever they read (e.g.
+    zero descriptors, or constant ones weighted by ``contrast``, or a user's peer matrix);
+    returns it (None: it ranks)."""
     if sim.size < 2 or np.isnan(sim).all():
         return None
     low, high = np.nanmin(sim), np.nanmax(sim)
@@ -158,7 +201,89 @@ def constant_notice(sim: np.ndarray) -> str | None:
             "matching options (weighting='contrast' scores identical descriptors 0), or a "
             "peer's matrix file"
         )
+    ranked = np.isfinite(sim)
+    rows = ranked.sum(axis=1) >= 2
+    if rows.any():
+        lo = np.where(ranked, sim, np.inf).min(axis=1)[rows]
+        hi = np.where(ranked, sim, -np.inf).max(axis=1)[rows]
+        if (lo == hi).all():
+            return notice(
+                f"each query's row of the similarity matrix is constant ({int(rows.sum())} "
+                "rows, each one value of its own): no query ranks its references, so the "
+                "metrics are chance levels; check the matrix (a peer's file: a per-query score "
+                "repeated across the references?) or the method"
+            )
     return None
+
+
+def _normalise_of(config: Method | dict) -> str | None:
+    """The whole-matrix step a result's configuration names (None: none)."""
+    if isinstance(config, Method):
+        return config.matching.normalise
+    return config.get("normalise")
+
+
+def _unranked_empty(sim: np.ndarray, boxes: dict) -> np.ndarray:
+    """NaN for every pair involving an image without landmarks (``boxes`` of both sides; a
+    peer's are empty lists: nothing to exclude)."""
+    nq, nr = sim.shape
+    if len(boxes.get("query", [])) != nq or len(boxes.get("reference", [])) != nr:
+        return sim
+    empty_q = [i for i, b in enumerate(boxes["query"]) if len(b) == 0]
+    empty_r = [i for i, b in enumerate(boxes["reference"]) if len(b) == 0]
+    if not (empty_q or empty_r):
+        return sim
+    sim = sim.copy()
+    sim[empty_q, :] = np.nan
+    sim[:, empty_r] = np.nan
+    return sim
+
+
+def result_from_matrix(
+    similarity: np.ndarray,
+    result: MethodResult,
+    evaluation: Evaluation,
+    database: np.ndarray | None = None,
+) -> MethodResult:
+    """The one door from a similarity matrix to a result: ``result`` (what made the matrix: its
+    method, configuration, encoder, boxes, and :meth:`MethodResult.fields_of` its dataset) with
+    ``similarity`` scored.
+
+    In order: the whole-matrix step its configuration names (``normalise``, by
+    :func:`~vpr_core.matching.normalise.normalise_matrix`; ``database``: the ``(Nr, Nr)``
+    references against each other where the step needs them), images without landmarks
+    unranked (NaN), soft-only pairs neither right nor wrong, the constant-matrix and saturation
+    notices (added to ``warnings``), then metrics and intervals under ``evaluation``.
+
+    Args:
+        similarity: ``(Nq, Nr)`` as the method produced it (NaN: not ranked).
+        result: a :class:`MethodResult` whose identity and dataset fields are set; its
+            matrix, metrics and intervals are replaced.
+        evaluation: the protocol and bootstrap resamples.
+        database: see above.
+    """
+    sim = normalise_matrix(similarity, _normalise_of(result.config), database=database)
+    sim = _unranked_empty(np.asarray(sim, dtype=np.float64), result.boxes)
+    if result.soft_only is not None and not np.isnan(sim).all():
+        sim = np.array(sim, dtype=np.float64)  # VPR_Tutorial's rule: soft-only pairs at the min
+        sim[result.soft_only] = np.nanmin(sim)
+    gt = np.asarray(result.ground_truth, dtype=bool)
+    notices = [constant_notice(sim)]
+    metrics, intervals = metrics_and_intervals(sim, gt, evaluation)
+    notices.append(
+        saturation_notice(
+            gt, intervals, evaluation, soft=result.soft_only, tolerance=result.tolerance
+        )
+    )
+    return dataclasses.replace(
+        result,
+        similarity=sim,
+        metrics=metrics,
+        intervals=intervals,
+        protocol=evaluation.protocol,
+        queries_with_gt=ground_truth_coverage(gt),
+        warnings=list(dict.fromkeys([*result.warnings, *(n for n in notices if n)])),
+    )
 
 
 def normalise_result(
@@ -169,36 +294,33 @@ def normalise_result(
     label: str | None = None,
 ) -> MethodResult:
     """(Not in the paper.) A result with its matrix normalised (any method's or a peer's;
-    docs/DEFINITIONS.md): metrics and intervals recomputed on the same ground truth.
+    docs/DEFINITIONS.md), through :func:`result_from_matrix` on the same ground truth.
 
     Args:
-        result: a :class:`MethodResult` (``run_method`` or :func:`vpr_study.peer_result`).
-        how: one of :data:`~vpr_core.matching.NORMALISE_OPTIONS`; ``"query_batch"`` needs the
-            batch of queries (``compare`` marks it).
+        result: a :class:`MethodResult` (``run_method`` or :func:`vpr_study.peer_result`), not
+            normalised yet.
+        how: a name of :data:`~vpr_core.matching.normalise.NORMALISATIONS`; ``"query_batch"``
+            needs the batch of queries (``compare`` marks it).
         database: ``(Nr, Nr)`` the references scored against each other by the same technique
             (``"database"`` only; for a peer from descriptors: ``peer_from_descriptors(db, db)``).
         evaluation: protocol and resamples (default: the result's protocol, ``N_BOOTSTRAP``
             resamples where it has intervals, else none).
         label: default ``"<label> (normalised: <how>)"``.
     """
-    if result.config is not None and isinstance(result.config, Method):
-        if result.config.matching.normalise is not None:
-            raise ValueError(f"{result.label!r} is already normalised")
+    done = _normalise_of(result.config)
+    if done is not None:
+        raise ValueError(
+            f"{result.label!r} is already normalised ({done!r}): normalise the result it was "
+            "made from"
+        )
+    if isinstance(result.config, Method):
         matching = dataclasses.replace(result.config.matching, normalise=how)
         config: Method | dict = dataclasses.replace(result.config, matching=matching)
     else:
         config = {**dict(result.config), "normalise": how}
-    sim = normalise_matrix(result.similarity, how, database=database)
     n_boot = len(result.intervals) and Evaluation().n_bootstrap
     evaluation = evaluation or Evaluation(protocol=result.protocol, n_bootstrap=n_boot)
-    gt = np.asarray(result.ground_truth, dtype=bool)
-    metrics, intervals = metrics_and_intervals(sim, gt, evaluation)
-    return dataclasses.replace(
-        result,
-        label=label or f"{result.label} (normalised: {how})",
-        config=config,
-        similarity=sim,
-        metrics=metrics,
-        intervals=intervals,
-        protocol=evaluation.protocol,
+    named = dataclasses.replace(
+        result, label=label or f"{result.label} (normalised: {how})", config=config
     )
+    return result_from_matrix(result.similarity, named, evaluation, database=database)

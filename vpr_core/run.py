@@ -13,33 +13,26 @@ from typing import Any, ParamSpec, Protocol
 
 import numpy as np
 
-from .cache import (
-    SIDES,
-    atomic_savez,
-    dataset_fingerprint,
-    images_fingerprint,
-    load_npz,
-    n_images,
-)
+from .cache import SIDES, atomic_savez, images_fingerprint, load_npz, n_images
 from .checks import check_int
-from .evaluation import Evaluation, bootstrap_metrics, evaluate, ground_truth_coverage
-from .evaluation.chance import saturation_notice
-from .evaluation.spec import refuse_tolerance
+from .evaluation.spec import Evaluation, refuse_tolerance
 from .features import Encoder, as_encoder
 from .features.stage import extract_features, get_encoder
 from .landmarks.edge_boxes import edge_model_id
 from .landmarks.schemes import CandidateScheme, LandmarkScheme
 from .landmarks.stage import extract_landmarks
-from .matching import normalise_matrix, similarity_matrix, similarity_pairs
+from .matching.normalise import NORMALISATIONS
 from .matching.shortlist import (
     rerank,
     shortlist_pairs,
     split_whole_image,
     with_whole_image_boxes,
 )
+from .matching.similarity import similarity_matrix, similarity_pairs
+from .matching.weighting import WEIGHTINGS
 from .methods import Matching, Method, as_method, method_label
 from .notices import VPRWarning, notice
-from .result import MethodResult, constant_notice
+from .result import MethodResult, result_from_matrix
 from .utils import array_sha256, cache_dir, code_version, config_slug, logger
 
 P = ParamSpec("P")
@@ -82,24 +75,20 @@ class Executor(Protocol):
         ...
 
 
-def _exclude_empty(sim: np.ndarray, boxes: dict, dataset) -> np.ndarray:
-    """NaN for every pair involving an image without landmarks; one warning naming them."""
+def _empty_notice(boxes: dict, dataset) -> None:
+    """The notice naming every image without landmarks (:func:`~vpr_core.result.result_from_matrix`
+    leaves their pairs unranked, NaN, never scored as zeros)."""
     empty = {s: [i for i, b in enumerate(boxes[s]) if len(b) == 0] for s in SIDES}
-    if not (empty["query"] or empty["reference"]):
-        return sim
-    sim = sim.copy()
-    sim[empty["query"], :] = np.nan
-    sim[:, empty["reference"]] = np.nan
     names = [
         f"{s} {i} ({(dataset.query_paths if s == 'query' else dataset.reference_paths)[i]})"
         for s in SIDES
         for i in empty[s]
     ]
-    notice(
-        f"no landmarks in {len(names)} image(s), excluded from ranking (their pairs count as "
-        f"not retrieved): {'; '.join(names[:10])}{' ...' if len(names) > 10 else ''}"
-    )
-    return sim
+    if names:
+        notice(
+            f"no landmarks in {len(names)} image(s), excluded from ranking (their pairs count "
+            f"as not retrieved): {'; '.join(names[:10])}{' ...' if len(names) > 10 else ''}"
+        )
 
 
 def _check_shortlist(shortlist: Any, n_ref: int) -> int | None:
@@ -228,40 +217,32 @@ def _cached_matrix(
     return sim, float(match_s), float(n_pairs), False
 
 
-def _normalised(
-    sim: np.ndarray,
-    how: str,
-    folder,
-    name: str,
-    key: dict,
-    boxes: dict,
-    feats: dict,
-    plain: Matching,
-    k: int | None,
-    glob: dict | None,
-    executor: Executor | None,
-) -> np.ndarray:
-    """(Not in the paper.) ``sim`` normalised (docs/DEFINITIONS.md); ``database`` scores the
-    references against each other by the same matching and shortlist (cached like Eq. (1))."""
-    database = None
-    if how == "database":
-        ref = {"query": boxes["reference"], "reference": boxes["reference"]}
-        ref_feats = {"query": feats["reference"], "reference": feats["reference"]}
-        ref_glob = None if glob is None else {s: glob["reference"] for s in SIDES}
-        nr = len(feats["reference"])
-        kk = None if k is None or k >= nr else k
+def _database_matrix(
+    conf: Method, folder, key: dict, boxes: dict, feats: dict, k: int | None, glob, executor
+) -> np.ndarray | None:
+    """(Not in the paper.) The ``(Nr, Nr)`` references scored against each other by the same
+    matching and shortlist (cached like Eq. (1)), for a normalisation that needs the database;
+    None for any other."""
+    how = conf.matching.normalise
+    if how is None or not NORMALISATIONS[how].needs_database:
+        return None
+    ref = {s: boxes["reference"] for s in SIDES}
+    ref_feats = {s: feats["reference"] for s in SIDES}
+    ref_glob = None if glob is None else {s: glob["reference"] for s in SIDES}
+    nr = len(feats["reference"])
+    kk = None if k is None or k >= nr else k
+    plain = dataclasses.replace(conf.matching, normalise=None)
 
-        def compute() -> tuple[np.ndarray, float, float]:
-            db, info = _match(ref, ref_feats, plain, kk, ref_glob, executor)
-            return (
-                db,
-                (info["matching_s"] + info["shortlist_s"]) / max(info["pairs"], 1),
-                info["pairs"],
-            )
+    def compute() -> tuple[np.ndarray, float, float]:
+        db, info = _match(ref, ref_feats, plain, kk, ref_glob, executor)
+        return (
+            db,
+            (info["matching_s"] + info["shortlist_s"]) / max(info["pairs"], 1),
+            info["pairs"],
+        )
 
-        db_key = {**key, "database_self": True}
-        database = _cached_matrix(folder, f"{name}-database", db_key, (nr, nr), compute)[0]
-    return normalise_matrix(sim, how, database=database)
+    db_key = {**key, "database_self": True}
+    return _cached_matrix(folder, f"{conf.name}-database", db_key, (nr, nr), compute)[0]
 
 
 def _from_cache(wall: float, recorded: float) -> bool:
@@ -351,20 +332,24 @@ def run_method(
             closes it), or None: in-process, always. The numbers are the same either way.
         label: display label; default from the config.
         keep_descriptors: also return the descriptors (needed by the scale statistics).
-        **overrides: the encoder and evaluation fields above, and the method's own options,
-            e.g. ``iou_threshold=0.4``; an option the method does not take is an error.
+        **overrides: the encoder and evaluation fields above, and the method's own options:
+            its scheme's (e.g. ``iou_threshold=0.4``, ``scales=``, ``per_scale=``) and its
+            :class:`~vpr_core.Matching`'s, on every method: ``soft_nms_iou=`` (Algorithm 4),
+            and, not in the paper (off by default; docs/DEFINITIONS.md): ``spatial=
+            "consistency"``, ``weighting=`` a name of :data:`~vpr_core.WEIGHTINGS`
+            (``"contrast"``, ``"idf"``, ``"two_sided"``), ``normalise=`` a name of
+            :data:`~vpr_core.NORMALISATIONS` (``"query_batch"``: needs the batch of queries;
+            ``"database"``). An option the method does not take is an error naming the valid
+            ones.
 
     Returns:
         A :class:`MethodResult`; ``.warnings`` lists every warning of the run that changes what
         its numbers mean (each also raised as a :class:`~vpr_core.notices.VPRWarning`).
     """
     conf, spec, evaluation = _values(method, encoder, evaluation, overrides)
-    protocol = evaluation.protocol
-    gt = np.asarray(dataset.ground_truth, dtype=bool)
     nq, nr = n_images(dataset, "query"), n_images(dataset, "reference")
     k = _check_shortlist(shortlist, nr)
     landmark_encoder = get_encoder(spec)
-    fingerprint = dataset_fingerprint(dataset)
     images = images_fingerprint(dataset)  # the matrix cache's folder: not the ground truth
     weights_sha256 = str(landmark_encoder.config.get("weights_sha256", ""))
     edge_model = edge_model_id() if isinstance(conf.landmarks, CandidateScheme) else "none"
@@ -389,6 +374,8 @@ def run_method(
         "shortlist": k,
         "code": code_version("matching"),
     }
+    if plain.weighting is not None and (own := WEIGHTINGS[plain.weighting].identity()):
+        key["weighting code"] = own  # a weighting defined outside the package, by its code
     folder = cache_dir("results", f"{dataset.name}-{images}")
 
     def compute() -> tuple[np.ndarray, float, float]:
@@ -400,33 +387,7 @@ def run_method(
         )
 
     sim, match_s, n_pairs, cached = _cached_matrix(folder, conf.name, key, (nq, nr), compute)
-    if conf.matching.normalise is not None:
-        sim = _normalised(
-            sim,
-            conf.matching.normalise,
-            folder,
-            conf.name,
-            key,
-            boxes,
-            feats,
-            plain,
-            k,
-            glob,
-            executor,
-        )
-    sim = _exclude_empty(np.asarray(sim, dtype=np.float64), boxes, dataset)
-    sim = dataset.ignore_soft(sim)  # soft positives: neither right nor wrong, in every metric
-    constant_notice(sim)
-    metrics = evaluate(sim, gt, evaluation)
-    n_boot = evaluation.n_bootstrap
-    intervals = bootstrap_metrics(sim, gt, n=n_boot, protocol=protocol) if n_boot else {}
-    saturation_notice(
-        gt,
-        intervals,
-        evaluation,
-        soft=dataset.soft_only,
-        tolerance=getattr(dataset, "tolerance", None),
-    )
+    database = _database_matrix(conf, folder, key, boxes, feats, k, glob, executor)
     n_img = nq + nr
     timings = {
         "landmarks_s_per_image": float(sum(map(sum, boxes["seconds"].values())) / n_img),
@@ -443,10 +404,27 @@ def run_method(
         )
         if _from_cache(wall, timings[key] * n_img)
     ]
+    _empty_notice(boxes, dataset)
+    made = MethodResult(
+        method=conf.name,
+        label=label or method_label(conf),
+        config=conf,
+        encoder=dict(landmark_encoder.config),
+        similarity=sim,
+        boxes={s: boxes[s] for s in SIDES},
+        metrics={},
+        timings=timings,
+        descriptors={s: feats[s] for s in SIDES} if keep_descriptors else None,
+        shortlist=k,
+        weights_sha256=weights_sha256,
+        edge_model=edge_model,
+        **MethodResult.fields_of(dataset),
+    )
+    result = result_from_matrix(sim, made, evaluation, database=database)
     logger.info(
         "%s on %s: %d images, %.0f landmarks/img; landmarks %.2f s/img, features %.3f "
         "s/img%s, Eq. (1) on %d pairs%s; AUC(%s) %.3f, R@1 %.3f",
-        label or method_label(conf),
+        result.label,
         dataset.name,
         n_img,
         timings["landmarks_per_image"],
@@ -457,32 +435,8 @@ def run_method(
         else "",
         int(n_pairs),
         " (read from the cache)" if cached else "",
-        protocol,
-        metrics["auc"],
-        metrics["r@1"],
+        evaluation.protocol,
+        result.metrics["auc"],
+        result.metrics["r@1"],
     )
-    return MethodResult(
-        method=conf.name,
-        label=label or method_label(conf),
-        dataset=dataset.name,
-        config=conf,
-        encoder=dict(landmark_encoder.config),
-        similarity=sim,
-        ground_truth=gt,
-        soft_only=dataset.soft_only,
-        boxes={s: boxes[s] for s in SIDES},
-        metrics=metrics,
-        timings=timings,
-        descriptors={s: feats[s] for s in SIDES} if keep_descriptors else None,
-        intervals=intervals,
-        shortlist=k,
-        queries_with_gt=ground_truth_coverage(gt),
-        tolerance=dataset.tolerance,
-        root=None if dataset.root is None else str(dataset.root),
-        ground_truth_from_file=bool(dataset.meta.get("ground_truth_file")),
-        dataset_title=dataset.title,
-        protocol=protocol,
-        dataset_fingerprint=fingerprint,
-        weights_sha256=weights_sha256,
-        edge_model=edge_model,
-    )
+    return result

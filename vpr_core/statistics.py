@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .checks import check_boxes, check_descriptors_kept, check_image_size
+from .checks import check_boxes, check_descriptors_kept, check_image_size, check_per_match
 from .datasets.ground_truth import (
     ground_truth_references,
     ground_truth_text,
@@ -35,23 +35,15 @@ from .paper import N_SCALES, SCALE_RANGE_LABELS
 from .utils import progress
 
 __all__ = [
+    "cmr_difference",
     "MatchRecord",
     "ScaleStats",
-    "check_per_match",
     "label_matches",
     "scale_statistics",
     "scale_statistics_from_matches",
 ]
 
 logger = logging.getLogger("vpr_core")
-
-
-def check_per_match(values: np.ndarray, n_matches: int, name: str) -> np.ndarray:
-    """Return ``values`` (parsed, one per match, e.g. labels or scores) if it has one entry per
-    match of the ``n_matches``; else name both lengths."""
-    if len(values) != n_matches:
-        raise ValueError(f"{name} ({len(values)}) must have one entry per match ({n_matches})")
-    return values
 
 
 @dataclass
@@ -380,3 +372,36 @@ def scale_statistics(
         "queries_with_gt": [int(gt.any(axis=1).sum()), int(gt.shape[0])],
     }
     return scale_statistics_from_matches(records, meta=meta)
+
+
+def cmr_difference(
+    matches: pd.DataFrame, n: int = N_BOOTSTRAP, seed: int = 0
+) -> tuple[float, float, float]:
+    """``(difference, low, high)``: CMR(Scales 5-7) - CMR(Scales 1-3) of the labelled
+    ground-truth matches of a ``ScaleStats.matches_frame``, with its 95% interval bootstrapped
+    over query images (all matches of a drawn query count)."""
+    m = matches[(matches["pair"] == "gt") & matches["correct"].notna()]
+    groups = {"small": m["scale"].between(1, 3), "large": m["scale"].between(5, 7)}
+    if not all(g.any() for g in groups.values()):
+        raise ValueError("cmr_difference needs labelled ground-truth matches at Scales 1-3 and 5-7")
+    queries = np.unique(m["query"].to_numpy())
+    qi = np.searchsorted(queries, m["query"].to_numpy())
+    sums = {}
+    for name, mask in groups.items():
+        mask = mask.to_numpy()
+        sums[name] = (
+            np.bincount(qi[mask], weights=m["correct"].to_numpy()[mask], minlength=len(queries)),
+            np.bincount(qi[mask], minlength=len(queries)).astype(float),
+        )
+
+    def diff(w: np.ndarray) -> np.ndarray:
+        rates = {k: (w @ c) / np.maximum(w @ t, 1e-12) for k, (c, t) in sums.items()}
+        return rates["large"] - rates["small"]
+
+    point = float(diff(np.ones((1, len(queries))))[0])
+    rng = np.random.default_rng(seed)
+    draws = rng.integers(0, len(queries), size=(n, len(queries)))
+    w = np.zeros((n, len(queries)))
+    np.add.at(w, (np.repeat(np.arange(n), len(queries)), draws.ravel()), 1.0)
+    lo, hi = np.percentile(diff(w), [2.5, 97.5])
+    return point, float(lo), float(hi)

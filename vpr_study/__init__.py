@@ -1,6 +1,6 @@
 """vpr_study: the workbench beside the pipeline (:mod:`vpr_core`): plots and ``save``
-(:mod:`.viz`), the ``vpr-study`` CLI and the study runner, peers, the cost table, the per-query
-view, downloads and the Dask executor. Names here are imported on first use."""
+(:mod:`.viz`), the ``vpr-study`` CLI and the study runner, peers, downloads and the Dask
+executor. Names here are imported on first use."""
 
 from __future__ import annotations
 
@@ -10,9 +10,7 @@ from typing import TYPE_CHECKING, Any
 #: Each name of this face and the module that defines it (imported on first use, so that the
 #: CLI's ``--help`` loads no torch).
 _FACE = {
-    "cost_table": "cost",
-    "per_query": "insight",
-    "step_changes": "changes",
+    "check_parameters": "runner",
     "peer_result": "peers",
     "peer_from_matrix": "peers",
     "peer_from_descriptors": "peers",
@@ -24,15 +22,13 @@ _FACE = {
 
 __all__ = [
     "DaskExecutor",
-    "cost_table",
+    "check_parameters",
     "download_dataset",
     "find_vprbench_peers",
     "load_vprbench_precomputed",
     "peer_from_descriptors",
     "peer_from_matrix",
     "peer_result",
-    "per_query",
-    "step_changes",
 ]
 
 
@@ -49,11 +45,8 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:
-    from .changes import step_changes
     from .cluster import DaskExecutor
-    from .cost import cost_table
     from .download import download_dataset
-    from .insight import per_query
     from .peers import (
         find_vprbench_peers,
         load_vprbench_precomputed,
@@ -61,3 +54,4 @@ if TYPE_CHECKING:
         peer_from_matrix,
         peer_result,
     )
+    from .runner import check_parameters

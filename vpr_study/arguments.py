@@ -9,12 +9,21 @@ from collections.abc import Callable
 
 import torch
 
-from vpr_core import available_methods, paper, paths, settings
-from vpr_core.backbones import available_backbones, parse_backbone, weights_sha256
-from vpr_core.datasets import DATASETS
-from vpr_core.evaluation import PROTOCOLS
-from vpr_core.matching import NORMALISE_OPTIONS, SPATIAL_OPTIONS, WEIGHTING_OPTIONS
+from vpr_core import (
+    DATASETS,
+    NORMALISATIONS,
+    PROTOCOLS,
+    SPATIAL_OPTIONS,
+    WEIGHTINGS,
+    Encoder,
+    available_backbones,
+    available_methods,
+    paper,
+    settings,
+)
 from vpr_study.usage import COMMANDS, DESCRIPTION
+
+from . import outputs
 
 __all__ = [
     "EVAL_EPILOG",
@@ -154,7 +163,7 @@ def backbone_help() -> str:
     names = []
     for name in available_backbones():
         try:
-            found = weights_sha256(name)
+            found = Encoder(name).identity()  # hashes its weights file: absent, an error
         except (FileNotFoundError, OSError):
             found = "missing"
         names.append(
@@ -342,7 +351,7 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
     e.add_argument(
         "--weighting",
         default="none",
-        choices=("none", *WEIGHTING_OPTIONS, "both"),
+        choices=("none", *WEIGHTINGS, "both"),
         help="(not in the paper) weight every method's match terms by how much better the "
         "query landmark matches this reference than the others (docs/DEFINITIONS.md); 'both': "
         "every method without and with each weighting, and the paired differences; default "
@@ -351,7 +360,7 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
     e.add_argument(
         "--normalise",
         default="none",
-        choices=("none", *NORMALISE_OPTIONS, "both"),
+        choices=("none", *NORMALISATIONS, "both"),
         help="(not in the paper) normalise every method's similarity matrix after Eq. (1) "
         "(docs/DEFINITIONS.md): query_batch z-scores over references and over the batch of "
         "queries (needs the query batch; also applied to peers), database subtracts each "
@@ -519,7 +528,7 @@ def check_names(parser: argparse.ArgumentParser, args: argparse.Namespace) -> No
             parser.error(str(exc))
     if getattr(args, "label", None) is not None:
         try:
-            paths.check_label(args.label)
+            outputs.check_label(args.label)
         except ValueError as exc:
             parser.error(f"--{exc}")
     if args.command in ("eval", "run"):
@@ -530,6 +539,6 @@ def check_names(parser: argparse.ArgumentParser, args: argparse.Namespace) -> No
     if getattr(args, "backbone", None) is None:
         return
     try:
-        parse_backbone(args.backbone)
+        Encoder(args.backbone)  # the backbone spec parsed (the weights are looked up later)
     except (TypeError, ValueError) as exc:
         parser.error(str(exc))

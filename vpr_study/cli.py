@@ -22,16 +22,22 @@ from pathlib import Path
 
 import pandas as pd
 
-from vpr_core import VPRWarning, normalise_result, paths, run_method, settings, utils
-from vpr_core.datasets import ground_truth_text, load_dataset
-from vpr_core.evaluation import (
-    check_bootstrap_memory,
+from vpr_core import (
+    NORMALISATIONS,
+    SPATIAL_OPTIONS,
+    WEIGHTINGS,
+    VPRWarning,
+    checks,
     compact,
     compare,
     compare_pairs,
-    ground_truth_coverage,
+    load_dataset,
+    normalise_result,
+    paths,
+    run_method,
+    settings,
+    utils,
 )
-from vpr_core.matching import NORMALISE_OPTIONS, SPATIAL_OPTIONS, WEIGHTING_OPTIONS
 from vpr_study.arguments import check_names, command_parser, dataset_options, given_once, parser
 from vpr_study.cluster import DaskExecutor
 from vpr_study.findings import findings_document, result_labels
@@ -44,6 +50,8 @@ from vpr_study.peers import (
 from vpr_study.runner import run_study, study_datasets
 from vpr_study.viz import plot_pr_curves
 from vpr_study.viz.base import save_all
+
+from . import outputs
 
 __all__ = [
     "HEADLINE",
@@ -383,23 +391,21 @@ def eval_stem(args: argparse.Namespace, label: str) -> str:
 
 
 def default_label(name: str) -> str:
-    """A dataset's name as an output label (:func:`vpr_core.paths.check_label`): each other
+    """A dataset's name as an output label (:func:`vpr_study.outputs.check_label`): each other
     character becomes ``_`` (a folder dataset is named by its folder, e.g. ``my photos``)."""
     label = "".join(c if c.isalpha() or c.isdecimal() or c in "_-.+" else "_" for c in name)
-    return label.lstrip(".")[: paths.MAX_LABEL_BYTES // 4] or "dataset"
+    return label.lstrip(".")[: outputs.MAX_LABEL_BYTES // 4] or "dataset"
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
-    check_bootstrap_memory(args.n_bootstrap, "--n-bootstrap")
+    checks.check_bootstrap_memory(args.n_bootstrap, "--n-bootstrap")
     utils.tune_allocator()  # process-wide, here at the boundary: crop features ~1.7x faster
     lines = StageLines()
     with lines.stage(f"loading {args.dataset}"):
         dataset = load_dataset(args.dataset, root=args.root, **dataset_options(args))
-    label = paths.check_label(args.label or default_label(dataset.name))
-    n_gt, n_q = ground_truth_coverage(dataset.ground_truth)
-    truth = ground_truth_text(
-        dataset.ground_truth, dataset.tolerance, bool(dataset.meta.get("ground_truth_file"))
-    )
+    label = outputs.check_label(args.label or default_label(dataset.name))
+    n_gt, n_q = dataset.queries_with_gt
+    truth = dataset.truth_text
     loader = "" if dataset.name == args.dataset else f" (loader {args.dataset})"
     width = output_width()
     say(
@@ -411,9 +417,9 @@ def cmd_eval(args: argparse.Namespace) -> int:
     mode = "exhaustive" if args.shortlist is None else f"shortlist k={args.shortlist}"
     scheduler = args.scheduler or settings.dask_scheduler()
     spatial = [None, *SPATIAL_OPTIONS] if args.spatial == "both" else [args.spatial]
-    choices: dict[str, list[str | None]] = {"none": [None], "both": [None, *WEIGHTING_OPTIONS]}
+    choices: dict[str, list[str | None]] = {"none": [None], "both": [None, *WEIGHTINGS]}
     weighting = choices.get(args.weighting, [args.weighting])
-    norms: dict[str, list[str | None]] = {"none": [None], "both": [None, *NORMALISE_OPTIONS]}
+    norms: dict[str, list[str | None]] = {"none": [None], "both": [None, *NORMALISATIONS]}
     normalise = norms.get(args.normalise, [args.normalise])
     results, computed, wall, run_of = [], {}, {}, {}
     todo = list(itertools.product(args.method, spatial, weighting, normalise))
@@ -510,7 +516,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         pairs = [
             (run_of[m, s, None, z], run_of[m, s, w, z])
             for m, s, z in itertools.product(args.method, spatial, normalise)
-            for w in WEIGHTING_OPTIONS
+            for w in WEIGHTINGS
         ]
         weighted = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
         say("\n(not in the paper) database weighting, each method with minus without:", width)
@@ -520,7 +526,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         pairs = [
             (run_of[m, s, w, None], run_of[m, s, w, z])
             for m, s, w in itertools.product(args.method, spatial, weighting)
-            for z in NORMALISE_OPTIONS
+            for z in NORMALISATIONS
         ]
         normalised = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
         say(
@@ -532,7 +538,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         items.append((f"{stem}_normalise", normalised))
     with lines.stage("writing the figure and tables"):
         written = save_all(items, label, out=args.out)
-    root = paths.figures_root() if args.out is None else Path(args.out).expanduser().resolve()
+    root = outputs.figures_root() if args.out is None else Path(args.out).expanduser().resolve()
     say(f"wrote under {root}:", width)
     for folder in dict.fromkeys(p.parent for p in written):
         print(f"{folder.relative_to(root)}/")
@@ -563,7 +569,7 @@ def cmd_findings(args: argparse.Namespace) -> int:
     text = findings_document(labels)
     print(text)
     if args.write:
-        out = paths.results_dir() / "findings.md"
+        out = outputs.results_dir() / "findings.md"
         out.write_text(text + "\n")
         print(f"wrote {out}")
     return 0
@@ -627,8 +633,8 @@ def _writes_to(args: argparse.Namespace):
     ``--study`` (the study's ``figures/`` and ``results/``) or ``--out``; ``run`` and
     ``findings``: the study's folders."""
     if args.command == "eval" and not args.study:
-        return paths.using_output_root(None)  # paths.figures_root: user/ of the checkout
-    return paths.study_outputs()
+        return paths.using_output_root(None)  # outputs.figures_root: user/ of the checkout
+    return outputs.study_outputs()
 
 
 def main(argv: list[str] | None = None) -> int:

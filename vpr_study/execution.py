@@ -18,6 +18,8 @@ from vpr_core import paths, settings
 from vpr_study import memo
 from vpr_study.figures import expected_figures
 
+from . import outputs
+
 __all__ = ["BACKGROUND_NICE", "kernel_settings", "run_labels"]
 
 logger = logging.getLogger("vpr_core")
@@ -26,12 +28,12 @@ logger = logging.getLogger("vpr_core")
 def kernel_settings(shared: bool = False) -> dict[str, str]:
     """The ``env=`` settings of the notebook kernels: the absolute figures and cache roots (a
     kernel in ``notebooks/`` writes where the caller does: a label the study does not commit
-    under ``user/``, :func:`vpr_core.paths.figures_root`), inline figures even under
+    under ``user/``, :func:`vpr_study.outputs.figures_root`), inline figures even under
     ``MPLBACKEND=Agg``, and text progress bars the saved notebooks can show. ``shared``: kernels
     run side by side, so torch's OpenMP threads sleep when idle instead of spinning (two
     spinning kernels on 2 cores run crop features 1.8x slower; same bits either way)."""
     env = {
-        settings.OUTPUT_ENV: str(paths.figures_root()),
+        settings.OUTPUT_ENV: str(outputs.figures_root()),
         settings.CACHE_ENV: str(paths.cache_root()),
         "MPLBACKEND": "module://matplotlib_inline.backend_inline",
         settings.PROGRESS_ENV: "text",
@@ -155,26 +157,26 @@ def _run_label(
     finished: dict[str, tuple[float, float]] = {}
     try:
         prefix = f"[{label}] " if side_by_side else None
-        _execute(todo, paths.runs_dir(label), params, kernel, finished, prefix=prefix, nice=nice)
+        _execute(todo, outputs.runs_dir(label), params, kernel, finished, prefix=prefix, nice=nice)
     except BaseException:
         stopped = next((nb.stem for nb in todo if nb.stem not in finished), "?")
         print(
             f"\nstopped in {stopped} ({label}); finished: {', '.join(finished) or 'none'}. "
-            f"Figures so far in {paths.figures_dir(label)}, tables in "
-            f"{paths.results_dir(label)}; cached work is kept, rerun to resume."
+            f"Figures so far in {outputs.figures_dir(label)}, tables in "
+            f"{outputs.results_dir(label)}; cached work is kept, rerun to resume."
         )
         raise
     missing: list[str] = []
-    folders = [paths.figures_dir(label), paths.results_dir(label), paths.runs_dir(label)]
+    folders = [outputs.figures_dir(label), outputs.results_dir(label), outputs.runs_dir(label)]
     for nb in todo:
         started, ended = finished[nb.stem]
-        lost = _unwritten(paths.figures_dir(label), expected.get(nb.stem, []), started)
+        lost = _unwritten(outputs.figures_dir(label), expected.get(nb.stem, []), started)
         missing += lost
         if not lost:
-            outputs = [
+            written = [
                 p for p in memo.written_since(folders, started) if p.stat().st_mtime <= ended + 2.0
             ]
-            memo.record(label, nb.stem, keys[nb.stem], outputs, ended - started)
+            memo.record(label, nb.stem, keys[nb.stem], written, ended - started)
     return missing
 
 

@@ -12,14 +12,17 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from vpr_core import get_method, paper, paths, run_key
-from vpr_core.evaluation import (
-    IDENTICAL,
-    N_BOOTSTRAP,
-    VERDICTS,
-    difference_verdict,
-    needs_text,
+from vpr_core import (
+    ON_PAR_MARGIN,
+    VERDICT_WORDS,
+    claim_verdict,
+    cmr_difference,
+    get_method,
+    paper,
+    paths,
 )
+
+from . import outputs
 
 __all__ = [
     "CELL_WORDS",
@@ -30,9 +33,7 @@ __all__ = [
     "LEGEND",
     "MATCHES_TABLE",
     "OBSERVATION_1",
-    "ON_PAR_MARGIN",
     "Claim",
-    "cmr_difference",
     "findings_document",
     "findings_markdown",
     "findings_table",
@@ -68,7 +69,7 @@ class Claim:
     def keys(self) -> tuple[str, str]:
         """The run keys of method and baseline (the ``run`` column of the tables)."""
         (m_name, m_opts), (b_name, b_opts) = self.method, self.baseline
-        return run_key(get_method(m_name, **m_opts)), run_key(get_method(b_name, **b_opts))
+        return get_method(m_name, **m_opts).key, get_method(b_name, **b_opts).key
 
 
 def _dense(table: dict, name: str) -> tuple[str, dict]:
@@ -170,60 +171,8 @@ OBSERVATION_1 = (
 MATCHES_TABLE = "fig04_matches"
 
 
-#: The equivalence margin of a claim "on par" in AUC (docs/DEFINITIONS.md, "Verdicts"), fixed
-#: before looking at the results: the claim holds only when the whole 95% interval of the
-#: difference lies inside ``[-ON_PAR_MARGIN, +ON_PAR_MARGIN]``.
-ON_PAR_MARGIN = 0.05
-
 #: The leading words a findings cell's verdict can have (bold in the Markdown table).
-CELL_WORDS = (*VERDICTS, "on par", "not testable", "not computed", "not run")
-
-_PAPER = {">": "higher", "<": "lower", "~": "on par"}
-
-
-def _on_par_needs(delta: float, lo: float, hi: float, queries: float) -> str:
-    """``"on par needs ~N queries"``: the queries at which an interval of today's half-width,
-    shrinking as ``1 / sqrt(n)``, would fit inside the margin around ``delta``; empty when
-    ``|delta|`` is at or beyond the margin (more queries would then show a difference) or the
-    queries are unknown."""
-    room = ON_PAR_MARGIN - abs(delta)
-    if room <= 0 or not np.isfinite(queries) or queries <= 0:
-        return ""
-    return "on par " + needs_text(queries * ((hi - lo) / 2 / room) ** 2)
-
-
-def _verdict(
-    expect: str,
-    lo: float,
-    hi: float,
-    delta: float | None = None,
-    needs: float = np.nan,
-    queries: float = np.nan,
-) -> str:
-    """The cell's verdict: the observed word (:func:`difference_verdict`; ``on par`` for a claim
-    of parity whose interval lies inside the margin), then how it stands to the paper's claim:
-    ``(as the paper says)`` or ``(paper: <word>)``; an inconclusive one names the queries a
-    verdict would need where known."""
-    if not (np.isfinite(lo) and np.isfinite(hi)):
-        return "not run"
-    if delta == 0 and lo == 0 and hi == 0:
-        return IDENTICAL  # compare's words for the same case
-    word = difference_verdict(lo, hi, queries)
-    if word.startswith("too few"):
-        return word
-    # strictly inside: a table's bounds are rounded to 6 decimals, and one that rounds to the
-    # margin may lie beyond it (0.0500004 is stored as 0.050000)
-    if expect == "~" and lo > -ON_PAR_MARGIN and hi < ON_PAR_MARGIN:
-        word = "on par"
-    if word == "inconclusive":
-        notes = [] if np.isnan(needs) else [needs_text(needs)]
-        par = _on_par_needs(delta, lo, hi, queries) if expect == "~" and delta is not None else ""
-        notes = [par] if par else notes
-        return f"{word} ({'; '.join(notes)})" if notes else word
-    if expect in _PAPER:
-        paper = _PAPER[expect]
-        return f"{word} ({'as the paper says' if word == paper else f'paper: {paper}'})"
-    return word
+CELL_WORDS = (*VERDICT_WORDS, "not run")
 
 
 def _claim_cell(folder: Path, claim: Claim) -> tuple[str, str]:
@@ -249,7 +198,7 @@ def _claim_cell(folder: Path, claim: Claim) -> tuple[str, str]:
     if base.empty or rows.empty:
         return "-", "not run"
     d, lo, hi, p, needs, queries = _claim_numbers(csv, df, base, rows, m)
-    verdict = _verdict(claim.expect, lo, hi, d, needs, queries)
+    verdict = claim_verdict(claim.expect, lo, hi, d, needs, queries)
     return f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] p={p:.3f}", verdict
 
 
@@ -307,39 +256,6 @@ def read_table(csv: Path) -> pd.DataFrame:
     return df
 
 
-def cmr_difference(
-    matches: pd.DataFrame, n: int = N_BOOTSTRAP, seed: int = 0
-) -> tuple[float, float, float]:
-    """``(difference, low, high)``: CMR(Scales 5-7) - CMR(Scales 1-3) of the labelled
-    ground-truth matches of a ``ScaleStats.matches_frame``, with its 95% interval bootstrapped
-    over query images (all matches of a drawn query count)."""
-    m = matches[(matches["pair"] == "gt") & matches["correct"].notna()]
-    groups = {"small": m["scale"].between(1, 3), "large": m["scale"].between(5, 7)}
-    if not all(g.any() for g in groups.values()):
-        raise ValueError("cmr_difference needs labelled ground-truth matches at Scales 1-3 and 5-7")
-    queries = np.unique(m["query"].to_numpy())
-    qi = np.searchsorted(queries, m["query"].to_numpy())
-    sums = {}
-    for name, mask in groups.items():
-        mask = mask.to_numpy()
-        sums[name] = (
-            np.bincount(qi[mask], weights=m["correct"].to_numpy()[mask], minlength=len(queries)),
-            np.bincount(qi[mask], minlength=len(queries)).astype(float),
-        )
-
-    def diff(w: np.ndarray) -> np.ndarray:
-        rates = {k: (w @ c) / np.maximum(w @ t, 1e-12) for k, (c, t) in sums.items()}
-        return rates["large"] - rates["small"]
-
-    point = float(diff(np.ones((1, len(queries))))[0])
-    rng = np.random.default_rng(seed)
-    draws = rng.integers(0, len(queries), size=(n, len(queries)))
-    w = np.zeros((n, len(queries)))
-    np.add.at(w, (np.repeat(np.arange(n), len(queries)), draws.ravel()), 1.0)
-    lo, hi = np.percentile(diff(w), [2.5, 97.5])
-    return point, float(lo), float(hi)
-
-
 def _observation_1(folder: Path) -> tuple[str, str]:
     csv = folder / f"{MATCHES_TABLE}.csv"
     if not csv.is_file():
@@ -362,7 +278,7 @@ def _observation_1(folder: Path) -> tuple[str, str]:
             "save(stats.matches_frame(), ...) as notebook 02 does."
         )
     d, lo, hi = cmr_difference(table)
-    return f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}]", _verdict(">", lo, hi)
+    return f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}]", claim_verdict(">", lo, hi)
 
 
 def result_labels(first: Sequence[str] = (), out: str | Path | None = None) -> list[str]:
@@ -395,7 +311,7 @@ def findings_table(
     columns per result folder label under ``<output root>/results/`` (value and verdict)."""
     root = paths.output_root() if out is None else Path(out)
     for label in labels:
-        paths.check_label(label)  # a folder name on disk is a label too: no markup, no column
+        outputs.check_label(label)  # a folder name on disk is a label too: no markup, no column
         if not (root / "results" / label).is_dir():
             found = result_labels(out=root)
             raise ValueError(
@@ -461,7 +377,7 @@ def markdown_cell(text: object) -> str:
     return "<br>".join(out.replace("\r\n", "\n").replace("\r", "\n").split("\n"))
 
 
-def _bold_verdict(verdict: str) -> str:
+def _boldclaim_verdict(verdict: str) -> str:
     """``**higher** (paper: lower)``: the verdict's word bold, its note after it."""
     word = next((w for w in CELL_WORDS if verdict.startswith(w)), verdict)
     rest = verdict[len(word) :]
@@ -481,7 +397,7 @@ def findings_markdown(
     for claim, r in table.iterrows():
         cells = [
             (f"{markdown_cell(r[lab])} " if r[lab] != "-" else "")
-            + _bold_verdict(r[lab + " verdict"])
+            + _boldclaim_verdict(r[lab + " verdict"])
             for lab in labels
         ]
         lines.append(f"| {markdown_cell(claim)} | " + " | ".join(cells) + " |")

@@ -27,6 +27,8 @@ from vpr_study.nbclean import (
 )
 from vpr_study.nbclean import main as nbclean_main
 
+from . import outputs
+
 __all__ = [
     "RUN_METADATA",
     "STARTER_NAME",
@@ -46,7 +48,7 @@ __all__ = [
 logger = logging.getLogger(__name__)
 
 #: A user's own notebooks: the git-ignored ``user/notebooks/`` of the checkout.
-USER_NOTEBOOKS = PurePosixPath(paths.USER_AREA, "notebooks")
+USER_NOTEBOOKS = PurePosixPath(outputs.USER_AREA, "notebooks")
 
 #: The starter notebook ``init`` writes into :data:`USER_NOTEBOOKS` (``make lab`` opens it).
 STARTER_NAME = "00_start_here.ipynb"

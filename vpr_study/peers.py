@@ -4,7 +4,6 @@ read with ``allow_pickle=False``), checked against a dataset by :func:`peer_simi
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import os
 from dataclasses import dataclass, field
@@ -13,14 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from vpr_core import MethodResult, checks, constant_notice, dataset_fingerprint, settings
-from vpr_core.datasets import read_npy
-from vpr_core.evaluation import (
-    Evaluation,
-    ground_truth_coverage,
-    metrics_and_intervals,
-    refuse_tolerance,
-)
+from vpr_core import Evaluation, MethodResult, checks, read_npy, result_from_matrix, settings
 
 log = logging.getLogger("vpr_core")
 
@@ -377,14 +369,8 @@ def peer_result(
             fix).
         label: its name in tables and legends (default ``"<name> (VPR-Bench)"``).
     """
-    refuse_tolerance(overrides, "peer_result")
-    evaluation = dataclasses.replace(evaluation or Evaluation(), **overrides)
-    protocol = evaluation.protocol
-    gt = np.asarray(dataset.ground_truth, dtype=bool)
-
-    sim = dataset.ignore_soft(peer_similarity_for(dataset, peer))  # soft: neither right nor wrong
-    constant = constant_notice(sim)
-    nq, nr = gt.shape
+    evaluation = (evaluation or Evaluation()).with_options(overrides, "peer_result")
+    nq, nr = np.shape(dataset.ground_truth)
     timings = {
         "landmarks_s_per_image": float("nan"),
         "landmarks_per_image": float("nan"),
@@ -393,26 +379,16 @@ def peer_result(
         "pairs": float(nq * nr),
     }
     source = None if peer.source is None else str(peer.source)
-    metrics, intervals = metrics_and_intervals(sim, gt, evaluation)
-    return MethodResult(
+    sim = peer_similarity_for(dataset, peer)
+    made = MethodResult(
         method=f"peer:{peer.name}",
         label=label or f"{peer.name} (VPR-Bench)",
-        dataset=dataset.name,
         config={"name": f"peer:{peer.name}", "source": source},
         encoder={},
         similarity=sim,
-        ground_truth=gt,
-        soft_only=dataset.soft_only,
         boxes={"query": [], "reference": []},
-        metrics=metrics,
+        metrics={},
         timings=timings,
-        intervals=intervals,
-        queries_with_gt=ground_truth_coverage(gt),
-        tolerance=dataset.tolerance,
-        root=None if dataset.root is None else str(dataset.root),
-        ground_truth_from_file=bool(dataset.meta.get("ground_truth_file")),
-        dataset_title=dataset.title,
-        protocol=protocol,
-        dataset_fingerprint=dataset_fingerprint(dataset),
-        warnings=[constant] if constant else [],
+        **MethodResult.fields_of(dataset),
     )
+    return result_from_matrix(sim, made, evaluation)

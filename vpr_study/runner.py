@@ -11,12 +11,13 @@ from pathlib import Path
 
 import pandas as pd
 
-from vpr_core import checks, paths, settings
-from vpr_core.datasets import load_dataset
+from vpr_core import checks, load_dataset, settings
 from vpr_study.catalogue import LABEL_NOTEBOOKS
 from vpr_study.execution import run_labels
 from vpr_study.figures import FIGURES, NOTEBOOKS
 from vpr_study.findings import findings_document, result_labels
+
+from . import outputs
 
 __all__ = [
     "NORDLAND_STUDY",
@@ -195,7 +196,7 @@ def summary_table(label: str) -> pd.DataFrame:
     with an ``AUC`` column), one row per run, with the figure's notebook and stem."""
     notebook = {spec.stem: spec.notebook for spec in FIGURES}
     frames = []
-    for csv in sorted(paths.results_dir(label).glob("fig*.csv")):
+    for csv in sorted(outputs.results_dir(label).glob("fig*.csv")):
         df = pd.read_csv(csv)
         if "AUC" in df.columns and "run" in df.columns:
             df.insert(0, "figure", csv.stem)
@@ -225,7 +226,7 @@ def _write_findings(labels: Sequence[str]) -> None:
     """``results/findings.md``: the paper's claims against these labels' paired differences."""
     labels = result_labels(labels)  # this run's, then every other result folder
     text = findings_document(labels)
-    out = paths.results_dir() / "findings.md"
+    out = outputs.results_dir() / "findings.md"
     out.write_text(text + "\n")
     print(f"\nThe paper's claims (dAUC [95% CI], paired bootstrap), also in {out}:\n{text}")
 
@@ -270,7 +271,7 @@ def run_study(
         shortlist=shortlist,
     )
     if label is not None:
-        paths.check_label(label)
+        outputs.check_label(label)
     jobs = checks.check_int(jobs, "jobs (labels executed at once)", 1)
     if root is not None:
         root = str(Path(root).expanduser().resolve())
@@ -289,7 +290,7 @@ def run_study(
     )
     label = params["label"]
     # a label the study does not commit (--quick, --label mine) writes under user/
-    with paths.study_outputs(label in LABEL_NOTEBOOKS):
+    with outputs.study_outputs(label in LABEL_NOTEBOOKS):
         return _run_chains(
             label, params, notebooks, kernel, real_data, quick, backbone, force, jobs, t_start
         )
@@ -310,7 +311,7 @@ def _run_chains(
     """:func:`run_study` after its checks: every label's notebooks, findings, summary."""
     selected = notebook_paths(notebooks)
     extra = study_datasets() if real_data else {}
-    logger.info("figures and tables under %s", paths.figures_root())
+    logger.info("figures and tables under %s", outputs.figures_root())
     chains = [(label, selected, params)]
     real_selected = [nb for nb in selected if nb.stem in REAL_DATA_NOTEBOOKS]
     for name, spec in extra.items():
@@ -340,10 +341,10 @@ def _run_chains(
             _print_summary(t, sub, backbone)
     print(f"\nwrote, in {time.perf_counter() - t_start:.0f} s:")
     for sub in (label, *others):
-        figs = sorted(paths.figures_dir(sub).glob("*.png"))
-        tables = [t for t in paths.results_dir(sub).glob("*.csv") if ".timings" not in t.suffixes]
+        figs = sorted(outputs.figures_dir(sub).glob("*.png"))
+        tables = [t for t in outputs.results_dir(sub).glob("*.csv") if ".timings" not in t.suffixes]
         print(
-            f"  {len(figs)} figures in {paths.figures_dir(sub)}, {len(tables)} tables in "
-            f"{paths.results_dir(sub)}, executed notebooks in {paths.runs_dir(sub)}"
+            f"  {len(figs)} figures in {outputs.figures_dir(sub)}, {len(tables)} tables in "
+            f"{outputs.results_dir(sub)}, executed notebooks in {outputs.runs_dir(sub)}"
         )
     return table

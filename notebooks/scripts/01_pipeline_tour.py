@@ -31,12 +31,11 @@
 import numpy as np
 from matplotlib_inline.backend_inline import set_matplotlib_formats
 
-from vpr_core import configure_logging, paper, run_method, tune_allocator
-from vpr_core.datasets import ground_truth_references, load_dataset
-from vpr_core.features import LandmarkEncoder
-from vpr_core.landmarks import dense_sampling, edge_boxes, normalized_scale
-from vpr_core.matching import cosine_distance, image_similarity, reciprocal_matches, shape_penalty
-from vpr_study.runner import check_parameters
+from vpr_core import configure_logging, cosine_distance, dense_sampling, edge_boxes
+from vpr_core import ground_truth_references, image_similarity, LandmarkEncoder, load_dataset
+from vpr_core import normalized_scale, paper, reciprocal_matches, run_method, shape_penalty
+from vpr_core import tune_allocator
+from vpr_study import check_parameters
 from vpr_study.viz import (plot_dense_scales, plot_descriptor_matrices,
                           plot_examples, plot_labelled_matches, plot_landmark_panels, plot_pair,
                           plot_pair_terms, save)

@@ -32,9 +32,9 @@
 # %%
 from matplotlib_inline.backend_inline import set_matplotlib_formats
 
-from vpr_core import configure_logging, paper, run_method, scale_statistics, tune_allocator
-from vpr_core.datasets import load_dataset
-from vpr_study.runner import check_parameters
+from vpr_core import configure_logging, load_dataset, paper, run_method, scale_statistics
+from vpr_core import tune_allocator
+from vpr_study import check_parameters
 from vpr_study.viz import plot_asl, plot_cls, plot_cmr, plot_pair, plot_scale_statistics, save
 
 # Process-wide settings, made here where you see them (the library never changes them):

@@ -23,11 +23,9 @@
 # scales, Scheme 2 concentrates on one.
 
 # %%
-from vpr_core.datasets import load_dataset
-from vpr_core.evaluation import compare
-from vpr_core.landmarks import scale_distribution
-from vpr_core import configure_logging, run_method, tune_allocator
-from vpr_study.runner import check_parameters
+from vpr_core import compare, configure_logging, load_dataset, run_method, scale_distribution
+from vpr_core import tune_allocator
+from vpr_study import check_parameters
 from vpr_study.viz import dataset_line, plot_pr_curves, plot_scale_distribution, save
 
 # Process-wide settings, made here where you see them (the library never changes them):

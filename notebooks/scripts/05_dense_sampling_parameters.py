@@ -26,10 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from vpr_core import configure_logging, paper, run_method, tune_allocator
-from vpr_core.datasets import load_dataset
-from vpr_core.evaluation import compare
-from vpr_study.runner import check_parameters
+from vpr_core import compare, configure_logging, load_dataset, paper, run_method, tune_allocator
+from vpr_study import check_parameters
 from vpr_study.viz import plot_pr_curves, save
 
 # Process-wide settings, made here where you see them (the library never changes them):

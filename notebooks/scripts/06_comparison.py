@@ -27,13 +27,10 @@
 # %%
 from matplotlib_inline.backend_inline import set_matplotlib_formats
 
-from vpr_study import cost_table, find_vprbench_peers, peer_from_matrix, peer_result, per_query
-from vpr_core.datasets import load_dataset
-from vpr_core.evaluation import compare
-from vpr_core import configure_logging, run_method, tune_allocator
-from vpr_study.runner import check_parameters
+from vpr_core import compare, configure_logging, cost_table, load_dataset, per_query, run_method
+from vpr_core import tune_allocator
+from vpr_study import check_parameters, find_vprbench_peers, peer_from_matrix, peer_result
 from vpr_study.viz import plot_coverage_comparison, plot_disagreements, plot_pr_curves, save
-from vpr_study.viz import plot_weighted_matches
 
 # Process-wide settings, made here where you see them (the library never changes them):
 tune_allocator()  # glibc keeps freed memory for reuse: crop features ~1.7x faster, same bits
@@ -142,7 +139,7 @@ cost
 # those the landmark matches (docs/DEFINITIONS.md). Each figure shows a method with each
 # weighting; the table's paired differences against the paper's Eq. (1) say whether a weighting
 # is higher, lower or inconclusive on this dataset. Off by default: the study reproduces
-# the paper.
+# the paper. Which landmarks carried a score the weighting changed: notebook 07.
 
 # %%
 for m, stem in (("dense", "weighting_dense"), ("classical", "weighting_classical")):
@@ -151,13 +148,3 @@ for m, stem in (("dense", "weighting_dense"), ("classical", "weighting_classical
     fig = plot_pr_curves(trio, title=f"(not in the paper) {m} with and without a weighting")
     save(fig, stem, label), save(table, stem, label)
 table
-
-# %% [markdown]
-# Which landmarks carried the score where the weighting fixed a query: dense without and with
-# `contrast`, each match coloured by its weight (grey: 0, a landmark that matches other places
-# as well as this one). Shown here, not saved.
-
-# %%
-weighted = run_method("dense", ds, weighting="contrast", keep_descriptors=True, **run_options)
-fig, fixed = plot_weighted_matches(ds, dense, weighted, n=3)
-fixed

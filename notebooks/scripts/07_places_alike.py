@@ -51,11 +51,9 @@
 import pandas as pd
 from matplotlib_inline.backend_inline import set_matplotlib_formats
 
-from vpr_core.datasets import load_dataset
-from vpr_core.evaluation import compact, compare
-from vpr_core import configure_logging, run_method, tune_allocator
-from vpr_study import step_changes
-from vpr_study.runner import check_parameters
+from vpr_core import compact, compare, configure_logging, load_dataset, run_method, step_changes
+from vpr_core import tune_allocator
+from vpr_study import check_parameters
 from vpr_study.viz import plot_carried_landmarks, plot_pr_curves, save
 from vpr_study.viz import plot_paired_differences, plot_step_changes
 

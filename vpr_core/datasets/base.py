@@ -12,7 +12,13 @@ import numpy as np
 
 from ..checks import check_choice, check_int, check_shape
 from ..utils import file_fingerprint
-from .ground_truth import check_ground_truth, check_tolerance, frame_aligned
+from .ground_truth import (
+    check_ground_truth,
+    check_tolerance,
+    frame_aligned,
+    ground_truth_coverage,
+    ground_truth_text,
+)
 from .images import read_image
 
 __all__ = ["SIDES", "PlaceDataset"]
@@ -90,6 +96,18 @@ class PlaceDataset:
             "th" if step % 100 in (11, 12, 13) else {1: "st", 2: "nd", 3: "rd"}.get(step % 10, "th")
         )
         return f"{self.name}, every {step}{suffix} place"
+
+    @property
+    def truth_text(self) -> str:
+        """How its ground truth was made, as tables and titles print it (``"tolerance 2"``, or
+        the file's correct references per query)."""
+        from_file = bool(self.meta.get("ground_truth_file"))
+        return ground_truth_text(self.ground_truth, self.tolerance, from_file)
+
+    @property
+    def queries_with_gt(self) -> tuple[int, int]:
+        """``(queries with at least one correct reference, all queries)``."""
+        return ground_truth_coverage(self.ground_truth)
 
     # -- access ---------------------------------------------------------------------------------
 

@@ -1,13 +1,18 @@
 """Evaluation of a query x reference similarity matrix: curves and metrics (``curves``),
 their chance level (``chance``), bootstrap intervals and paired differences (``bootstrap``),
-the comparison table (``compare``)."""
+the comparison table (``compare``), the per-query view (``queries``) and what a step changed
+(``steps``)."""
 
 from __future__ import annotations
 
 from .bootstrap import (
+    IDENTICAL,
     N_BOOTSTRAP,
+    ON_PAR_MARGIN,
+    VERDICT_WORDS,
     VERDICTS,
     bootstrap_metrics,
+    claim_verdict,
     difference_verdict,
     format_interval,
     metrics_and_intervals,
@@ -16,8 +21,6 @@ from .bootstrap import (
 )
 from .chance import chance, chance_precision
 from .compare import (
-    IDENTICAL,
-    check_results,
     check_same_dataset,
     compact,
     compare,
@@ -35,23 +38,27 @@ from .curves import (
     recall_at_k,
     recall_rate_at_n,
 )
+from .queries import per_query
 from .ranks import best_two, query_scores, ranked, true_rank
-from .spec import Evaluation, check_bootstrap_memory, refuse_tolerance
+from .spec import Evaluation, refuse_tolerance
+from .steps import carried_landmarks, step_changes
 
 __all__ = [
     "IDENTICAL",
     "N_BOOTSTRAP",
+    "ON_PAR_MARGIN",
     "PROTOCOLS",
     "VERDICTS",
+    "VERDICT_WORDS",
     "Evaluation",
     "PRCurve",
     "auc_pr",
     "best_two",
     "bootstrap_metrics",
     "chance",
+    "claim_verdict",
     "chance_precision",
-    "check_bootstrap_memory",
-    "check_results",
+    "carried_landmarks",
     "check_same_dataset",
     "compact",
     "compare",
@@ -64,6 +71,7 @@ __all__ = [
     "identical_to",
     "needs_text",
     "paired_bootstrap",
+    "per_query",
     "pr_curve",
     "query_scores",
     "ranked",
@@ -71,5 +79,6 @@ __all__ = [
     "recall_at_k",
     "recall_rate_at_n",
     "refuse_tolerance",
+    "step_changes",
     "true_rank",
 ]

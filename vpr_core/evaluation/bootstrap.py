@@ -17,11 +17,15 @@ from .spec import BOOTSTRAP_PROTOCOLS, N_BOOTSTRAP, Evaluation
 
 __all__ = [
     "BOOTSTRAP_PROTOCOLS",
+    "IDENTICAL",
     "N_BOOTSTRAP",
+    "ON_PAR_MARGIN",
+    "VERDICT_WORDS",
     "Difference",
     "MIN_QUERIES",
     "bootstrap_columns",
     "bootstrap_metrics",
+    "claim_verdict",
     "difference_verdict",
     "format_interval",
     "metrics_and_intervals",
@@ -29,6 +33,11 @@ __all__ = [
     "paired_bootstrap",
     "VERDICTS",
 ]
+
+#: The verdict of a run against a baseline it is identical to (the same similarity matrix, or
+#: the same curve and metrics): no number of queries could tell them apart. ``compare`` and
+#: the findings table say it in these words.
+IDENTICAL = "not testable (identical results)"
 
 #: ``queries_needed`` beyond this: "not decidable on any realistic set" (:func:`needs_text`).
 REALISTIC_QUERIES = 100_000
@@ -366,3 +375,67 @@ def bootstrap_columns(result: Mapping[str, Sequence[float]], prefix: str = "") -
         if isinstance(vals, Difference):
             cols[f"{name} se"], cols[f"{name} needed"] = vals.se, vals.queries_needed
     return cols
+
+
+#: The equivalence margin of a claim "on par" in AUC (docs/DEFINITIONS.md, "Verdicts"), fixed
+#: before looking at the results: the claim holds only when the whole 95% interval of the
+#: difference lies inside ``[-ON_PAR_MARGIN, +ON_PAR_MARGIN]``.
+ON_PAR_MARGIN = 0.05
+
+#: The leading words of every verdict :func:`claim_verdict` gives.
+VERDICT_WORDS = (*VERDICTS, "on par", "not testable", "not computed")
+
+_PAPER = {">": "higher", "<": "lower", "~": "on par"}
+
+
+def _on_par_needs(delta: float, lo: float, hi: float, queries: float) -> str:
+    """``"on par needs ~N queries"``: the queries at which an interval of today's half-width,
+    shrinking as ``1 / sqrt(n)``, would fit inside the margin around ``delta``; empty when
+    ``|delta|`` is at or beyond the margin (more queries would then show a difference) or the
+    queries are unknown."""
+    room = ON_PAR_MARGIN - abs(delta)
+    if room <= 0 or not np.isfinite(queries) or queries <= 0:
+        return ""
+    return "on par " + needs_text(queries * ((hi - lo) / 2 / room) ** 2)
+
+
+def claim_verdict(
+    expect: str,
+    lo: float,
+    hi: float,
+    delta: float | None = None,
+    needs: float = np.nan,
+    queries: float = np.nan,
+) -> str:
+    """The verdict on a claim about a difference ``a - b`` (docs/DEFINITIONS.md, "Verdicts"):
+    the observed word (:func:`difference_verdict`; ``on par`` for a claim of parity whose
+    interval lies inside :data:`ON_PAR_MARGIN`; :data:`IDENTICAL` for identical results), then
+    how it stands to the claim: ``(as the paper says)`` or ``(paper: <word>)``; an inconclusive
+    one names the queries a verdict would need where known.
+
+    Args:
+        expect: the claim: ``">"`` (higher), ``"<"`` (lower), ``"~"`` (on par), else none.
+        lo, hi: the difference's 95% interval; delta: the difference.
+        needs: the queries an inconclusive verdict would need (NaN: unknown).
+        queries: the queries with ground truth (fewer than 6: too few).
+    """
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return "not run"
+    if delta == 0 and lo == 0 and hi == 0:
+        return IDENTICAL  # compare's words for the same case
+    word = difference_verdict(lo, hi, queries)
+    if word.startswith("too few"):
+        return word
+    # strictly inside: a table's bounds are rounded to 6 decimals, and one that rounds to the
+    # margin may lie beyond it (0.0500004 is stored as 0.050000)
+    if expect == "~" and lo > -ON_PAR_MARGIN and hi < ON_PAR_MARGIN:
+        word = "on par"
+    if word == "inconclusive":
+        notes = [] if np.isnan(needs) else [needs_text(needs)]
+        par = _on_par_needs(delta, lo, hi, queries) if expect == "~" and delta is not None else ""
+        notes = [par] if par else notes
+        return f"{word} ({'; '.join(notes)})" if notes else word
+    if expect in _PAPER:
+        paper = _PAPER[expect]
+        return f"{word} ({'as the paper says' if word == paper else f'paper: {paper}'})"
+    return word

@@ -12,9 +12,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..checks import check_int
+from ..checks import check_bootstrap_memory, check_int, check_results, is_result
 from ..matching.normalise import needs_query_batch
 from .bootstrap import (
+    IDENTICAL,
     N_BOOTSTRAP,
     bootstrap_columns,
     difference_verdict,
@@ -22,14 +23,12 @@ from .bootstrap import (
     paired_bootstrap,
 )
 from .chance import chance, saturation_notice
-from .spec import check_bootstrap_memory
 
 __all__ = [
     "DIFFERENCES",
     "IDENTICAL",
     "METRICS",
     "ComparisonTable",
-    "check_results",
     "check_same_dataset",
     "compact",
     "compact_text",
@@ -67,12 +66,6 @@ def _same_result(a: Any, b: Any) -> bool:
     return _same(np.asarray(ca.recall), np.asarray(cb.recall)) and _same(
         np.asarray(ca.precision), np.asarray(cb.precision)
     )
-
-
-#: The verdict of a run against a baseline it is identical to (the same similarity matrix, or
-#: the same curve and metrics): no number of queries could tell them apart. ``compare`` and
-#: the findings table say it in these words.
-IDENTICAL = "not testable (identical results)"
 
 
 def identical_to(results: Sequence[Any]) -> list[str | None]:
@@ -157,44 +150,6 @@ def normalise_of(r: Any) -> str | None:
     return getattr(getattr(cfg, "matching", None), "normalise", None)
 
 
-def _is_result(obj: Any) -> bool:
-    return all(hasattr(obj, a) for a in ("label", "similarity", "ground_truth"))
-
-
-def check_results(results: Any, caller: str, unique_labels: bool = False) -> list:
-    """``results`` as a non-empty list of results (what ``run_method`` and ``peer_result``
-    return: ``.label``, ``.similarity``, ``.ground_truth``), refused naming the fix when it is one
-    result, not a sequence, empty, or holds something else; ``unique_labels``: refuse a label
-    given twice. ``caller``: the function the message names, e.g. ``"compare"``."""
-    if _is_result(results):
-        raise TypeError(
-            f"{caller}(): results is one result ({getattr(results, 'label', '?')!r}), not a list "
-            f"of them: pass {caller}([result]) for one, or {caller}([a, b, ...]) for several"
-        )
-    if isinstance(results, (str, bytes, dict)) or not hasattr(results, "__iter__"):
-        raise TypeError(
-            f"{caller}(): results must be a list of results (run_method or peer_result), "
-            f"got {type(results).__name__}"
-        )
-    out = list(results)
-    if not out:
-        raise ValueError(f"{caller}() needs at least one result (run_method or peer_result)")
-    bad = [i for i, r in enumerate(out) if not _is_result(r)]
-    if bad:
-        raise TypeError(
-            f"{caller}(): results[{bad[0]}] is a {type(out[bad[0]]).__name__}, not a result: "
-            "pass what run_method or peer_result return"
-        )
-    labels = [r.label for r in out]
-    dup = sorted({x for x in labels if labels.count(x) > 1})
-    if unique_labels and dup:
-        raise ValueError(
-            f"{caller}(): labels must be unique, repeated: {dup}; pass label=... to "
-            "run_method to tell the runs apart"
-        )
-    return out
-
-
 def compare(
     results: Sequence[Any],
     baseline: str | int | None = None,
@@ -233,7 +188,7 @@ def compare(
             or ground truths differ; both are named).
     """
     check_bootstrap_memory(check_int(n_bootstrap, "n_bootstrap (resamples; 0: no intervals)"))
-    if _is_result(baseline):
+    if is_result(baseline):
         raise TypeError(
             "compare(): the second argument is the baseline, and a result was given: pass the "
             "results as one list, compare([a, b, ...]), and baseline=<label> if not the first"

@@ -5,18 +5,15 @@ ground truth (and its tolerance) is the dataset's, set when loading it."""
 from __future__ import annotations
 
 import dataclasses
-import os
 
-from ..checks import check_choice, check_int
+from ..checks import check_bootstrap_memory, check_choice, check_int
 
 __all__ = [
-    "BOOTSTRAP_BYTES_PER_RESAMPLE",
     "BOOTSTRAP_PROTOCOLS",
     "N_BOOTSTRAP",
     "PROTOCOLS",
     "Evaluation",
     "as_evaluation",
-    "check_bootstrap_memory",
     "refuse_tolerance",
 ]
 
@@ -26,26 +23,6 @@ PROTOCOLS = ("ratio", "best_match", "vpr_bench", "multi_match")
 BOOTSTRAP_PROTOCOLS = ("ratio", "best_match", "vpr_bench")
 #: Bootstrap resamples of every interval and paired difference (the one home of this count).
 N_BOOTSTRAP = 1000
-
-#: Bytes the bootstrap keeps per resample: 4 metrics (float64) as values, their concatenation
-#: and the percentile's copy (:mod:`~vpr_core.evaluation.bootstrap`; queries go in chunks).
-BOOTSTRAP_BYTES_PER_RESAMPLE = 4 * 8 * 3
-
-
-def check_bootstrap_memory(n: int, name: str = "n_bootstrap") -> None:
-    """Refuse ``n`` resamples whose metrics would not fit in half the available memory
-    (estimated before any work; numpy failed after minutes). ``name``: the option in the
-    message (the CLI's ``--n-bootstrap``)."""
-    need = n * BOOTSTRAP_BYTES_PER_RESAMPLE
-    avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    if need > avail / 2:
-        most = int(avail / 2 / BOOTSTRAP_BYTES_PER_RESAMPLE)
-        raise ValueError(
-            f"{name} {n}: the resampled metrics need about {need / 1e9:.1f} GB of memory "
-            f"({BOOTSTRAP_BYTES_PER_RESAMPLE} bytes per resample), more than half of the "
-            f"{avail / 1e9:.1f} GB available; use at most {most:,} (1000, the default, gives "
-            "95% intervals to about +-0.01)"
-        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,6 +44,12 @@ class Evaluation:
         check_bootstrap_memory(n)
         if n:
             self.require_per_query("pass n_bootstrap=0, or ")
+
+    def with_options(self, options: dict, where: str) -> Evaluation:
+        """This evaluation with its fields given as keywords to ``where`` (a function's name)
+        changed; a ``tolerance`` among them is refused naming the fix (it is the dataset's)."""
+        refuse_tolerance(options, where)
+        return dataclasses.replace(self, **options) if options else self
 
     def require_per_query(self, fix: str) -> None:
         """Refuse a protocol without per-query decisions (``multi_match``) where the bootstrap

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 import logging
 import math
 from typing import Any, cast
@@ -14,8 +15,16 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..backbones import Parsed, build_backbone, canonical_backbone, feature_shape, parse_backbone
-from ..backbones.module import ModuleBackbone
+from ..backbones import (
+    Parsed,
+    build_backbone,
+    canonical_backbone,
+    feature_shape,
+    parse_backbone,
+    weights_sha256,
+)
+from ..backbones.checkpoint import state_dict_sha256
+from ..backbones.module import ModuleBackbone, architecture_sha256
 from ..checks import (
     check_boxes,
     check_choice,
@@ -127,6 +136,22 @@ class Encoder:
         value is made); the backbone functions take it as is. Not for a module backbone."""
         assert isinstance(self.backbone, str), "a module backbone has no spec"
         return parse_backbone(self.backbone)
+
+    def identity(self) -> str:
+        """Its identity as JSON: its fields, a module backbone named by its class, state and
+        architecture (the module itself travels beside it), named weights by the sha256 of their
+        file's bytes (what an executor's workers build the same encoder from)."""
+        fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        if isinstance(self.backbone, nn.Module):
+            cls = type(self.backbone)
+            fields["backbone"] = (
+                f"module {cls.__module__}.{cls.__qualname__} "
+                f"{state_dict_sha256(self.backbone.state_dict())} "
+                f"{architecture_sha256(self.backbone)}"
+            )
+        else:
+            fields["weights_sha256"] = weights_sha256(self.parsed_backbone, self.weights)
+        return json.dumps(fields, sort_keys=True, default=str)
 
 
 def as_encoder(encoder: Encoder | str | nn.Module | None = None, **options: Any) -> Encoder:

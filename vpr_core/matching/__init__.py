@@ -2,14 +2,20 @@
 pair in :mod:`.pairwise` (the float64 reference that reads like the paper) and for blocks of pairs
 in the torch engine (:mod:`.core`, the same numbers); the public functions are in
 :mod:`.similarity`. The engine's inputs are parsed in the package-private :mod:`._sides`; the
-shortlist is :mod:`.shortlist`, the database weighting :mod:`.weighting` and the matrix
-normalisation :mod:`.normalise` (not in the paper)."""
+shortlist is :mod:`.shortlist`; the rooms of the steps not in the paper: :mod:`.weighting`
+(:data:`WEIGHTINGS`) and :mod:`.normalise` (:data:`NORMALISATIONS`)."""
 
 from __future__ import annotations
 
 from ._sides import landmark_lists
 from .core import Problem
-from .normalise import needs_query_batch, normalise_matrix, zscore
+from .normalise import (
+    NORMALISATIONS,
+    Normalisation,
+    needs_query_batch,
+    normalise_matrix,
+    zscore,
+)
 from .pairwise import cosine_similarity
 from .shortlist import rerank, shortlist_pairs, split_whole_image, with_whole_image_boxes
 from .similarity import (
@@ -23,10 +29,12 @@ from .similarity import (
     similarity_pairs,
     weighted_matches,
 )
-from .spec import NORMALISE_OPTIONS, SPATIAL_OPTIONS, WEIGHTING_OPTIONS, Compute, Matching
+from .spec import SPATIAL_OPTIONS, Compute, Matching
 from .weighting import (
     CONTRAST_SAMPLE,
     WEIGHTING_SAMPLE,
+    WEIGHTINGS,
+    Weighting,
     clear_reference_cache,
     reference_stats,
     sample_matches,
@@ -35,12 +43,14 @@ from .weighting import (
 
 __all__ = [
     "CONTRAST_SAMPLE",
-    "NORMALISE_OPTIONS",
+    "NORMALISATIONS",
     "SPATIAL_OPTIONS",
-    "WEIGHTING_OPTIONS",
+    "WEIGHTINGS",
     "WEIGHTING_SAMPLE",
     "Compute",
     "Matching",
+    "Normalisation",
+    "Weighting",
     "Problem",
     "check_pairs",
     "cosine_distance",

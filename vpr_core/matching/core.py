@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import torch
@@ -25,7 +25,9 @@ from ._sides import (
     selection_size,
 )
 from .reciprocal import TIE_TOL, reciprocal
-from .spec import Compute, Matching
+
+if TYPE_CHECKING:
+    from .spec import Compute, Matching
 
 __all__ = [
     "BLOCK_BYTES",

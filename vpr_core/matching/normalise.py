@@ -1,18 +1,21 @@
-"""(Not in the paper.) Normalisation of a whole similarity matrix after Eq. (1), ``normalise=``:
-``query_batch`` (needs the batch of queries) and ``database`` (CSLS-like, a single live query);
-definitions in docs/DEFINITIONS.md, "(not in the paper) normalisation of a similarity matrix"."""
+"""(Not in the paper.) The room of the normalisations of a whole similarity matrix after Eq. (1),
+``normalise=``: :data:`NORMALISATIONS` (``query_batch``: needs the batch of queries;
+``database``: CSLS-like, a single live query; docs/DEFINITIONS.md) and :func:`normalise_matrix`."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
 
-from ..checks import check_int, check_shape
-from .spec import NORMALISE_OPTIONS, Matching
+from ..checks import check_choice, check_int, check_shape
 
 __all__ = [
-    "NEEDS_QUERY_BATCH",
+    "NORMALISATIONS",
     "NORMALISE_K",
     "NORMALISE_SIGMA_MIN",
+    "Normalisation",
     "database_normalise",
     "database_offsets",
     "needs_query_batch",
@@ -27,13 +30,6 @@ __all__ = [
 NORMALISE_K = 10
 #: (Not in the paper.) A standard deviation at or below this makes its z-score term 0.
 NORMALISE_SIGMA_MIN = 1e-12
-#: The normalisations that need the batch of queries (every table that shows one says so).
-NEEDS_QUERY_BATCH = ("query_batch",)
-
-
-def needs_query_batch(normalise: str | None) -> bool:
-    """True when the normalisation ``normalise`` uses the other queries of the batch."""
-    return normalise in NEEDS_QUERY_BATCH
 
 
 def zscore(s: np.ndarray, axis: int) -> np.ndarray:
@@ -93,45 +89,82 @@ def database_normalise(
     return s - rho[None, :]
 
 
+@dataclass(frozen=True)
+class Normalisation:
+    """(Not in the paper.) One normalisation of a whole matrix: an entry of
+    :data:`NORMALISATIONS`, whose key is its ``normalise=`` name.
+
+    Attributes:
+        function: ``function(similarity, database)``: ``(Nq, Nr)`` float64 (NaN: not ranked) ->
+            ``(Nq, Nr)``; ``database`` is the ``(Nr, Nr)`` references against each other when
+            ``needs_database``, else None.
+        needs_query_batch: its rows change when the other queries change (every table that
+            shows it says so).
+        needs_database: it reads the references scored against each other by the same method.
+    """
+
+    function: Callable[[np.ndarray, np.ndarray | None], np.ndarray]
+    needs_query_batch: bool = False
+    needs_database: bool = False
+
+
+def _query_batch(similarity: np.ndarray, database: np.ndarray | None) -> np.ndarray:
+    return np.exp(query_batch_normalise(similarity))
+
+
+def _database(similarity: np.ndarray, database: np.ndarray | None) -> np.ndarray:
+    assert database is not None
+    return np.exp(database_normalise(similarity, database))
+
+
+#: (Not in the paper.) The normalisations by ``normalise=`` name (docs/DEFINITIONS.md). A new
+#: normalisation is one function and one entry here.
+NORMALISATIONS: dict[str, Normalisation] = {
+    "query_batch": Normalisation(_query_batch, needs_query_batch=True),
+    "database": Normalisation(_database, needs_database=True),
+}
+
+
+def needs_query_batch(normalise: str | None) -> bool:
+    """True when the normalisation ``normalise`` uses the other queries of the batch."""
+    return normalise is not None and NORMALISATIONS[normalise].needs_query_batch
+
+
 def normalise_matrix(
-    similarity: np.ndarray,
-    how: str | None,
-    database: np.ndarray | None = None,
-    k: int = NORMALISE_K,
+    similarity: np.ndarray, how: str | None, database: np.ndarray | None = None
 ) -> np.ndarray:
-    """A similarity matrix normalised (docs/DEFINITIONS.md): ``exp`` of
-    :func:`query_batch_normalise` or :func:`database_normalise`; ``how=None``: unchanged.
+    """A similarity matrix normalised by the :data:`NORMALISATIONS` entry ``how`` (None:
+    unchanged); the one place a whole-matrix step runs.
 
     Args:
         similarity: ``(Nq, Nr)`` any method's or a peer's similarities (NaN: not ranked).
-        how: None or one of :data:`~.spec.NORMALISE_OPTIONS`; ``"query_batch"`` needs the batch
-            of queries (its rows change when the other queries change).
+        how: None or a name of :data:`NORMALISATIONS`; ``"query_batch"`` needs the batch of
+            queries (its rows change when the other queries change).
         database: ``(Nr, Nr)`` the references scored against each other by the same method
-            (``"database"`` only).
-        k: ``"database"``'s neighbours.
+            (a normalisation that ``needs_database`` only).
 
     Returns:
-        ``(Nq, Nr)`` float64, positive where ranked, each row's ranking kept for ``database``.
+        ``(Nq, Nr)`` float64 (``query_batch``, ``database``: positive where ranked, each row's
+        ranking kept for ``database``).
     """
     s = check_shape(similarity, "Nq Nr", "similarity", dtype=np.float64)
     if how is None:
         return s
-    Matching(normalise=how)  # the one check of the name
-    if how == "query_batch":
-        return np.exp(query_batch_normalise(s))
-    if database is None:
+    entry = NORMALISATIONS[check_choice(how, "normalise", NORMALISATIONS)]
+    if entry.needs_database and database is None:
         raise ValueError(
-            "normalise='database' needs the references scored against each other (database=, "
+            f"normalise={how!r} needs the references scored against each other (database=, "
             "an (Nr, Nr) matrix by the same method)"
         )
-    return np.exp(database_normalise(s, database, k))
+    return np.asarray(entry.function(s, database if entry.needs_database else None))
 
 
-def refuse_normalise(matching: Matching, caller: str) -> None:
-    """Refuse ``normalise`` where there is no whole matrix (one pair, listed pairs)."""
-    if getattr(matching, "normalise", None) is not None:
+def refuse_normalise(matching: object, caller: str) -> None:
+    """Refuse ``normalise`` where there is no whole matrix (one pair, listed pairs, a block)."""
+    how = getattr(matching, "normalise", None)
+    if how is not None:
         raise ValueError(
-            f"{caller}: normalise={matching.normalise!r} is a step on a whole (Nq, Nr) matrix: "
-            f"use similarity_matrix or normalise_matrix on the result (valid names: "
-            f"{', '.join(NORMALISE_OPTIONS)})"
+            f"{caller}: normalise={how!r} is a step on a whole (Nq, Nr) matrix, applied once "
+            f"to a result: run_method(..., normalise={how!r}) or normalise_result(result, "
+            f"{how!r}) (valid names: {', '.join(NORMALISATIONS)})"
         )

@@ -5,7 +5,6 @@ float64 reference of :mod:`.pairwise` (:func:`match_landmarks`, :func:`image_sim
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from functools import partial
@@ -18,10 +17,11 @@ from ..paper import SOFT_NMS_SIGMA
 from ..utils import progress
 from ._sides import LandmarkSets, check_same_dim, rescale_rows, unit_rows
 from .core import BLOCK_BYTES, BlockPairs, Problem, shape_terms
-from .normalise import normalise_matrix, refuse_normalise
+from .normalise import refuse_normalise
 from .pairwise import MatchResult, match_pair
-from .spec import WEIGHTING_OPTIONS, Compute, Matching, as_matching
+from .spec import Compute, Matching, as_matching
 from .weighting import (
+    WEIGHTINGS,
     prepare_reference_stats,
     sample_matches,
     weighted_block,
@@ -72,38 +72,17 @@ def similarity_matrix(
         reference_boxes: sequence of ``(K_r, 4)`` arrays, or ``(Nr, K, 4)``.
         soft_nms_iou, sigma: Algorithm 4 (the paper's shorthand for ``Matching(soft_nms_iou,
             sigma)``).
-        matching: a :class:`~.spec.Matching` (Algorithm 4 and, not in the paper, ``spatial``,
-            ``weighting`` and ``normalise``; docs/DEFINITIONS.md) instead of
-            ``soft_nms_iou``/``sigma``. With a weighting each term's statistics cover every
-            reference; ``normalise`` is applied to the whole matrix after Eq. (1)
-            (``"database"`` also scores the references against each other).
+        matching: a :class:`~.spec.Matching` (Algorithm 4 and, not in the paper, ``spatial``
+            and ``weighting``; docs/DEFINITIONS.md) instead of ``soft_nms_iou``/``sigma``. With
+            a weighting each term's statistics cover every reference. ``normalise`` is refused:
+            it is a step on a result's whole matrix (``run_method(..., normalise=)``).
         compute: device, block sizes, matmul precision and progress bar (:class:`~.spec.Compute`).
 
     Returns:
         ``(Nq, Nr)`` float64 similarities; 0 for a pair where an image has no landmark.
     """
     matching = as_matching(soft_nms_iou, sigma, matching)
-    if matching.normalise is not None:  # (not in the paper) a step after the matrix
-        plain = dataclasses.replace(matching, normalise=None)
-        sim = similarity_matrix(
-            query_desc,
-            query_boxes,
-            reference_desc,
-            reference_boxes,
-            matching=plain,
-            compute=compute,
-        )
-        db = None
-        if matching.normalise == "database":
-            db = similarity_matrix(
-                reference_desc,
-                reference_boxes,
-                reference_desc,
-                reference_boxes,
-                matching=plain,
-                compute=compute,
-            )
-        return normalise_matrix(sim, matching.normalise, database=db)
+    refuse_normalise(matching, "similarity_matrix")
     prob = Problem.build(
         query_desc,
         query_boxes,
@@ -309,7 +288,7 @@ def weighted_matches(
     """
     if getattr(matching, "weighting", None) is None:
         raise ValueError(
-            f"weighted_matches needs Matching(weighting=one of {WEIGHTING_OPTIONS}), got "
+            f"weighted_matches needs Matching(weighting=one of {tuple(WEIGHTINGS)}), got "
             f"{matching!r}"
         )
     refuse_normalise(matching, "weighted_matches")

@@ -7,11 +7,11 @@ import dataclasses
 
 from ..checks import check_choice, check_device, check_int, is_number
 from ..paper import SOFT_NMS_SIGMA
+from .normalise import NORMALISATIONS
+from .weighting import WEIGHTINGS
 
 __all__ = [
-    "NORMALISE_OPTIONS",
     "SPATIAL_OPTIONS",
-    "WEIGHTING_OPTIONS",
     "Compute",
     "Matching",
     "as_matching",
@@ -20,13 +20,6 @@ __all__ = [
 #: (Not in the paper.) Names of the geometry-aware re-scorings of ``spatial=``
 #: (docs/DEFINITIONS.md, "(not in the paper) geometry-aware score").
 SPATIAL_OPTIONS = ("consistency",)
-#: (Not in the paper.) Names of the database weightings of the Eq. (1) terms (``weighting=``;
-#: docs/DEFINITIONS.md, "(not in the paper) database weighting").
-WEIGHTING_OPTIONS = ("contrast", "idf", "two_sided")
-#: (Not in the paper.) Names of the normalisations of a whole similarity matrix (``normalise=``;
-#: docs/DEFINITIONS.md, "(not in the paper) normalisation"); ``query_batch`` needs the batch of
-#: queries, ``database`` only the database.
-NORMALISE_OPTIONS = ("query_batch", "database")
 
 
 def _bad(obj: object, key: str, expected: str) -> ValueError:
@@ -46,8 +39,9 @@ class Matching:
     scores) at IoU ``soft_nms_iou`` and Gaussian ``sigma`` when ``soft_nms_iou`` is set, and
     (not in the paper) a geometry-aware re-scoring of the matches when ``spatial`` is set
     (:data:`SPATIAL_OPTIONS`) and a database weighting of the terms when ``weighting`` is set
-    (:data:`WEIGHTING_OPTIONS`), and a normalisation of the whole matrix after Eq. (1) when
-    ``normalise`` is set (:data:`NORMALISE_OPTIONS`; docs/DEFINITIONS.md)."""
+    (a name of :data:`~.weighting.WEIGHTINGS`), and a normalisation of the whole matrix after
+    Eq. (1) when ``normalise`` is set (a name of :data:`~.normalise.NORMALISATIONS`: a step on
+    the matrix, applied once to a result; docs/DEFINITIONS.md)."""
 
     soft_nms_iou: float | None = None
     sigma: float = SOFT_NMS_SIGMA
@@ -71,19 +65,19 @@ class Matching:
                 f"None or one of {_names(SPATIAL_OPTIONS)} (geometry-aware "
                 "score, not in the paper)",
             )
-        if self.weighting is not None and self.weighting not in WEIGHTING_OPTIONS:
+        if self.weighting is not None and self.weighting not in WEIGHTINGS:
             raise _bad(
                 self,
                 "weighting",
-                f"None or one of {_names(WEIGHTING_OPTIONS)} (database "
+                f"None or one of {_names(tuple(WEIGHTINGS))} (database "
                 "weighting, not in the paper)",
             )
-        if self.normalise is not None and self.normalise not in NORMALISE_OPTIONS:
+        if self.normalise is not None and self.normalise not in NORMALISATIONS:
             raise _bad(
                 self,
                 "normalise",
-                f"None or one of {_names(NORMALISE_OPTIONS)} (matrix normalisation, not in "
-                "the paper)",
+                f"None or one of {_names(tuple(NORMALISATIONS))} (matrix normalisation, not "
+                "in the paper)",
             )
 
     def options(self) -> tuple[str, ...]:
@@ -101,7 +95,7 @@ class Matching:
             parts.append(f"weighting: {self.weighting}")
         if self.normalise is not None:
             parts.append(f"normalised: {self.normalise}")
-        if self.normalise == "query_batch":
+        if self.normalise is not None and NORMALISATIONS[self.normalise].needs_query_batch:
             parts.append("needs the query batch")
         return ", ".join(parts)
 

@@ -1,17 +1,19 @@
-"""(Not in the paper.) Database weighting of the Eq. (1) terms, ``weighting=``: each query
-landmark's statistics over the references (``two_sided``: also each reference landmark's over
-the other references, :func:`reference_stats`) and the weight of its term (docs/DEFINITIONS.md);
-:func:`weighted_block` applies them in :func:`.core.score_block`."""
+"""(Not in the paper.) The room of the database weightings of the Eq. (1) terms, ``weighting=``:
+:data:`WEIGHTINGS` (one :class:`Weighting` per name: a weight function and what its statistics
+read; docs/DEFINITIONS.md), the statistics, and :func:`weighted_block`, which applies them."""
 
 from __future__ import annotations
 
 import hashlib
 import threading
 from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import torch
 
+from ..utils import code_digest
 from ._sides import PAD, Selection, Side
 from .core import BLOCK_BYTES, BlockPairs, Matches, Problem, score_block
 
@@ -19,8 +21,14 @@ __all__ = [
     "CONTRAST_SAMPLE",
     "CONTRAST_SIGMA_MIN",
     "REFERENCE_CACHE_SIZE",
+    "WEIGHTINGS",
     "WEIGHTING_SAMPLE",
+    "Weighting",
+    "best_cosine_statistics",
     "clear_reference_cache",
+    "contrast_weight",
+    "idf_statistics",
+    "idf_weight",
     "prepare_reference_stats",
     "reference_cache_keys",
     "reference_stats",
@@ -43,20 +51,98 @@ CONTRAST_SIGMA_MIN = 1e-6
 #: (Not in the paper.) Databases whose ``two_sided`` reference statistics are kept in memory
 #: (keyed by content, least recently used dropped first).
 REFERENCE_CACHE_SIZE = 4
-#: The weightings whose query-side statistics are ``contrast``'s (best cosines, no reciprocal test).
-_CONTRAST_LIKE = ("contrast", "two_sided")
 _CACHE: OrderedDict[str, tuple[torch.Tensor, torch.Tensor]] = OrderedDict()
 _CACHE_LOCK = threading.Lock()
+
+#: The statistics of a weighting: per query landmark, over the references of the matches given.
+Statistics = Callable[[Matches, torch.Tensor], tuple[torch.Tensor, torch.Tensor]]
+
+
+def best_cosine_statistics(m: Matches, has: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(mu, sigma)`` ``(nq, Kq)`` of each query landmark's best cosines ``b_i(r)`` (ddof 0)
+    over the references of ``m`` with landmarks (``has``: ``(nr,)`` bool)."""
+    b = m.best[:, has].clamp(-1.0, 1.0)  # (nq, N, Kq)
+    mu = b.mean(1)
+    sd = ((b - mu.unsqueeze(1)) ** 2).mean(1).sqrt()
+    return mu, sd
+
+
+def idf_statistics(m: Matches, has: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(log((N + 1) / (n_i + 1)), N)``: ``n_i`` the references with landmarks that query
+    landmark ``i`` reciprocally matches, ``N`` those references (a ``(1,)`` tensor)."""
+    n = m.recip[:, has].sum(1).to(torch.float64)
+    total = has.sum().to(torch.float64)
+    return torch.log((total + 1.0) / (n + 1.0)), total.reshape(1)
+
+
+def contrast_weight(c: torch.Tensor, mu: torch.Tensor, sd: torch.Tensor) -> torch.Tensor:
+    """``max(0, (c - mu) / sd)``, 0 where ``sd <= CONTRAST_SIGMA_MIN`` (broadcast shapes)."""
+    ok = sd > CONTRAST_SIGMA_MIN
+    z = (c.clamp(-1.0, 1.0) - mu) / torch.where(ok, sd, 1.0)
+    return torch.where(ok, z.clamp(min=0.0), 0.0)
+
+
+def idf_weight(c: torch.Tensor, idf: torch.Tensor, n: torch.Tensor) -> torch.Tensor:
+    """The landmark's ``log((N + 1) / (n_i + 1))``, whatever its cosine."""
+    return idf.expand_as(c)
+
+
+@dataclass(frozen=True)
+class Weighting:
+    """(Not in the paper.) One database weighting of the Eq. (1) terms: an entry of
+    :data:`WEIGHTINGS`, whose key is its ``weighting=`` name.
+
+    Attributes:
+        weight: ``weight(c, a, b)``: each term's weight from ``c``, the query landmark's cosine
+            to its match (``(nq, nr, Kq)``), and its statistics ``(a, b)`` (broadcastable).
+        statistics: ``(a, b)`` per query landmark over the references (default: the mean and
+            standard deviation of its best cosines, as ``contrast``).
+        reads: ``"best"``: the statistics read best cosines only (one matmul a block);
+            ``"reciprocal"``: they need the reciprocal matches.
+        sample: references whose matches give a shortlist run's statistics.
+        reference_side: also weight by the matched reference landmark's own best-cosine
+            statistics over the other references: ``(1 + w_q)(1 + w_r)`` (``two_sided``).
+    """
+
+    weight: Callable[[torch.Tensor, torch.Tensor, torch.Tensor], torch.Tensor]
+    statistics: Statistics = best_cosine_statistics
+    reads: str = "best"
+    sample: int = CONTRAST_SAMPLE
+    reference_side: bool = False
+
+    def __post_init__(self) -> None:
+        assert self.reads in ("best", "reciprocal"), self.reads
+
+    def identity(self) -> str:
+        """What a matrix cache key holds of it: "" for the package's functions (its code
+        version covers them), else the bytecode digest of its functions (a weighting defined
+        in a notebook cell and edited there gets a new key)."""
+        funcs = [f for f in (self.weight, self.statistics) if not _packaged(f)]
+        return code_digest(funcs) if funcs else ""
+
+
+#: (Not in the paper.) The database weightings by ``weighting=`` name (docs/DEFINITIONS.md). A
+#: new weighting is one weight function and one entry here.
+WEIGHTINGS: dict[str, Weighting] = {
+    "contrast": Weighting(contrast_weight),
+    "idf": Weighting(idf_weight, idf_statistics, "reciprocal", WEIGHTING_SAMPLE),
+    "two_sided": Weighting(contrast_weight, reference_side=True),
+}
+
+
+def _packaged(func: Callable) -> bool:
+    return str(getattr(func, "__module__", "")).split(".")[0] == "vpr_core"
 
 
 def weighting_sample(n_references: int, weighting: str | None = None) -> np.ndarray:
     """Sorted indices of the references whose cosines give a shortlist's weighting statistics.
 
-    ``size`` = :data:`CONTRAST_SAMPLE` for ``"contrast"`` and ``"two_sided"``, else
-    :data:`WEIGHTING_SAMPLE`: every reference when there are at most ``size``, else ``size``
-    drawn without replacement by ``np.random.default_rng(0)`` (docs/DEFINITIONS.md).
+    ``size`` = the weighting's :attr:`Weighting.sample` (:data:`CONTRAST_SAMPLE` for
+    ``"contrast"`` and ``"two_sided"``, :data:`WEIGHTING_SAMPLE` for ``"idf"``): every reference
+    when there are at most ``size``, else ``size`` drawn without replacement by
+    ``np.random.default_rng(0)`` (docs/DEFINITIONS.md).
     """
-    size = CONTRAST_SAMPLE if weighting in _CONTRAST_LIKE else WEIGHTING_SAMPLE
+    size = WEIGHTINGS[weighting].sample if weighting is not None else WEIGHTING_SAMPLE
     if n_references <= size:
         return np.arange(n_references, dtype=np.int64)
     pick = np.random.default_rng(0).choice(n_references, size, replace=False)
@@ -66,75 +152,26 @@ def weighting_sample(n_references: int, weighting: str | None = None) -> np.ndar
 def sample_matches(prob: Problem, qsel: Selection, refs: torch.Tensor, size: int) -> Matches:
     """The matches of the images ``qsel`` x the references ``refs`` that the statistics read.
 
-    ``contrast`` reads only the best cosines ``b_i(r)``: each the maximum of one row of a
+    ``reads="best"``: only the best cosines ``b_i(r)``, each the maximum of one row of a
     matmul of ``qsel``'s landmarks x ``size`` references' landmarks (matmul dtype, padded
-    landmarks never win), with no reciprocal test (``nn`` -1, ``recip`` False). ``idf`` needs
-    the reciprocal matches: :meth:`.core.Problem.chunked`.
+    landmarks never win), with no reciprocal test (``nn`` -1, ``recip`` False);
+    ``"reciprocal"``: the reciprocal matches (:meth:`.core.Problem.chunked`).
     """
-    if prob.matching.weighting in _CONTRAST_LIKE:
+    if WEIGHTINGS[str(prob.matching.weighting)].reads == "best":
         return prob.best_cosines(qsel, refs, size)
     return prob.chunked(qsel, refs, size)
 
 
-def _weighting_stats(
-    weighting: str, m: Matches, has: torch.Tensor
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Per query landmark ``(nq, Kq)`` statistics over the references of ``m`` with landmarks.
-
-    Args:
-        weighting: a name in :data:`~.spec.WEIGHTING_OPTIONS`.
-        m: matches of ``nq`` query images x the references that define the statistics.
-        has: ``(nr,)`` bool: the reference has at least one landmark (only those count).
-
-    Returns:
-        ``contrast``, ``two_sided``: ``(mu, sigma)`` of the best cosines ``b_i(r)`` (ddof 0);
-        ``idf``: ``(log((N + 1) / (n_i + 1)), N)``, ``n_i`` the references that landmark ``i``
-        reciprocally matches, ``N`` the references (as a ``(1,)`` tensor).
-    """
-    if weighting in _CONTRAST_LIKE:
-        b = m.best[:, has].clamp(-1.0, 1.0)  # (nq, N, Kq)
-        mu = b.mean(1)
-        sd = ((b - mu.unsqueeze(1)) ** 2).mean(1).sqrt()
-        return mu, sd
-    n = m.recip[:, has].sum(1).to(torch.float64)
-    total = has.sum().to(torch.float64)
-    return torch.log((total + 1.0) / (n + 1.0)), total.reshape(1)
-
-
-def _database_weights(
-    weighting: str, best: torch.Tensor, stats: tuple[torch.Tensor, torch.Tensor]
+def _reference_weights(
+    entry: Weighting, prob: Problem, rsel: Selection, m: Matches
 ) -> torch.Tensor:
-    """``(nq, nr, Kq)`` weight of each query landmark's term (docs/DEFINITIONS.md).
-
-    ``contrast``: ``max(0, (c - mu_i) / sigma_i)`` with ``c`` the landmark's cosine to its match
-    (its best cosine ``b_i(r)`` in that reference), 0 where ``sigma_i <= CONTRAST_SIGMA_MIN``;
-    ``idf``: the landmark's ``log((N + 1) / (n_i + 1))``.
-
-    Args:
-        weighting: a name in :data:`~.spec.WEIGHTING_OPTIONS`; best: ``(nq, nr, Kq)`` ``b_i(r)``;
-            stats: from :func:`_weighting_stats`.
-    """
-    a, b = stats
-    if weighting in _CONTRAST_LIKE:
-        return _contrast(best, a.unsqueeze(1), b.unsqueeze(1))
-    return a.unsqueeze(1).expand_as(best)
-
-
-def _contrast(c: torch.Tensor, mu: torch.Tensor, sd: torch.Tensor) -> torch.Tensor:
-    """``max(0, (c - mu) / sd)``, 0 where ``sd <= CONTRAST_SIGMA_MIN`` (broadcast shapes)."""
-    ok = sd > CONTRAST_SIGMA_MIN
-    z = (c.clamp(-1.0, 1.0) - mu) / torch.where(ok, sd, 1.0)
-    return torch.where(ok, z.clamp(min=0.0), 0.0)
-
-
-def _reference_weights(prob: Problem, rsel: Selection, m: Matches) -> torch.Tensor:
     """``(nq, nr, Kq)`` ``w_r`` of each query landmark's matched reference landmark ``m.nn``."""
     mu, sd = prob.ref_stats  # type: ignore[misc]  # (Nr, Kr) each
     nq = m.best.shape[0]
     j = m.nn.clamp(min=0)
     mu_j = mu[rsel].unsqueeze(0).expand(nq, -1, -1).gather(2, j)
     sd_j = sd[rsel].unsqueeze(0).expand(nq, -1, -1).gather(2, j)
-    return _contrast(m.best, mu_j, sd_j)
+    return entry.weight(m.best, mu_j, sd_j)
 
 
 def _database_key(r: Side, ids: np.ndarray) -> str:
@@ -216,8 +253,10 @@ def reference_cache_keys() -> list[str]:
 
 
 def prepare_reference_stats(prob: Problem, ids: np.ndarray) -> None:
-    """Set ``prob.ref_stats`` for ``two_sided`` (before worker threads share ``prob``)."""
-    if prob.matching.weighting == "two_sided" and not prob.empty:
+    """Set ``prob.ref_stats`` for a weighting with a reference side (``two_sided``; before worker
+    threads share ``prob``)."""
+    weighting = prob.matching.weighting
+    if weighting is not None and WEIGHTINGS[weighting].reference_side and not prob.empty:
         prob.ref_stats = reference_stats(prob.r, ids)
 
 
@@ -237,11 +276,10 @@ def weighted_block(
         stats_from: the matches of ``qsel`` x the references that define the statistics
             (:func:`sample_matches`), and those references.
     """
-    weighting = prob.matching.weighting
-    assert weighting is not None
+    entry = WEIGHTINGS[str(prob.matching.weighting)]
     ms, ssel = stats_from
-    stats = _weighting_stats(weighting, ms, prob.r.count[ssel] > 0)
-    w = _database_weights(weighting, m.best, stats)
-    if weighting == "two_sided":  # (1 + w_q)(1 + w_r)
-        w = (1.0 + w) * (1.0 + _reference_weights(prob, rsel, m))
+    a, b = entry.statistics(ms, prob.r.count[ssel] > 0)
+    w = entry.weight(m.best, a.unsqueeze(1), b.unsqueeze(1))
+    if entry.reference_side:  # (1 + w_q)(1 + w_r)
+        w = (1.0 + w) * (1.0 + _reference_weights(entry, prob, rsel, m))
     return score_block(prob, m, qsel, rsel, keep_pairs, w)

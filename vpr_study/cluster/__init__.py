@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from vpr_core.matching import Matching
+from vpr_core import Matching
 
 from .blocks import similarity_blocks_distributed, similarity_pairs_distributed
 from .client import get_client, scheduler_address

@@ -4,7 +4,6 @@ return arrays (the client alone touches the cache) equal to the in-process ones 
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import time
 from collections.abc import Sequence
@@ -14,10 +13,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from vpr_core import checks, utils
-from vpr_core.backbones import architecture_sha256, state_dict_sha256, weights_sha256
-from vpr_core.datasets import SIDES
-from vpr_core.features import LandmarkEncoder, as_encoder
+from vpr_core import Encoder, LandmarkEncoder, checks, utils
 
 from .client import gather_in_order
 
@@ -28,20 +24,11 @@ __all__ = ["extract_features_distributed"]
 # features
 # ----------------------------------------------------------------------------------------------
 def _encoder_key(encoder_kwargs: dict[str, Any]) -> tuple[str, nn.Module | None]:
-    """JSON key of an encoder's arguments, and its backbone module if it has one (a module
-    travels to the workers as an object; the key names it by class and content)."""
-    spec = as_encoder(**encoder_kwargs)  # the defaults filled in, checked once
-    kwargs = {f.name: getattr(spec, f.name) for f in dataclasses.fields(spec)}
-    module = kwargs["backbone"]
-    if isinstance(module, nn.Module):
-        cls = type(module)
-        kwargs["backbone"] = (
-            f"module {cls.__module__}.{cls.__qualname__} "
-            f"{state_dict_sha256(module.state_dict())} {architecture_sha256(module)}"
-        )
-        return json.dumps(kwargs, sort_keys=True, default=str), module
-    kwargs["weights_sha256"] = weights_sha256(spec.parsed_backbone, spec.weights)  # content
-    return json.dumps(kwargs, sort_keys=True, default=str), None
+    """JSON key of an encoder's arguments (:meth:`vpr_core.Encoder.identity`), and its backbone
+    module if it has one (a module travels to the workers as an object)."""
+    spec = Encoder(**encoder_kwargs)  # the defaults filled in, checked once
+    module = spec.backbone if isinstance(spec.backbone, nn.Module) else None
+    return spec.identity(), module
 
 
 #: One encoder per process and config (model loading is the slow part), at most 4.
@@ -52,7 +39,7 @@ def _encoder(key: str, module: nn.Module | None = None) -> LandmarkEncoder:
     """The encoder of ``key`` (built on first use; ``module`` replaces a module's key)."""
     if key not in _ENCODERS:
         kwargs = json.loads(key)
-        kwargs.pop("weights_sha256", None)
+        kwargs.pop("weights_sha256", None)  # the identity's, not a field
         if module is not None:
             kwargs["backbone"] = module
         while len(_ENCODERS) >= 4:
@@ -138,7 +125,7 @@ def extract_features_distributed(
         ValueError: bad side/kind/shard size, boxes missing or of the wrong length.
         RuntimeError: a worker's encoder config differs from the client's (package versions).
     """
-    checks.check_choice(side, "side", SIDES)
+    checks.check_choice(side, "side", ("query", "reference"))
     checks.check_choice(kind, "kind", ("landmarks", "global"))
     shard_size = checks.check_int(shard_size, "shard_size", 1)
     n_side = len(dataset.paths(side))

@@ -4,16 +4,14 @@ from __future__ import annotations
 
 from .base import METHOD_COLORS, SAVE_DPI, draw_boxes, layout_problems, save, save_figure
 from .carried import plot_carried_landmarks
-from .curves import dataset_line, plot_metric_bars, plot_pr_curves, plot_scale_distribution
+from .curves import dataset_line, plot_pr_curves, plot_scale_distribution
 from .disagreements import plot_disagreements
 from .images import (
     plot_coverage,
     plot_coverage_comparison,
-    plot_dataset_overview,
     plot_dense_scales,
     plot_examples,
     plot_landmark_panels,
-    plot_landmarks,
 )
 from .matches import (
     plot_descriptor_matrices,
@@ -21,10 +19,8 @@ from .matches import (
     plot_pair,
     plot_pair_terms,
 )
-from .recall import plot_recall_at_n
 from .statistics import plot_asl, plot_cls, plot_cmr, plot_scale_statistics
 from .steps import plot_paired_differences, plot_step_changes
-from .weighting import plot_weighted_matches
 from .widgets import label_widget, pair_label_widget
 
 __all__ = [
@@ -40,25 +36,20 @@ __all__ = [
     "plot_cmr",
     "plot_coverage",
     "plot_coverage_comparison",
-    "plot_dataset_overview",
     "plot_dense_scales",
     "plot_descriptor_matrices",
     "plot_disagreements",
     "plot_examples",
     "plot_labelled_matches",
     "plot_landmark_panels",
-    "plot_landmarks",
-    "plot_metric_bars",
     "pair_label_widget",
     "plot_pair",
     "plot_paired_differences",
     "plot_pair_terms",
     "plot_pr_curves",
-    "plot_recall_at_n",
     "plot_scale_distribution",
     "plot_scale_statistics",
     "plot_step_changes",
-    "plot_weighted_matches",
     "save",
     "save_figure",
 ]

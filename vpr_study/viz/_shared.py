@@ -1,19 +1,17 @@
 """What several figure modules of :mod:`vpr_study.viz` share (internal to the package): the
-width and caption size of the per-query figures, their heading wrap, the checks of the runs they
-are given and a weighted run's matches."""
+width and caption size of the per-query figures, their heading wrap and the check of the runs
+they are given."""
 
 from __future__ import annotations
 
-import dataclasses
 import textwrap
 from typing import Any
 
 import numpy as np
 
 from vpr_core import dataset_fingerprint
-from vpr_core.matching import weighted_matches
 
-__all__ = ["FIG_WIDTH", "FONT", "check_runs_on", "run_matches", "weighting_of", "wrapped"]
+__all__ = ["FIG_WIDTH", "FONT", "check_runs_on", "wrapped"]
 
 #: Width (inches) of the per-query figures (disagreements, weighted matches, carried landmarks):
 #: at the inline backend's 100 dpi they show unscaled in a JupyterLab output column (about
@@ -45,31 +43,3 @@ def check_runs_on(ds: Any, runs: tuple, caller: str) -> None:
                 f"on {getattr(run, 'dataset', '?')!r}; the images or the ground truth differ): "
                 "pass the dataset the runs were computed on"
             )
-
-
-def weighting_of(run: Any) -> str:
-    """The database weighting ``run`` matched with; refuses a run without one."""
-    matching = getattr(getattr(run, "config", None), "matching", None)
-    if matching is None or not matching.weighting:
-        raise ValueError(
-            f"{getattr(run, 'label', run)!r} has no weighting: pass the run of "
-            "run_method(..., weighting='contrast', keep_descriptors=True) as `weighted`"
-        )
-    return str(matching.weighting)
-
-
-def run_matches(run: Any, pairs: list[tuple[int, int]], weighting: str) -> list:
-    """Each pair's matches with the weights the weighted ``run`` (parsed: it kept its
-    descriptors) used."""
-    d, b = run.descriptors, run.boxes
-    sample = None if run.shortlist else np.arange(len(d["reference"]))
-    m = run.config.matching
-    return weighted_matches(
-        d["query"],
-        b["query"],
-        d["reference"],
-        b["reference"],
-        pairs,
-        dataclasses.replace(m, weighting=weighting),
-        sample,
-    )

@@ -22,7 +22,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
-from vpr_core import notice, paths, utils
+from vpr_core import notice, paths
+
+from .. import outputs, rows
 
 __all__ = [
     "METHOD_COLORS",
@@ -64,14 +66,14 @@ def _png_metadata(suffix: str) -> dict:
 def save_figure(
     fig: matplotlib.figure.Figure, name: str | Path, dataset: str | None = None, dpi: int = SAVE_DPI
 ) -> Path:
-    """Save ``fig`` as ``figures/<dataset>/<name>.png`` of :func:`vpr_core.paths.figures_root`,
+    """Save ``fig`` as ``figures/<dataset>/<name>.png`` of :func:`vpr_study.outputs.figures_root`,
     byte-identical for identical inputs.
 
     Args:
         fig: the figure.
         name: file stem, or a file name with ``.png`` / ``.pdf``, or an absolute path (then
             ``dataset`` is ignored).
-        dataset: output label (subfolder of :func:`vpr_core.paths.figures_dir`).
+        dataset: output label (subfolder of :func:`vpr_study.outputs.figures_dir`).
         dpi: resolution.
 
     Returns:
@@ -81,7 +83,7 @@ def save_figure(
     if path.suffix not in (".png", ".pdf"):
         path = path.with_suffix(path.suffix + ".png") if path.suffix else path.with_suffix(".png")
     if not path.is_absolute():
-        path = paths.figures_dir(dataset) / path
+        path = outputs.figures_dir(dataset) / path
     paths.make_dir(path.parent, paths.OUT_SETTING)
     _commit([(_staged(path, partial(_draw, fig, suffix=path.suffix, dpi=dpi)), path)], path.parent)
     return path
@@ -263,11 +265,11 @@ def _split_timings(table: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame | No
 
 def _write_csv(table: pd.DataFrame, tmp: Path) -> None:
     with_index = not isinstance(table.index, pd.RangeIndex)  # decided before renaming
-    table = table.rename(columns=utils.csv_safe, index=utils.csv_safe if with_index else None)
+    table = table.rename(columns=rows.csv_safe, index=rows.csv_safe if with_index else None)
     for i, dtype in enumerate(table.dtypes):
         if not pd.api.types.is_numeric_dtype(dtype):  # text cells; numbers stay numbers
-            table.isetitem(i, table.iloc[:, i].map(utils.csv_safe))
-    utils.write_frame_csv(table, tmp, float_format="%.6f", index=with_index)
+            table.isetitem(i, table.iloc[:, i].map(rows.csv_safe))
+    rows.write_frame_csv(table, tmp, float_format="%.6f", index=with_index)
 
 
 def save_all(
@@ -288,12 +290,12 @@ def save_all(
 
     Args:
         items: ``(file stem, Figure or DataFrame)`` pairs; a figure and its table may share a
-            stem, which is one file name (:func:`vpr_core.paths.check_name`).
+            stem, which is one file name (:func:`vpr_study.outputs.check_name`).
         label: the dataset label (one folder name), e.g. ``"gardens_point_mini"``. None: the
-            user area ``<output root>/user/`` (:data:`vpr_core.paths.USER_AREA`) under the label
+            user area ``<output root>/user/`` (:data:`vpr_study.outputs.USER_AREA`) under the label
             :data:`DEFAULT_LABEL`, never the study's folders; the log (``vpr_core``, INFO)
             names the label and every path written.
-        out: another output root (default :func:`vpr_core.paths.figures_root`: the study's
+        out: another output root (default :func:`vpr_study.outputs.figures_root`: the study's
             folders for the study and the CLI, the git-ignored ``user/`` for a user's own
             cells in the checkout).
 
@@ -309,15 +311,15 @@ def save_all(
     """
     items = list(items)
     for name, _ in items:
-        paths.check_name(name)
+        outputs.check_name(name)
     unlabelled = label is None
     if label is None:
         base = paths.output_root() if out is None else Path(out).expanduser().resolve()
-        root = base / paths.USER_AREA
+        root = base / outputs.USER_AREA
         label = DEFAULT_LABEL
     else:
-        paths.check_label(label)
-        root = paths.figures_root() if out is None else Path(out).expanduser().resolve()
+        outputs.check_label(label)
+        root = outputs.figures_root() if out is None else Path(out).expanduser().resolve()
     staged: list[tuple[Path, Path]] = []
     written: list[Path] = []
     try:

@@ -4,7 +4,6 @@ also matches, beside the ones the weighting silenced."""
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
 import matplotlib
@@ -12,91 +11,15 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from vpr_core import checks
-from vpr_core.evaluation import best_two as _best_two
-from vpr_core.evaluation import ranked as _ranked
-from vpr_core.matching import cosine_similarity
+from vpr_core import carried_landmarks
 
-from ._shared import FIG_WIDTH, FONT, check_runs_on, run_matches, weighting_of, wrapped
+from ._shared import FIG_WIDTH, FONT, check_runs_on, wrapped
 from .curves import dataset_line
 
-__all__ = ["CARRIED_COLUMNS", "CROP_PIXELS", "SILENT_WEIGHT", "plot_carried_landmarks"]
-
-# ---- (not in the paper) notebook 07: the landmarks that carried a changed top-1 -------------
-#: A database weight at or below this counts as silenced: the weighting took the term out.
-SILENT_WEIGHT = 1e-6
-
-#: The columns of :func:`plot_carried_landmarks`' table, in order.
-CARRIED_COLUMNS = (
-    "query",
-    "case",
-    "role",
-    "reference",
-    "reference correct",
-    "rank",
-    "query landmark",
-    "reference landmark",
-    "cosine",
-    "weight",
-    "plain term",
-    "weighted term",
-    "also matches",
-    "its cosine",
-    "also matches correct",
-)
+__all__ = ["CROP_PIXELS", "plot_carried_landmarks"]
 
 #: Height (pixels) each landmark crop is resized to before it is drawn.
 CROP_PIXELS = 64
-
-
-def _top1(run: Any) -> np.ndarray:
-    """``(Nq,)`` each query's top-1 reference (ties: lowest index; -1: nothing ranked), as the
-    metrics pick it."""
-    s = np.asarray(run.similarity, dtype=np.float64)
-    out = np.full(s.shape[0], -1, dtype=np.int64)
-    ranked = _ranked(s)
-    if ranked.any():
-        out[ranked] = _best_two(s[ranked])[0]
-    return out
-
-
-def _changed_queries(plain: Any, weighted: Any, gt: np.ndarray, n: int) -> list[tuple[int, str]]:
-    """Up to ``n`` ``(query, case)`` whose top-1 the weighting changed: the first query it
-    fixed, then the first it broke (if any), then the other fixed, broken and changed ones, in
-    query order."""
-    tp, tw = _top1(plain), _top1(weighted)
-    rows = np.arange(len(tp))
-    has = gt.any(axis=1) & (tp >= 0) & (tw >= 0) & (tp != tw)
-    ok_p = gt[rows, np.maximum(tp, 0)]
-    ok_w = gt[rows, np.maximum(tw, 0)]
-    fixed = [int(q) for q in np.flatnonzero(has & ~ok_p & ok_w)]
-    broken = [int(q) for q in np.flatnonzero(has & ok_p & ~ok_w)]
-    other = [int(q) for q in np.flatnonzero(has & ~ok_p & ~ok_w)]
-    order = [*fixed[:1], *broken[:1], *fixed[1:], *broken[1:], *other]
-    case = {q: "fixed" for q in fixed} | {q: "broken" for q in broken}
-    case |= {q: "changed, both wrong" for q in other}
-    return [(q, case[q]) for q in order[:n]]
-
-
-def _also_matches(run: Any, q: int, landmarks: np.ndarray, shown: int) -> tuple:
-    """For query ``q``'s ``landmarks``: the reference other than ``shown`` where each has its
-    best cosine ``b_i(r)`` (``(k,)`` indices) and that cosine (``(k,)``)."""
-    refs = run.descriptors["reference"]
-    counts = np.array([len(d) for d in refs])
-    k = len(landmarks)
-    if not k or counts.sum() == 0:
-        return np.full(k, -1), np.full(k, np.nan)
-    cos = cosine_similarity(
-        np.asarray(run.descriptors["query"][q])[landmarks],
-        np.concatenate([np.asarray(d).reshape(len(d), -1) for d in refs if len(d)]),
-    )
-    best = np.full((k, len(refs)), -np.inf)
-    starts = np.concatenate([[0], np.cumsum(counts[counts > 0])[:-1]])
-    best[:, counts > 0] = np.maximum.reduceat(cos, starts, axis=1)
-    best[:, shown] = -np.inf
-    other = np.argmax(best, axis=1)
-    value = best[np.arange(k), other]
-    return np.where(np.isfinite(value), other, -1), np.where(np.isfinite(value), value, np.nan)
 
 
 def _crop(image: np.ndarray, box: np.ndarray) -> np.ndarray:
@@ -138,86 +61,16 @@ def _side_by_side(a: np.ndarray, b: np.ndarray, grey: bool) -> np.ndarray:
     return out
 
 
-def _check_carried_runs(ds: Any, plain: Any, weighted: Any) -> str:
-    """The weighting of ``weighted``; refuses runs the figure cannot explain."""
-    weighting = weighting_of(weighted)
-    m_p = getattr(getattr(plain, "config", None), "matching", None)
-    if m_p is None or m_p.weighting:
-        raise ValueError(
-            f"`plain` must be the paper's Eq. (1) (no weighting), got "
-            f"{getattr(plain, 'label', plain)!r}: run the same method without weighting"
-        )
-    checks.check_descriptors_kept(weighted, "plot_carried_landmarks")
-    check_runs_on(ds, (plain, weighted), "plot_carried_landmarks")
-    m_w = dataclasses.replace(weighted.config.matching, weighting=None)
-    e_p, e_w = dict(getattr(plain, "encoder", {})), dict(getattr(weighted, "encoder", {}))
-    differ = [k for k in sorted(e_p.keys() | e_w.keys()) if e_p.get(k) != e_w.get(k)]
-    differ += [k for k in ("shortlist", "protocol") if getattr(plain, k) != getattr(weighted, k)]
-    differ += ["method"] if plain.method != weighted.method else []
-    differ += ["matching"] if m_w != m_p else []
-    if differ:
-        raise ValueError(
-            f"{plain.label!r} and {weighted.label!r} differ in more than the weighting "
-            f"({', '.join(differ)}): pass one method run without and with weighting= (same "
-            "encoder, shortlist and matching options otherwise)"
-        )
-    return weighting
-
-
-def _carried_rows(
-    run: Any, gt: np.ndarray, q: int, case: str, pairs: list, ms: list, k: int
-) -> list[dict]:
-    """The table rows of one query: the ``k`` largest weighted terms of the weighted top-1
-    pair (``carried``), the ``k`` largest plain terms with weight about 0 of the plain top-1
-    pair (``silenced``)."""
-    rows = []
-    for role, (_, r), m in zip(("carried", "silenced"), pairs, ms, strict=True):
-        plain_term = m.raw_scores * m.spatial_weights
-        if role == "carried":
-            keep = np.flatnonzero(m.scores > 0)
-            keep = keep[np.argsort(-m.scores[keep], kind="stable")][:k]
-        else:
-            keep = np.flatnonzero(m.weights <= SILENT_WEIGHT)
-            keep = keep[np.argsort(-plain_term[keep], kind="stable")][:k]
-        also, also_cos = _also_matches(run, q, m.matches[keep, 0], r)
-        for rank, (idx, o, oc) in enumerate(zip(keep, also, also_cos, strict=True), start=1):
-            i, j = (int(v) for v in m.matches[idx])
-            rows.append(
-                {
-                    "query": q,
-                    "case": case,
-                    "role": role,
-                    "reference": r,
-                    "reference correct": bool(gt[q, r]),
-                    "rank": rank,
-                    "query landmark": i,
-                    "reference landmark": j,
-                    "cosine": 1.0 - float(m.distances[idx]),
-                    "weight": float(m.weights[idx]),
-                    "plain term": float(plain_term[idx]),
-                    "weighted term": float(m.scores[idx]),
-                    "also matches": int(o),
-                    "its cosine": float(oc),
-                    "also matches correct": bool(o >= 0 and gt[q, o]),
-                }
-            )
-    return rows
-
-
 def plot_carried_landmarks(
     ds: Any, plain: Any, weighted: Any, n_queries: int = 2, k: int = 5
 ) -> tuple[matplotlib.figure.Figure, pd.DataFrame]:
     """(Not in the paper) Why a database weighting changed a query's top-1, landmark by landmark.
 
-    For up to ``n_queries`` queries whose top-1 the weighting changed (the first it fixed, then
-    the first it broke, if any, then others, in query order), two rows: the ``k`` reciprocal
-    matches with the largest weighted Eq. (1) terms in the weighted run's top-1 pair (what
-    carried its score), then the ``k`` with the largest plain terms in the plain run's top-1
-    pair whose weight is about 0 (at most :data:`SILENT_WEIGHT`: what the weighting silenced,
-    drawn grey). Each match is its query crop beside its reference crop, captioned with its
-    cosine, its weight and the other reference where that query landmark matches best
-    (``also rN``, with that cosine). The weights are those the weighted run used
-    (:func:`~vpr_core.matching.weighted_matches`).
+    Draws the frame of :func:`vpr_core.carried_landmarks`: for each chosen query, the matches
+    that carried the weighted run's top-1 pair, then those the weighting silenced in the plain
+    run's top-1 pair (grey); each match is its query crop beside its reference crop, captioned
+    with its cosine, its weight and the other reference where that query landmark matches best
+    (``also rN``, with that cosine).
 
     Args:
         ds: the runs' dataset (its images); plain: a method's run without weighting;
@@ -225,7 +78,7 @@ def plot_carried_landmarks(
         n_queries: queries shown; k: landmarks per row (1 to 10: what the figure's width fits).
 
     Returns:
-        ``(figure, table)``: one row per landmark shown (:data:`CARRIED_COLUMNS`).
+        ``(figure, table)``: the frame, one row per landmark shown.
 
     Raises:
         ValueError: ``n_queries`` or ``k`` below 1 (``k`` above 10), ``plain`` with or
@@ -233,26 +86,19 @@ def plot_carried_landmarks(
             dataset or that differ in more than the weighting (encoder, shortlist, protocol,
             method or matching).
     """
-    n_queries = checks.check_int(n_queries, "n_queries", 1)
-    k = int(
-        checks.check_range(checks.check_int(k, "k", 1), "k (landmarks a figure row fits)", 1, 10)
-    )
-    weighting = _check_carried_runs(ds, plain, weighted)
+    check_runs_on(ds, (plain, weighted), "plot_carried_landmarks")
+    table = carried_landmarks(plain, weighted, n_queries, k)
+    weighting = weighted.config.matching.weighting
     gt = np.asarray(ds.ground_truth, dtype=bool)
-    chosen = _changed_queries(plain, weighted, gt, n_queries)
-    tp, tw = _top1(plain), _top1(weighted)
-    blocks = []
-    for q, case in chosen:
-        pairs = [(q, int(tw[q])), (q, int(tp[q]))]
-        ms = run_matches(weighted, pairs, weighting)
-        blocks.append((q, case, pairs, ms, _carried_rows(weighted, gt, q, case, pairs, ms, k)))
-    table = pd.DataFrame([r for b in blocks for r in b[4]], columns=list(CARRIED_COLUMNS))
-
-    n_changed = int(np.count_nonzero(gt.any(axis=1) & (tp != tw) & (tp >= 0) & (tw >= 0)))
+    blocks = [
+        (q, case, [(q, rw), (q, rp)], table[table["query"] == q].to_dict("records"))
+        for q, case, rw, rp in table.attrs["queries"]
+    ]
+    n_changed = table.attrs["changed"]
     head = wrapped(
         f"(not in the paper) Which landmarks carried the score where the {weighting} weighting "
         f"changed the top-1 ({n_changed} of {int(gt.any(axis=1).sum())} queries; "
-        f"{len(chosen)} shown): {plain.label} without and with it\n{dataset_line([plain])}\n"
+        f"{len(blocks)} shown): {plain.label} without and with it\n{dataset_line([plain])}\n"
         f"each pair: query crop | reference crop; cos = their cosine, w = the {weighting} "
         "weight, also rN (c) = the other reference where that query landmark matches best; "
         "grey = silenced (w = 0)",
@@ -276,7 +122,7 @@ def plot_carried_landmarks(
 
     if not blocks:
         text(margin, y - line, f"the {weighting} weighting changed no query's top-1 here", va="top")
-    for q, case, pairs, _ms, rows in blocks:
+    for q, case, pairs, rows in blocks:
         y -= line + 0.1
         (_, rw), (_, rp) = pairs
         text(

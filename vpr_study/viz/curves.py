@@ -12,16 +12,7 @@ import numpy as np
 from matplotlib.colors import to_hex
 from matplotlib.lines import Line2D
 
-from vpr_core import checks, paper
-from vpr_core.datasets import ground_truth_text
-from vpr_core.evaluation import (
-    auc_pr,
-    chance,
-    chance_precision,
-    check_results,
-    ground_truth_coverage,
-    identical_to,
-)
+from vpr_core import checks, identical_to, paper
 
 from ._shared import wrapped
 from .base import METHOD_COLORS, SAVE_DPI
@@ -29,7 +20,6 @@ from .base import METHOD_COLORS, SAVE_DPI
 __all__ = [
     "WEIGHTING_STYLES",
     "dataset_line",
-    "plot_metric_bars",
     "plot_pr_curves",
     "plot_scale_distribution",
 ]
@@ -103,13 +93,13 @@ def dataset_line(results) -> str:
     every PR / statistics figure carries under its title, then the non-default run settings
     (:func:`_settings_text`; e.g. ``pooling roi``). For ground truth read from a file,
     ``"ground truth from file: 1-5 correct references per query (median 5)"`` on a line of its
-    own instead of the tolerance: :func:`~vpr_core.datasets.ground_truth.ground_truth_text`)."""
+    own instead of the tolerance: :attr:`~vpr_core.MethodResult.truth_text`)."""
 
     r = results[0]
-    n_gt, n_q = ground_truth_coverage(r.ground_truth)
-    name = getattr(r, "dataset_title", "") or r.dataset
-    from_file = getattr(r, "ground_truth_from_file", False)
-    truth = ground_truth_text(r.ground_truth, r.tolerance, from_file)
+    n_gt, n_q = r.queries_with_gt
+    name = r.dataset_title or r.dataset
+    from_file = r.ground_truth_from_file
+    truth = r.truth_text
     protocol = f"protocol {getattr(r, 'protocol', 'ratio')}"
     extra = _settings_text(results)
     protocol += f", {extra}" if extra else ""
@@ -196,10 +186,9 @@ def plot_pr_curves(
     taller), gives each run's AUC with its 95% bootstrap interval on one line with the run's
     line sample (``dense  0.446 [0.106, 0.803]``; the legend's title names the metric). A
     dashed grey line is the chance level: the precision a random ranking of the same ground
-    truth keeps (:func:`~vpr_core.evaluation.chance.chance_precision`), with its AUC
-    (:func:`~vpr_core.evaluation.chance`) in the legend. Each curve starts at its last point at
-    recall 0 (the thresholds before it accept no correct match and add no area; the legend
-    says so): the area under the drawn curve is its AUC.
+    truth keeps (:meth:`~vpr_core.MethodResult.chance`), with its AUC in the legend. Each curve
+    starts at its last point at recall 0 (the thresholds before it accept no correct match and
+    add no area; the legend says so): the area under the drawn curve is its AUC.
 
     A result whose similarity matrix equals an earlier one's has the same curve: it is drawn
     once and its legend entry, with the earlier one's line sample, says ``same curve as
@@ -220,10 +209,10 @@ def plot_pr_curves(
 
     Raises:
         ValueError, TypeError: ``results`` is empty, one result or holds something else
-            (:func:`~vpr_core.evaluation.compare.check_results`).
+            (:func:`vpr_core.checks.check_results`).
     """
 
-    results = check_results(results, "plot_pr_curves")
+    results = checks.check_results(results, "plot_pr_curves")
     head = f"{title}\n" if title else ""
     heading = _heading(head + dataset_line(results))
     top = _GAP + _LINE * (heading.count("\n") + 1)
@@ -242,7 +231,7 @@ def plot_pr_curves(
         auc = (
             f"{iv[0]:.3f} [{iv[1]:.3f}, {iv[2]:.3f}]"
             if iv is not None
-            else f"{auc_pr(r.curve()):.3f}"
+            else f"{r.metrics['auc']:.3f}"
         )
         if twin is not None and twin in drawn:  # same matrix: same curve, drawn once
             like = drawn[twin]
@@ -279,11 +268,8 @@ def plot_pr_curves(
         drawn[r.label] = line
         curves[r.label] = xy
         handles.append(line)
-    protocol = getattr(results[0], "protocol", "ratio")
-    level = chance_precision(
-        results[0].ground_truth, protocol, soft=getattr(results[0], "soft_only", None)
-    )
-    chance_auc = chance(results[0].ground_truth, protocol, ks=(1,))["auc"]
+    at_chance = results[0].chance()
+    level, chance_auc = at_chance["precision"], at_chance["auc"]
     handles.append(
         ax.axhline(
             level,
@@ -350,36 +336,3 @@ def _legend_below(fig, ax, handles: list) -> tuple[matplotlib.legend.Legend, flo
         return legend, bb.width / SAVE_DPI, bb.height / SAVE_DPI
     finally:
         fig.set_dpi(dpi)
-
-
-def plot_metric_bars(
-    table, metric: str = "auc", title: str | None = None, ax=None, colors: dict | None = None
-) -> matplotlib.figure.Figure:
-    """Bar chart of one metric column of ``evaluation.metrics_table`` (one bar per method).
-
-    Args:
-        table: ``pandas.DataFrame`` indexed by method, one column per metric.
-        metric: column to plot (``auc``, ``r@100p``, ``r@1``, ``r@5``).
-        title: axes title; ax: axes to draw on; colors: ``{method: colour}``.
-
-    Returns:
-        The figure.
-    """
-    checks.check_choice(metric, "metric", table.columns)
-    if ax is None:
-        fig, ax = plt.subplots(figsize=(max(3.0, 0.8 * len(table) + 1.5), 3.2))
-    else:
-        fig = ax.figure
-    colors = {**METHOD_COLORS, **(colors or {})}
-    names = [str(i) for i in table.index]
-    vals = table[metric].to_numpy(dtype=float)
-    ax.bar(names, vals, color=[colors.get(n, "tab:gray") for n in names])
-    for x, v in enumerate(vals):
-        ax.text(x, v + 0.01, f"{v:.2f}", ha="center", va="bottom", fontsize=8)
-    ax.set_ylim(0.0, 1.08)
-    ax.set_ylabel(metric)
-    if title:
-        ax.set_title(title)
-    ax.tick_params(axis="x", labelrotation=30)
-    fig.tight_layout()
-    return fig

@@ -11,11 +11,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from vpr_core import checks
-from vpr_core.datasets import ground_truth_references
-from vpr_core.labels import pair_matches
-from vpr_core.matching import match_landmarks
-from vpr_study.insight import per_query
+from vpr_core import checks, ground_truth_references, match_landmarks, pair_matches, per_query
 
 from ._shared import FIG_WIDTH, FONT, check_runs_on, wrapped
 from .curves import dataset_line

@@ -11,9 +11,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from vpr_core import checks, paper
-from vpr_core.datasets import ground_truth_text
-from vpr_core.landmarks import dense_sampling, landmark_coverage
+from vpr_core import dense_sampling, landmark_coverage, paper
 
 from .base import draw_boxes
 from .curves import dataset_line
@@ -24,11 +22,9 @@ _TAB10: list[Any] = list(plt.get_cmap("tab10").colors)  # type: ignore[attr-defi
 __all__ = [
     "plot_coverage",
     "plot_coverage_comparison",
-    "plot_dataset_overview",
     "plot_dense_scales",
     "plot_examples",
     "plot_landmark_panels",
-    "plot_landmarks",
 ]
 
 
@@ -97,68 +93,12 @@ def plot_examples(
             ax.set_title(f"{side} {i}", fontsize=9)
             ax.set_xticks([])
             ax.set_yticks([])
-    truth = ground_truth_text(
-        dataset.ground_truth, dataset.tolerance, bool(dataset.meta.get("ground_truth_file"))
-    )
+    truth = dataset.truth_text
     fig.suptitle(
         title if title is not None else f"{dataset.title}: reference | query ({truth})",
         fontsize=10,
     )
     fig.tight_layout()
-    return fig
-
-
-def plot_dataset_overview(dataset: Any, n: int = 6) -> Figure:
-    """Thumbnails of ``n`` evenly spaced places: reference row on top, query row below.
-
-    Args:
-        dataset: ``PlaceDataset``.
-        n: Number of places (clipped to the dataset size).
-
-    Returns:
-        A ``2 x n`` figure.
-    """
-    m = min(len(dataset), getattr(dataset, "n_reference", len(dataset.reference_paths)))
-    n = max(1, min(int(n), m))
-    idx = np.unique(np.linspace(0, m - 1, n).round().astype(int))
-    fig, axes = plt.subplots(2, len(idx), figsize=(2.4 * len(idx), 3.4), squeeze=False)
-    for col, i in enumerate(idx):
-        for row, side in enumerate(("reference", "query")):
-            ax = axes[row, col]
-            ax.imshow(dataset.load_image(side, int(i)))
-            ax.set_xticks([])
-            ax.set_yticks([])
-            ax.set_title(f"{side[0]}{int(i)}", fontsize=8)
-    fig.suptitle(
-        f"{dataset.name}: {len(dataset)} queries, {len(dataset.reference_paths)} "
-        "references (top: reference, bottom: query)",
-        fontsize=9,
-    )
-    fig.tight_layout()
-    return fig
-
-
-def plot_landmarks(
-    image: np.ndarray,
-    boxes: np.ndarray,
-    ax: Any = None,
-    color: str = "yellow",
-    title: str | None = None,
-    lw: float = 1.0,
-) -> Figure:
-    """Draw ``(K, 4)`` ``(x, y, w, h)`` landmark boxes on an ``(H, W, 3)`` image.
-
-    Returns the figure (a new one when ``ax`` is None).
-    """
-    boxes = checks.check_boxes(boxes)
-    img, size = _landmark_canvas(image)
-    if ax is None:
-        fig, ax = plt.subplots(figsize=(6.4, 6.4 * size[0] / size[1] + 0.4))
-    else:
-        fig = ax.figure
-    _show_canvas(ax, img, size)
-    draw_boxes(ax, boxes, color=color, lw=lw)
-    ax.set_title(title if title is not None else f"{len(boxes.reshape(-1, 4))} landmarks")
     return fig
 
 

@@ -10,8 +10,7 @@ import matplotlib.ticker
 import numpy as np
 from matplotlib.figure import Figure
 
-from vpr_core import check_per_match, checks
-from vpr_core.labels import pair_matches
+from vpr_core import checks, pair_matches
 
 from .base import draw_boxes
 
@@ -74,7 +73,7 @@ def plot_labelled_matches(
     br = checks.check_boxes(boxes_r, "boxes_r") * scale_r
     lab = None
     if labels is not None:
-        lab = check_per_match(np.asarray(labels, dtype=bool).reshape(-1), len(m), "labels")
+        lab = checks.check_per_match(np.asarray(labels, dtype=bool).reshape(-1), len(m), "labels")
     # incorrect first, correct on top
     order = np.arange(len(m)) if lab is None else np.argsort(lab, kind="stable")
     for k in order:

@@ -118,7 +118,7 @@ def plot_step_changes(changes: pd.DataFrame, title: str | None = None) -> matplo
     column says what moved them.
 
     Args:
-        changes: :func:`~vpr_study.changes.step_changes` output(s); a ``step`` column names the
+        changes: :func:`vpr_core.step_changes` output(s); a ``step`` column names the
             step of each row (one panel row per step), else one step.
         title: the figure's title.
     """

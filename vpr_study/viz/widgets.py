@@ -9,7 +9,7 @@ from typing import Any
 import matplotlib.pyplot as plt
 import numpy as np
 
-from vpr_core.labels import append_labels, pair_matches
+from vpr_core import append_labels, pair_matches
 
 from .base import draw_boxes
 

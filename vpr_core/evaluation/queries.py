@@ -1,5 +1,5 @@
-"""Per-query view of one or more runs: where each run ranks the right place, and which queries
-two runs decide differently (issue 27.1). Columns: :func:`per_query`."""
+"""The per-query view of one or more results: where each ranks the right place, and which queries
+two runs decide differently (:func:`per_query`; the figures read its frame)."""
 
 from __future__ import annotations
 
@@ -9,16 +9,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from vpr_core import notice
-from vpr_core.evaluation import (
-    best_two,
-    check_results,
-    check_same_dataset,
-    query_scores,
-    ranked,
-    true_rank,
-)
-from vpr_core.matching import Matching, match_landmarks, weighted_matches
+from ..matching.similarity import match_landmarks, weighted_matches
+from ..matching.spec import Matching
+from ..notices import notice
+from .compare import check_results, check_same_dataset
+from .ranks import best_two, query_scores, ranked, true_rank
 
 __all__ = ["CONTRAST_COLUMN", "PER_QUERY_COLUMNS", "per_query"]
 

@@ -10,10 +10,11 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from vpr_core import checks, get_method, paper
-from vpr_core.features import get_encoder
-from vpr_core.landmarks import landmarks_for_image
-from vpr_core.matching import similarity_matrix
+from . import checks, paper
+from .features.stage import get_encoder
+from .landmarks.stage import landmarks_for_image
+from .matching.similarity import similarity_matrix
+from .methods import get_method
 
 __all__ = ["COST_COLUMNS", "cost_table"]
 
