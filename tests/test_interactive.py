@@ -30,8 +30,8 @@ USER_CELLS = [
     "import matplotlib.pyplot as plt\n"
     "import numpy as np\n"
     "import pandas as pd\n"
-    "from types import SimpleNamespace\n"
-    "from vpr_core.evaluation import evaluate, pr_curve\n"
+    "import dataclasses\n"
+    "from vpr_core import Evaluation, MethodResult, result_from_matrix\n"
     "from vpr_study.viz import plot_pr_curves, save",
     "fig, ax = plt.subplots(figsize=(5, 3))\n"
     "ax.plot([0, 1], [1, 0], label='mine')\n"
@@ -40,10 +40,10 @@ USER_CELLS = [
     "fig",
     "gt = np.eye(6, dtype=bool)\n"
     "sim = gt + np.random.default_rng(0).random((6, 6))\n"
-    "run = SimpleNamespace(label='dense', similarity=sim, ground_truth=gt, dataset='toy',\n"
-    "                      tolerance=0, protocol='ratio', metrics=evaluate(sim, gt),\n"
-    "                      intervals={'auc': (0.5, 0.25, 0.75)},\n"
-    "                      curve=lambda: pr_curve(sim, gt, warn=False))\n"
+    "made = MethodResult('dense', 'dense', 'toy', {'name': 'dense'}, {}, sim, gt,\n"
+    "                    {'query': [], 'reference': []}, {}, {}, tolerance=0)\n"
+    "run = result_from_matrix(sim, made, Evaluation(n_bootstrap=0))\n"
+    "run = dataclasses.replace(run, intervals={'auc': (0.5, 0.25, 0.75)})\n"
     "pr = plot_pr_curves([run], title='my PR figure')",
     "print(plt.get_backend(), type(fig.canvas).__name__)\n"
     "save(fig, 'x', 'mine'), save(pd.DataFrame({'a': [1.0]}), 'x', 'mine')\n"
