@@ -21,6 +21,8 @@ from vpr_core.evaluation import (
     needs_text,
 )
 
+from .tables import COMPARISON, MATCHES, check_table, table_exists
+
 __all__ = [
     "CELL_WORDS",
     "CLAIMS",
@@ -228,7 +230,7 @@ def _verdict(
 
 def _claim_cell(folder: Path, claim: Claim) -> tuple[str, str]:
     csv = folder / f"{claim.figure}.csv"
-    if not csv.is_file():
+    if not table_exists(csv):  # a FIFO, folder or dangling link there: refused by name
         return "-", "not run"
     df = read_table(csv)
     if "run" not in df.columns or "baseline" not in df.columns:
@@ -243,6 +245,7 @@ def _claim_cell(folder: Path, claim: Claim) -> tuple[str, str]:
             f"{csv} lacks the column(s) {', '.join(missing)} of a paired comparison; write it "
             "with save(compare(runs), figure, label) from runs of one dataset"
         )
+    check_table(df, COMPARISON, csv)  # every cell, not only the claim's: one schema per table
     method_key, base_key = claim.keys
     base = df[df["run"] == base_key]
     rows = df[(df["run"] == method_key) & df["baseline"].isin(base["method"])]
@@ -286,8 +289,10 @@ def _claim_numbers(
 
 
 def read_table(csv: Path) -> pd.DataFrame:
-    """A saved results table, refused naming the file when it is empty, not a CSV table or
-    truncated (its last line cut off)."""
+    """A saved results table, refused naming the file when it is no regular file (a FIFO, a
+    folder, a device: never read), empty, not a CSV table or truncated (its last line cut off)."""
+    if not table_exists(csv):
+        raise FileNotFoundError(f"{csv} does not exist; run the notebook or command that writes it")
     raw = csv.read_bytes()
     if not raw.strip():
         raise ValueError(f"{csv} is empty; rerun the notebook or command that writes it")
@@ -342,7 +347,7 @@ def cmr_difference(
 
 def _observation_1(folder: Path) -> tuple[str, str]:
     csv = folder / f"{MATCHES_TABLE}.csv"
-    if not csv.is_file():
+    if not table_exists(csv):
         return "-", "not run"
     table = read_table(csv)
     missing = sorted({"pair", "correct", "scale", "query"} - set(table.columns))
@@ -361,6 +366,7 @@ def _observation_1(folder: Path) -> tuple[str, str]:
             f"{csv} {why}: it is not a table of labelled matches; write it with "
             "save(stats.matches_frame(), ...) as notebook 02 does."
         )
+    check_table(table, MATCHES, csv)
     d, lo, hi = cmr_difference(table)
     return f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}]", _verdict(">", lo, hi)
 
