@@ -26,6 +26,7 @@ _FACE = {
     "available_methods": "methods",
     "get_method": "methods",
     "run_key": "methods",
+    "step_between": "methods",
     "scale_statistics": "statistics",
     "check_per_match": "statistics",
     "dataset_fingerprint": "cache",
@@ -58,6 +59,7 @@ __all__ = [
     "run_method",
     "scale_statistics",
     "settings",
+    "step_between",
     "tune_allocator",
     "utils",
 ]
@@ -79,7 +81,7 @@ def __dir__() -> list[str]:
 if TYPE_CHECKING:
     from . import checks, paper, paths, settings, utils
     from .cache import dataset_fingerprint
-    from .methods import Method, available_methods, get_method, run_key
+    from .methods import Method, available_methods, get_method, run_key, step_between
     from .notices import VPRWarning, notice
     from .result import MethodResult, constant_notice, normalise_result
     from .run import Executor, run_method

@@ -10,8 +10,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from vpr_core import checks
-from vpr_core.matching import Matching, weighted_matches, zscore
+from vpr_core import checks, step_between
+from vpr_core.matching import weighted_matches, zscore
 
 __all__ = ["CHANGE_COLUMNS", "changed_queries", "step_changes"]
 
@@ -61,19 +61,11 @@ def changed_queries(plain: Any, stepped: Any, n: int = 2) -> list[tuple[int, str
 
 
 def _step_of(plain: Any, stepped: Any) -> tuple[str | None, str | None]:
-    """``(weighting, normalise)`` that ``stepped`` adds to ``plain``; refuses other pairs."""
-    mp = getattr(plain.config, "matching", None)
-    ms = getattr(stepped.config, "matching", None)
-    if not (isinstance(mp, Matching) and isinstance(ms, Matching)):
-        raise ValueError("step_changes needs two run_method results of one method")
-    w = ms.weighting if ms.weighting != mp.weighting else None
-    z = ms.normalise if ms.normalise != mp.normalise else None
-    rest = dataclasses.replace(ms, weighting=mp.weighting, normalise=mp.normalise)
-    if rest != mp or plain.method != stepped.method or (w is None and z is None):
-        raise ValueError(
-            f"{stepped.label!r} must be {plain.label!r} with one more step (a weighting or a "
-            "normalisation), the rest the same"
-        )
+    """``(weighting, normalise)`` that ``stepped`` adds to ``plain``; refuses other pairs
+    (:func:`vpr_core.methods.step_between`: the same dataset, encoder, shortlist, options)."""
+    step = step_between(plain, stepped, "step_changes")
+    w, z = step.get("weighting"), step.get("normalise")
+    mp = plain.config.matching
     if w is not None and (mp.weighting is not None or mp.normalise is not None):
         raise ValueError("for a weighting step, `plain` must be the paper's Eq. (1)")
     return w, z

@@ -4,6 +4,7 @@ its verdict (docs/DEFINITIONS.md, "Verdicts"); ``vpr-study findings`` prints the
 
 from __future__ import annotations
 
+import dataclasses
 import io
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -12,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from vpr_core import get_method, paper, paths, run_key
+from vpr_core import get_method, paper, paths, run_key, step_between
 from vpr_core.evaluation import (
     IDENTICAL,
     N_BOOTSTRAP,
@@ -252,8 +253,23 @@ def _claim_cell(folder: Path, claim: Claim) -> tuple[str, str]:
     if base.empty or rows.empty:
         return "-", "not run"
     d, lo, hi, p, needs, queries = _claim_numbers(csv, df, base, rows, m)
+    if claim.figure == STEPS_TABLE:  # credited to the step only if the rows differ by it alone
+        step_between(_row_parts(base, claim.baseline), _row_parts(rows, claim.method), str(csv))
     verdict = _verdict(claim.expect, lo, hi, d, needs, queries)
     return f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] p={p:.3f}", verdict
+
+
+#: The columns of a ``compare`` table that say what a row's numbers come from besides its method.
+_CONTEXT = ("dataset", "root", "tolerance", "protocol", "backbone", "pooling", "shortlist")
+
+
+def _row_parts(rows: pd.DataFrame, method: tuple[str, dict]) -> dict:
+    """What the first of ``rows`` (a ``compare`` table's) comes from, as
+    :func:`vpr_core.step_between` compares it: the claim's method and the row's context."""
+    row, conf = rows.iloc[0], get_method(method[0], **method[1])
+    parts = {"label": str(row["method"]), "method": conf.name, "landmarks": conf.landmarks}
+    parts |= dataclasses.asdict(conf.matching)
+    return parts | {c: None if pd.isna(row[c]) else row[c] for c in _CONTEXT if c in row.index}
 
 
 def _claim_numbers(

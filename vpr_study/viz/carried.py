@@ -4,7 +4,6 @@ also matches, beside the ones the weighting silenced."""
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
 import matplotlib
@@ -12,7 +11,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from vpr_core import checks
+from vpr_core import checks, step_between
 from vpr_core.evaluation import best_two as _best_two
 from vpr_core.evaluation import ranked as _ranked
 from vpr_core.matching import cosine_similarity
@@ -149,17 +148,12 @@ def _check_carried_runs(ds: Any, plain: Any, weighted: Any) -> str:
         )
     checks.check_descriptors_kept(weighted, "plot_carried_landmarks")
     check_runs_on(ds, (plain, weighted), "plot_carried_landmarks")
-    m_w = dataclasses.replace(weighted.config.matching, weighting=None)
-    e_p, e_w = dict(getattr(plain, "encoder", {})), dict(getattr(weighted, "encoder", {}))
-    differ = [k for k in sorted(e_p.keys() | e_w.keys()) if e_p.get(k) != e_w.get(k)]
-    differ += [k for k in ("shortlist", "protocol") if getattr(plain, k) != getattr(weighted, k)]
-    differ += ["method"] if plain.method != weighted.method else []
-    differ += ["matching"] if m_w != m_p else []
-    if differ:
+    step = step_between(plain, weighted, "plot_carried_landmarks", "the weighting")
+    if set(step) != {"weighting"}:  # a normalisation too: not what the figure explains
         raise ValueError(
-            f"{plain.label!r} and {weighted.label!r} differ in more than the weighting "
-            f"({', '.join(differ)}): pass one method run without and with weighting= (same "
-            "encoder, shortlist and matching options otherwise)"
+            f"plot_carried_landmarks: {plain.label!r} and {weighted.label!r} differ in more "
+            "than the weighting (normalise): pass one method run without and with weighting= "
+            "alone"
         )
     return weighting
 
