@@ -278,7 +278,7 @@ def test_a_module_that_turns_constant_after_its_first_batches_is_refused(street)
     enc = LandmarkEncoder(_Turning.make("late_constant"), dim=16, input_size=32, batch_size=2)
     with pytest.raises(
         ValueError,
-        match=r"returns (the same features for every crop on|other features for crop \d+ of) a real",
+        match=r"returns (the same features for every crop on|other features for crop \d+ of) a",
     ):
         enc.encode(street, boxes)
 
