@@ -48,7 +48,8 @@ def test_a_string_option_stays_a_string_and_unknown_ones_parse_as_before():
         ("image_size=120,160,3", "image_size takes 2 numbers"),
         ("image_size=a,b", "image_size takes 2 numbers"),
         ("n_places=4.5", r"n_places takes an integer \(e.g. --opt n_places=60\), got '4.5'"),
-        ("repetition=inf", "repetition takes a finite number"),
+        ("repetition=high", "repetition takes a finite number"),
+        ("repetition=inf", "'inf' is not a finite number"),
         ("tolerance=one", "tolerance takes an integer"),
     ],
 )

@@ -29,7 +29,8 @@ __all__ = [
 #: What ``run_method(..., executor=)`` calls on the value (:class:`vpr_core.run.Executor`).
 EXECUTOR_METHODS = ("encode", "similarity_matrix", "similarity_pairs")
 #: Pairs (and per side: images x boxes) recomputed in-process per executor call: a few, so
-#: the check costs a few percent of the work sent out at most.
+#: the check costs a few percent of the work sent out (``two_sided`` also computes its
+#: reference statistics here once per database, as an in-process run does).
 SPOT_CHECK = {"pairs": 8, "images": 2, "boxes": 4}
 #: Largest difference between the executor's values and the in-process ones, relative to the
 #: largest in-process value: Eq. (1) sums in float64 (the block engine agrees with the one-pair

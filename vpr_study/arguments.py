@@ -57,6 +57,15 @@ def _typed(item: str, key: str, text: str, default: Any) -> Any:
     an option without a typed default as :func:`_parse_value` reads it."""
     kind = type(default)
     try:
+        finite = math.isfinite(float(text))
+    except ValueError:
+        finite = True  # no number at all: the type below says what the option takes
+    if not finite:
+        raise ValueError(
+            f"--opt {item!r}: {text!r} is not a finite number (inf, nan or beyond float range); "
+            "give a finite value"
+        )
+    try:
         if isinstance(default, bool):
             parsed = {"true": True, "false": False, "1": True, "0": False}[text.lower()]
             return parsed

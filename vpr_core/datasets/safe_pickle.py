@@ -153,9 +153,11 @@ class _RestrictedUnpickler(pickle._Unpickler):  # the Python unpickler: BUILD ca
             shown = ", ".join(f"{d:,}" for d in dims)
             raise _too_large(self.source, f"an array of shape ({shown})", self.n_bytes)
 
-    def _ndarray(self, *args: Any, **kwargs: Any) -> NoReturn:
+    def _ndarray(self, shape: Any = (), *args: Any, **kwargs: Any) -> NoReturn:
         """``numpy.ndarray(...)`` called by the pickle itself: never (an array is rebuilt by
-        ``_reconstruct``; a buffer with strides could read outside it)."""
+        ``_reconstruct``; a buffer with strides could read outside it); a size beyond the file's
+        is named first."""
+        self._check_shape(shape, None)
         self._refuse("asks to build an array on a buffer of its own")
 
     def _scalar(self, dtype: Any, *args: Any) -> Any:
