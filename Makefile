@@ -26,14 +26,15 @@ $(LAB_STAMP): $(STAMP) pyproject.toml
 # and any other notebook is the user's and passes unchanged (the same rule as `make lab`'s save
 # hook). The commands are relative (git runs them at the top of the work tree), so they work in
 # any clone, moved or not, and need only the system Python (no .venv: a fresh clone and
-# `make clean` strip the same). `make install` and `make lab` run it. Outside a git clone it
-# does nothing.
+# `make clean` strip the same). `make install` and `make lab` run it. The filter is `required`
+# and fails closed: a study notebook it cannot strip stops the `git add` with a sentence, so its
+# outputs never reach git through an error. Outside a git clone it does nothing.
 STRIP := sh tools/nbstrip
 git-filter:
 	@if git rev-parse --git-dir >/dev/null 2>&1; then \
 		git config --local filter.nbstripout.clean '$(STRIP) --clean %f' && \
 		git config --local filter.nbstripout.smudge cat && \
-		git config --local filter.nbstripout.required false && \
+		git config --local filter.nbstripout.required true && \
 		git config --local diff.ipynb.textconv '$(STRIP)'; fi
 
 study: $(STAMP)

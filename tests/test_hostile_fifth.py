@@ -273,9 +273,13 @@ def test_a_module_that_turns_constant_after_its_first_batches_is_refused(street)
     from vpr_core.features import LandmarkEncoder
 
     boxes = np.array([[0, 0, 50, 40], [10, 20, 60, 30], [40, 8, 30, 50], [60, 10, 40, 40]], float)
-    # probe (2 calls), then batches of 2 crops: the first real batch is sound, the second constant
+    # probe (2 calls), then batches of 2 crops: the first real batch is sound, the later calls
+    # constant (the crops of real batches compared alone, issue 60, may be the first to see it)
     enc = LandmarkEncoder(_Turning.make("late_constant"), dim=16, input_size=32, batch_size=2)
-    with pytest.raises(ValueError, match=r"returns the same features for every crop on a real"):
+    with pytest.raises(
+        ValueError,
+        match=r"returns (the same features for every crop on|other features for crop \d+ of) a",
+    ):
         enc.encode(street, boxes)
 
 

@@ -173,13 +173,14 @@ def test_a_malformed_study_notebook_is_saved_untouched_with_a_logged_reason(case
     assert TOUR in record.getMessage() and why in record.getMessage()
 
 
-def test_the_filter_command_passes_a_malformed_notebook_through_with_its_reason():
+def test_the_filter_command_refuses_a_malformed_notebook_with_its_reason():
+    """Issue 60 item 5: the filter fails closed (status 1, nothing on stdout, the reason)."""
     for text in ('{"nbformat": 3, "worksheets": []}', "not json", "[1, 2]"):
         done = subprocess.run(
             [sys.executable, "-m", "vpr_study.lab"], input=text, capture_output=True, text=True
         )
-        assert done.returncode == 0 and done.stdout == text
-        assert "passed through unchanged" in done.stderr
+        assert done.returncode == 1 and done.stdout == ""
+        assert "not added, its outputs would reach git" in done.stderr
     # a study notebook with outputs: stripped, byte-identical to the committed file
     executed = json.dumps(_executed(_tour()), indent=1, ensure_ascii=False)
     done = subprocess.run(
@@ -344,7 +345,9 @@ def test_git_keeps_each_kind_of_notebook_as_the_readme_says_with_or_without_venv
 
 
 @needs_git
-def test_without_a_python_the_filter_passes_through_and_says_so_each_time(tmp_path):
+def test_without_a_python_the_filter_fails_closed_on_study_notebooks_and_says_so(tmp_path):
+    """Issue 60 item 5: without a Python 3 a notebook under notebooks/ is refused (git stops
+    the add); another file passes unchanged; each time, it says why."""
     clone = _clone(tmp_path)
     text = json.dumps(_executed(_tour()))
     bare = tmp_path / "bin"
@@ -353,17 +356,17 @@ def test_without_a_python_the_filter_passes_through_and_says_so_each_time(tmp_pa
         found = shutil.which(tool)
         if found:
             (bare / tool).symlink_to(found)
-    for _ in range(2):
+    for path, status in ((TOUR, 1), (TOUR, 1), ("user/notebooks/mine.ipynb", 0)):
         done = subprocess.run(
-            ["sh", "tools/nbstrip", "--clean", TOUR],
+            ["sh", "tools/nbstrip", "--clean", path],
             cwd=clone,
             input=text,
             capture_output=True,
             text=True,
             env={"PATH": str(bare)},
         )
-        assert done.returncode == 0 and done.stdout == text
-        assert "no Python 3" in done.stderr and "outputs included" in done.stderr
+        assert done.returncode == status and done.stdout == ("" if status else text)
+        assert "no Python 3" in done.stderr
 
 
 # 3. A clean tree after a Lab session (issue 33 item 3) ------------------------------------------

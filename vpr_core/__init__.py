@@ -16,7 +16,7 @@ _MODULES: dict[str, tuple[str, ...]] = {
     "": ("checks", "paper", "paths", "settings", "utils"),
     # a run: its three values, the run itself, the result
     "run": ("run_method",),
-    "methods": ("Method", "available_methods", "get_method"),
+    "methods": ("Method", "available_methods", "get_method", "step_between"),
     "features.encoder": ("Encoder", "LandmarkEncoder"),
     "backbones": ("available_backbones",),
     "evaluation.spec": ("Evaluation", "PROTOCOLS"),
@@ -155,6 +155,7 @@ __all__ = [
     "similarity_matrix",
     "similarity_pairs",
     "SPATIAL_OPTIONS",
+    "step_between",
     "step_changes",
     "tune_allocator",
     "utils",
@@ -230,7 +231,7 @@ if TYPE_CHECKING:
     )
     from .matching.spec import SPATIAL_OPTIONS, Matching
     from .matching.weighting import WEIGHTINGS, Weighting
-    from .methods import Method, available_methods, get_method
+    from .methods import Method, available_methods, get_method, step_between
     from .notices import VPRWarning, notice
     from .result import MethodResult, normalise_result, result_from_matrix
     from .run import run_method

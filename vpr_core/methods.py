@@ -4,6 +4,7 @@ and the run keys, labels and cache keys derived from a method's value (docs/DEFI
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from typing import Any
 
 from .checks import check_choice, check_options
@@ -23,13 +24,16 @@ from .paper import SOFT_NMS_IOU, SOFT_NMS_SIGMA
 
 __all__ = [
     "METHODS",
+    "STEP_FIELDS",
     "Matching",
     "Method",
     "as_method",
     "available_methods",
     "get_method",
     "method_label",
+    "run_identity",
     "run_key",
+    "step_between",
 ]
 
 
@@ -198,3 +202,73 @@ def method_label(method: Method) -> str:
             )
     text = "; ".join(n for n in notes if n)
     return f"{method.name} ({text})" if text else method.name
+
+
+#: (Not in the paper.) The :class:`Matching` fields that are steps on Eq. (1): what
+#: :func:`step_between` credits a difference to (docs/DEFINITIONS.md).
+STEP_FIELDS = ("weighting", "normalise")
+
+
+def run_identity(run: Any) -> dict[str, Any]:
+    """What a ``run_method`` result's numbers come from, part by part (what :func:`step_between`
+    compares): ``dataset`` (its fingerprint: images and ground truth), ``method`` and
+    ``landmarks`` (the scheme), each field of its encoder's config (backbone, weights, pooling,
+    input size, projection, ...), ``shortlist``, ``protocol`` and each :class:`Matching` field;
+    ``label`` names it (not compared)."""
+    config = getattr(run, "config", None)
+    if not isinstance(config, Method):
+        raise ValueError(
+            f"{getattr(run, 'label', type(run).__name__)!r} is not a run_method result (a peer "
+            "or another value): a step is credited only between two runs of one method"
+        )
+    parts: dict[str, Any] = {
+        "label": getattr(run, "label", config.name),
+        "dataset": getattr(run, "dataset_fingerprint", "") or getattr(run, "dataset", None),
+        "method": config.name,
+        "landmarks": config.landmarks,
+    }
+    parts.update(dict(getattr(run, "encoder", None) or {}))
+    parts.update(shortlist=getattr(run, "shortlist", None), protocol=getattr(run, "protocol", None))
+    parts.update(dataclasses.asdict(config.matching))
+    return parts
+
+
+def step_between(a: Any, b: Any, caller: str, step: str = "the step") -> dict[str, Any]:
+    """(Not in the paper.) The step ``b`` adds to ``a``: ``{field: value in b}`` for each of
+    :data:`STEP_FIELDS` that differs (``{"weighting": "two_sided"}``). The one check of every
+    function that credits a difference to a step: everything else must be the same.
+
+    Args:
+        a, b: two ``run_method`` results (or their :func:`run_identity`, or a mapping of the
+            parts a saved table records: the same keys).
+        caller: the function the refusal names; step: what it credits (in the refusal).
+
+    Raises:
+        ValueError: ``a`` and ``b`` differ in anything but the step (the dataset, method,
+            landmarks, encoder, shortlist, protocol, another matching field: each named, with
+            both values), in no step, or ``b`` removes a step ``a`` has.
+    """
+    ia, ib = (x if isinstance(x, Mapping) else run_identity(x) for x in (a, b))
+    la, lb = ia.get("label", "a"), ib.get("label", "b")
+    keys = [k for k in dict.fromkeys([*ia, *ib]) if k != "label"]
+    other = [k for k in keys if k not in STEP_FIELDS and ia.get(k) != ib.get(k)]
+    if other:
+        shown = "; ".join(f"{k} {_short(ia.get(k))} vs {_short(ib.get(k))}" for k in other[:4])
+        raise ValueError(
+            f"{caller}: {la!r} and {lb!r} differ in more than {step} ({', '.join(other)}): "
+            f"{shown}. A step is credited only between two runs that differ by it alone: pass "
+            "one method's run without and with one more step (weighting= or normalise=), the "
+            "same dataset, encoder, shortlist and options otherwise"
+        )
+    found = {k: ib.get(k) for k in STEP_FIELDS if ia.get(k) != ib.get(k)}
+    if not found or any(v is None for v in found.values()):
+        raise ValueError(
+            f"{caller}: {lb!r} must be {la!r} with one more step (weighting= or normalise=), "
+            f"the rest the same; it {'removes one' if found else 'adds none'}"
+        )
+    return found
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."

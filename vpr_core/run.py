@@ -16,6 +16,7 @@ import numpy as np
 from .cache import SIDES, atomic_savez, images_fingerprint, load_npz, n_images
 from .checks import check_int
 from .evaluation.spec import Evaluation, refuse_tolerance
+from .executor import check_executor, checked_matrix, checked_pairs
 from .features import Encoder, as_encoder
 from .features.stage import extract_features, get_encoder
 from .landmarks.edge_boxes import edge_model_id
@@ -152,23 +153,22 @@ def _match(
             sim = similarity_matrix(*args, matching=matching)
         else:
             sim = executor.similarity_matrix(*args, matching)
-        return sim, {
-            "pairs": float(nq * nr),
-            "shortlist_s": 0.0,
-            "matching_s": time.perf_counter() - t0,
-        }
+        seconds = time.perf_counter() - t0
+        if executor is not None:  # checked before the cache keeps it: a sample recomputed here
+            sim = checked_matrix(executor, sim, args, matching)
+        return sim, {"pairs": float(nq * nr), "shortlist_s": 0.0, "matching_s": seconds}
     if global_desc is None:
         raise ValueError("shortlist=k needs the whole-image descriptors (global_desc)")
 
     pairs, _ = shortlist_pairs(global_desc["query"], global_desc["reference"], shortlist)
     t1 = time.perf_counter()
-    vals = (
-        similarity_pairs(*args, pairs, matching)
-        if executor is None
-        else executor.similarity_pairs(*args, pairs, matching)
-    )
-    sim = rerank(vals, pairs, nq, nr)
-    t2 = time.perf_counter()
+    if executor is None:
+        sim = rerank(similarity_pairs(*args, pairs, matching), pairs, nq, nr)
+        t2 = time.perf_counter()
+    else:  # an executor's values, checked before the cache keeps them
+        vals = executor.similarity_pairs(*args, pairs, matching)
+        t2 = time.perf_counter()
+        sim = rerank(checked_pairs(executor, vals, args, pairs, matching), pairs, nq, nr)
     logger.info(
         "shortlist k=%d: Eq. (1) on %d of %d pairs (%.1f s ranking, %.1f s matching)",
         shortlist,
@@ -329,7 +329,9 @@ def run_method(
             second best inside the shortlist). k >= the number of references is exhaustive.
         executor: where extraction and matching run: an :class:`Executor` value (e.g.
             :class:`vpr_study.cluster.DaskExecutor` on a Dask cluster; the caller opens and
-            closes it), or None: in-process, always. The numbers are the same either way.
+            closes it), or None: in-process, always. The numbers are the same either way:
+            what it returns is checked, a sample recomputed here, before any cache keeps it
+            (:mod:`vpr_core.executor`).
         label: display label; default from the config.
         keep_descriptors: also return the descriptors (needed by the scale statistics).
         **overrides: the encoder and evaluation fields above, and the method's own options:
@@ -347,6 +349,7 @@ def run_method(
         its numbers mean (each also raised as a :class:`~vpr_core.notices.VPRWarning`).
     """
     conf, spec, evaluation = _values(method, encoder, evaluation, overrides)
+    executor = None if executor is None else check_executor(executor)
     nq, nr = n_images(dataset, "query"), n_images(dataset, "reference")
     k = _check_shortlist(shortlist, nr)
     landmark_encoder = get_encoder(spec)

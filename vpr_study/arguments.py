@@ -4,26 +4,24 @@ make, and the dataset options they give."""
 from __future__ import annotations
 
 import argparse
+import inspect
 import math
 from collections.abc import Callable
+from typing import Any
 
-import torch
-
-from vpr_core import (
+from vpr_core import paper, settings
+from vpr_study import outputs
+from vpr_study.choices import (
+    BACKBONES,
     DATASETS,
-    NORMALISATIONS,
+    METHODS,
+    NORMALISE_OPTIONS,
     PROTOCOLS,
     SPATIAL_OPTIONS,
-    WEIGHTINGS,
-    Encoder,
-    available_backbones,
-    available_methods,
-    paper,
-    settings,
+    WEIGHTING_OPTIONS,
+    weights_found,
 )
-from vpr_study.usage import COMMANDS, DESCRIPTION
-
-from . import outputs
+from vpr_study.usage import COMMANDS, DESCRIPTION, version_text
 
 __all__ = [
     "EVAL_EPILOG",
@@ -44,6 +42,64 @@ def _parse_value(text: str):
         except ValueError:
             pass
     return {"true": True, "false": False, "none": None}.get(text.lower(), text)
+
+
+def _number(text: str, kind: type) -> Any:
+    """``text`` as a finite ``kind`` (int or float); ValueError otherwise."""
+    value = kind(text.strip())
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ValueError(text)
+    return value
+
+
+def _typed(item: str, key: str, text: str, default: Any) -> Any:
+    """``--opt KEY=VALUE``'s value parsed by the type of the loader's default for ``key``: a
+    tuple of numbers from ``a,b`` (``image_size=120,160``), an int, a float, a bool, a string;
+    an option without a typed default as :func:`_parse_value` reads it."""
+    kind = type(default)
+    try:
+        finite = math.isfinite(float(text))
+    except ValueError:
+        finite = True  # no number at all: the type below says what the option takes
+    if not finite:
+        raise ValueError(
+            f"--opt {item!r}: {text!r} is not a finite number (inf, nan or beyond float range); "
+            "give a finite value"
+        )
+    try:
+        if isinstance(default, bool):
+            parsed = {"true": True, "false": False, "1": True, "0": False}[text.lower()]
+            return parsed
+        if isinstance(default, int | float):
+            return _number(text, kind)
+        if isinstance(default, tuple | list) and default:
+            parts = [_number(t, type(default[0])) for t in text.replace("x", ",").split(",")]
+            if len(parts) != len(default):
+                raise ValueError(text)
+            return tuple(parts)
+    except (ValueError, KeyError):
+        what = {bool: "true or false", int: "an integer", float: "a finite number"}.get(kind)
+        if what is None:
+            what = f"{len(default)} numbers separated by commas"
+        example = ",".join(map(str, default)) if isinstance(default, tuple | list) else default
+        raise ValueError(
+            f"--opt {item!r}: {key} takes {what} (e.g. --opt {key}={example}), got {text!r}"
+        ) from None
+    if isinstance(default, str):
+        return text
+    return _parse_value(text)
+
+
+def _loader_defaults(dataset: str | None) -> dict[str, Any]:
+    """The loader of ``dataset``'s keyword defaults (``{}`` for an unknown name: load_dataset
+    names the valid ones)."""
+    import vpr_core  # a command: the pipeline is loaded now (its face loads names on first use)
+
+    key = str(dataset or "").strip().lower().replace("-", "_")
+    if key not in vpr_core.DATASETS:
+        return {}
+    params = inspect.signature(vpr_core.DATASETS[key]).parameters.values()
+    return {p.name: p.default for p in params if p.default is not inspect.Parameter.empty}
 
 
 def dataset_options(args: argparse.Namespace) -> dict:
@@ -70,13 +126,16 @@ def dataset_options(args: argparse.Namespace) -> dict:
         value = getattr(args, key, None)
         if value is not None:
             put(key, value, f"{flag} {value}")
-    for item in getattr(args, "opt", None) or []:
+    items = getattr(args, "opt", None) or []
+    defaults = _loader_defaults(getattr(args, "dataset", None)) if items else {}
+    for item in items:
         key, sep, value = item.partition("=")
         if not sep or not key.strip():
             raise ValueError(f"--opt {item!r} is not KEY=VALUE (e.g. --opt query=winter)")
         if key.strip() == "root":
             raise ValueError(f"--opt {item!r}: the dataset folder is --root, not a loader option")
-        parsed = _parse_value(value.strip())
+        name = key.strip().replace("-", "_")
+        parsed = _typed(item, name, value.strip(), defaults.get(name))  # by the loader's type
         if isinstance(parsed, float) and not math.isfinite(parsed):
             raise ValueError(
                 f"--opt {item!r}: {value.strip()!r} is not a finite number (inf, nan or beyond "
@@ -112,6 +171,8 @@ def _folder(text: str) -> str:
 
 def _device(text: str) -> str:
     """``--device``: ``cpu``, ``cuda``, ``cuda:N`` or ``mps``, available on this machine."""
+
+    import torch  # only when --device is given: every --help answers without torch
 
     try:
         kind = torch.device(text).type
@@ -160,17 +221,12 @@ def given_once(args: argparse.Namespace) -> argparse.Namespace:
 def backbone_help() -> str:
     """``--backbone``'s help: every registered backbone, each that cannot run in this install
     marked with what it needs (a weights file that is absent here)."""
-    names = []
-    for name in available_backbones():
-        try:
-            found = Encoder(name).identity()  # hashes its weights file: absent, an error
-        except (FileNotFoundError, OSError):
-            found = "missing"
-        names.append(
-            f"{name} (needs a weights file, none found here: --weights FILE)"
-            if found == "missing"
-            else name
-        )
+    names = [
+        name
+        if weights_found(name)
+        else f"{name} (needs a weights file, none found here: --weights FILE)"
+        for name in BACKBONES
+    ]
     return (
         "landmark descriptor: a name, or NAME:OPTION=VALUE,... (e.g. efficientnet_lite0:stage=4,"
         f"input_size=96), of: {', '.join(names)} (default: efficientnet_lite0, ImageNet weights "
@@ -241,6 +297,7 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
         description=DESCRIPTION,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    p.add_argument("--version", action="version", version=version_text())
     sub = p.add_subparsers(dest="command", required=True)
 
     def command(name: str, text: str, epilog: str | None = None) -> argparse.ArgumentParser:
@@ -301,7 +358,7 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
         "--method",
         nargs="+",
         default=["dense"],
-        help=f"one or more of: {', '.join(available_methods())}",
+        help=f"one or more of: {', '.join(METHODS)}",
     )
     e.add_argument(
         "--label",
@@ -351,7 +408,7 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
     e.add_argument(
         "--weighting",
         default="none",
-        choices=("none", *WEIGHTINGS, "both"),
+        choices=("none", *WEIGHTING_OPTIONS, "both"),
         help="(not in the paper) weight every method's match terms by how much better the "
         "query landmark matches this reference than the others (docs/DEFINITIONS.md); 'both': "
         "every method without and with each weighting, and the paired differences; default "
@@ -360,7 +417,7 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
     e.add_argument(
         "--normalise",
         default="none",
-        choices=("none", *NORMALISATIONS, "both"),
+        choices=("none", *NORMALISE_OPTIONS, "both"),
         help="(not in the paper) normalise every method's similarity matrix after Eq. (1) "
         "(docs/DEFINITIONS.md): query_batch z-scores over references and over the batch of "
         "queries (needs the query batch; also applied to peers), database subtracts each "
@@ -506,9 +563,9 @@ def check_names(parser: argparse.ArgumentParser, args: argparse.Namespace) -> No
     before any dataset is generated or read, with the subcommand's usage."""
     parser = command_parser(parser, args.command)
     if args.command == "eval":
-        bad = [m for m in args.method if m not in available_methods()]
+        bad = [m for m in args.method if m not in METHODS]
         if bad:
-            parser.error(f"unknown method(s) {bad}; valid: {', '.join(available_methods())}")
+            parser.error(f"unknown method(s) {bad}; valid: {', '.join(METHODS)}")
         twice = sorted({m for m in args.method if args.method.count(m) > 1})
         if twice:
             parser.error(f"--method lists {', '.join(twice)} twice; name each method once")
@@ -538,7 +595,9 @@ def check_names(parser: argparse.ArgumentParser, args: argparse.Namespace) -> No
             parser.error(str(exc))
     if getattr(args, "backbone", None) is None:
         return
+    from vpr_core import Encoder  # a command: the pipeline is loaded now
+
     try:
-        Encoder(args.backbone)  # the backbone spec parsed (the weights are looked up later)
+        Encoder(args.backbone)  # the backbone spec parsed (its weights are looked up later)
     except (TypeError, ValueError) as exc:
         parser.error(str(exc))

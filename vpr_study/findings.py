@@ -4,6 +4,7 @@ its verdict (docs/DEFINITIONS.md, "Verdicts"); ``vpr-study findings`` prints the
 
 from __future__ import annotations
 
+import dataclasses
 import io
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -20,9 +21,11 @@ from vpr_core import (
     get_method,
     paper,
     paths,
+    step_between,
 )
 
 from . import outputs
+from .tables import COMPARISON, MATCHES, check_table, table_exists
 
 __all__ = [
     "CELL_WORDS",
@@ -177,7 +180,7 @@ CELL_WORDS = (*VERDICT_WORDS, "not run")
 
 def _claim_cell(folder: Path, claim: Claim) -> tuple[str, str]:
     csv = folder / f"{claim.figure}.csv"
-    if not csv.is_file():
+    if not table_exists(csv):  # a FIFO, folder or dangling link there: refused by name
         return "-", "not run"
     df = read_table(csv)
     if "run" not in df.columns or "baseline" not in df.columns:
@@ -192,14 +195,30 @@ def _claim_cell(folder: Path, claim: Claim) -> tuple[str, str]:
             f"{csv} lacks the column(s) {', '.join(missing)} of a paired comparison; write it "
             "with save(compare(runs), figure, label) from runs of one dataset"
         )
+    check_table(df, COMPARISON, csv)  # every cell, not only the claim's: one schema per table
     method_key, base_key = claim.keys
     base = df[df["run"] == base_key]
     rows = df[(df["run"] == method_key) & df["baseline"].isin(base["method"])]
     if base.empty or rows.empty:
         return "-", "not run"
     d, lo, hi, p, needs, queries = _claim_numbers(csv, df, base, rows, m)
+    if claim.figure == STEPS_TABLE:  # credited to the step only if the rows differ by it alone
+        step_between(_row_parts(base, claim.baseline), _row_parts(rows, claim.method), str(csv))
     verdict = claim_verdict(claim.expect, lo, hi, d, needs, queries)
     return f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] p={p:.3f}", verdict
+
+
+#: The columns of a ``compare`` table that say what a row's numbers come from besides its method.
+_CONTEXT = ("dataset", "root", "tolerance", "protocol", "backbone", "pooling", "shortlist")
+
+
+def _row_parts(rows: pd.DataFrame, method: tuple[str, dict]) -> dict:
+    """What the first of ``rows`` (a ``compare`` table's) comes from, as
+    :func:`vpr_core.step_between` compares it: the claim's method and the row's context."""
+    row, conf = rows.iloc[0], get_method(method[0], **method[1])
+    parts = {"label": str(row["method"]), "method": conf.name, "landmarks": conf.landmarks}
+    parts |= dataclasses.asdict(conf.matching)
+    return parts | {c: None if pd.isna(row[c]) else row[c] for c in _CONTEXT if c in row.index}
 
 
 def _claim_numbers(
@@ -235,8 +254,10 @@ def _claim_numbers(
 
 
 def read_table(csv: Path) -> pd.DataFrame:
-    """A saved results table, refused naming the file when it is empty, not a CSV table or
-    truncated (its last line cut off)."""
+    """A saved results table, refused naming the file when it is no regular file (a FIFO, a
+    folder, a device: never read), empty, not a CSV table or truncated (its last line cut off)."""
+    if not table_exists(csv):
+        raise FileNotFoundError(f"{csv} does not exist; run the notebook or command that writes it")
     raw = csv.read_bytes()
     if not raw.strip():
         raise ValueError(f"{csv} is empty; rerun the notebook or command that writes it")
@@ -258,7 +279,7 @@ def read_table(csv: Path) -> pd.DataFrame:
 
 def _observation_1(folder: Path) -> tuple[str, str]:
     csv = folder / f"{MATCHES_TABLE}.csv"
-    if not csv.is_file():
+    if not table_exists(csv):
         return "-", "not run"
     table = read_table(csv)
     missing = sorted({"pair", "correct", "scale", "query"} - set(table.columns))
@@ -277,6 +298,7 @@ def _observation_1(folder: Path) -> tuple[str, str]:
             f"{csv} {why}: it is not a table of labelled matches; write it with "
             "save(stats.matches_frame(), ...) as notebook 02 does."
         )
+    check_table(table, MATCHES, csv)
     d, lo, hi = cmr_difference(table)
     return f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}]", claim_verdict(">", lo, hi)
 
@@ -377,7 +399,7 @@ def markdown_cell(text: object) -> str:
     return "<br>".join(out.replace("\r\n", "\n").replace("\r", "\n").split("\n"))
 
 
-def _boldclaim_verdict(verdict: str) -> str:
+def _bold_verdict(verdict: str) -> str:
     """``**higher** (paper: lower)``: the verdict's word bold, its note after it."""
     word = next((w for w in CELL_WORDS if verdict.startswith(w)), verdict)
     rest = verdict[len(word) :]
@@ -397,7 +419,7 @@ def findings_markdown(
     for claim, r in table.iterrows():
         cells = [
             (f"{markdown_cell(r[lab])} " if r[lab] != "-" else "")
-            + _boldclaim_verdict(r[lab + " verdict"])
+            + _bold_verdict(r[lab + " verdict"])
             for lab in labels
         ]
         lines.append(f"| {markdown_cell(claim)} | " + " | ".join(cells) + " |")

@@ -136,9 +136,9 @@ def strip_text(text: str) -> tuple[str, str | None]:
     return clean_text(text)
 
 
-def main(argv: list[str]) -> None:
+def main(argv: list[str]) -> int:
     """``init [--root DIR]``, or a study notebook on stdin or at a path stripped to stdout
-    (:func:`vpr_study.nbclean.main`); a malformed one passes unchanged, the reason on stderr."""
+    (:func:`vpr_study.nbclean.main`: one that cannot be stripped is refused, status 1)."""
     if argv[:1] == ["init"]:
         import argparse
 
@@ -152,9 +152,9 @@ def main(argv: list[str]) -> None:
             init(parser.parse_args(argv[1:]).root)
         except (OSError, ValueError) as exc:
             parser.exit(2, f"{parser.prog}: error: {exc}\n")
-        return
-    nbclean_main(argv)
+        return 0
+    return nbclean_main(argv)
 
 
 if __name__ == "__main__":  # pragma: no cover - git and make run it
-    main(sys.argv[1:])
+    sys.exit(main(sys.argv[1:]))

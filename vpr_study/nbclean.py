@@ -128,13 +128,19 @@ def strip_notebook(content: dict) -> dict:
     return content
 
 
+#: A lone surrogate (``"\\ud800"`` in a notebook's JSON): no UTF-8 encoding of it exists.
+_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
 def notebook_text(content: dict) -> str:
     """``content`` as nbformat writes a notebook file (sorted keys, indent 1, sources split
-    into lines, a final newline)."""
+    into lines, a final newline); a lone surrogate stays the JSON escape it was read from (it
+    can only stand inside a JSON string), so the text always encodes to UTF-8."""
     for cell in content.get("cells", []):
         if isinstance(cell.get("source"), str):
             cell["source"] = cell["source"].splitlines(True)
     text = json.dumps(content, indent=1, sort_keys=True, separators=(",", ": "), ensure_ascii=False)
+    text = _SURROGATE.sub(lambda m: f"\\u{ord(m.group()):04x}", text)
     return text if text.endswith("\n") else text + "\n"
 
 
@@ -190,26 +196,48 @@ def _textconv_path(arg: str) -> str:
         return f"notebooks/scripts/{name}" if name.endswith(".py") else f"notebooks/{name}"
 
 
-def main(argv: list[str]) -> None:
-    """``--clean PATH`` (stdin) or ``FILE`` (textconv), stripped as :func:`clean_text`; a study
-    notebook that cannot be stripped passes unchanged, the reason on stderr."""
+def _stripped(data: bytes, path: str | None) -> tuple[bytes, str | None]:
+    """:func:`clean_text` of a file's bytes: ``(bytes git keeps, None)``, or ``(data, why)``
+    when a study notebook cannot be stripped, whatever the reason (not UTF-8, not JSON, nested
+    too deep for the parser, malformed, any error while stripping)."""
+    try:
+        out, why = clean_text(data.decode("utf-8"), path)
+        return (data, why) if why is not None else (out.encode("utf-8"), None)
+    except Exception as exc:  # the filter fails closed, whatever went wrong
+        text = str(exc).splitlines()[0][:120] if str(exc) else ""
+        return data, f"{type(exc).__name__}{': ' + text if text else ''}"
+
+
+def main(argv: list[str]) -> int:
+    """``--clean PATH`` (stdin; git's clean filter) or ``FILE`` (textconv), stripped as
+    :func:`clean_text`; returns the exit status. The filter fails closed: a study notebook
+    that cannot be stripped is refused (status 1, a sentence on stderr: git, whose filter is
+    ``required``, then stops the ``git add``), so its outputs never reach git through an error;
+    the textconv (what ``git diff`` shows) shows it unchanged, the reason on stderr."""
+    clean = argv[:1] == ["--clean"] or not argv  # no argument: an older filter, on stdin
     if argv[:1] == ["--clean"]:
         path = argv[1] if len(argv) > 1 else None
         data = sys.stdin.buffer.read()
     elif argv:
         path = _textconv_path(argv[0])
         data = Path(argv[0]).read_bytes()
-    else:  # an older filter configuration: a study notebook on stdin
+    else:
         path = None
         data = sys.stdin.buffer.read()
-    try:
-        out, why = clean_text(data.decode("utf-8"), path)
-    except UnicodeDecodeError as exc:
-        out, why = "", f"not UTF-8 text ({exc})"
+    out, why = _stripped(data, path)
+    if why is not None and clean:
+        print(
+            f"tools/nbstrip: {path or 'the study notebook on stdin'}: not added, its outputs "
+            f"would reach git: the filter cannot strip it ({why}); open it in JupyterLab "
+            "(make lab), clear its outputs and save it as a notebook, then add it again",
+            file=sys.stderr,
+        )
+        return 1
     if why is not None:
-        print(f"vpr_study.lab: {path or 'stdin'} passed through unchanged: {why}", file=sys.stderr)
-    sys.stdout.buffer.write(data if why is not None else out.encode("utf-8"))
+        print(f"vpr_study.lab: {path or 'stdin'} shown unchanged: {why}", file=sys.stderr)
+    sys.stdout.buffer.write(out)
+    return 0
 
 
 if __name__ == "__main__":  # pragma: no cover - git runs it
-    main(sys.argv[1:])
+    sys.exit(main(sys.argv[1:]))

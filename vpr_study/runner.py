@@ -15,7 +15,8 @@ from vpr_core import checks, load_dataset, settings
 from vpr_study.catalogue import LABEL_NOTEBOOKS
 from vpr_study.execution import run_labels
 from vpr_study.figures import FIGURES, NOTEBOOKS
-from vpr_study.findings import findings_document, result_labels
+from vpr_study.findings import findings_document, read_table, result_labels
+from vpr_study.tables import COMPARISON, check_table
 
 from . import outputs
 
@@ -197,8 +198,9 @@ def summary_table(label: str) -> pd.DataFrame:
     notebook = {spec.stem: spec.notebook for spec in FIGURES}
     frames = []
     for csv in sorted(outputs.results_dir(label).glob("fig*.csv")):
-        df = pd.read_csv(csv)
+        df = read_table(csv)  # a FIFO or a folder named like a table: refused by name
         if "AUC" in df.columns and "run" in df.columns:
+            check_table(df, COMPARISON, csv)
             df.insert(0, "figure", csv.stem)
             df.insert(0, "notebook", notebook.get(csv.stem, "?"))
             frames.append(df)

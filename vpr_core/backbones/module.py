@@ -57,6 +57,23 @@ def _degenerate(out: torch.Tensor, per_cell: bool) -> str | None:
     return None
 
 
+def _same(alone: object, row: torch.Tensor) -> bool:
+    """Whether a crop's features ``alone`` (a batch of one) equal its ``row`` ``(1, ...)`` in a
+    batch, to the precision other batch shapes give (other CPU kernels)."""
+    scale = float(row.abs().max())
+    return (
+        isinstance(alone, torch.Tensor)
+        and alone.shape == row.shape
+        and torch.allclose(alone.float(), row.float(), rtol=1e-3, atol=1e-4 * scale)
+    )
+
+
+def _checked_batch(count: int) -> bool:
+    """Whether the ``count``-th real batch (1-based) has crops compared with themselves alone:
+    batches 1, 2, 4, 8, ... (a few single-crop passes per run, not per batch)."""
+    return count & (count - 1) == 0
+
+
 def _got(out: object) -> object:
     """What a module returned, for a message: its shape, a meta tensor's, or its type."""
     if not isinstance(out, torch.Tensor):
@@ -76,7 +93,9 @@ class ModuleBackbone(nn.Module):
     must give its features inside the batch: no dependence on the rest of the batch), and on
     every real batch of different crops (``forward``) or non-uniform image (``feature_map``):
     all zeros or the same features for every crop (every cell) are refused, naming the module;
-    every call is checked for its shape and for NaN or inf (vectorised: negligible cost).
+    every call is checked for its shape, for NaN or inf and for an output that requires grad
+    (vectorised: negligible cost). On real batches 1, 2, 4, 8, ... a few crops, at their
+    positions, are compared with the same crops alone (a batch of one each).
 
     Attributes:
         label: the module's class name; qualname: ``module.Class``.
@@ -118,6 +137,7 @@ class ModuleBackbone(nn.Module):
                 f"backbone module {self.label} returned {got} for a {size} batch of crops; it "
                 "must return (B, C, h, w) or (B, C) features holding numbers"
             )
+        self._refuse_grad(out, f"a {size} batch of crops")
         fault = (
             "NaN or inf"
             if not out.isfinite().all()
@@ -128,16 +148,12 @@ class ModuleBackbone(nn.Module):
         if fault is None and out.ndim in (2, 4) and len(out) == len(probe) > 1:
             with torch.inference_mode():
                 alone = module(probe[:1])
-            scale = float(out[:1].abs().max())
-            if not (
-                isinstance(alone, torch.Tensor)
-                and alone.shape == out[:1].shape
-                and torch.allclose(alone, out[:1], rtol=1e-3, atol=1e-4 * scale)
-            ):
+            if not _same(alone, out[:1]):
                 fault = "other features for a crop alone than for the same crop in a batch"
         if fault is not None:
             self._refuse(fault, f"a random {size} input (backbones.module.probe_input)")
         self.probe_sha256 = array_sha256([out.detach().float().cpu().numpy()])
+        self._batches = 0  # real batches seen (forward): some compared crop by crop
         self.feature_shape = tuple(int(n) for n in out.shape[1:])
         self.raw_dim = math.prod(self.feature_shape)
         self.stride: int | None = None
@@ -169,6 +185,40 @@ class ModuleBackbone(nn.Module):
             f"backbone module {self.label} returns {fault} on {where}: {fix or self._fix}"
         )
 
+    def _refuse_grad(self, out: torch.Tensor, where: str) -> None:
+        """Refuse an output that requires grad: the package runs the module under
+        ``torch.inference_mode()``, so its forward turned autograd back on."""
+        if out.requires_grad:
+            raise ValueError(
+                f"backbone module {self.label} returns a tensor that requires grad on {where}, "
+                "although the package runs it under torch.inference_mode(): its forward turns "
+                "autograd back on (torch.enable_grad, torch.inference_mode(False), "
+                "requires_grad_); remove that from its forward, or return out.detach()"
+            )
+
+    def _check_positions(self, batch: torch.Tensor, out: torch.Tensor) -> None:
+        """On real batches 1, 2, 4, 8, ... (:func:`_checked_batch`), a few crops at their
+        positions (the first, the last and a seeded one between; then one) against the same
+        crops alone: a forward that depends on the batch's size, order or other crops is refused."""
+        self._batches += 1
+        n = batch.shape[0]
+        if n < 2 or not _checked_batch(self._batches):
+            return
+        between = int(
+            torch.randint(n, (1,), generator=torch.Generator().manual_seed(self._batches))
+        )
+        positions = sorted({0, between, n - 1}) if self._batches == 1 else [between]
+        for p in positions:
+            if not _same(self.module(batch[p : p + 1]), out[p : p + 1]):
+                self._refuse(
+                    f"other features for crop {p} of a real batch of {n} crops than for the "
+                    "same crop alone",
+                    f"real batch {self._batches} (its forward)",
+                    "a crop's features must not depend on the batch it is in (its size, order "
+                    "or other crops): check its forward on torch.randn(8, 3, S, S) against each "
+                    "crop alone (a statistic of the batch, a term by position, a reordering)",
+                )
+
     def _check_real(self, mode: str, out: torch.Tensor, inputs: torch.Tensor, where: str) -> None:
         """Refuse degenerate output on every real input of ``mode`` (``crop``: different crops;
         ``roi``: a non-uniform image)."""
@@ -198,6 +248,7 @@ class ModuleBackbone(nn.Module):
                 f"with the {channels} channels it gives on crops. Fix its forward to keep the "
                 "batch dimension and work on images of any size, or use pooling='crop'"
             )
+        self._refuse_grad(out, f"a {size} image (pooling='roi')")
         if not out.isfinite().all():
             self._refuse(
                 "NaN or inf",
@@ -223,6 +274,7 @@ class ModuleBackbone(nn.Module):
                 f"expected {(n, *self.feature_shape)}: one row per crop, the same shape on every "
                 "call. Fix its forward to keep the batch dimension (B crops in, B rows out)"
             )
+        self._refuse_grad(out, f"{n} crops (its forward)")
         if not out.isfinite().all():
             self._refuse(
                 "NaN or inf",
@@ -230,4 +282,5 @@ class ModuleBackbone(nn.Module):
                 "check it on real crops (an overflow, a division by zero)",
             )
         self._check_real("crop", out, batch, f"a real batch of {n} different crops")
+        self._check_positions(batch, out)
         return out.float().flatten(1)

@@ -7,14 +7,15 @@ from __future__ import annotations
 import io
 import os
 import pickle
+import re
 import struct
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 from numpy.lib import format as npy_format
 
-__all__ = ["ALLOWED_GLOBALS", "MAX_PICKLE_DEPTH", "read_npy"]
+__all__ = ["ALLOWED_DTYPE_KINDS", "ALLOWED_GLOBALS", "MAX_PICKLE_DEPTH", "read_npy"]
 
 #: The only callables a pickle may name: numpy's array / dtype / scalar rebuilders (both the
 #: numpy 1 ``numpy.core`` and numpy 2 ``numpy._core`` spellings) and ``_codecs.encode``, which
@@ -42,6 +43,13 @@ _HEADERS = {
 }
 
 
+#: The numpy dtypes a pickled input may hold (VPR-Bench's files: bool, integer, float, object
+#: and string arrays; complex too, which the readers refuse by name): a dtype string of one of
+#: these kinds, e.g. ``f8``, ``O8``, ``U5``.
+ALLOWED_DTYPE_KINDS = "biufcOUS"
+_DTYPE = re.compile(rf"[<>|=]?[{ALLOWED_DTYPE_KINDS}]\d{{1,6}}")
+
+
 class _UnsafePickleError(ValueError):
     """A pickle asked to run something other than rebuilding arrays, numbers and strings."""
 
@@ -60,8 +68,10 @@ def _too_large(source: str, what: str, n_bytes: int) -> ValueError:
 
 
 class _RestrictedUnpickler(pickle._Unpickler):  # the Python unpickler: BUILD can be checked
-    """An unpickler that resolves only :data:`ALLOWED_GLOBALS` and checks every array's size
-    against the file's before numpy allocates it.
+    """An unpickler that resolves only :data:`ALLOWED_GLOBALS`, each as a wrapper that checks
+    its arguments (dtypes of :data:`ALLOWED_DTYPE_KINDS`, latin1 bytes, data that fills its
+    array), checks every array's size against the file's before numpy allocates it, and lets
+    BUILD set an object once, before anything uses it: nothing changes after its check.
 
     Args:
         file: Binary file positioned at the pickle.
@@ -74,6 +84,61 @@ class _RestrictedUnpickler(pickle._Unpickler):  # the Python unpickler: BUILD ca
         super().__init__(file, encoding=encoding)
         self.source = source
         self.n_bytes = n_bytes
+        # objects BUILD may still set, by id (held: an id is never reused while loading): an
+        # array from _reconstruct, once; a dtype from numpy.dtype, once and before any array,
+        # scalar or buffer uses it (then nothing may change it: its itemsize is their bounds)
+        self._unbuilt: dict[int, Any] = {}
+        self._used: dict[int, np.dtype] = {}
+
+    def _refuse(self, what: str) -> NoReturn:
+        raise _UnsafePickleError(
+            f"{self.source} {what}; it was not loaded, nothing was allocated (damaged or hostile "
+            "file): use the file from its original source."
+        )
+
+    def _use(self, dtype: Any) -> np.dtype:
+        """``dtype`` when it is a dtype of :data:`ALLOWED_DTYPE_KINDS`, from now on unchangeable."""
+        if not isinstance(dtype, np.dtype) or dtype.kind not in ALLOWED_DTYPE_KINDS:
+            self._refuse(f"asks for data of type {dtype!r} (not a bool, number or string dtype)")
+        if dtype.fields is not None or dtype.subdtype is not None:
+            self._refuse(f"asks for a structured dtype {dtype!r}")
+        self._unbuilt.pop(id(dtype), None)
+        self._used[id(dtype)] = dtype
+        return dtype
+
+    def _dtype(self, obj: Any, align: Any = False, copy: Any = False) -> np.dtype:
+        """numpy's dtype constructor, only for a dtype string of an allowed kind."""
+        # as numpy pickles a dtype: not aligned, a copy (never numpy's own shared instance,
+        # which a BUILD would change for the whole process); Python 2 wrote 0 and 1
+        flags_ok = all(isinstance(f, int) and f in (0, 1) for f in (align, copy))
+        if not (isinstance(obj, str) and _DTYPE.fullmatch(obj) and flags_ok) or align or not copy:
+            self._refuse(
+                f"asks from a {self.n_bytes:,}-byte pickle for a numpy dtype {obj!r}, of a kind "
+                "no VPR-Bench file holds"
+            )
+        dtype = np.dtype(obj, align=False, copy=True)
+        self._unbuilt[id(dtype)] = dtype
+        return dtype
+
+    def _encode(self, text: Any, encoding: Any = "latin1", *rest: Any) -> bytes:
+        """``_codecs.encode`` as protocol-2 pickles use it for bytes: a str in latin1."""
+        if not isinstance(text, str) or encoding not in ("latin1", "latin-1") or rest:
+            self._refuse(f"asks to encode {type(text).__name__} as {str(encoding)[:40]!r}")
+        return text.encode("latin1")
+
+    def _frombuffer(self, buf: Any, dtype: Any, shape: Any, order: Any) -> np.ndarray:
+        """numpy's protocol-5 array rebuilder, only for bytes that fill ``shape`` exactly."""
+        dtype = self._use(dtype)
+        self._check_shape(shape, dtype)
+        size = int(np.prod(shape, dtype=object)) * dtype.itemsize
+        if (
+            not isinstance(buf, (bytes, bytearray))
+            or len(buf) != size
+            or order not in ("C", "F")
+            or dtype.hasobject
+        ):
+            self._refuse(f"holds an array of shape {shape!r} whose data does not fill it")
+        return self._numpy_frombuffer(buf, dtype, shape, order)
 
     def _check_shape(self, shape: Any, dtype: Any) -> None:
         """Refuse an array of ``shape`` and ``dtype`` larger than the pickle allows."""
@@ -88,42 +153,65 @@ class _RestrictedUnpickler(pickle._Unpickler):  # the Python unpickler: BUILD ca
             shown = ", ".join(f"{d:,}" for d in dims)
             raise _too_large(self.source, f"an array of shape ({shown})", self.n_bytes)
 
-    def _ndarray(self, shape: Any = (), dtype: Any = float, *args: Any, **kwargs: Any) -> Any:
-        self._check_shape(shape, dtype)
-        return np.ndarray(shape, dtype, *args, **kwargs)
+    def _ndarray(self, shape: Any = (), *args: Any, **kwargs: Any) -> NoReturn:
+        """``numpy.ndarray(...)`` called by the pickle itself: never (an array is rebuilt by
+        ``_reconstruct``; a buffer with strides could read outside it); a size beyond the file's
+        is named first."""
+        self._check_shape(shape, None)
+        self._refuse("asks to build an array on a buffer of its own")
 
     def _scalar(self, dtype: Any, *args: Any) -> Any:
         """numpy's scalar rebuilder, only for a dtype the pickle's size allows (a 192-byte pickle
-        may not ask for a 200 MB ``V200000000`` scalar)."""
+        may not ask for a 200 MB ``V200000000`` scalar) and data that fills it exactly."""
         if not isinstance(dtype, np.dtype):
             raise _UnsafePickleError(f"{self.source} asks for a scalar of {type(dtype).__name__}.")
         self._check_shape((), dtype)
+        dtype = self._use(dtype)
+        data = args[0] if len(args) == 1 else None
+        filled = isinstance(data, (bytes, str)) and len(data) == dtype.itemsize  # str: py2
+        if not dtype.hasobject and not filled:
+            self._refuse(f"holds a {dtype} scalar whose data does not fill it")
         return self._numpy_scalar(dtype, *args)
 
     def _reconstruct(self, subtype: Any, shape: Any, dtype: Any) -> Any:
         if subtype != self._ndarray:  # the pickle's numpy.ndarray, resolved by find_class
             raise _UnsafePickleError(f"{self.source} asks to rebuild a {subtype!r}.")
         self._check_shape(shape, None)
-        return np.ndarray(shape, "b")
+        array = np.ndarray(shape, "b")
+        self._unbuilt[id(array)] = array
+        return array
 
     def _load_build(self) -> None:
-        """BUILD: an array's ``__setstate__`` only with a shape the pickle allows and data that
-        fills it exactly (numpy reads past a short object list)."""
+        """BUILD: only an array's ``__setstate__`` (once, on an array from ``_reconstruct``,
+        with a shape the pickle allows, an allowed dtype and data that fills it exactly: numpy
+        reads past a short object list) and a new dtype's (once, before anything uses it, and
+        only a state that keeps its kind and itemsize). Nothing changes after its check."""
         stack = self.stack  # type: ignore[attr-defined]  # the Python unpickler's stack
-        state = stack[-1]
-        if isinstance(stack[-2], np.ndarray):
+        state, target = stack[-1], stack[-2]
+        if id(target) not in self._unbuilt:
+            what = "a dtype already in use" if id(target) in self._used else type(target).__name__
+            self._refuse(f"asks to change {what} after it was built")
+        if isinstance(target, np.ndarray):
             if not isinstance(state, tuple) or len(state) not in (4, 5):
                 raise _UnsafePickleError(f"{self.source} holds a malformed array state.")
-            shape, dtype, data = state[-4], state[-3], state[-1]
+            shape, dtype, data = state[-4], self._use(state[-3]), state[-1]
             self._check_shape(shape, dtype)
             size = int(np.prod(shape, dtype=object))
-            want = size if np.dtype(dtype).hasobject else size * np.dtype(dtype).itemsize
+            want = size if dtype.hasobject else size * dtype.itemsize
             if not isinstance(data, (list, bytes, bytearray, str)) or len(data) != want:
                 raise ValueError(
                     f"{self.source} holds an array of shape {tuple(shape)} whose data does not "
                     "fill it; it was not loaded (damaged or hostile file): use the file from "
                     "its original source."
                 )
+        else:  # a dtype from numpy.dtype: the state tried on a copy of it first
+            trial = np.dtype(target.str, align=False, copy=True)
+            trial.__setstate__(state)
+            if (trial.kind, trial.itemsize) != (target.kind, target.itemsize) or (
+                trial.fields is not None or trial.subdtype is not None
+            ):
+                self._refuse(f"asks to change the dtype {target} into {trial!r}")
+        del self._unbuilt[id(target)]
         pickle._Unpickler.load_build(self)  # type: ignore[attr-defined]
 
     def load(self) -> Any:
@@ -138,15 +226,20 @@ class _RestrictedUnpickler(pickle._Unpickler):  # the Python unpickler: BUILD ca
     dispatch[pickle.BUILD[0]] = _load_build  # type: ignore[assignment]
 
     def find_class(self, module: str, name: str) -> Any:
-        if (module, name) in ALLOWED_GLOBALS:
-            if name == "ndarray":
-                return self._ndarray
-            if name == "_reconstruct":
-                return self._reconstruct
+        if (module, name) in ALLOWED_GLOBALS:  # each a checking wrapper of its callable
             if name == "scalar":
                 self._numpy_scalar = super().find_class(module, name)
-                return self._scalar
-            return super().find_class(module, name)
+            elif name == "_frombuffer":
+                self._numpy_frombuffer = super().find_class(module, name)
+            wrapper = {
+                "ndarray": self._ndarray,
+                "_reconstruct": self._reconstruct,
+                "scalar": self._scalar,
+                "_frombuffer": self._frombuffer,
+                "dtype": self._dtype,
+                "encode": self._encode,
+            }
+            return wrapper[name]
         raise _UnsafePickleError(
             f"{self.source} is a pickle that asks to run {module}.{name}; it was not loaded. Only "
             "numpy arrays, lists, tuples, numbers and strings are read from pickled inputs "
@@ -269,17 +362,8 @@ def read_npy(
             return _check_bounded(obj, str(path), n_bytes)
         except _UnsafePickleError:
             raise
-        except (
-            OSError,
-            ValueError,
-            EOFError,
-            TypeError,
-            AttributeError,
-            IndexError,
-            MemoryError,
-            pickle.UnpicklingError,
-        ) as exc:
-            if str(path) in str(exc):  # already names the file (bounds above)
+        except Exception as exc:  # whatever a damaged file raises (LookupError, ...): named
+            if isinstance(exc, ValueError) and str(path) in str(exc):  # names the file already
                 raise
             raise ValueError(
                 f"{path} is not a readable .npy file ({type(exc).__name__}: {str(exc)[:200]}); "

@@ -14,8 +14,8 @@ from .. import checks
 from ..matching.normalise import NORMALISATIONS, zscore
 from ..matching.pairwise import cosine_similarity
 from ..matching.similarity import weighted_matches
-from ..matching.spec import Matching
 from ..matching.weighting import WEIGHTINGS
+from ..methods import step_between
 from .ranks import best_two, ranked
 
 __all__ = [
@@ -95,19 +95,11 @@ def changed_queries(plain: Any, stepped: Any, n: int = 2) -> list[tuple[int, str
 
 
 def _step_of(plain: Any, stepped: Any) -> tuple[str | None, str | None]:
-    """``(weighting, normalise)`` that ``stepped`` adds to ``plain``; refuses other pairs."""
-    mp = getattr(plain.config, "matching", None)
-    ms = getattr(stepped.config, "matching", None)
-    if not (isinstance(mp, Matching) and isinstance(ms, Matching)):
-        raise ValueError("step_changes needs two run_method results of one method")
-    w = ms.weighting if ms.weighting != mp.weighting else None
-    z = ms.normalise if ms.normalise != mp.normalise else None
-    rest = dataclasses.replace(ms, weighting=mp.weighting, normalise=mp.normalise)
-    if rest != mp or plain.method != stepped.method or (w is None and z is None):
-        raise ValueError(
-            f"{stepped.label!r} must be {plain.label!r} with one more step (a weighting or a "
-            "normalisation), the rest the same"
-        )
+    """``(weighting, normalise)`` that ``stepped`` adds to ``plain``; refuses other pairs
+    (:func:`vpr_core.methods.step_between`: the same dataset, encoder, shortlist, options)."""
+    step = step_between(plain, stepped, "step_changes")
+    w, z = step.get("weighting"), step.get("normalise")
+    mp = plain.config.matching
     if w is not None and (mp.weighting is not None or mp.normalise is not None):
         raise ValueError("for a weighting step, `plain` must be the paper's Eq. (1)")
     return w, z
@@ -376,18 +368,9 @@ def _check_carried(plain: Any, weighted: Any) -> None:
             f"{getattr(plain, 'label', plain)!r}: run the same method without weighting"
         )
     checks.check_descriptors_kept(weighted, "carried_landmarks")
-    m_w = dataclasses.replace(weighted.config.matching, weighting=None)
-    e_p, e_w = dict(getattr(plain, "encoder", {})), dict(getattr(weighted, "encoder", {}))
-    differ = [key for key in sorted(e_p.keys() | e_w.keys()) if e_p.get(key) != e_w.get(key)]
-    differ += [
-        key for key in ("shortlist", "protocol") if getattr(plain, key) != getattr(weighted, key)
-    ]
-    differ += ["method"] if plain.method != weighted.method else []
-    differ += ["matching"] if m_w != m_p else []
-    differ += ["dataset"] if plain.dataset_fingerprint != weighted.dataset_fingerprint else []
-    if differ:
+    step = step_between(plain, weighted, "carried_landmarks", "the weighting")
+    if set(step) != {"weighting"}:  # a normalisation too: not what the figure explains
         raise ValueError(
-            f"{plain.label!r} and {weighted.label!r} differ in more than the weighting "
-            f"({', '.join(differ)}): pass one method run without and with weighting= (same "
-            "dataset, encoder, shortlist and matching options otherwise)"
+            f"carried_landmarks: {plain.label!r} and {weighted.label!r} differ in more than "
+            "the weighting (normalise): pass one method run without and with weighting= alone"
         )

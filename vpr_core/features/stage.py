@@ -14,6 +14,7 @@ from torch import nn
 
 from ..backbones import weights_sha256
 from ..cache import SIDES, atomic_savez, load_npz, n_images
+from ..executor import checked_encoding
 from ..utils import cache_dir, code_version, config_slug, progress
 from .encoder import Encoder, LandmarkEncoder, as_encoder
 
@@ -231,8 +232,12 @@ def _extract_side_executor(executor, boxes: list, dataset, side: str, encoder) -
     todo = [i for i in range(n) if len(missing[i])]
     if todo:
         new = [missing[i] for i in todo]
-        descs, secs = executor.encode(dataset, side, dict(encoder.kwargs), todo, new)
-        for i, nb, d, s in zip(todo, new, descs, secs, strict=False):
+        returned = executor.encode(dataset, side, dict(encoder.kwargs), todo, new)
+        descs, secs = checked_encoding(  # before a store keeps them: a sample encoded here
+            executor, returned, side, todo, new, encoder.dim,
+            lambda i, b: encoder.encode(dataset.load_image(side, i), b),
+        )  # fmt: skip
+        for i, nb, d, s in zip(todo, new, descs, secs, strict=True):
             stores[i] = _add_to_store(paths_[i], stores[i], nb, d, s)
     out = [_rows(stores[i], all_boxes[i]) for i in range(n)]
     return [d for d, _ in out], [s for _, s in out]

@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.lines import Line2D
 
+from ..tables import CHANGES, COMPARISON, check_table
 from ._shared import FIG_WIDTH, FONT, wrapped
 
 __all__ = ["VERDICT_COLORS", "plot_paired_differences", "plot_step_changes"]
@@ -70,6 +71,7 @@ def plot_paired_differences(
                 f"compare(), e.g. ('dAUC', 'dR@1'); it has "
                 f"{', '.join(c for c in rows.columns if c.startswith('d') and ' ' not in c)}"
             )
+    check_table(rows, COMPARISON)  # intervals ordered, p in [0, 1], ... (one schema per table)
     labels = [
         wrapped(_row_text(str(m), str(b)), 3.6, FONT - 1)
         for m, b in zip(rows["method"], rows["baseline"], strict=True)
@@ -131,6 +133,7 @@ def plot_step_changes(changes: pd.DataFrame, title: str | None = None) -> matplo
         )
     if changes.empty:
         raise ValueError("no query changed under the step: nothing to plot")
+    check_table(changes, CHANGES)  # ranks >= 1 (a log axis), integer indices, ...
     frame = changes if "step" in changes.columns else changes.assign(step="step")
     steps = list(dict.fromkeys(frame["step"]))
     panels = [

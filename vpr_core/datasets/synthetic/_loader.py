@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import os
 from pathlib import Path
@@ -11,7 +12,7 @@ import cv2
 import numpy as np
 
 from ...checks import check_int, is_number
-from ...utils import cache_dir, logger, progress, short_hash
+from ...utils import cache_dir, file_sha256, logger, progress, short_hash
 from ..base import PlaceDataset
 from ..ground_truth import check_tolerance, frame_aligned
 from ._camera import place_homography
@@ -31,13 +32,56 @@ MAX_PLACES = 20_000
 REPETITION_POOL = 3
 
 
-def _write_png(path: Path, rgb: np.ndarray) -> None:
-    """Write ``uint8 (H, W, 3)`` RGB as a PNG atomically (temporary file + rename)."""
+def _png(rgb: np.ndarray) -> bytes:
+    """``uint8 (H, W, 3)`` RGB as the generator's PNG bytes (the same bytes on every run)."""
     ok, buf = cv2.imencode(
         ".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 1]
     )
-    assert ok, f"could not encode {path}"  # encoding a uint8 RGB array does not fail
-    _write_atomic(path, buf.tobytes())
+    assert ok, "could not encode a view"  # encoding a uint8 RGB array does not fail
+    return buf.tobytes()
+
+
+def _write_png(path: Path, rgb: np.ndarray) -> str:
+    """Write ``uint8 (H, W, 3)`` RGB as a PNG atomically (temporary file + rename); returns
+    the hex sha256 of the bytes written (the manifest's digest of the file)."""
+    data = _png(rgb)
+    _write_atomic(path, data)
+    return hashlib.sha256(data).hexdigest()
+
+
+def _views(i: int) -> tuple[str, str]:
+    """The two views of place ``i``, as the manifest names them (``query/0000.png``, ...)."""
+    return f"query/{i:04d}.png", f"reference/{i:04d}.png"
+
+
+def _files(n_places: int) -> list[str]:
+    """The views of places ``0..n_places-1``, as the manifest names them."""
+    return [f for i in range(n_places) for f in _views(i)]
+
+
+def _manifest(root: Path) -> dict | None:
+    """``root/manifest.json`` as a dict; None when absent, unreadable or not an object."""
+    try:
+        path = root / "manifest.json"
+        manifest = json.loads(path.read_text()) if path.is_file() else None
+    except (OSError, ValueError):
+        return None
+    return manifest if isinstance(manifest, dict) else None
+
+
+def _digests(manifest: dict | None) -> dict[str, str]:
+    """The manifest's sha256 of each file (``{"query/0000.png": hex}``); {} when it holds none
+    (made before digests were recorded, or not by the generator)."""
+    found = (manifest or {}).get("sha256")
+    if not isinstance(found, dict):
+        return {}
+    return {k: v for k, v in found.items() if isinstance(k, str) and isinstance(v, str)}
+
+
+def _matches(root: Path, name: str, digests: dict[str, str]) -> bool:
+    """Whether ``root/name`` is a regular file whose sha256 is the manifest's."""
+    path = root / name
+    return name in digests and path.is_file() and file_sha256(path) == digests[name]
 
 
 def _write_atomic(path: Path, data: bytes) -> None:
@@ -64,26 +108,41 @@ def _write_error(path: Path, exc: OSError) -> OSError:
     )
 
 
-def _generated_folder(root: Path, params: dict, n_places: int) -> Path:
-    """``root`` if the generator made it with ``params`` and it holds ``n_places`` places; the
-    loader only reads such a folder (DESIGN.md: generated data lives in the cache)."""
-    try:
-        path = root / "manifest.json"
-        manifest = json.loads(path.read_text()) if path.is_file() else None
-    except (OSError, ValueError):
-        manifest = None
-    made = isinstance(manifest, dict) and all(manifest.get(k) == v for k, v in params.items())
-    complete = made and all(
-        (root / side / f"{i:04d}.png").is_file()
-        for side in ("query", "reference")
-        for i in range(n_places)
+def _generated_folder(root: Path, params: dict, n_places: int, diff) -> Path:
+    """``root`` if the generator made it with ``params`` and it holds ``n_places`` places, each
+    file with the sha256 its manifest records, and a seeded place drawn again gives that
+    digest (a manifest copied beside other images is not the generator's); the loader only
+    reads such a folder (DESIGN.md: generated data lives in the cache)."""
+    manifest = _manifest(root)
+    made = manifest is not None and all(manifest.get(k) == v for k, v in params.items())
+    complete = made and all((root / f).is_file() for f in _files(n_places))
+    fix = (
+        "the synthetic set is generated into the cache (VPR_CACHE_DIR), never into a folder "
+        "you name: drop root= (--root), or name a folder the generator made with the same "
+        "settings"
     )
     if not complete:
         why = "holds fewer places than asked" if made else "was not made by the generator"
+        raise ValueError(f"synthetic: root={str(root)!r} {why} with these settings; {fix}")
+    digests = _digests(manifest)
+    if not digests:
         raise ValueError(
-            f"synthetic: root={str(root)!r} {why} with these settings; the synthetic set is "
-            "generated into the cache (VPR_CACHE_DIR), never into a folder you name: drop "
-            "root= (--root), or name a folder the generator made with the same settings"
+            f"synthetic: root={str(root)!r}: its manifest.json records no file digests (made "
+            f"by an older generator, or not by the generator), so its images are unverified; {fix}"
+        )
+    bad = next((f for f in _files(n_places) if not _matches(root, f, digests)), None)
+    if bad is None:  # the digests themselves: one seeded place drawn again must give them
+        i = int(np.random.default_rng(n_places).integers(n_places))
+        ref, qry, _ = render_place(params["seed"], i, tuple(params["image_size"]), diff)
+        for side, rgb in (("reference", ref), ("query", qry)):
+            if hashlib.sha256(_png(rgb)).hexdigest() != digests[f"{side}/{i:04d}.png"]:
+                bad = f"{side}/{i:04d}.png"
+    if bad is not None:
+        raise ValueError(
+            f"synthetic: root={str(root)!r}: {bad} is not the image the generator made (its "
+            "sha256 differs from the digest manifest.json records, or the recorded digest from "
+            f"the place drawn again): a changed, swapped or replaced image is not the generated "
+            f"set and has no exact geometry; {fix}"
         )
     return root
 
@@ -113,11 +172,14 @@ def load_synthetic(
     Files: ``<dir>/query/0000.png``, ``<dir>/reference/0000.png`` and ``<dir>/manifest.json``
     where ``<dir>`` is ``cache_dir("datasets", "synthetic-<hash>")`` (the hash covers seed,
     image size, difficulty and generator version, not ``n_places``, so a larger route reuses the
-    places of a smaller one). Missing files are (re)generated there, never in ``root``.
+    places of a smaller one). The manifest records each file's sha256: a missing file, or one
+    that differs from its digest, is (re)generated there, never in ``root``.
 
     Args:
         root: A folder the generator made (a copy of a cache folder), read only; refused if
-            its manifest differs from these settings or a place is missing. Default: the cache.
+            its manifest differs from these settings, a place is missing, a file's sha256
+            differs from its manifest's digest, or a seeded place drawn again differs from
+            its digest. Default: the cache.
         n_places: Number of places (1 to :data:`MAX_PLACES`).
         seed: Route seed (``>= 0``); same seed -> identical pixels.
         image_size: ``(H, W)`` of the views (each ``>= 32``).
@@ -170,7 +232,7 @@ def load_synthetic(
     if repetition > 0:  # absent at 0: the default route keeps its cache key
         params["repetition"] = float(repetition)
     if root is not None:
-        out = _generated_folder(Path(root).expanduser(), params, n_places)
+        out = _generated_folder(Path(root).expanduser(), params, n_places, diff)
     else:
         out = cache_dir("datasets", f"synthetic-{short_hash(params)}")
     for side in ("query", "reference"):
@@ -180,7 +242,23 @@ def load_synthetic(
             raise _write_error(out / side, exc) from exc
     qp = [out / "query" / f"{i:04d}.png" for i in range(n_places)]
     rp = [out / "reference" / f"{i:04d}.png" for i in range(n_places)]
-    missing = [i for i in range(n_places) if not (qp[i].is_file() and rp[i].is_file())]
+    digests = _digests(_manifest(out))
+    # a cached place is kept only with the digests its manifest records (a folder written
+    # before digests were recorded is drawn again once: the same bytes); a root is checked
+    missing = [
+        i
+        for i in range(n_places)
+        if root is None and not all(_matches(out, f, digests) for f in _views(i))
+    ]
+    changed = [i for i in missing if _views(i)[0] in digests and qp[i].is_file()]
+    if changed:
+        logger.warning(
+            "synthetic: %d place(s) in %s differ from their manifest's digests (changed after "
+            "they were generated): drawn again (%s)",
+            len(changed),
+            out,
+            ", ".join(map(str, changed[:10])),
+        )
     homs = np.zeros((n_places, 3, 3), np.float64)
     if missing:
         logger.info(
@@ -194,8 +272,8 @@ def load_synthetic(
         )
     for i in progress(missing, desc="synthetic places", total=len(missing)):
         ref, qry, _ = render_place(seed, i, size, diff)
-        _write_png(rp[i], ref)
-        _write_png(qp[i], qry)
+        digests[f"reference/{i:04d}.png"] = _write_png(rp[i], ref)
+        digests[f"query/{i:04d}.png"] = _write_png(qp[i], qry)
     for i in range(n_places):
         homs[i] = place_homography(seed, i, size, diff)
     if missing:
@@ -210,6 +288,7 @@ def load_synthetic(
             homographies={
                 str(i): place_homography(seed, i, size, diff).round(10).tolist() for i in have
             },
+            sha256={k: digests[k] for k in sorted(digests)},  # checked on every load
         )
         _write_atomic(manifest_path, json.dumps(manifest, indent=1).encode())
     gt = frame_aligned(n_places, n_places, tolerance)
