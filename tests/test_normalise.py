@@ -190,3 +190,38 @@ def test_step_changes_names_what_moved_each_reference():
             assert list(rows["rank after"]) == sorted(rows["rank after"])
     with pytest.raises(ValueError, match="one more step"):
         step_changes(plain, run_method("dense", ds, dim=32, n_bootstrap=0, per_scale=9))
+
+
+def test_degenerate_matrices_are_named_and_a_scale_changes_no_z_score():
+    """Issue 60 item 8: a positive scale changes no normalisation (1e300 overflowed into a
+    constant matrix), an infinite entry is refused naming the fix (it became 'not ranked'), a
+    peer whose rows are each constant gets the chance notice, and no result is normalised
+    twice."""
+    from vpr_core import normalise_result
+    from vpr_core.datasets import load_dataset
+    from vpr_study.peers import peer_from_matrix, peer_result
+
+    rng = np.random.default_rng(8)
+    s = rng.random((6, 7))
+    s[1, 2] = np.nan
+    want = normalise_matrix(s, "query_batch")
+    for scale in (1e300, 1e-300, 1e-9, 1e9):
+        np.testing.assert_allclose(normalise_matrix(s * scale, "query_batch"), want, rtol=1e-9)
+    bad = s.copy()
+    bad[2, 3] = np.inf
+    with pytest.raises(ValueError, match=r"similarity\[2, 3\] is inf: normalise='query_batch'"):
+        normalise_matrix(bad, "query_batch")
+    ds = load_dataset("synthetic", n_places=6, image_size=(64, 112))
+    rows = np.repeat(np.arange(6.0)[:, None], 6, axis=1)  # each row one value of its own
+    with pytest.warns(UserWarning, match="each query's row of the similarity matrix is constant"):
+        peer = peer_result(peer_from_matrix(rows, "rows"), ds, n_bootstrap=0)
+    assert any("each query's row" in w for w in peer.warnings)
+    m = rng.random((6, 6))
+    scaled = peer_result(peer_from_matrix(m * 1e300, "big"), ds, n_bootstrap=0)
+    small = peer_result(peer_from_matrix(m, "small"), ds, n_bootstrap=0)
+    once = normalise_result(scaled, "query_batch")
+    np.testing.assert_allclose(
+        once.similarity, normalise_result(small, "query_batch").similarity, rtol=1e-9
+    )
+    with pytest.raises(ValueError, match="is already normalised \\('query_batch'\\)"):
+        normalise_result(once, "query_batch")

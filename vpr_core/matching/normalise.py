@@ -30,14 +30,25 @@ __all__ = [
 NORMALISE_K = 10
 #: (Not in the paper.) A standard deviation at or below this makes its z-score term 0.
 NORMALISE_SIGMA_MIN = 1e-12
+#: The magnitudes :func:`zscore` takes as they are; a line whose largest value lies outside
+#: is divided by it first (a z-score does not change with a positive scale; 1e300 squared
+#: overflows, and a sd below :data:`NORMALISE_SIGMA_MIN` would read as constant).
+_SAFE_MAX, _SAFE_MIN = 1e6, 1e-6
 
 
 def zscore(s: np.ndarray, axis: int) -> np.ndarray:
     """``(s - mean) / std`` along ``axis`` over ranked (finite) entries, population std; 0 where
-    the std is <= :data:`NORMALISE_SIGMA_MIN` or no entry is ranked; NaN stays NaN."""
+    the std is <= :data:`NORMALISE_SIGMA_MIN` or no entry is ranked; NaN stays NaN; a line of
+    values far from 1 in magnitude is rescaled first (the same z-scores at any positive scale)."""
     ok = np.isfinite(s)
     n = ok.sum(axis, keepdims=True)
     x = np.where(ok, s, 0.0)
+    big = np.abs(x).max(axis, keepdims=True) if x.shape[axis] else np.zeros_like(n, float)
+    if ((big > _SAFE_MAX) | ((big > 0) & (big < _SAFE_MIN))).any():
+        # a scale far from 1: each line divided by its largest |value| first (a z-score does
+        # not change with a positive scale; the matrices of every method take the direct path)
+        scale = np.where(big > 0, big, 1.0)
+        s, x = s / scale, x / scale
     mean = x.sum(axis, keepdims=True) / np.maximum(n, 1)
     var = (np.where(ok, s - mean, 0.0) ** 2).sum(axis, keepdims=True) / np.maximum(n, 1)
     sd = np.sqrt(var)
@@ -150,6 +161,13 @@ def normalise_matrix(
     s = check_shape(similarity, "Nq Nr", "similarity", dtype=np.float64)
     if how is None:
         return s
+    if np.isinf(s).any():
+        q, r = np.argwhere(np.isinf(s))[0]
+        raise ValueError(
+            f"similarity[{q}, {r}] is {s[q, r]}: normalise={how!r} needs finite scores (NaN "
+            "marks a pair not ranked); replace the infinite entries (a peer's matrix file) or "
+            "leave the matrix unnormalised"
+        )
     entry = NORMALISATIONS[check_choice(how, "normalise", NORMALISATIONS)]
     if entry.needs_database and database is None:
         raise ValueError(
