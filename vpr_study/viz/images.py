@@ -257,15 +257,38 @@ def plot_coverage(
     return fig
 
 
+#: An image a coverage figure shows by default has at least this mean and spread of grey (of
+#: 255): not a black, blank or tunnel frame (Nordland's first summer frames are black).
+SHOWN_GREY = (32.0, 16.0)
+
+
+def _first_visible(dataset: Any, side: str, n: int = 50) -> int:
+    """The first of the first ``n`` images of ``side`` that shows a scene (:data:`SHOWN_GREY`),
+    else 0."""
+    count = len(dataset.query_paths if side == "query" else dataset.reference_paths)
+    for i in range(min(n, count)):
+        grey = np.asarray(dataset.load_image(side, i), dtype=float).mean(axis=-1)
+        if grey.mean() >= SHOWN_GREY[0] and grey.std() >= SHOWN_GREY[1]:
+            return i
+    return 0
+
+
 def plot_coverage_comparison(
-    dataset: Any, results: Any, index: int = 0, side: str = "reference"
+    dataset: Any, results: Any, index: int | None = None, side: str = "reference"
 ) -> tuple[Figure, pd.DataFrame]:
     """Fig. 14: coverage heatmaps of several runs' landmarks on one image, side by side.
+
+    Args:
+        dataset: the runs' dataset; results: the runs.
+        index: the image shown; None: the first that shows a scene (not a black or blank
+            frame: :data:`SHOWN_GREY`), the title says which.
+        side: ``"reference"`` or ``"query"``.
 
     Returns:
         ``(figure, table)``: per run, the share of the image covered by at least one landmark
         for this image and averaged over the dataset's images of that side.
     """
+    index = _first_visible(dataset, side) if index is None else int(index)
     image = dataset.load_image(side, index)
     fig, axes = plt.subplots(1, len(results), figsize=(5.5 * len(results), 3.4), squeeze=False)
     size = _landmark_canvas(image)[1]
@@ -293,7 +316,7 @@ def plot_coverage_comparison(
         )
     fig.suptitle(
         f"landmark coverage of {side} {index}, one colour scale (0-{max(1, round(top))} boxes) "
-        f"in every panel\n{dataset_line(results)}{note}",
+        f"in every panel\n{dataset_line(results, pr=False)}{note}",
         fontsize=9,
     )
     fig.tight_layout()
