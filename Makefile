@@ -66,12 +66,16 @@ test: $(STAMP)
 # JupyterLab on the project, on 127.0.0.1 with its token; --allow-root only when run as root
 # (containers, cloud machines). It opens the starter notebook in user/notebooks/ (git-ignored,
 # a user's own; copied there when absent, never replaced) beside the study's notebooks/; a
-# user's own cells save under user/. The save hook strips only the committed study notebooks.
+# user's own cells save under user/. The save hook strips only the committed study notebooks;
+# the contents manager (vpr_study.lab.StudyContentsManager, jupytext's) serves them with the
+# kernel's language_info, so opening one leaves it unmodified, and puts a Duplicate of one in
+# user/notebooks/.
 # Kernels share the project's .cache/ whatever their working directory. The [lab] extra
 # (jupyterlab, ipywidgets) is installed once ($(LAB_STAMP)), again only when pyproject.toml changes.
 lab: $(LAB_STAMP) git-filter
 	$(PY) -m vpr_study.lab init
 	$(VENV)/bin/jupyter lab --ip=127.0.0.1 --ServerApp.root_dir="$(CURDIR)" \
+		--ServerApp.contents_manager_class=vpr_study.lab.StudyContentsManager \
 		--ContentsManager.pre_save_hook=vpr_study.lab.strip_outputs \
 		--LabApp.default_url=/lab/tree/user/notebooks/00_start_here.ipynb \
 		$(if $(filter 0,$(shell id -u)),--allow-root)
