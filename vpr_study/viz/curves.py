@@ -25,7 +25,14 @@ from vpr_core.evaluation import (
 
 from ._shared import wrapped
 from .base import SAVE_DPI
-from .styles import DEFAULT_SETTINGS, MARKERS, METHOD_COLORS, WEIGHTING_STYLES, run_styles
+from .styles import (
+    DEFAULT_SETTINGS,
+    MARKERS,
+    METHOD_COLORS,
+    WEIGHTING_STYLES,
+    method_color,
+    run_styles,
+)
 
 __all__ = [
     "METHOD_COLORS",
@@ -42,7 +49,7 @@ def plot_scale_distribution(
     title: str | None = None,
     ax=None,
     normalize: bool = False,
-    color: str | None = None,
+    method: str | None = None,
 ) -> matplotlib.figure.Figure:
     """Fig. 6: landmark counts per Table-1 scale, bars grouped by label (e.g. query/reference).
 
@@ -51,9 +58,9 @@ def plot_scale_distribution(
             ``(9,)`` array is read as scales 1..9).
         title: axes title.
         normalize: plot shares (each label sums to 1) instead of counts.
-        color: the colour of the landmarks' method (:func:`~vpr_study.viz.method_color`): the
-            first label's bars in it, the others lighter and hatched; default greys (no
-            method's colour).
+        method: the landmarks' method: the first label's bars in its colour
+            (:func:`~vpr_study.viz.method_color`, as in every figure), the others lighter and
+            hatched; None: greys.
     """
     if ax is None:
         fig, ax = plt.subplots(figsize=(8.0, 3.6))
@@ -70,6 +77,7 @@ def plot_scale_distribution(
             raise ValueError(f"hists[{label!r}] must have shape (10,) or (9,), got {h.shape}")
         if normalize and h.sum() > 0:
             h = h / h.sum()
+        color = None if method is None else method_color(method)
         base = color or "0.3"
         face = base if k == 0 else to_rgba(base, 0.35 if color else 0.5 - 0.15 * (k - 1))
         ax.bar(
