@@ -581,8 +581,12 @@ def test_the_starter_notebook_runs_end_to_end_with_the_inline_backend(
     ).execute()
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
     assert not [o for o in outputs if o.output_type == "error"]
-    shown = "".join(str(o.get("data", {}).get("text/plain", "")) for o in nb.cells[-1].outputs)
+    (real,) = [c for c in nb.cells if c.cell_type == "code" and "real = load_dataset" in c.source]
+    shown = "".join(str(o.get("data", {}).get("text/plain", "")) for o in real.outputs)
     assert "gardens_point_mini" in shown and "n_query=10" in shown
+    (closer,) = [c for c in nb.cells if c.cell_type == "code" and "plot_disagreements(ds, a" in c.source]
+    shown = "".join(str(o.get("data", {}).get("text/html", "")) for o in closer.outputs)
+    assert "first correct rank" in shown  # its table, after its figure
     assert any("image/png" in o.get("data", {}) for o in outputs)  # the PR curves, inline
     png = out / "figures" / "mine" / "my_comparison.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -592,7 +596,7 @@ def test_the_starter_notebook_runs_end_to_end_with_the_inline_backend(
     assert list(table["method"]) == [
         "dense",
         "CentreGrid",
-        "dense, TinyNet",
+        "dense (backbone: TinyNet)",
         "dense (weighting: contrast)",
     ]
     assert (table["AUC"].between(0, 1)).all() and table["dAUC verdict"].notna().sum() == 3
@@ -615,7 +619,7 @@ def test_lab_lists_each_notebook_once_the_paired_scripts_in_a_subfolder():
 # Issue 61: opening a study notebook in Lab leaves it unmodified; a duplicate is the user's -----
 
 
-def _checkout(tmp_path: Path) -> Path:
+def _study_checkout(tmp_path: Path) -> Path:
     root = tmp_path / "repo"
     (root / "notebooks" / "scripts").mkdir(parents=True)
     (root / "user" / "notebooks").mkdir(parents=True)
@@ -636,7 +640,7 @@ def test_lab_serves_a_study_notebook_as_its_kernel_will_see_it_and_copies_go_to_
     pytest.importorskip("ipykernel")
     from vpr_study.lab import StudyContentsManager, kernel_language_info
 
-    root = _checkout(tmp_path)
+    root = _study_checkout(tmp_path)
     before = {p: (root / p).read_bytes() for p in (TOUR, "notebooks/scripts/01_pipeline_tour.py")}
     cm = StudyContentsManager(root_dir=str(root))
     cm.pre_save_hook = lab.strip_outputs  # as make lab configures it
