@@ -463,4 +463,3 @@ def test_a_wrong_top1_next_to_the_correct_place_is_not_called_another_place():
     far = _panel_title(row, pm, np.arange(5), "wrong: reference 40, 35 frames away", False)
     assert near.endswith("unlabelled: it may show the same scene")
     assert far.endswith("all wrong (another place)")
-

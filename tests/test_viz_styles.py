@@ -198,8 +198,10 @@ def test_a_run_given_twice_and_an_unknown_setting_are_still_drawn_apart():
 def test_coinciding_curves_are_drawn_and_said():
     a = _run("classical", 0)
     b = dataclasses.replace(a) if dataclasses.is_dataclass(a) else SimpleNamespace(**vars(a))
-    b.method, b.label, b.config = "selection_scheme1", "selection_scheme1", get_method(
-        "selection_scheme1"
+    b.method, b.label, b.config = (
+        "selection_scheme1",
+        "selection_scheme1",
+        get_method("selection_scheme1"),
     )
     fig = plot_pr_curves([a, b, _run("dense", 3)])
     handles = fig.axes[0].get_legend().legend_handles
