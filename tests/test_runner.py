@@ -127,6 +127,10 @@ def test_text_progress_bars_for_saved_notebooks(monkeypatch, capsys):
     assert list(progress(range(3), total=3, desc="features")) == [0, 1, 2]
     out = capsys.readouterr().out
     assert "features: 100%" in out and "3/3" in out  # a final bar on stdout, not a widget
+    # issue 61: no work (a cached set), no bar: an empty "0it" bar said nothing
+    assert list(progress([], desc="synthetic places", total=0)) == []
+    assert list(progress(range(0), desc="features")) == []
+    assert capsys.readouterr().out == ""
 
 
 def test_notebook_logging_is_stdout_and_warnings_are_not_printed_twice(capsys):
@@ -144,6 +148,8 @@ def test_notebook_logging_is_stdout_and_warnings_are_not_printed_twice(capsys):
     assert "[vpr_core WARNING] a thing that changes a number" in captured.out
     assert "[vpr_core INFO] a plain line" in captured.out
     assert "VPRWarning" not in captured.err and captured.err.count("a thing") == 0
+    # issue 61: a cell ending with it shows no "<Logger vpr_core (INFO)>"
+    assert configure_logging(stream="stdout") is None
     configure_logging()  # back to stderr for the other tests
 
 
