@@ -90,5 +90,15 @@ lint: $(STAMP)
 
 # The install (.venv, PyTorch with it), every cached dataset, landmark, feature and matrix
 # (.cache) and the executed notebooks (runs/); figures/, results/ and user/ stay (README).
+# JupyterLab and its kernels run from .venv: while a process of this checkout runs from it
+# (make lab, a kernel, a test worker), nothing is removed and the message says to stop it.
 clean:
+	@if pgrep -f "$(CURDIR)/[.]venv/bin/" >/dev/null 2>&1; then \
+		echo "make clean: a process runs from this checkout's .venv (JupyterLab, a kernel," \
+			"tests): stop it first (Ctrl-C in the terminal of make lab), then run make clean" \
+			"again; nothing was removed"; exit 1; fi
 	rm -rf $(VENV) .cache runs
+	@echo "make clean: removed .venv (the install, PyTorch with it: the next make reinstalls" \
+		"it), .cache/ (generated datasets, landmarks, features, matrices) and runs/ (executed" \
+		"notebooks); kept: user/ (your notebooks, figures and tables), figures/ and results/" \
+		"(the study's, committed)"
