@@ -17,7 +17,7 @@ from vpr_core import Method, get_method
 from vpr_core.evaluation import evaluate, pr_curve
 from vpr_core.landmarks.schemes import Dense
 from vpr_core.methods import as_method
-from vpr_core.run import default_label
+from vpr_core.methods import default_label
 from vpr_study.viz import (
     METHOD_COLORS,
     OTHER_COLORS,

@@ -27,6 +27,7 @@ __all__ = [
     "Method",
     "as_method",
     "available_methods",
+    "default_label",
     "get_method",
     "method_label",
     "run_key",
@@ -193,3 +194,15 @@ def method_label(method: Method) -> str:
             )
     text = "; ".join(n for n in notes if n)
     return f"{method.name} ({text})" if text else method.name
+
+
+def default_label(method: Method, encoder: dict) -> str:
+    """A run's label when none is given: the method's (:func:`~vpr_core.methods.method_label`)
+    and a user's backbone module by its class (``"dense (backbone: TinyNet)"``), so a run with
+    one's own backbone reads apart from the method's in a table and a legend (a named backbone
+    is a setting of the whole study: titles name it, a figure's legend where it differs)."""
+    text = method_label(method)
+    if "module" not in encoder:  # a named backbone
+        return text
+    said = f"backbone: {encoder['backbone']}"
+    return f"{text[:-1]}; {said})" if text.endswith(")") else f"{text} ({said})"

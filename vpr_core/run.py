@@ -37,7 +37,7 @@ from .matching.shortlist import (
     split_whole_image,
     with_whole_image_boxes,
 )
-from .methods import Matching, Method, as_method, method_label
+from .methods import Matching, Method, as_method, default_label
 from .notices import VPRWarning, notice
 from .result import MethodResult, constant_notice
 from .utils import array_sha256, cache_dir, code_version, config_slug, logger
@@ -308,18 +308,6 @@ def _values(
     )
 
 
-def default_label(method: Method, encoder: dict) -> str:
-    """A run's label when none is given: the method's (:func:`~vpr_core.methods.method_label`)
-    and a user's backbone module by its class (``"dense (backbone: TinyNet)"``), so a run with
-    one's own backbone reads apart from the method's in a table and a legend (a named backbone
-    is a setting of the whole study: titles name it, a figure's legend where it differs)."""
-    text = method_label(method)
-    if "module" not in encoder:  # a named backbone
-        return text
-    said = f"backbone: {encoder['backbone']}"
-    return f"{text[:-1]}; {said})" if text.endswith(")") else f"{text} ({said})"
-
-
 @_records_warnings
 def run_method(
     method: str | Method | LandmarkScheme,
@@ -361,8 +349,8 @@ def run_method(
         executor: where extraction and matching run: an :class:`Executor` value (e.g.
             :class:`vpr_study.cluster.DaskExecutor` on a Dask cluster; the caller opens and
             closes it), or None: in-process, always. The numbers are the same either way.
-        label: display label; default from the config (:func:`default_label`: the method, its
-            options, and a backbone module's class).
+        label: display label; default from the config (:func:`~vpr_core.methods.default_label`:
+            the method, its options, and a backbone module's class).
         keep_descriptors: also return the descriptors (needed by the scale statistics).
         **overrides: the encoder and evaluation fields above, and the method's own options,
             e.g. ``iou_threshold=0.4``; an option the method does not take is an error.

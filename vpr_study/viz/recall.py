@@ -37,8 +37,8 @@ def plot_recall_at_n(
     for run, style in zip(runs, run_styles(runs), strict=True):
         y = curves[run.label]
         kw = style.line()
-        kw["marker"] = style.marker or "o"
-        ax.plot(np.arange(1, y.size + 1), y, ms=3, lw=1.5, label=style.label, **kw)
+        kw["marker"] = style.marker or "."  # each N marked; "." is no setting's marker
+        ax.plot(np.arange(1, y.size + 1), y, ms=4, lw=1.5, label=style.label, **kw)
     ax.set_xlabel("N")
     ax.set_ylabel("RecallRate@N (VPR-Bench)")
     ax.set_ylim(0.0, 1.02)
