@@ -16,16 +16,9 @@ from matplotlib.colors import to_hex
 from vpr_core import Method, get_method
 from vpr_core.evaluation import evaluate, pr_curve
 from vpr_core.landmarks.schemes import Dense
-from vpr_core.methods import as_method
-from vpr_core.methods import default_label
-from vpr_study.viz import (
-    METHOD_COLORS,
-    OTHER_COLORS,
-    method_color,
-    plot_pr_curves,
-    plot_recall_at_n,
-    run_styles,
-)
+from vpr_core.methods import as_method, default_label
+from vpr_study.viz import METHOD_COLORS, plot_pr_curves, plot_recall_at_n
+from vpr_study.viz.styles import OTHER_COLORS, method_color, run_styles
 
 matplotlib.use("Agg")
 

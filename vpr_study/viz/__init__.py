@@ -24,19 +24,16 @@ from .matches import (
 from .recall import plot_recall_at_n
 from .statistics import plot_asl, plot_cls, plot_cmr, plot_scale_statistics
 from .steps import plot_paired_differences, plot_step_changes
-from .styles import OTHER_COLORS, method_color, run_labels, run_styles
 from .weighting import plot_weighted_matches
 from .widgets import label_widget, pair_label_widget
 
 __all__ = [
     "METHOD_COLORS",
-    "OTHER_COLORS",
     "SAVE_DPI",
     "dataset_line",
     "draw_boxes",
     "label_widget",
     "layout_problems",
-    "method_color",
     "plot_asl",
     "plot_carried_landmarks",
     "plot_cls",
@@ -62,8 +59,6 @@ __all__ = [
     "plot_scale_statistics",
     "plot_step_changes",
     "plot_weighted_matches",
-    "run_labels",
-    "run_styles",
     "save",
     "save_figure",
 ]

@@ -59,7 +59,7 @@ def plot_scale_distribution(
         title: axes title.
         normalize: plot shares (each label sums to 1) instead of counts.
         method: the landmarks' method: the first label's bars in its colour
-            (:func:`~vpr_study.viz.method_color`, as in every figure), the others lighter and
+            (:func:`~vpr_study.viz.styles.method_color`, as in every figure), the others lighter and
             hatched; None: greys.
     """
     if ax is None:
@@ -381,7 +381,8 @@ def plot_metric_bars(
         table: ``pandas.DataFrame`` indexed by method, one column per metric.
         metric: column to plot (``auc``, ``r@100p``, ``r@1``, ``r@5``).
         title: axes title; ax: axes to draw on; colors: ``{method: colour}`` (default: the
-            colour of the method each row's label names, :func:`~vpr_study.viz.method_color`).
+            colour of the method each row's label names,
+            :func:`~vpr_study.viz.styles.method_color`).
 
     Returns:
         The figure.
