@@ -19,6 +19,7 @@ __all__ = [
     "MARKERS",
     "METHOD_COLORS",
     "OTHER_COLORS",
+    "SETTING_STYLES",
     "WEIGHTING_STYLES",
     "RunStyle",
     "method_color",
@@ -53,6 +54,17 @@ WEIGHTING_STYLES: dict[str, Any] = {
     "two_sided": (0, (6, 2, 1, 2)),
 }
 _EXTRA_STYLES = ((0, (3, 1, 1, 1)), (0, (8, 2, 1, 2, 1, 2)), (0, (2, 3)), (0, (10, 3)))
+
+#: Line styles of the other settings in a figure whose runs share one weighting (the line style
+#: is free there): with the marker, they tell apart the runs of one method that cross each other
+#: (a parameter sweep: IoU 0.4 ... 0.7, Tables 2-4's sets).
+SETTING_STYLES = (
+    (0, (4, 1.5)),
+    (0, (8, 2, 2, 2)),
+    (0, (1, 2)),
+    (0, (10, 3)),
+    (0, (3, 1, 1, 1, 1, 1)),
+)
 
 #: Markers of the other settings (scheme options, backbone, normalisation, geometry, pooling, a
 #: shortlist...), in the order a figure meets them; a run at the defaults has none.
@@ -246,7 +258,8 @@ def run_styles(results: Sequence[Any], colors: dict | None = None) -> list[RunSt
     """Colour, line style, marker and legend label of each run of one figure: colour by method
     (:func:`method_color`; ``colors`` ``{label: colour}`` wins), line style by weighting
     (:data:`WEIGHTING_STYLES`), marker by every other setting (:func:`settings_of`: no marker
-    at the defaults, then :data:`MARKERS` in the order the figure meets them). Two runs never
+    at the defaults, then :data:`MARKERS` in the order the figure meets them) and, where all the
+    runs share one weighting, also line style (:data:`SETTING_STYLES`). Two runs never
     share all three: a run that would (two labels of one configuration, a setting this does not
     know) takes the next marker free for its colour and style.
 
@@ -279,8 +292,11 @@ def run_styles(results: Sequence[Any], colors: dict | None = None) -> list[RunSt
     seen: set[tuple] = set()
     for r, s, key, label in zip(results, settings, rest, labels, strict=True):
         color = colors.get(r.label) or by_method[s["method"]]
-        style = line_of[s["weighting"]]
         marker = marker_of[key]
+        style = line_of[s["weighting"]]
+        if len(line_of) == 1 and marker is not None:  # the line style is free: the settings'
+            rank = [m for m in dict.fromkeys(marker_of.values()) if m is not None].index(marker)
+            style = SETTING_STYLES[rank % len(SETTING_STYLES)]
         ident = (to_hex(color), str(style), marker)
         if ident in seen:  # never two runs drawn alike
             marker = next(
