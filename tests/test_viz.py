@@ -185,7 +185,9 @@ def test_pair_and_coverage_figures_of_runs(tiny_synthetic):
     assert 0 < table.loc["dense", "covered share (this image)"] <= 1
     # issue 54: the panels compare a count, so they share one colour scale; the outlines are
     # said on each colour bar
-    scales = {im.get_clim() for ax in fig.axes for im in ax.get_images() if im.get_alpha()}
+    scales = {  # the coverage layers: translucent (the image under them is opaque)
+        im.get_clim() for ax in fig.axes for im in ax.get_images() if im.get_alpha() is not None
+    }
     assert len(scales) == 1 and scales.pop()[1] > 1, scales
     bars = [ax.get_ylabel() for ax in fig.axes if "boxes covering" in ax.get_ylabel()]
     assert len(bars) == 2 and all("white outlines:" in b for b in bars)
