@@ -463,3 +463,22 @@ def test_a_wrong_top1_next_to_the_correct_place_is_not_called_another_place():
     far = _panel_title(row, pm, np.arange(5), "wrong: reference 40, 35 frames away", False)
     assert near.endswith("unlabelled: it may show the same scene")
     assert far.endswith("all wrong (another place)")
+
+
+def test_fig14_shows_the_first_image_with_a_scene_not_a_black_frame():
+    """Issue 61: Nordland's first summer frames are black; Fig. 14 showed one, almost black
+    under the overlay. By default it shows the first image that shows a scene."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from vpr_study.viz.images import _first_visible
+
+    rng = np.random.default_rng(0)
+    scene = rng.integers(0, 255, (32, 64, 3), dtype=np.uint8)
+    images = [np.zeros((32, 64, 3), np.uint8), np.full((32, 64, 3), 6, np.uint8), scene]
+    ds = SimpleNamespace(reference_paths=["a", "b", "c"], query_paths=["q"],
+                         load_image=lambda side, i: images[i])  # fmt: skip
+    assert _first_visible(ds, "reference") == 2
+    assert _first_visible(SimpleNamespace(**{**vars(ds), "reference_paths": ["a"]}),
+                          "reference") == 0  # fmt: skip
