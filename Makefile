@@ -67,12 +67,16 @@ test: $(STAMP)
 # JupyterLab on the project, on 127.0.0.1 with its token; --allow-root only when run as root
 # (containers, cloud machines). It opens the starter notebook in user/notebooks/ (git-ignored,
 # a user's own; copied there when absent, never replaced) beside the study's notebooks/; a
-# user's own cells save under user/. The save hook strips only the committed study notebooks.
+# user's own cells save under user/. The save hook strips only the committed study notebooks;
+# the contents manager (vpr_study.lab.StudyContentsManager, jupytext's) serves them with the
+# kernel's language_info, so opening one leaves it unmodified, and puts a Duplicate of one in
+# user/notebooks/.
 # Kernels share the project's .cache/ whatever their working directory. The [lab] extra
 # (jupyterlab, ipywidgets) is installed once ($(LAB_STAMP)), again only when pyproject.toml changes.
 lab: $(LAB_STAMP) git-filter
 	$(PY) -m vpr_study.lab init
 	$(VENV)/bin/jupyter lab --ip=127.0.0.1 --ServerApp.root_dir="$(CURDIR)" \
+		--ServerApp.contents_manager_class=vpr_study.lab.StudyContentsManager \
 		--ContentsManager.pre_save_hook=vpr_study.lab.strip_outputs \
 		--LabApp.default_url=/lab/tree/user/notebooks/00_start_here.ipynb \
 		$(if $(filter 0,$(shell id -u)),--allow-root)
@@ -87,5 +91,15 @@ lint: $(STAMP)
 
 # The install (.venv, PyTorch with it), every cached dataset, landmark, feature and matrix
 # (.cache) and the executed notebooks (runs/); figures/, results/ and user/ stay (README).
+# JupyterLab and its kernels run from .venv: while a process of this checkout runs from it
+# (make lab, a kernel, a test worker), nothing is removed and the message says to stop it.
 clean:
+	@if pgrep -f "$(CURDIR)/[.]venv/bin/" >/dev/null 2>&1; then \
+		echo "make clean: a process runs from this checkout's .venv (JupyterLab, a kernel," \
+			"tests): stop it first (Ctrl-C in the terminal of make lab), then run make clean" \
+			"again; nothing was removed"; exit 1; fi
 	rm -rf $(VENV) .cache runs
+	@echo "make clean: removed .venv (the install, PyTorch with it: the next make reinstalls" \
+		"it), .cache/ (generated datasets, landmarks, features, matrices) and runs/ (executed" \
+		"notebooks); kept: user/ (your notebooks, figures and tables), figures/ and results/" \
+		"(the study's, committed)"

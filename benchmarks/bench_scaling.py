@@ -178,36 +178,57 @@ def fit(df: pd.DataFrame, extrapolate: tuple[int, ...]) -> pd.DataFrame:
 
 def plot(df: pd.DataFrame, path: Path) -> None:
     """Log-log lines of CPU seconds against places, each labelled with its fitted exponent; the
-    extrapolated points dashed and hollow, with their value written beside them."""
+    extrapolated points dotted and hollow, with their value written beside them."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.ticker import FuncFormatter, NullFormatter
 
-    style = {
-        ("exhaustive", "none"): ("tab:blue", "o"),
-        ("exhaustive", "contrast"): ("tab:orange", "s"),
-        ("shortlist 25", "none"): ("tab:green", "^"),
-        ("shortlist 25", "contrast"): ("tab:red", "D"),
+    from vpr_study.viz import METHOD_COLORS
+    from vpr_study.viz.styles import WEIGHTING_STYLES
+
+    # every line is dense's (its colour in every figure), the weighting its line style as in
+    # every figure, and a marker of its own (the two exhaustive lines nearly coincide)
+    color = METHOD_COLORS["dense"]
+    marker_of = {
+        ("exhaustive", "none"): "o",
+        ("exhaustive", "contrast"): "D",
+        ("shortlist 25", "none"): "s",
+        ("shortlist 25", "contrast"): "^",
     }
     fig, ax = plt.subplots(figsize=(7.5, 4.8), dpi=150)
-    for mode, w in style:
+    for mode, w in marker_of:
         g = df[(df["matching"] == mode) & (df["weighting"] == w)].sort_values("places")
         if g.empty:
             continue
-        color, marker = style[(mode, w)]
+        marker, ls = marker_of[mode, w], WEIGHTING_STYLES["" if w == "none" else w]
         meas = g[g["measured"]]
         name = "contrast" if w == "contrast" else "unweighted"
         e = g["exponent"].iloc[0]
         label = f"{mode}, {name}: " + ("one size" if np.isnan(e) else f"$n^{{{e:.2f}}}$")
-        ax.plot(meas["places"], meas["cpu seconds"], color=color, marker=marker, label=label)
+        small = 5 if w == "contrast" else 7  # the contrast marker inside the plain one
+        ax.plot(
+            meas["places"],
+            meas["cpu seconds"],
+            color=color,
+            marker=marker,
+            ms=small,
+            ls=ls,
+            label=label,
+        )
         if not g["measured"].all():
             extra = g[~g["measured"]]
             ext = pd.concat([meas.iloc[-1:], extra])
-            ax.plot(ext["places"], ext["cpu seconds"], color=color, ls="--")
+            ax.plot(ext["places"], ext["cpu seconds"], color=color, ls=":", lw=1.0)
             ax.plot(
-                extra["places"], extra["cpu seconds"], ls="", color=color, marker=marker, mfc="w"
+                extra["places"],
+                extra["cpu seconds"],
+                ls="",
+                color=color,
+                marker=marker,
+                ms=small,
+                mfc="w",
             )
             for _, row in extra.iterrows():
                 up = w == "contrast"
@@ -232,7 +253,7 @@ def plot(df: pd.DataFrame, path: Path) -> None:
     ax.set_ylabel("Eq. (1) matching, CPU seconds (features cached)", fontsize=10)
     ax.set_title(
         "Eq. (1) matching cost against the number of places (dense, roi)\n"
-        "legend: each line's fitted exponent; dashed, hollow: extrapolated from the fit",
+        "legend: each line's fitted exponent; dotted, hollow: extrapolated from the fit",
         fontsize=10,
     )
     ax.tick_params(labelsize=9)

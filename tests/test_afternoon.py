@@ -406,16 +406,21 @@ def test_a_shortlist_coverage_figure_says_it_equals_the_exhaustive_one(tiny_synt
 # 6. The disagreements figure -----------------------------------------------------------------
 
 
-def test_disagreements_draw_the_deciding_matches_and_label_rows_and_columns(tiny_synthetic):
+def test_disagreements_draw_the_deciding_matches_and_label_rows_and_columns(
+    tiny_synthetic, tmp_path
+):
     from matplotlib.patches import Rectangle
 
     from vpr_core import run_method
-    from vpr_study.viz import plot_disagreements
+    from vpr_study.viz import plot_disagreements, save
     from vpr_study.viz.disagreements import TOP_TERMS
 
     runs = [run_method(m, tiny_synthetic, keep_descriptors=True) for m in ("dense", "classical")]
-    fig, table = plot_disagreements(tiny_synthetic, *runs, n=3)
+    fig = plot_disagreements(tiny_synthetic, *runs, n=3)  # a figure, like every plot_*
+    table = fig.table  # the rows shown, in order
     assert "ratio (lower = more confident)" in table.columns
+    assert save(fig, "d", "mine", out=tmp_path).suffix == ".png"  # issue 61: not a tuple
+    assert save(fig.table, "d", "mine", out=tmp_path).suffix == ".csv"
     titles = [ax.get_title() for ax in fig.axes]
     assert titles[0].startswith("[dense] query | its top-1 reference")
     assert titles[1].startswith("[classical] query | its top-1 reference")
@@ -429,3 +434,42 @@ def test_disagreements_draw_the_deciding_matches_and_label_rows_and_columns(tiny
         assert len(boxes) <= 2 * TOP_TERMS  # the few largest terms, not 50-100 boxes
         assert f"the {min(TOP_TERMS, len(boxes) // 2)} largest terms drawn" in ax.get_title()
     plt.close("all")
+
+
+def test_a_wrong_top1_next_to_the_correct_place_is_not_called_another_place():
+    """Issue 61: on real frame-aligned data a wrong top-1 one frame from a correct reference may
+    show the same scene: its matches are drawn unlabelled (yellow), not wrong (red)."""
+    import numpy as np
+
+    from vpr_study.viz.disagreements import NEAR_FRAMES, _frames_away, _panel_title
+
+    row = pd.Series({"run": "dense", "top-1": 6, "top-1 correct": False,
+                     "first correct rank": 2, "ratio": 0.9})  # fmt: skip
+    assert _frames_away(row, [5], frames=True) == 1 <= NEAR_FRAMES
+    assert _frames_away(row, [5], frames=False) is None  # ground truth from a file: no frames
+    assert _frames_away(pd.Series({**row, "top-1 correct": True}), [6], frames=True) is None
+    pm = type("PM", (), {"matches": np.zeros((7, 2)), "labels": np.zeros(7, bool),
+                         "ground_truth": False})()  # fmt: skip
+    near = _panel_title(row, pm, np.arange(5), "wrong: reference 6, 1 frame away", True)
+    far = _panel_title(row, pm, np.arange(5), "wrong: reference 40, 35 frames away", False)
+    assert near.endswith("unlabelled: it may show the same scene")
+    assert far.endswith("all wrong (another place)")
+
+
+def test_fig14_shows_the_first_image_with_a_scene_not_a_black_frame():
+    """Issue 61: Nordland's first summer frames are black; Fig. 14 showed one, almost black
+    under the overlay. By default it shows the first image that shows a scene."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from vpr_study.viz.images import _first_visible
+
+    rng = np.random.default_rng(0)
+    scene = rng.integers(0, 255, (32, 64, 3), dtype=np.uint8)
+    images = [np.zeros((32, 64, 3), np.uint8), np.full((32, 64, 3), 6, np.uint8), scene]
+    ds = SimpleNamespace(reference_paths=["a", "b", "c"], query_paths=["q"],
+                         load_image=lambda side, i: images[i])  # fmt: skip
+    assert _first_visible(ds, "reference") == 2
+    assert _first_visible(SimpleNamespace(**{**vars(ds), "reference_paths": ["a"]}),
+                          "reference") == 0  # fmt: skip

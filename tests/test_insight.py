@@ -212,6 +212,11 @@ def test_compact_shows_every_interval_verdict_and_chance_in_100_columns():
             assert cell in every  # nothing cut or elided
     assert "..." not in text and repr(table) == text
     assert "dR@1 vs dense" in table._repr_html_()
+    # issue 61: in a notebook each run's label stays on one line (it wrapped to five in Lab)
+    html = table._repr_html_()
+    for label in ("dense", "classical (n=20)", CHANCE_ROW):
+        assert f'<th style="white-space: nowrap">{label}</th>' in html
+    assert html == view._repr_html_() and type(view[["R@1"]]) is pd.DataFrame
     assert isinstance(table, pd.DataFrame) and "AUC lo" in table.columns  # full table for CSV
     assert type(table[["AUC"]]) is pd.DataFrame  # a derived frame is a plain one
 
@@ -327,7 +332,8 @@ def dense_set(kept):
 
 
 def test_plot_disagreements(tiny_synthetic, kept):
-    fig, table = plot_disagreements(tiny_synthetic, *kept, n=3)
+    fig = plot_disagreements(tiny_synthetic, *kept, n=3)
+    table = fig.table  # the rows shown, in order
     assert isinstance(fig, matplotlib.figure.Figure)
     assert len(fig.axes) == 9 and table["query"].nunique() == 3
     assert table["disagree"].iloc[0]  # the first row shown is a disagreement

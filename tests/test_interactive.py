@@ -256,7 +256,8 @@ def test_disagreement_captions_read_at_the_displayed_size_and_the_title_says_wha
         run_method(m, tiny_synthetic, keep_descriptors=True, backbone="hog", n_bootstrap=0)
         for m in ("dense", "classical")
     ]
-    fig, table = viz.plot_disagreements(tiny_synthetic, *runs, n=4)
+    fig = viz.plot_disagreements(tiny_synthetic, *runs, n=4)
+    table = fig.table  # the rows shown, in order
     lab_column = 9.5  # inches at 100 dpi
     shown_at = min(1.0, lab_column / fig.get_figwidth())
     texts = [t for ax in fig.axes for t in (ax.title,)] + [fig._suptitle]

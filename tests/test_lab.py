@@ -584,8 +584,13 @@ def test_the_starter_notebook_runs_end_to_end_with_the_inline_backend(
     ).execute()
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
     assert not [o for o in outputs if o.output_type == "error"]
-    shown = "".join(str(o.get("data", {}).get("text/plain", "")) for o in nb.cells[-1].outputs)
+    (real,) = [c for c in nb.cells if c.cell_type == "code" and "real = load_dataset" in c.source]
+    shown = "".join(str(o.get("data", {}).get("text/plain", "")) for o in real.outputs)
     assert "gardens_point_mini" in shown and "n_query=10" in shown
+    code = [c for c in nb.cells if c.cell_type == "code"]
+    (closer,) = [c for c in code if "plot_disagreements(ds, a" in c.source]
+    shown = "".join(str(o.get("data", {}).get("text/html", "")) for o in closer.outputs)
+    assert "first correct rank" in shown  # its table, after its figure
     assert any("image/png" in o.get("data", {}) for o in outputs)  # the PR curves, inline
     png = out / "figures" / "mine" / "my_comparison.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -595,7 +600,7 @@ def test_the_starter_notebook_runs_end_to_end_with_the_inline_backend(
     assert list(table["method"]) == [
         "dense",
         "CentreGrid",
-        "dense, TinyNet",
+        "dense (backbone: TinyNet)",
         "dense (weighting: contrast)",
     ]
     assert (table["AUC"].between(0, 1)).all() and table["dAUC verdict"].notna().sum() == 3
@@ -613,3 +618,56 @@ def test_lab_lists_each_notebook_once_the_paired_scripts_in_a_subfolder():
         paired = [Path(p) for p, _ in paired_paths(str(path), "ipynb", formats)]
         assert paired == [path, NB_DIR / "scripts" / f"{path.stem}.py"]
         assert paired[1].is_file()
+
+
+# Issue 61: opening a study notebook in Lab leaves it unmodified; a duplicate is the user's -----
+
+
+def _study_checkout(tmp_path: Path) -> Path:
+    root = tmp_path / "repo"
+    (root / "notebooks" / "scripts").mkdir(parents=True)
+    (root / "user" / "notebooks").mkdir(parents=True)
+    shutil.copy(REPO / "pyproject.toml", root / "pyproject.toml")
+    shutil.copy(REPO / TOUR, root / TOUR)
+    twin = "notebooks/scripts/01_pipeline_tour.py"
+    shutil.copy(REPO / twin, root / twin)
+    return root
+
+
+def test_lab_serves_a_study_notebook_as_its_kernel_will_see_it_and_copies_go_to_user(tmp_path):
+    """Lab sets the kernel's language_info when the kernel starts; equal to what the server
+    served, the notebook stays unmodified (no 'unsaved' mark, no autosave rewriting both
+    files). A Duplicate of a study notebook lands in user/notebooks/, not beside the study's."""
+    import asyncio
+
+    pytest.importorskip("jupyter_server")
+    pytest.importorskip("ipykernel")
+    from vpr_study.lab import StudyContentsManager, kernel_language_info
+
+    root = _study_checkout(tmp_path)
+    before = {p: (root / p).read_bytes() for p in (TOUR, "notebooks/scripts/01_pipeline_tour.py")}
+    cm = StudyContentsManager(root_dir=str(root))
+    cm.pre_save_hook = lab.strip_outputs  # as make lab configures it
+
+    async def session():
+        model = await cm.get(TOUR)
+        info = model["content"]["metadata"]["language_info"]
+        assert info == kernel_language_info()  # what JupyterLab will set: no change, not dirty
+        assert info["name"] == "python" and info["version"] == sys.version.split()[0]
+        # a save of what Lab holds writes the same bytes (the hook strips language_info)
+        await cm.save({"type": "notebook", "format": "json", "content": model["content"]}, TOUR)
+        for path, data in before.items():
+            assert (root / path).read_bytes() == data, path
+        # a user's notebook is served as it is
+        (root / "user" / "notebooks" / "mine.ipynb").write_bytes(before[TOUR])
+        mine = await cm.get("user/notebooks/mine.ipynb")
+        assert "language_info" not in mine["content"]["metadata"]
+        # Lab's Duplicate: copy into the notebook's own folder
+        copied = await cm.copy(TOUR, "notebooks")
+        assert copied["path"] == "user/notebooks/01_pipeline_tour-Copy1.ipynb"
+        assert not list((root / "notebooks").glob("*Copy*"))
+        # a copy to elsewhere, asked for: where asked
+        other = await cm.copy(TOUR, "user")
+        assert other["path"] == "user/01_pipeline_tour.ipynb"
+
+    asyncio.run(session())

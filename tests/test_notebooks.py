@@ -234,3 +234,25 @@ def test_no_markdown_cell_breaks_off_mid_sentence(path):
         assert last.startswith(("#", "|", "-", "*", "!")) or last.endswith(
             (".", ":", "!", "?", ")", "`", "*", "|", "$")
         ), f"{path.name}: a Markdown cell ends mid-sentence: {last!r}"
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
+def test_no_wrapped_markdown_line_starts_a_list(path):
+    """Issue 61: notebook 07's wrapped line "+ query batch 0.955." rendered as a bullet and split
+    its sentence: a line starting with ``-``, ``+`` or ``*`` right after a paragraph's line
+    (not a list's) starts a list in Markdown."""
+    import re
+
+    import jupytext
+
+    for cell in jupytext.read(path).cells:
+        if cell.cell_type != "markdown":
+            continue
+        prev, in_list = "", False
+        for line in cell.source.splitlines():
+            item = re.match(r"[-+*] ", line) is not None
+            assert not (item and prev.strip() and not in_list), (
+                f"{path.name}: {line!r} follows a paragraph line and renders as a bullet"
+            )
+            in_list = (in_list or item) and bool(line.strip())
+            prev = line

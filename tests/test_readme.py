@@ -59,6 +59,9 @@ ALLOWED_TEXT = [
     "2-core",  # the machine, named in results/benchmarks/study_profile.csv
     "5-minute target of issue 35",
     "Tokyo 24/7",  # a dataset's name
+    "VPR_QUICK=1",  # a setting: the headless small set
+    "$1",  # a shell argument
+    "8 generated places",  # the small set's places (vpr_study.runner.QUICK_PLACES)
 ]
 
 NUMBER = re.compile(r"\d+(?:[.,]\d+)*")
@@ -447,7 +450,11 @@ def test_the_readme_says_what_make_clean_removes_and_names_the_insight_calls():
     import shlex
 
     makefile = (REPO / "Makefile").read_text(encoding="utf-8")
-    (recipe,) = re.findall(r"^clean:\n\trm -rf (.+)$", makefile, re.M)
+    (recipe,) = re.findall(r"^\trm -rf (.+)$", makefile[makefile.index("\nclean:") :], re.M)
+    said_by_make = makefile[makefile.index("\nclean:") :]
+    # issue 61: make clean says what it removed, what stays, and that Lab must be stopped first
+    for words in ("removed .venv", "kept: user/", "figures/ and results/", "stop it first"):
+        assert words in said_by_make, words
     text = _unwrapped(README)
     said = text[text.index("`make clean` removes") :][:300]
     for path in recipe.replace("$(VENV)", ".venv").split():
@@ -493,3 +500,14 @@ def test_two_sided_cost_tables_are_the_benchmark_tables():
             cells = [f"{places:,}", r["path"], r["step"], f"{r['seconds']:.1f} s"]
             rows.append("| " + " | ".join(cells) + f" | {r['ratio']:.2f}x |")
     assert all(row in MEASUREMENTS for row in rows), _paste(rows)
+
+
+def test_the_readme_runs_each_study_notebook_headless_on_the_small_set():
+    """Issue 61: one headless command per study notebook on the small set, plain nbconvert."""
+    from vpr_study.figures import NOTEBOOKS
+
+    assert "VPR_QUICK=1 .venv/bin/jupyter nbconvert --to notebook --execute" in README
+    for stem in NOTEBOOKS:
+        assert f"nb {stem}" in README, stem
+    block = README[README.index("## Two commands") : README.index("## Five minutes")]
+    assert "make lab" not in block.split("```")[1]  # two commands; make lab its own step

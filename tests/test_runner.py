@@ -127,6 +127,10 @@ def test_text_progress_bars_for_saved_notebooks(monkeypatch, capsys):
     assert list(progress(range(3), total=3, desc="features")) == [0, 1, 2]
     out = capsys.readouterr().out
     assert "features: 100%" in out and "3/3" in out  # a final bar on stdout, not a widget
+    # issue 61: no work (a cached set), no bar: an empty "0it" bar said nothing
+    assert list(progress([], desc="synthetic places", total=0)) == []
+    assert list(progress(range(0), desc="features")) == []
+    assert capsys.readouterr().out == ""
 
 
 def test_notebook_logging_is_stdout_and_warnings_are_not_printed_twice(capsys):
@@ -144,6 +148,8 @@ def test_notebook_logging_is_stdout_and_warnings_are_not_printed_twice(capsys):
     assert "[vpr_core WARNING] a thing that changes a number" in captured.out
     assert "[vpr_core INFO] a plain line" in captured.out
     assert "VPRWarning" not in captured.err and captured.err.count("a thing") == 0
+    # issue 61: a cell ending with it shows no "<Logger vpr_core (INFO)>"
+    assert configure_logging(stream="stdout") is None
     configure_logging()  # back to stderr for the other tests
 
 
@@ -363,3 +369,27 @@ def test_only_the_committed_labels_write_into_figures_and_results(
     assert seen["env"]["VPR_OUTPUT_DIR"] == str(base)
     assert seen["env"]["VPR_CACHE_DIR"] == str(tmp_path / "cache")
     assert (root / where / "figures").is_dir() and (where or not (root / "user").exists())
+
+
+def test_quick_from_the_environment_gives_the_small_set_and_papermill_wins(monkeypatch):
+    """Issue 61: ``VPR_QUICK=1 jupyter nbconvert --execute`` runs a study notebook on the small
+    set (its parameters cell says ``quick = None``); the runner injects ``quick`` itself."""
+    base = {"root": None, "backbone": "efficientnet_lite0", "pooling": "crop", "shortlist": None}
+    monkeypatch.setenv("VPR_QUICK", "1")
+    got = runner.check_parameters(dataset="synthetic", options={}, limit=None, label=None, **base)
+    assert got == ({"n_places": runner.QUICK_PLACES}, None, "synthetic_quick")
+    got = runner.check_parameters(dataset="folder", options={}, limit=None, label="gp", **base)
+    assert got == ({}, runner.QUICK_IMAGES, "gp_quick")
+    # papermill's parameters (the runner's) win over the environment
+    full = runner.notebook_parameters("synthetic")
+    assert full["quick"] is False
+    got = runner.check_parameters(**{k: v for k, v in full.items() if k in runner.PARAMETER_TYPES
+                                     or k == "quick"})  # fmt: skip
+    assert got == ({}, None, "synthetic")
+    small = runner.notebook_parameters("synthetic", quick=True)  # idempotent: applied twice
+    assert runner.check_parameters(**small) == (small["options"], None, "synthetic_quick")
+    monkeypatch.setenv("VPR_QUICK", "0")
+    assert runner.check_parameters(dataset="synthetic", options={"n_places": 5}) == (
+        {"n_places": 5}, None, None)  # fmt: skip
+    with pytest.raises(TypeError, match="quick must be True, False or None"):
+        runner.check_parameters(dataset="synthetic", quick="yes")

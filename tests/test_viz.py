@@ -90,12 +90,14 @@ def test_pr_curves_legend_below_identical_curves_said_and_dataset_named():
     assert texts[1].startswith("x  0.") and "[" not in texts[1]
     assert texts[2].startswith("y  ") and texts[2].endswith(", same curve as dense")
     drawn = [ln for ln in ax.lines if len(ln.get_xdata())]
-    curves = [ln for ln in drawn if ln.get_linestyle() != "--"]  # "--": the chance level
-    assert len(curves) == 2 and len(drawn) == 3
+    assert len(drawn) == 4  # dense, x, y over dense's line, the chance level
     assert to_hex(ax.lines[0].get_color()) == to_hex(METHOD_COLORS["dense"])
-    # the same curve's entry has the line sample of the curve it repeats
-    handles = legend.legend_handles
-    assert to_hex(handles[2].get_color()) == to_hex(METHOD_COLORS["dense"])
+    # the same curve is still seen: its own colour, thin, hollow markers over the line it repeats
+    twin = legend.legend_handles[2]
+    assert twin.get_fillstyle() == "none" and twin.get_marker() not in ("", "None")
+    assert twin.get_linewidth() < ax.lines[0].get_linewidth()
+    assert to_hex(twin.get_color()) not in (to_hex(ln.get_color()) for ln in ax.lines[:2])
+    assert np.array_equal(ax.lines[2].get_ydata(), ax.lines[0].get_ydata())
     assert "toy: 6 of 6 queries with ground truth, tolerance 0" in ax.get_title(loc="left")
     fig.canvas.draw()
     box = legend.get_window_extent()
@@ -142,7 +144,8 @@ def test_pr_curves_same_curve_is_said_and_colours_never_repeat():
         for ln in ax.lines
         if len(ln.get_xdata()) and ln.get_linestyle() != "--"  # "--": the chance level
     ]
-    assert len(drawn) == 3 and len(set(drawn)) == 3  # classical's blue is not reused
+    # four methods, four colours (s2 and peer from the palette of methods not in the paper)
+    assert len(drawn) == 4 and len(set(drawn)) == 4  # classical's blue is not reused
 
 
 def test_landmark_panels_say_which_colour_is_which_scale():
@@ -172,7 +175,9 @@ def test_pair_and_coverage_figures_of_runs(tiny_synthetic):
     assert 0 < table.loc["dense", "covered share (this image)"] <= 1
     # issue 54: the panels compare a count, so they share one colour scale; the outlines are
     # said on each colour bar
-    scales = {im.get_clim() for ax in fig.axes for im in ax.get_images() if im.get_alpha()}
+    scales = {  # the coverage layers: translucent (the image under them is opaque)
+        im.get_clim() for ax in fig.axes for im in ax.get_images() if im.get_alpha() is not None
+    }
     assert len(scales) == 1 and scales.pop()[1] > 1, scales
     bars = [ax.get_ylabel() for ax in fig.axes if "boxes covering" in ax.get_ylabel()]
     assert len(bars) == 2 and all("white outlines:" in b for b in bars)

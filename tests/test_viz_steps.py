@@ -122,3 +122,48 @@ def test_step_changes_refuse_a_table_that_is_not_one():
     assert sum(ax.axison for ax in fig.axes) == 1
     assert np.isclose(fig.get_figwidth(), 9.5)
     plt.close(fig)
+
+
+def test_paired_differences_mark_methods_whose_rows_are_the_same_results():
+    """Issue 61: where Scheme 1 keeps classical's boxes (Nordland) every step gives the same
+    numbers for both; the figure says so (``(= classical)``, hollow dots), other blocks not."""
+    blocks = []
+    for method in ("classical", "selection_scheme1", "dense"):
+        t = _steps_table()
+        t["method"] = t["method"].str.replace("dense", method)
+        t["baseline"] = t["baseline"].where(t["baseline"].isna(), method)
+        if method == "dense":  # other numbers
+            t["dAUC"] = t["dAUC"] + 0.01
+        blocks.append(t)
+    fig = plot_paired_differences(pd.concat(blocks))
+    ax = fig.axes[0]
+    labels = [x.get_text().replace("\n", " ") for x in ax.get_yticklabels()]
+    assert labels[0] == "classical: weighting: two_sided"
+    assert labels[3] == "selection_scheme1 (= classical): weighting: two_sided"
+    assert labels[6] == "dense: weighting: two_sided"
+    dots = [ln for ln in ax.lines if len(ln.get_xdata()) == 1]
+    assert [d.get_fillstyle() for d in dots] == ["full"] * 3 + ["none"] * 3 + ["full"] * 3
+    legend = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert "(= classical): the same results as classical's rows" in legend
+    plt.close(fig)
+    # no block alike: no mark
+    plain = plot_paired_differences(_steps_table())
+    assert len(plain.legends[0].get_texts()) == 3
+    plt.close(plain)
+
+
+def test_step_changes_names_at_close_ranks_never_overlap():
+    """Issue 61: ``r52`` and ``r1`` at ranks 21 and 22 printed over each other."""
+    rows = [(6, "fixed", ref, False, 2, after, "database") for ref, after in
+            ((52, 21), (1, 22), (14, 20), (53, 3))]  # fmt: skip
+    rows += [(6, "fixed", 6, True, 2, 1, "database")]
+    cols = ["query", "case", "reference", "correct", "rank before", "rank after", "step"]
+    fig = plot_step_changes(pd.DataFrame(rows, columns=cols).assign(why="w"))
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    for side in ("left", "right"):
+        boxes = [t.get_window_extent() for t in ax.texts if t.get_ha() == side]
+        for i, a in enumerate(boxes):
+            for b in boxes[i + 1 :]:
+                assert a.y1 <= b.y0 or b.y1 <= a.y0, side  # no two names share a line
+    plt.close(fig)

@@ -360,11 +360,11 @@ def test_run_method_passes_the_weighting_to_the_matcher():
     np.testing.assert_allclose(r.similarity[kept], full[kept], atol=1e-7, rtol=0)
 
 
-def test_cli_eval_weighting_both_pairs_each_method_with_itself(tmp_path, capsys):
+def test_cli_eval_weighting_all_pairs_each_method_with_itself(tmp_path, capsys):
     from vpr_study import cli
 
     args = ["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "dense", "global"]
-    rc = cli.main([*args, "--weighting", "both", "--spatial", "both", "--out", str(tmp_path)])
+    rc = cli.main([*args, "--weighting", "all", "--spatial", "both", "--out", str(tmp_path)])
     assert rc == 0
     out = capsys.readouterr().out
     assert "database weighting, each method with minus without" in out
@@ -377,6 +377,27 @@ def test_cli_eval_weighting_both_pairs_each_method_with_itself(tmp_path, capsys)
     assert len(got) == 2 * 2 * len(tuple(WEIGHTINGS))  # methods x spatial x weightings
     (geometry,) = folder.glob("eval_*_geometry.csv")
     assert len(pd.read_csv(geometry)) == 2 * (1 + len(tuple(WEIGHTINGS)))  # methods x weightings
+
+
+def test_cli_eval_weighting_both_is_without_and_with_contrast(tmp_path, capsys):
+    """Issue 61: ``--weighting both`` ran four weightings; it is the two its word says."""
+    from vpr_study import cli
+
+    args = ["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "global"]
+    assert cli.main([*args, "--weighting", "both", "--n-bootstrap", "50",
+                     "--out", str(tmp_path)]) == 0  # fmt: skip
+    (table,) = (tmp_path / "results" / "synthetic").glob("eval_*_weighting.csv")
+    got = pd.read_csv(table)
+    assert list(got["run"]) == ["global(weighting=contrast)"]
+    assert list(got["baseline"]) == ["global"]
+    from vpr_study.arguments import command_parser
+
+    parser = cli.build_parser()
+    eval_help = " ".join(command_parser(parser, "eval").format_help().split())
+    assert "'both': every method without and with contrast (two runs each)" in eval_help
+    run_help = " ".join(command_parser(parser, "run").format_help().split())
+    assert "without either flag: on for the full synthetic study" in run_help
+    assert "(default: True)" not in run_help  # --no-real-data is not the default
 
 
 # ---- (not in the paper) two-sided contrast (issue 55) --------------------------------------

@@ -29,6 +29,7 @@ __all__ = [
     "Method",
     "as_method",
     "available_methods",
+    "default_label",
     "get_method",
     "method_label",
     "run_identity",
@@ -272,3 +273,15 @@ def step_between(a: Any, b: Any, caller: str, step: str = "the step") -> dict[st
 def _short(value: Any) -> str:
     text = repr(value)
     return text if len(text) <= 40 else text[:37] + "..."
+
+
+def default_label(method: Method, encoder: dict) -> str:
+    """A run's label when none is given: the method's (:func:`~vpr_core.methods.method_label`)
+    and a user's backbone module by its class (``"dense (backbone: TinyNet)"``), so a run with
+    one's own backbone reads apart from the method's in a table and a legend (a named backbone
+    is a setting of the whole study: titles name it, a figure's legend where it differs)."""
+    text = method_label(method)
+    if "module" not in encoder:  # a named backbone
+        return text
+    said = f"backbone: {encoder['backbone']}"
+    return f"{text[:-1]}; {said})" if text.endswith(")") else f"{text} ({said})"

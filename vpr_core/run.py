@@ -31,7 +31,7 @@ from .matching.shortlist import (
 )
 from .matching.similarity import similarity_matrix, similarity_pairs
 from .matching.weighting import WEIGHTINGS
-from .methods import Matching, Method, as_method, method_label
+from .methods import Matching, Method, as_method, default_label
 from .notices import VPRWarning, notice
 from .result import MethodResult, result_from_matrix
 from .utils import array_sha256, cache_dir, code_version, config_slug, logger
@@ -332,7 +332,8 @@ def run_method(
             closes it), or None: in-process, always. The numbers are the same either way:
             what it returns is checked, a sample recomputed here, before any cache keeps it
             (:mod:`vpr_core.executor`).
-        label: display label; default from the config.
+        label: display label; default from the config (:func:`~vpr_core.methods.default_label`:
+            the method, its options, and a backbone module's class).
         keep_descriptors: also return the descriptors (needed by the scale statistics).
         **overrides: the encoder and evaluation fields above, and the method's own options:
             its scheme's (e.g. ``iou_threshold=0.4``, ``scales=``, ``per_scale=``) and its
@@ -410,7 +411,7 @@ def run_method(
     _empty_notice(boxes, dataset)
     made = MethodResult(
         method=conf.name,
-        label=label or method_label(conf),
+        label=label or default_label(conf, landmark_encoder.config),
         config=conf,
         encoder=dict(landmark_encoder.config),
         similarity=sim,

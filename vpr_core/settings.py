@@ -15,6 +15,7 @@ __all__ = [
     "DATASETS_ENV",
     "OUTPUT_ENV",
     "PROGRESS_ENV",
+    "QUICK_ENV",
     "SCHEDULER_ENV",
     "SCHEDULER_TIMEOUT_ENV",
     "SED_MODEL_ENV",
@@ -30,6 +31,7 @@ __all__ = [
     "output_dir",
     "progress_disabled",
     "progress_style",
+    "quick",
     "scheduler_timeout",
     "sed_model",
     "tune_malloc",
@@ -45,6 +47,7 @@ BENCH_ROOT_ENV = "VPR_BENCH_ROOT"
 DATASETS_ENV = "VPR_DATASETS"
 TUNE_MALLOC_ENV = "VPR_TUNE_MALLOC"
 PROGRESS_ENV = "VPR_PROGRESS"
+QUICK_ENV = "VPR_QUICK"
 
 
 def _get(name: str) -> str | None:
@@ -134,6 +137,13 @@ def progress_style() -> str:
     Jupyter, text in a terminal; the default)."""
     value = (_get(PROGRESS_ENV) or "auto").strip().lower()
     return value if value in ("auto", "text") else "auto"
+
+
+def quick() -> bool:
+    """True when ``$VPR_QUICK`` is set and not ``0`` / ``false`` / ``no`` / ``off``: a study
+    notebook run without papermill's parameters (``jupyter nbconvert --execute``, Lab) takes
+    the small set of ``vpr-study run --quick``."""
+    return (_get(QUICK_ENV) or "0").strip().lower() not in ("0", "false", "no", "off")
 
 
 def progress_disabled() -> bool:

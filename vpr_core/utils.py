@@ -11,7 +11,7 @@ import random
 import sys
 import types
 import warnings
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sized
 from pathlib import Path
 from typing import Any
 
@@ -103,8 +103,10 @@ class _LiveStreamHandler(logging.StreamHandler):
 
 def configure_logging(
     level: str | int = "INFO", stream: str = "stderr", silence_warnings: bool = False
-) -> logging.Logger:
-    """Send ``vpr_core`` log records to ``stream`` as ``[vpr_core LEVEL] message`` (idempotent).
+) -> None:
+    """Send ``vpr_core`` log records to ``stream`` as ``[vpr_core LEVEL] message`` (idempotent;
+    returns nothing, so a cell ending with it shows no ``<Logger ...>``: the logger is
+    ``logging.getLogger("vpr_core")``).
 
     Args:
         level: the log level.
@@ -122,7 +124,6 @@ def configure_logging(
     logger.propagate = False
     if silence_warnings:
         warnings.simplefilter("ignore", VPRWarning)
-    return logger
 
 
 def cache_dir(*parts: str) -> Path:
@@ -167,8 +168,11 @@ def progress(iterable: Iterable | None, **kwargs: Any):
     a plain text bar on stdout that stays at its final count (a saved notebook and a second
     browser tab show it, never "Loading widget..."); elsewhere (stdout piped or redirected) one
     line with the estimate every :data:`LINE_INTERVAL_S` seconds. Disabled by
-    ``TQDM_DISABLE=1``."""
+    ``TQDM_DISABLE=1``; nothing at all for no work (a cached set: no empty bar)."""
     kwargs.setdefault("disable", settings.progress_disabled())
+    total = kwargs.get("total", len(iterable) if isinstance(iterable, Sized) else None)
+    if total == 0:
+        kwargs["disable"] = True
     if settings.progress_style() == "text" or "ipykernel" in sys.modules:
         kwargs.setdefault("file", sys.stdout)
         kwargs.setdefault("leave", True)

@@ -260,9 +260,10 @@ EVAL_EPILOG = """examples:
   vpr-study eval --dataset synthetic --method dense classical
       the paper's two methods on the built-in synthetic set (no download)
   vpr-study eval --dataset synthetic --method dense --weighting both
-      with and without each database weighting, and the paired differences
-  vpr-study eval --dataset synthetic --method dense --normalise both
-      with and without each normalisation of the matrix (query_batch needs the query batch)
+      without and with the contrast weighting, and the paired difference (--weighting all:
+      without and with each of contrast, idf, two_sided)
+  vpr-study eval --dataset synthetic --method dense --normalise all
+      without and with each normalisation of the matrix (query_batch needs the query batch)
   vpr-study eval --dataset folder --root ~/photos/route --method dense
       your own images: a folder holding query/ and reference/ image folders
   vpr-study eval --dataset synthetic --method dense --peer MyNet=sim.npy
@@ -408,21 +409,23 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
     e.add_argument(
         "--weighting",
         default="none",
-        choices=("none", *WEIGHTING_OPTIONS, "both"),
+        choices=("none", *WEIGHTING_OPTIONS, "both", "all"),
         help="(not in the paper) weight every method's match terms by how much better the "
         "query landmark matches this reference than the others (docs/DEFINITIONS.md); 'both': "
-        "every method without and with each weighting, and the paired differences; default "
-        "none: Eq. (1) as the paper",
+        "every method without and with contrast (two runs each), 'all': without and with each "
+        f"weighting ({1 + len(WEIGHTING_OPTIONS)} runs each), and the paired differences; "
+        "default none: Eq. (1) as the paper",
     )
     e.add_argument(
         "--normalise",
         default="none",
-        choices=("none", *NORMALISE_OPTIONS, "both"),
+        choices=("none", *NORMALISE_OPTIONS, "both", "all"),
         help="(not in the paper) normalise every method's similarity matrix after Eq. (1) "
         "(docs/DEFINITIONS.md): query_batch z-scores over references and over the batch of "
         "queries (needs the query batch; also applied to peers), database subtracts each "
         "reference's mean similarity to its 10 nearest references (a single live query); "
-        "'both': every method without and with each, and the paired differences",
+        f"'all' (or 'both': both normalisations): every method without and with each "
+        f"({1 + len(NORMALISE_OPTIONS)} runs each), and the paired differences",
     )
     e.add_argument(
         "--wide",
@@ -516,11 +519,16 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
         dest="real_data",
         action="store_true",
         default=None,
-        help="also run notebooks 03-07 on the real datasets beside the project "
-        "(default for the full synthetic study)",
+        help="also run notebooks 03-07 on the real datasets beside the project (without "
+        "either flag: on for the full synthetic study, off for --quick, --label or another "
+        "dataset)",
     )
     r.add_argument(
-        "--no-real-data", dest="real_data", action="store_false", help="only the --dataset study"
+        "--no-real-data",
+        dest="real_data",
+        action="store_false",
+        default=argparse.SUPPRESS,  # the default is --real-data's (None): said there
+        help="only the --dataset study (even for the full synthetic study)",
     )
     r.add_argument(
         "--label",

@@ -417,9 +417,14 @@ def cmd_eval(args: argparse.Namespace) -> int:
     mode = "exhaustive" if args.shortlist is None else f"shortlist k={args.shortlist}"
     scheduler = args.scheduler or settings.dask_scheduler()
     spatial = [None, *SPATIAL_OPTIONS] if args.spatial == "both" else [args.spatial]
-    choices: dict[str, list[str | None]] = {"none": [None], "both": [None, *WEIGHTINGS]}
+    choices: dict[str, list[str | None]] = {
+        "none": [None],
+        "both": [None, "contrast"],  # without and with the workbench's weighting
+        "all": [None, *WEIGHTINGS],
+    }
     weighting = choices.get(args.weighting, [args.weighting])
-    norms: dict[str, list[str | None]] = {"none": [None], "both": [None, *NORMALISATIONS]}
+    every = [None, *NORMALISATIONS]  # both normalisations, and without
+    norms: dict[str, list[str | None]] = {"none": [None], "both": every, "all": every}
     normalise = norms.get(args.normalise, [args.normalise])
     results, computed, wall, run_of = [], {}, {}, {}
     todo = list(itertools.product(args.method, spatial, weighting, normalise))
@@ -512,17 +517,17 @@ def cmd_eval(args: argparse.Namespace) -> int:
         say("\n(not in the paper) geometry-aware score, each method with minus without:", width)
         print(fit_text(compact(geometry), width, HEADLINE, wide=args.wide))
         items.append((f"{stem}_geometry", geometry))
-    if args.weighting == "both":
+    if args.weighting in ("both", "all"):
         pairs = [
             (run_of[m, s, None, z], run_of[m, s, w, z])
             for m, s, z in itertools.product(args.method, spatial, normalise)
-            for w in WEIGHTINGS
+            for w in weighting[1:]
         ]
         weighted = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
         say("\n(not in the paper) database weighting, each method with minus without:", width)
         print(fit_text(compact(weighted), width, HEADLINE, wide=args.wide))
         items.append((f"{stem}_weighting", weighted))
-    if args.normalise == "both":
+    if args.normalise in ("both", "all"):
         pairs = [
             (run_of[m, s, w, None], run_of[m, s, w, z])
             for m, s, w in itertools.product(args.method, spatial, weighting)

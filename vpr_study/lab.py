@@ -36,6 +36,7 @@ __all__ = [
     "STUDY_TWINS",
     "USER_NOTEBOOKS",
     "init",
+    "kernel_language_info",
     "main",
     "malformed",
     "project_path",
@@ -98,6 +99,73 @@ def strip_outputs(model: dict, path: str, contents_manager: Any = None, **kwargs
         except Exception as exc:  # a save hook that raises fails the user's save
             why = f"stripping failed: {type(exc).__name__}: {exc}"
     log.warning("%s saved with its outputs, untouched: %s", path, why)
+
+
+def kernel_language_info() -> dict:
+    """The ``language_info`` the project's kernel (ipykernel, on this Python) reports, which
+    JupyterLab writes into a notebook's metadata when its kernel starts."""
+    from ipykernel.ipkernel import IPythonKernel
+
+    return dict(IPythonKernel.language_info)
+
+
+def _study_contents_manager() -> type:
+    """``make lab``'s contents manager: jupytext's (the pairing with ``notebooks/scripts/``),
+    and, for the committed study notebooks, the two things Lab would otherwise change on open:
+
+    - a study notebook is served with its kernel's ``language_info`` (git keeps it without
+      it): Lab sets that metadata when the kernel starts and, finding it equal, leaves the
+      notebook unmodified (it marked it unsaved, and its autosave rewrote both files with
+      the same bytes);
+    - a copy of a study notebook into ``notebooks/`` (Lab's "Duplicate") lands in the user's
+      ``user/notebooks/`` instead (a copy is the user's: there it keeps its outputs, beside the
+      starter), and the server's log says so.
+    """
+    from jupyter_core.utils import ensure_async
+    from jupytext.async_contentsmanager import AsyncTextFileContentsManager
+
+    class StudyContentsManager(AsyncTextFileContentsManager):  # type: ignore[misc,valid-type]
+        async def get(self, path, content=True, type=None, format=None, **kwargs):
+            model = await super().get(path, content=content, type=type, format=format, **kwargs)
+            where = project_path(path, self.root_dir)
+            if content and model.get("type") == "notebook" and where in STUDY_NOTEBOOKS:
+                meta = model["content"].setdefault("metadata", {})
+                meta.setdefault("language_info", kernel_language_info())
+            return model
+
+        async def copy(self, from_path, to_path=None):
+            target = (to_path if to_path is not None else from_path.rsplit("/", 1)[0]).strip("/")
+            served_at_root = project_path(from_path, self.root_dir) == from_path.strip("/")
+            if (
+                served_at_root
+                and from_path.strip("/") in STUDY_NOTEBOOKS
+                and target == "notebooks"
+                and await ensure_async(self.dir_exists(str(USER_NOTEBOOKS)))
+            ):
+                self.log.info(
+                    "%s copied to %s/: a copy of a study notebook is yours (it keeps its "
+                    "outputs there; notebooks/ holds the study's)",
+                    from_path,
+                    USER_NOTEBOOKS,
+                )
+                stem, n = PurePosixPath(from_path).stem, 1
+                name = f"{USER_NOTEBOOKS}/{stem}-Copy{{}}.ipynb"
+                while await ensure_async(self.file_exists(name.format(n))):
+                    n += 1
+                to_path = name.format(n)  # named as Lab names a copy
+            return await super().copy(from_path, to_path)
+
+    return StudyContentsManager
+
+
+def __getattr__(name: str) -> Any:
+    """``StudyContentsManager`` (:func:`_study_contents_manager`), built on first use: only
+    ``make lab`` has the server libraries it derives from."""
+    if name == "StudyContentsManager":
+        cls = _study_contents_manager()
+        globals()[name] = cls
+        return cls
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def starter_source() -> bytes:

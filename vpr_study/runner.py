@@ -88,10 +88,22 @@ PARAMETER_TYPES: dict[str, tuple[type, ...]] = {
 }
 
 
-def check_parameters(**params) -> None:
+def check_parameters(quick: bool | None = None, **params) -> tuple[dict, int | None, str | None]:
     """Refuse notebook parameters of the wrong type with one TypeError line naming each and the
     fix (``options must be a dict such as {"tolerance": 0}, got a list``), and a ``limit`` or
-    ``shortlist`` below 1 with a ValueError."""
+    ``shortlist`` below 1 with a ValueError.
+
+    Returns:
+        ``(options, limit, label)``: as given, or, when ``quick`` (None: ``$VPR_QUICK``,
+        :func:`vpr_core.settings.quick`, so a plain ``jupyter nbconvert --execute`` runs
+        small), those of the small set of ``vpr-study run --quick``
+        (:func:`notebook_parameters`): :data:`QUICK_PLACES` synthetic places or a real set's
+        first :data:`QUICK_IMAGES` images, the label ending ``_quick``.
+    """
+    if quick is None:
+        quick = settings.quick()
+    if not isinstance(quick, bool):
+        raise TypeError(f"notebook parameters: quick must be True, False or None, got {quick!r}")
     bad = []
     for name, value in params.items():
         types = PARAMETER_TYPES.get(name)
@@ -109,6 +121,13 @@ def check_parameters(**params) -> None:
             raise ValueError(
                 f"notebook parameters: {name} must be None ({what}) or >= 1, got {value}"
             )
+    options, limit, label = params.get("options", {}), params.get("limit"), params.get("label")
+    if not quick:
+        return options, limit, label
+    small = notebook_parameters(
+        params.get("dataset", "synthetic"), quick=True, label=label, options=options
+    )
+    return small["options"], small["limit"] if limit is None else limit, small["label"]
 
 
 def notebook_parameters(
@@ -121,7 +140,8 @@ def notebook_parameters(
     pooling: str = "crop",
     shortlist: int | None = None,
 ) -> dict:
-    """The ``parameters`` cell values papermill injects into a study notebook.
+    """The ``parameters`` cell values papermill injects into a study notebook (``quick`` among
+    them, so the kernel's ``$VPR_QUICK`` never changes a run of the study).
 
     Quick mode: ``synthetic`` with :data:`QUICK_PLACES` places, a real dataset cut to its first
     :data:`QUICK_IMAGES` images (``limit``); the label gets ``_quick`` appended.
@@ -141,6 +161,7 @@ def notebook_parameters(
         "pooling": pooling,
         "limit": limit,
         "shortlist": shortlist,
+        "quick": quick,
     }
 
 
@@ -264,6 +285,7 @@ def run_study(
     if isinstance(root, Path):
         root = str(root)
     check_parameters(
+        quick=quick,
         dataset=dataset,
         root=root,
         options={} if options is None else options,

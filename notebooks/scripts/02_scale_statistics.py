@@ -48,15 +48,16 @@ root = None  # the dataset's folder (all but synthetic)
 options = {}  # loader options: {"n_places": 8} (synthetic), {"step": 50, "tolerance": 0} (nordland), {"positive_dist_threshold": 25} (utm)
 limit = None  # keep only the first N queries and references (quick runs)
 label = None  # subfolder of figures/ and results/ (default: the dataset's name)
-backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
+backbone = "efficientnet_lite0"  # see vpr_core.available_backbones()
 pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass per image
 shortlist = None  # None: exhaustive (the paper's); K: re-rank each query's top-K by Eq. (1)
+quick = None  # True: the small set of `vpr-study run --quick`; None: $VPR_QUICK (1: small, e.g. a headless nbconvert)
 method = "classical"  # landmark method whose matches are studied
 n_irrelevant = 5  # query-irrelevant references sampled per query
 
 # %%
-check_parameters(dataset=dataset, root=root, options=options, limit=limit, label=label,
-                 backbone=backbone, pooling=pooling, shortlist=shortlist)
+options, limit, label = check_parameters(dataset=dataset, root=root, options=options, limit=limit, label=label,
+                                         backbone=backbone, pooling=pooling, shortlist=shortlist, quick=quick)
 ds = load_dataset(dataset, root=root, **options)
 if limit:
     ds = ds.subset(limit)

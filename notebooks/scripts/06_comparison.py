@@ -43,16 +43,17 @@ root = None  # the dataset's folder (all but synthetic)
 options = {}  # loader options: {"n_places": 8} (synthetic), {"step": 50, "tolerance": 0} (nordland), {"positive_dist_threshold": 25} (utm)
 limit = None  # keep only the first N queries and references (quick runs)
 label = None  # subfolder of figures/ and results/ (default: the dataset's name)
-backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
+backbone = "efficientnet_lite0"  # see vpr_core.available_backbones()
 pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass per image
 shortlist = None  # None: exhaustive (the paper's); K: re-rank each query's top-K by Eq. (1)
+quick = None  # True: the small set of `vpr-study run --quick`; None: $VPR_QUICK (1: small, e.g. a headless nbconvert)
 peers = None  # a VPR-Bench checkout with precomputed_matches/ (None: $VPR_BENCH_ROOT)
 peer_dataset = None  # its dataset folder, e.g. "GardensPointWalking" (None: no VPR-Bench peers)
 my_method = None  # your method's (Nq, Nr) similarity matrix .npy on this dataset (None: none)
 
 # %%
-check_parameters(dataset=dataset, root=root, options=options, limit=limit, label=label,
-                 backbone=backbone, pooling=pooling, shortlist=shortlist)
+options, limit, label = check_parameters(dataset=dataset, root=root, options=options, limit=limit, label=label,
+                                         backbone=backbone, pooling=pooling, shortlist=shortlist, quick=quick)
 ds = load_dataset(dataset, root=root, **options)
 if limit:
     ds = ds.subset(limit)
@@ -87,10 +88,10 @@ table
 
 # %%
 dense, classical = (run_method(m, ds, keep_descriptors=True, **run_options) for m in ("dense", "classical"))
-fig, shown = plot_disagreements(ds, dense, classical, n=6)
+fig = plot_disagreements(ds, dense, classical, n=6)
 queries = per_query([dense, classical])
 save(fig, "disagreements_dense_classical", label), save(queries, "disagreements_dense_classical", label)
-shown
+fig.table  # the queries the figure shows, in its order
 
 # %% [markdown]
 # ## Geometry in the score (not in the paper)
@@ -112,7 +113,7 @@ table
 # ## Fig. 14 — coverage of the image by the landmarks (top-100 Edge Boxes vs dense)
 
 # %%
-fig, coverage = plot_coverage_comparison(ds, [runs[2], runs[0]], index=0, side="reference")
+fig, coverage = plot_coverage_comparison(ds, [runs[2], runs[0]], side="reference")  # the first image with a scene
 save(fig, "fig14_coverage_comparison", label), save(coverage, "fig14_coverage_comparison", label)
 coverage
 

@@ -68,13 +68,14 @@ root = None  # the dataset's folder (all but synthetic)
 options = {}  # loader options: {"n_places": 8} (synthetic), {"step": 50, "tolerance": 0} (nordland), {"positive_dist_threshold": 25} (utm)
 limit = None  # keep only the first N queries and references (quick runs)
 label = None  # subfolder of figures/ and results/ (default: the dataset's name)
-backbone = "efficientnet_lite0"  # see vpr_core.features.available_backbones()
+backbone = "efficientnet_lite0"  # see vpr_core.available_backbones()
 pooling = "crop"  # crop: the paper's per-landmark crops; roi: one backbone pass per image
 shortlist = None  # None: exhaustive (the paper's); K: re-rank each query's top-K by Eq. (1)
+quick = None  # True: the small set of `vpr-study run --quick`; None: $VPR_QUICK (1: small, e.g. a headless nbconvert)
 
 # %%
-check_parameters(dataset=dataset, root=root, options=options, limit=limit, label=label,
-                 backbone=backbone, pooling=pooling, shortlist=shortlist)
+options, limit, label = check_parameters(dataset=dataset, root=root, options=options, limit=limit, label=label,
+                                         backbone=backbone, pooling=pooling, shortlist=shortlist, quick=quick)
 ds = load_dataset(dataset, root=root, **options)
 if limit:
     ds = ds.subset(limit)
@@ -137,12 +138,15 @@ carried
 # *Measured outside this repository by the reporter* (not reproduced here; R@1 /
 # ratio-AUC): SPEDTest thumbnails (604) dense 0.795 / 0.964, two-sided 0.785 / 0.961,
 # two-sided + query batch 0.829 / 0.977; indoor corridor (111) dense 0.604, two-sided 0.928,
-# + query batch 0.955. Each block of rows below is one `compare` against the method's own plain
-# run: `higher` / `lower` only where the 95% paired interval excludes 0. The figure draws each
-# difference with its interval (green higher, red lower, grey: the interval holds 0).
+# two-sided + query batch 0.955. Each block of rows below is one `compare` against the
+# method's own plain run: `higher` / `lower` only where the 95% paired interval excludes 0. The
+# figure draws each difference with its interval (green higher, red lower, grey: the interval
+# holds 0); a method whose rows are another's, number for number, says so (`(= classical)`:
+# on Nordland Scheme 1 keeps classical's boxes). `steps` names each step by its `run_method`
+# options, and `step_runs[method][step]` is its run: a new step is one more line there.
 
 # %%
-steps = {
+steps = {  # each step by name: its run_method options
     "contrast": {"weighting": "contrast"},
     "two_sided": {"weighting": "two_sided"},
     "query_batch": {"normalise": "query_batch"},
@@ -150,13 +154,10 @@ steps = {
     "two_sided + query_batch": {"weighting": "two_sided", "normalise": "query_batch"},
     "two_sided + database": {"weighting": "two_sided", "normalise": "database"},
 }
-step_runs, step_tables = {}, []
-for m in ("classical", "selection_scheme1", "dense"):
-    group = [run_method(m, ds, **run_options)]
-    group += [run_method(m, ds, **opts, **run_options) for opts in steps.values()]
-    step_runs[m] = group
-    step_tables.append(compare(group, baseline=m))
-step_table = pd.concat(step_tables)
+step_runs = {m: {"plain": run_method(m, ds, **run_options)}  # step_runs[method][step]: its run
+             | {step: run_method(m, ds, **opts, **run_options) for step, opts in steps.items()}
+             for m in ("classical", "selection_scheme1", "dense")}
+step_table = pd.concat([compare(list(by_step.values()), baseline=m) for m, by_step in step_runs.items()])
 fig = plot_paired_differences(
     step_table, title=f"(not in the paper) each method with minus without each step: {label}"
 )
@@ -170,9 +171,9 @@ compact(step_table)
 # against the method with `contrast` (`higher`: better than today's contrast).
 
 # %%
-vs_contrast = pd.concat(
-    [compare([group[1], group[2], group[5], group[6]], baseline=0) for group in step_runs.values()]
-)
+against = ("contrast", "two_sided", "two_sided + query_batch", "two_sided + database")  # contrast: the baseline
+vs_contrast = pd.concat([compare([by_step[step] for step in against], baseline=by_step["contrast"].label)
+                         for by_step in step_runs.values()])
 fig = plot_paired_differences(
     vs_contrast,
     title=f"(not in the paper) each step minus today's contrast weighting: {label}",
@@ -198,8 +199,8 @@ two_sided = run_method("dense", ds, weighting="two_sided", keep_descriptors=True
 changes = pd.concat(
     [
         step_changes(plain, two_sided).assign(step="two_sided"),
-        step_changes(plain, step_runs["dense"][3]).assign(step="query_batch (needs the batch)"),
-        step_changes(plain, step_runs["dense"][4]).assign(step="database"),
+        step_changes(plain, step_runs["dense"]["query_batch"]).assign(step="query_batch (needs the batch)"),
+        step_changes(plain, step_runs["dense"]["database"]).assign(step="database"),
     ]
 )
 fig = plot_step_changes(

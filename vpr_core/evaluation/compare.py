@@ -29,6 +29,7 @@ __all__ = [
     "IDENTICAL",
     "METRICS",
     "ComparisonTable",
+    "CompactView",
     "check_same_dataset",
     "compact",
     "compact_text",
@@ -281,7 +282,7 @@ def _difference_text(row: pd.Series, name: str) -> str:
     return f"{row[name]:+.3f} [{lo:+.3f}, {hi:+.3f}] {verdict}"
 
 
-def compact(table: pd.DataFrame) -> pd.DataFrame:
+def compact(table: pd.DataFrame) -> CompactView:
     """The comparison table as a person reads it: one text column per metric, one per paired
     difference with its verdict, and a last row with each metric's chance level.
 
@@ -289,7 +290,8 @@ def compact(table: pd.DataFrame) -> pd.DataFrame:
         table: :func:`compare`'s table (the full numeric one stays the CSV).
 
     Returns:
-        A DataFrame of strings indexed by label: ``queries``; ``AUC(<protocol>)``, ``R@100P``,
+        A DataFrame of strings (:class:`CompactView`: in a notebook, each label on one line)
+        indexed by label: ``queries``; ``AUC(<protocol>)``, ``R@100P``,
         ``R@1``, ``R@5`` as ``0.892 [0.838, 0.946]``; ``dAUC``, ``dR@100P``, ``dR@1`` (vs the
         baseline) as ``+0.050 [-0.252, +0.420] inconclusive``; ``note`` (``= <label>`` for a
         run identical to another); then the row :data:`CHANCE_ROW`.
@@ -317,7 +319,22 @@ def compact(table: pd.DataFrame) -> pd.DataFrame:
         if col in out and not out[col].str.len().any():
             out = out.drop(columns=col)
     out.index.name = "method"
-    return out
+    return CompactView(out)
+
+
+class CompactView(pd.DataFrame):
+    """:func:`compact`'s table; in a notebook each run's label stays on one line (a long label,
+    ``dense (weighting: two_sided, normalised: query_batch, ...)``, wrapped to five lines in
+    JupyterLab's narrow index column), the other cells wrap. A derived frame is a plain one."""
+
+    def _repr_html_(self) -> str | None:
+        html = pd.DataFrame(self)._repr_html_()
+        if html is None or "<tbody>" not in html:
+            return html
+        head, _, rest = html.partition("<tbody>")
+        body, _, tail = rest.partition("</tbody>")
+        body = body.replace("<th>", '<th style="white-space: nowrap">')
+        return f"{head}<tbody>{body}</tbody>{tail}"
 
 
 def _by_priority(columns: Sequence[str]) -> list[str]:
@@ -389,6 +406,6 @@ class ComparisonTable(pd.DataFrame):
 
     def _repr_html_(self) -> str | None:
         try:
-            return compact(self).to_html()
+            return compact(self)._repr_html_()
         except (KeyError, ValueError, TypeError):
             return pd.DataFrame(self)._repr_html_()

@@ -25,12 +25,14 @@ from matplotlib.patches import Rectangle
 from vpr_core import notice, paths
 
 from .. import outputs, rows
+from .styles import METHOD_COLORS
 
 __all__ = [
     "METHOD_COLORS",
     "DEFAULT_LABEL",
     "SAVE_DPI",
     "TIMING_COLUMN",
+    "TableFigure",
     "draw_boxes",
     "layout_problems",
     "save",
@@ -47,15 +49,13 @@ DEFAULT_LABEL = "scratch"
 #: Resolution of every saved study figure (dots per inch).
 SAVE_DPI = 110
 
-#: Paper-like colours for methods (stable across figures).
-METHOD_COLORS = {
-    "dense": "tab:red",
-    "classical": "tab:blue",
-    "selection_scheme1": "tab:green",
-    "selection_scheme2": "tab:orange",
-    "overlap_scheme1": "tab:purple",
-    "overlap_scheme2": "tab:brown",
-}
+
+class TableFigure(Figure):
+    """A figure that carries the table of what it shows (``.table``, a DataFrame), for the
+    figures whose rows are chosen cases (e.g. :func:`~vpr_study.viz.plot_disagreements`): the
+    figure is what ``save(fig, name, label)`` takes, ``save(fig.table, name, label)`` the table."""
+
+    table: pd.DataFrame | None = None
 
 
 def _png_metadata(suffix: str) -> dict:
@@ -350,6 +350,12 @@ def save_all(
                 if timings is not None:
                     extra = folder / f"{name}.timings.csv"
                     staged.append((_staged(extra, partial(_write_csv, timings)), extra))
+            elif isinstance(obj, tuple) and any(isinstance(o, Figure) for o in obj):
+                raise TypeError(
+                    f"save() writes one figure or one table, got a tuple for {name!r} (a "
+                    "plot_* that returns (figure, table)): save each, e.g. fig, table = "
+                    f"plot_...(...); save(fig, {name!r}, label), save(table, {name!r}, label)"
+                )
             else:
                 raise TypeError(
                     f"save() writes a matplotlib Figure or a pandas DataFrame, got "

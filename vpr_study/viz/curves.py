@@ -4,20 +4,28 @@
 from __future__ import annotations
 
 import textwrap
-from typing import Any
 
 import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.colors import to_hex
+from matplotlib.colors import to_hex, to_rgba
 from matplotlib.lines import Line2D
 
 from vpr_core import checks, identical_to, paper
 
 from ._shared import wrapped
-from .base import METHOD_COLORS, SAVE_DPI
+from .base import SAVE_DPI
+from .styles import (
+    DEFAULT_SETTINGS,
+    MARKERS,
+    METHOD_COLORS,
+    WEIGHTING_STYLES,
+    method_color,
+    run_styles,
+)
 
 __all__ = [
+    "METHOD_COLORS",
     "WEIGHTING_STYLES",
     "dataset_line",
     "plot_pr_curves",
@@ -26,7 +34,11 @@ __all__ = [
 
 
 def plot_scale_distribution(
-    hists: dict, title: str | None = None, ax=None, normalize: bool = False
+    hists: dict,
+    title: str | None = None,
+    ax=None,
+    normalize: bool = False,
+    method: str | None = None,
 ) -> matplotlib.figure.Figure:
     """Fig. 6: landmark counts per Table-1 scale, bars grouped by label (e.g. query/reference).
 
@@ -35,6 +47,9 @@ def plot_scale_distribution(
             ``(9,)`` array is read as scales 1..9).
         title: axes title.
         normalize: plot shares (each label sums to 1) instead of counts.
+        method: the landmarks' method: the first label's bars in its colour
+            (:func:`~vpr_study.viz.styles.method_color`, as in every figure), the others lighter and
+            hatched; None: greys.
     """
     if ax is None:
         fig, ax = plt.subplots(figsize=(8.0, 3.6))
@@ -51,7 +66,19 @@ def plot_scale_distribution(
             raise ValueError(f"hists[{label!r}] must have shape (10,) or (9,), got {h.shape}")
         if normalize and h.sum() > 0:
             h = h / h.sum()
-        ax.bar(x + (k - (len(labels) - 1) / 2) * width, h, width=width, label=str(label))
+        color = None if method is None else method_color(method)
+        base = color or "0.3"
+        face = base if k == 0 else to_rgba(base, 0.35 if color else 0.5 - 0.15 * (k - 1))
+        ax.bar(
+            x + (k - (len(labels) - 1) / 2) * width,
+            h,
+            width=width,
+            label=str(label),
+            color=face,
+            edgecolor=base,
+            linewidth=0.8,
+            hatch=None if k == 0 else "//" if k == 1 else "..",
+        )
     ax.set_xticks(x)
     ax.set_xticklabels([s.replace("Scale ", "S") for s in paper.SCALE_LABELS])
     ax.set_xlabel("landmark scale (Table 1)")
@@ -69,10 +96,6 @@ def plot_scale_distribution(
     return fig
 
 
-#: The run settings a figure title names only when they differ from these (the CLI's defaults).
-DEFAULT_SETTINGS = {"backbone": "efficientnet_lite0", "pooling": "crop"}
-
-
 def _settings_text(results) -> str:
     """``"backbone hog, pooling roi, shortlist k=25"``: the run settings every result shares that
     differ from :data:`DEFAULT_SETTINGS` (and a shortlist), or ``""``; peers are left out."""
@@ -88,16 +111,22 @@ def _settings_text(results) -> str:
     return ", ".join(parts)
 
 
-def dataset_line(results) -> str:
+def dataset_line(results, pr: bool = True) -> str:
     """``"<dataset>: 18 of 20 queries with ground truth, tolerance 0, protocol ratio"``: the line
     every PR / statistics figure carries under its title, then the non-default run settings
     (:func:`_settings_text`; e.g. ``pooling roi``). For ground truth read from a file,
     ``"ground truth from file: 1-5 correct references per query (median 5)"`` on a line of its
-    own instead of the tolerance: :attr:`~vpr_core.MethodResult.truth_text`)."""
+    own instead of the tolerance: :attr:`~vpr_core.MethodResult.truth_text`).
+
+    ``pr=False``: the line of a figure of landmarks (coverage, scales), which neither the ground
+    truth, the protocol nor the features change: ``"<dataset>: 60 queries, 60 references"``."""
 
     r = results[0]
-    n_gt, n_q = r.queries_with_gt
     name = r.dataset_title or r.dataset
+    if not pr:
+        nq, nr = np.shape(r.similarity)
+        return f"{name}: {nq} queries, {nr} references"
+    n_gt, n_q = r.queries_with_gt
     from_file = r.ground_truth_from_file
     truth = r.truth_text
     protocol = f"protocol {getattr(r, 'protocol', 'ratio')}"
@@ -148,26 +177,14 @@ def _from_last_zero(recall: np.ndarray, precision: np.ndarray) -> tuple[np.ndarr
     return r[start:], np.asarray(precision, dtype=float)[start:]
 
 
-#: Line style of each database weighting when a figure's runs vary in both method and weighting
-#: (the colour is the method's); the chance line is grey and dashed.
-WEIGHTING_STYLES = {"": "-", "contrast": (0, (6, 2)), "idf": (0, (1, 1.5))}
+class _Indexed:
+    """A result seen under another label (its position), so runs of one label stay apart."""
 
+    def __init__(self, result: object, label: str) -> None:
+        self._result, self.label = result, label
 
-def _weighting(r) -> str:
-    matching = getattr(getattr(r, "config", None), "matching", None)
-    return str(getattr(matching, "weighting", None) or "")
-
-
-def _by_method(results):
-    """``run -> (method, line style)`` when the runs vary in both method and weighting (colour
-    per method, line style per weighting), else None."""
-    methods = {getattr(r, "method", None) for r in results}
-    weightings = {_weighting(r) for r in results}
-    if None in methods or len(methods) < 2 or len(weightings) < 2:
-        return None
-    extra = iter([(0, (3, 1, 1, 1)), (0, (8, 2, 1, 2)), (0, (2, 3))])
-    styles = {w: WEIGHTING_STYLES.get(w) or next(extra, "-.") for w in sorted(weightings)}
-    return lambda r: (r.method, styles[_weighting(r)])
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._result, name)
 
 
 def _same_xy(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray]) -> bool:
@@ -190,19 +207,22 @@ def plot_pr_curves(
     starts at its last point at recall 0 (the thresholds before it accept no correct match and
     add no area; the legend says so): the area under the drawn curve is its AUC.
 
-    A result whose similarity matrix equals an earlier one's has the same curve: it is drawn
-    once and its legend entry, with the earlier one's line sample, says ``same curve as
-    <earlier label>``; a different result whose curve coincides with an earlier one is drawn
-    dotted over it, its legend entry saying ``same curve as <earlier label>``. Runs that vary
-    in both method and weighting get one colour per method and one line style per weighting
-    (:data:`WEIGHTING_STYLES`).
+    Every run is told apart (:func:`~vpr_study.viz.styles.run_styles`): its colour is its
+    method's, the same in every figure (:data:`METHOD_COLORS`; peers and a user's methods from
+    :data:`~vpr_study.viz.styles.OTHER_COLORS`), its line style its weighting
+    (:data:`WEIGHTING_STYLES`), its marker its other settings (scheme options, backbone,
+    normalisation...; none at the defaults), and its legend label says what differs from the
+    other runs (:func:`~vpr_study.viz.styles.run_labels`). A run whose curve coincides with an
+    earlier one's (the same similarity matrix, or another with the same curve) is drawn as its
+    thin line in its own style with its own hollow markers over that curve, its legend entry
+    saying ``same curve as <earlier label>``.
 
     Args:
         results: :class:`~vpr_core.MethodResult` objects (``.label``, ``.curve()``,
             ``.intervals``, ``.similarity``, ``.ground_truth``, ``.dataset``, ``.tolerance``).
         title: the figure's title; the dataset line (:func:`dataset_line`) goes below it
             (lines longer than the figure wrapped).
-        colors: ``{label: colour}``; default :data:`METHOD_COLORS` by method, then the cycle.
+        colors: ``{label: colour}``; default: the method's colour.
 
     Returns:
         The figure.
@@ -218,55 +238,53 @@ def plot_pr_curves(
     top = _GAP + _LINE * (heading.count("\n") + 1)
     fig = plt.figure(figsize=(PR_WIDTH, 6.0))
     ax = fig.add_axes((0, 0, 1, 1))
-    colors = dict(colors or {})
-    spare = iter([f"C{i}" for i in range(10)] + [plt.cm.tab20(i) for i in range(20)])
-    used: set[str] = set()
-    drawn: dict[str, Line2D] = {}
+    styles = run_styles(results, colors)
+    twins = identical_to([_Indexed(r, str(i)) for i, r in enumerate(results)])  # by position
     curves: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     handles: list[Line2D] = []
-    by_method = _by_method(results)  # colour per method, line style per weighting
-    method_color: dict[str, Any] = {}
-    for r, twin in zip(results, identical_to(results), strict=False):
+    used = {(to_hex(st.color), str(st.linestyle), st.marker) for st in styles}
+    for k, (r, st, twin) in enumerate(zip(results, styles, twins, strict=True)):
         iv = getattr(r, "intervals", {}).get("auc")
         auc = (
             f"{iv[0]:.3f} [{iv[1]:.3f}, {iv[2]:.3f}]"
             if iv is not None
             else f"{r.metrics['auc']:.3f}"
         )
-        if twin is not None and twin in drawn:  # same matrix: same curve, drawn once
-            like = drawn[twin]
-            handles.append(
-                Line2D(
-                    [],
-                    [],
-                    color=like.get_color(),
-                    lw=like.get_linewidth(),
-                    ls=like.get_linestyle(),
-                    label=f"{r.label}  {auc}, same curve as {twin}",
-                )
-            )
-            continue
-        method, style = by_method(r) if by_method else ("", "-")
-        color = colors.get(r.label) or (
-            method_color.get(method) if method else METHOD_COLORS.get(r.label)
-        )
-        if color is None and method:
-            color = METHOD_COLORS.get(method)
-        if color is None or (to_hex(color) in used and method_color.get(method) != color):
-            color = next(c for c in spare if to_hex(c) not in used)
-        used.add(to_hex(color))
-        if method:
-            method_color.setdefault(method, color)
         curve = r.curve()
         xy = _from_last_zero(curve.recall, curve.precision)
         note = _curve_note(curve.recall, curve.precision)  # an AUC-0 curve lies on the axis
-        alike = next((k for k, c in curves.items() if _same_xy(c, xy)), None)
-        if alike is not None:  # not the same result, but the same curve: both drawn, said
-            note += f", same curve as {alike}"
-            style = (0, (2, 2))
-        (line,) = ax.plot(*xy, lw=1.6, color=color, ls=style, label=f"{r.label}  {auc}{note}")
-        drawn[r.label] = line
-        curves[r.label] = xy
+        alike = styles[int(twin)].label if twin is not None else None
+        if alike not in curves:  # a same matrix drawn as a same curve itself: the one drawn
+            alike = next((name for name, c in curves.items() if _same_xy(c, xy)), None)
+        start = 0.02 + 0.03 * (k % 5)  # the markers of two runs never on one spot
+        if alike is not None:  # the same curve as an earlier run: thin, hollow markers over it
+            marker = st.marker or next(
+                (m for m in MARKERS if (to_hex(st.color), str(st.linestyle), m) not in used),
+                "o",
+            )
+            used.add((to_hex(st.color), str(st.linestyle), marker))
+            (line,) = ax.plot(
+                *xy,
+                color=st.color,
+                ls=st.linestyle,
+                lw=0.9,
+                marker=marker,
+                fillstyle="none",
+                ms=6.5,
+                mew=1.3,
+                markevery=(start, 0.07),
+                label=f"{st.label}  {auc}{note}, same curve as {alike}",
+            )
+        else:
+            (line,) = ax.plot(
+                *xy,
+                lw=1.6,
+                ms=5,
+                markevery=(start, 0.1),
+                label=f"{st.label}  {auc}{note}",
+                **st.line(),
+            )
+            curves[st.label] = xy
         handles.append(line)
     at_chance = results[0].chance()
     level, chance_auc = at_chance["precision"], at_chance["auc"]

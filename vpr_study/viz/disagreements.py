@@ -4,9 +4,8 @@ and the correct reference (the figure of :func:`~vpr_core.evaluation.per_query`)
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
-import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
@@ -14,6 +13,7 @@ import pandas as pd
 from vpr_core import checks, ground_truth_references, match_landmarks, pair_matches, per_query
 
 from ._shared import FIG_WIDTH, FONT, check_runs_on, wrapped
+from .base import TableFigure
 from .curves import dataset_line
 from .matches import GAP, plot_labelled_matches
 
@@ -46,6 +46,19 @@ def _pick(full: pd.DataFrame, a: str, b: str, n: int) -> tuple[list[int], dict[i
     return shown, {q: kind.get(q, "the runs agree") for q in shown}, len(wins), len(losses)
 
 
+#: A wrong top-1 at most this many frames from a correct reference (frame-aligned real data)
+#: may show the same scene: its matches are drawn unlabelled, not wrong ("another place").
+NEAR_FRAMES = 1
+
+
+def _frames_away(row: pd.Series, refs: list[int], frames: bool) -> int | None:
+    """How many frames a wrong top-1 lies from the nearest correct reference (frame-aligned
+    data), else None."""
+    if row["top-1 correct"] or not frames or not refs:
+        return None
+    return min(abs(int(row["top-1"]) - c) for c in refs)
+
+
 def _verdict(row: pd.Series, refs: list[int], frames: bool) -> str:
     """``"correct: reference 4"`` or ``"wrong: reference 17, 3 frames away"`` (frame-aligned
     data; else the correct references)."""
@@ -58,15 +71,18 @@ def _verdict(row: pd.Series, refs: list[int], frames: bool) -> str:
     return f"wrong: reference {r} (correct: {', '.join(map(str, refs[:3]))})"
 
 
-def _panel_title(row: pd.Series, pm: Any, top: np.ndarray, verdict: str) -> str:
+def _panel_title(row: pd.Series, pm: Any, top: np.ndarray, verdict: str, near: bool) -> str:
     """Four short lines (they fit the panel at :data:`FONT`): the verdict, the rank and ratio,
-    the matches drawn, their labels."""
+    the matches drawn, their labels (``near``: a wrong top-1 next to the correct place, its
+    matches not labelled)."""
     rank = row["first correct rank"]
     head = (
         f"{row['run']}: {verdict}\nfirst correct rank {'-' if pd.isna(rank) else rank}, "
         f"ratio {row['ratio']:.2f}"
     )
     drawn = f"{len(pm.matches)} matches, the {len(top)} largest terms drawn"
+    if near:
+        return f"{head}\n{drawn}\nunlabelled: it may show the same scene"
     if pm.labels is None:
         return f"{head}\n{drawn}\nunlabelled (no verified pair geometry)"
     if not pm.ground_truth:
@@ -89,43 +105,47 @@ def _run_panel(ax, ds, run: Any, row: pd.Series, img_q: np.ndarray, frames: bool
     terms = match_landmarks(d["query"][q], b["query"][q], d["reference"][r], b["reference"][r])
     top = np.argsort(-terms.scores, kind="stable")[:TOP_TERMS]
     refs = ground_truth_references(np.asarray(ds.ground_truth, dtype=bool), q)
+    away = _frames_away(row, refs, frames)
+    # generated places are distinct (exact geometry): a neighbour is another place there
+    near = away is not None and away <= NEAR_FRAMES and getattr(ds, "homographies", None) is None
     plot_labelled_matches(
         img_q,
         ds.load_image("reference", r),
         b["query"][q],
         b["reference"][r],
         pm.matches[top],
-        None if pm.labels is None else pm.labels[top],
+        None if pm.labels is None or near else pm.labels[top],
         ax=ax,
-        title=_panel_title(row, pm, top, _verdict(row, refs, frames)),
+        title=_panel_title(row, pm, top, _verdict(row, refs, frames), near),
     )
     ax.title.set_fontsize(FONT)
     ax.title.set_color("darkgreen" if row["top-1 correct"] else "firebrick")
 
 
-def plot_disagreements(
-    ds: Any, run_a: Any, run_b: Any, n: int = 6
-) -> tuple[matplotlib.figure.Figure, pd.DataFrame]:
+def plot_disagreements(ds: Any, run_a: Any, run_b: Any, n: int = 6) -> TableFigure:
     """Queries where two runs decide differently: per row (a query, named in the last column
     with what it shows: ``<run_a> wins``, ``<run_a> loses`` or ``the runs agree``),
     the query and each run's top-1 side by side with the :data:`TOP_TERMS` matches of largest
     Eq. (1) term, the ones that decided the score (green correct, red wrong, yellow unlabelled;
     labels from :func:`~vpr_core.labels.label_matches`, method ``auto``), and the correct
-    reference; a wrong top-1 says which reference it matched and how many frames away.
+    reference; a wrong top-1 says which reference it matched and how many frames away (on
+    real frame-aligned data, one at most :data:`NEAR_FRAMES` from a correct reference may show
+    the same scene: its matches are drawn unlabelled, not wrong).
 
     Args:
         ds: the runs' :class:`~vpr_core.datasets.PlaceDataset`.
         run_a, run_b: :class:`~vpr_core.MethodResult` of ``ds`` run with
-            ``keep_descriptors=True`` (the matches are recomputed from the descriptors).
+            ``keep_descriptors=True`` (the matches are recomputed from the descriptors), e.g.
+            ``run_method("dense", ds, keep_descriptors=True)``.
         n: queries shown (rows): where the runs disagree, ``run_a``'s wins and losses both
             when both exist (half each, the rest from the other kind; each in query order),
             then agreeing ones when fewer disagree. The title counts the wins and losses over
             every query and says how many of each are shown; each row says which it is.
 
     Returns:
-        ``(figure, table)``: ``table`` is :func:`~vpr_core.evaluation.per_query` of the two runs
-        on the queries shown, in the rows' order (its ``ratio`` column named ``ratio (lower =
-        more confident)``).
+        The figure (``save(fig, name, label)``); its ``.table`` is
+        :func:`~vpr_core.evaluation.per_query` of the two runs on the queries shown, in the
+        rows' order (its ``ratio`` column named ``ratio (lower = more confident)``).
 
     Raises:
         ValueError: ``n < 1``, runs without descriptors, or runs of another dataset.
@@ -170,7 +190,8 @@ def plot_disagreements(
         ha="left",
         va="top",
     )
-    return fig, table.rename(columns={"ratio": "ratio (lower = more confident)"})
+    fig.table = table.rename(columns={"ratio": "ratio (lower = more confident)"})
+    return fig
 
 
 def _lines(n: int) -> float:
@@ -178,7 +199,7 @@ def _lines(n: int) -> float:
     return n * FONT * 1.25 / 72 + 0.08
 
 
-def _grid(ds: Any, shown: list[int], head: str) -> tuple[matplotlib.figure.Figure, np.ndarray]:
+def _grid(ds: Any, shown: list[int], head: str) -> tuple[TableFigure, np.ndarray]:
     """A :data:`FIG_WIDTH` figure with a ``(rows, 3)`` array of axes placed by hand: each row's
     images (a pair of query and reference, the reference) at the height the narrowest of them
     allows, its 4-line titles above (5 in the first row, under the column headers) and
@@ -191,7 +212,7 @@ def _grid(ds: Any, shown: list[int], head: str) -> tuple[matplotlib.figure.Figur
     titles = [_lines(5 if k == 0 else 4) for k in range(len(shown))]
     top = _lines(head.count("\n") + 1) + 0.1
     height = top + sum(titles) + image_h * len(shown) + 0.1
-    fig = plt.figure(figsize=(FIG_WIDTH, height))
+    fig = cast(TableFigure, plt.figure(figsize=(FIG_WIDTH, height), FigureClass=TableFigure))
     axes = np.empty((len(shown), 3), dtype=object)
     y = height - top
     for k in range(len(shown)):

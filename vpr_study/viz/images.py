@@ -8,6 +8,7 @@ from typing import Any
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from matplotlib.cm import ScalarMappable
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
@@ -43,8 +44,10 @@ def _show_canvas(ax, image: np.ndarray | None, size: tuple[int, int], gray: bool
     """Show ``image`` (or a blank ``size`` canvas) on ``ax`` without ticks, pixel-exact limits."""
     if image is None:
         ax.imshow(np.full(size + (3,), 235, np.uint8))
-    elif gray and image.ndim == 3:
-        ax.imshow(image.mean(axis=2), cmap="gray", vmin=0, vmax=255)
+    elif gray and image.ndim == 3:  # its grey levels stretched (1st-99th percentile): a dim
+        grey = image.mean(axis=2)  # frame (Nordland's 64 x 32) stays readable under an overlay
+        lo, hi = np.percentile(grey, (1, 99))
+        ax.imshow(grey, cmap="gray", vmin=lo if hi > lo else 0, vmax=hi if hi > lo else 255)
     else:
         ax.imshow(image, cmap="gray" if image.ndim == 2 else None)
     ax.set_xlim(-0.5, size[1] - 0.5)
@@ -158,10 +161,11 @@ def plot_coverage(
     title: str | None = None,
     vmax: float | None = None,
 ) -> Figure:
-    """Fig. 14: how many landmarks cover each pixel, as a translucent heatmap over the (grey)
-    image with white outlines at a few coverage levels (marked on the colour bar, which says
-    what they are), so the image stays visible. ``vmax``: the top of the colour scale (default
-    this image's most-covered pixel; panels that are compared share one).
+    """Fig. 14: how many landmarks cover each pixel, as a translucent heatmap over the (grey,
+    contrast-stretched) image with white outlines at a few coverage levels (marked on the colour
+    bar, which says what they are), so the image stays visible: the tint grows with the coverage
+    up to ``alpha``. ``vmax``: the top of the colour
+    scale (default this image's most-covered pixel; panels that are compared share one).
 
     The default title gives the share of pixels covered by at least one box.
     """
@@ -174,12 +178,16 @@ def plot_coverage(
     _show_canvas(ax, img, size, gray=True)
     shown = np.ma.masked_where(cov <= 0, cov)  # uncovered pixels show the plain image
     top = max(1.0, float(cov.max()) if vmax is None else float(vmax))
-    im = ax.imshow(shown, cmap=cmap, alpha=alpha, vmin=0, vmax=top)
+    # the tint grows with the coverage (``alpha`` at the top): a pixel under few boxes shows
+    # the image almost as it is, a dim frame included
+    ramp = np.clip(alpha * (0.3 + 0.7 * cov / top), 0.0, 1.0)
+    im = ax.imshow(shown, cmap=cmap, alpha=ramp, vmin=0, vmax=top)
     levels = _contour_levels(top)
     counts = ", ".join(f"{int(v + 0.5)}" for v in levels)
     bar = fig.colorbar(
-        im,
+        ScalarMappable(norm=im.norm, cmap=im.get_cmap()),
         ax=ax,
+        alpha=alpha,  # the colours as the most-covered pixels show them
         fraction=0.046,
         pad=0.02,
         label=f"boxes covering the pixel\n(white outlines: at least {counts})",
@@ -197,15 +205,38 @@ def plot_coverage(
     return fig
 
 
+#: An image a coverage figure shows by default has at least this mean and spread of grey (of
+#: 255): not a black, blank or tunnel frame (Nordland's first summer frames are black).
+SHOWN_GREY = (32.0, 16.0)
+
+
+def _first_visible(dataset: Any, side: str, n: int = 50) -> int:
+    """The first of the first ``n`` images of ``side`` that shows a scene (:data:`SHOWN_GREY`),
+    else 0."""
+    count = len(dataset.query_paths if side == "query" else dataset.reference_paths)
+    for i in range(min(n, count)):
+        grey = np.asarray(dataset.load_image(side, i), dtype=float).mean(axis=-1)
+        if grey.mean() >= SHOWN_GREY[0] and grey.std() >= SHOWN_GREY[1]:
+            return i
+    return 0
+
+
 def plot_coverage_comparison(
-    dataset: Any, results: Any, index: int = 0, side: str = "reference"
+    dataset: Any, results: Any, index: int | None = None, side: str = "reference"
 ) -> tuple[Figure, pd.DataFrame]:
     """Fig. 14: coverage heatmaps of several runs' landmarks on one image, side by side.
+
+    Args:
+        dataset: the runs' dataset; results: the runs.
+        index: the image shown; None: the first that shows a scene (not a black or blank
+            frame: :data:`SHOWN_GREY`), the title says which.
+        side: ``"reference"`` or ``"query"``.
 
     Returns:
         ``(figure, table)``: per run, the share of the image covered by at least one landmark
         for this image and averaged over the dataset's images of that side.
     """
+    index = _first_visible(dataset, side) if index is None else int(index)
     image = dataset.load_image(side, index)
     fig, axes = plt.subplots(1, len(results), figsize=(5.5 * len(results), 3.4), squeeze=False)
     size = _landmark_canvas(image)[1]
@@ -233,7 +264,7 @@ def plot_coverage_comparison(
         )
     fig.suptitle(
         f"landmark coverage of {side} {index}, one colour scale (0-{max(1, round(top))} boxes) "
-        f"in every panel\n{dataset_line(results)}{note}",
+        f"in every panel\n{dataset_line(results, pr=False)}{note}",
         fontsize=9,
     )
     fig.tight_layout()
