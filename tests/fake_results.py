@@ -19,14 +19,16 @@ def result_of(
     n_bootstrap: int = 0,
     **fields: Any,
 ) -> MethodResult:
-    """A result of ``sim`` against ``gt`` (tolerance 0, dataset ``toy``); ``config`` a
-    ``Method`` (default: a peer's ``{"name": label}``); ``fields`` set after scoring (e.g.
+    """A result of ``sim`` against ``gt`` (tolerance 0, dataset ``toy``) as it was scored:
+    ``config`` a ``Method`` or a peer's dict (default ``{"name": label}``), recorded as it is
+    (a normalisation it names is taken as done); ``fields`` set after scoring (e.g.
     ``intervals``, ``metrics``)."""
+    config = config if config is not None else {"name": label}
     made = MethodResult(
         method=label,
         label=label,
         dataset="toy",
-        config=config if config is not None else {"name": label},
+        config={"name": label},
         encoder={},
         similarity=sim,
         ground_truth=np.asarray(gt, dtype=bool),
@@ -38,4 +40,4 @@ def result_of(
     r = result_from_matrix(
         np.asarray(sim, dtype=np.float64), made, Evaluation(n_bootstrap=n_bootstrap)
     )
-    return dataclasses.replace(r, **fields) if fields else r
+    return dataclasses.replace(r, config=config, **fields)

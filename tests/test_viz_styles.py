@@ -6,15 +6,14 @@ every figure, peers and a user's methods from their own palette."""
 from __future__ import annotations
 
 import dataclasses
-from types import SimpleNamespace
 
 import matplotlib
 import numpy as np
 import pytest
+from fake_results import result_of
 from matplotlib.colors import to_hex
 
 from vpr_core import Method, get_method
-from vpr_core.evaluation import evaluate, pr_curve
 from vpr_core.landmarks.schemes import Dense
 from vpr_core.methods import as_method, default_label
 from vpr_study.viz import METHOD_COLORS, plot_pr_curves
@@ -42,21 +41,14 @@ def _run(method, seed: int, label: str | None = None, shortlist=None, **encoder)
     config = as_method(method) if not isinstance(method, Method) else method
     enc = {**ENCODER, **encoder}
     sim = GT + np.random.default_rng(seed).random(GT.shape) * (0.6 + 0.2 * (seed % 7))
-    return SimpleNamespace(
-        method=config.name,
-        label=label or default_label(config, enc),
+    return result_of(
+        label or default_label(config, enc),
+        sim,
+        GT,
         config=config,
+        method=config.name,
         encoder=enc,
         shortlist=shortlist,
-        run=config.name,
-        similarity=sim,
-        ground_truth=GT,
-        dataset="toy",
-        tolerance=0,
-        protocol="ratio",
-        metrics=evaluate(sim, GT),
-        intervals={},
-        curve=lambda: pr_curve(sim, GT, warn=False),
     )
 
 
@@ -67,12 +59,7 @@ def _peer(name: str, seed: int, normalise: str | None = None):
     if normalise:
         config["normalise"] = normalise
         label += f" (normalised: {normalise})"
-    return SimpleNamespace(
-        method=f"peer:{name}", label=label, config=config, encoder={}, shortlist=None,
-        run=f"peer:{name}", similarity=sim, ground_truth=GT, dataset="toy", tolerance=0,
-        protocol="ratio", metrics=evaluate(sim, GT), intervals={},
-        curve=lambda: pr_curve(sim, GT, warn=False),
-    )  # fmt: skip
+    return result_of(label, sim, GT, config=config, method=f"peer:{name}")
 
 
 def _module(name: str) -> dict:
@@ -190,7 +177,7 @@ def test_a_run_given_twice_and_an_unknown_setting_are_still_drawn_apart():
 
 def test_coinciding_curves_are_drawn_and_said():
     a = _run("classical", 0)
-    b = dataclasses.replace(a) if dataclasses.is_dataclass(a) else SimpleNamespace(**vars(a))
+    b = dataclasses.replace(a)
     b.method, b.label, b.config = (
         "selection_scheme1",
         "selection_scheme1",
