@@ -119,7 +119,7 @@ def as_method(method: Any, **overrides: Any) -> Method:
     """
     if isinstance(method, str):
         return get_method(method, **overrides)
-    if overrides and set(overrides) <= {"spatial", "weighting", "normalise"}:  # matching options
+    if overrides and set(overrides) <= {"spatial", "weighting", "normalise", "whiten"}:  # matching
         base = as_method(method)  # of every method, schemes included
         return dataclasses.replace(base, matching=dataclasses.replace(base.matching, **overrides))
     if overrides:

@@ -30,7 +30,7 @@ from .features.stage import extract_features, get_encoder
 from .landmarks.edge_boxes import edge_model_id
 from .landmarks.schemes import CandidateScheme, LandmarkScheme
 from .landmarks.stage import extract_landmarks
-from .matching import normalise_matrix, similarity_matrix, similarity_pairs
+from .matching import normalise_matrix, similarity_matrix, similarity_pairs, whiten_landmarks
 from .matching.shortlist import (
     rerank,
     shortlist_pairs,
@@ -350,9 +350,14 @@ def run_method(
             :class:`vpr_study.cluster.DaskExecutor` on a Dask cluster; the caller opens and
             closes it), or None: in-process, always. The numbers are the same either way.
         label: display label; default from the config.
-        keep_descriptors: also return the descriptors (needed by the scale statistics).
+        keep_descriptors: also return the descriptors (needed by the scale statistics); with
+            ``whiten=k`` the whitened ones, those Eq. (1) saw.
         **overrides: the encoder and evaluation fields above, and the method's own options,
-            e.g. ``iou_threshold=0.4``; an option the method does not take is an error.
+            e.g. ``iou_threshold=0.4``; an option the method does not take is an error. The
+            matching options of every method (not in the paper; docs/DEFINITIONS.md):
+            ``spatial=``, ``weighting=``, ``normalise=`` and ``whiten=k`` (the landmark
+            descriptors of both sides whitened on the reference database before Eq. (1), once,
+            here; the shortlist's whole-image descriptors are not).
 
     Returns:
         A :class:`MethodResult`; ``.warnings`` lists every warning of the run that changes what
@@ -373,6 +378,9 @@ def run_method(
     wall_lm = time.perf_counter() - t_stage
     feats, glob = _features(boxes, dataset, landmark_encoder, k, executor)
     wall_ft = time.perf_counter() - t_stage - wall_lm
+    if conf.matching.whiten is not None:  # (not in the paper) both sides, fit on the references
+        q_w, r_w, _ = whiten_landmarks(feats["query"], feats["reference"], conf.matching.whiten)
+        feats = {**feats, "query": q_w, "reference": r_w}
     # keyed by what goes in: the images (folder), the boxes and descriptors (content), the
     # Matching value; not the ground truth, so another tolerance reuses the matrix
     inputs = [
@@ -381,14 +389,18 @@ def run_method(
     if glob is not None:
         inputs += [glob[side] for side in SIDES]
     # the normalisation (not in the paper) is a step after the matrix: the Eq. (1) matrix is
-    # cached without it, so every normalisation of a method reuses it
-    plain = dataclasses.replace(conf.matching, normalise=None)
+    # cached without it, so every normalisation of a method reuses it; the whitening (not in
+    # the paper) was applied above, so the matcher (and an executor) get a Matching without it
+    # and the key names it only when it is set (a key without it is as before it existed)
+    plain = dataclasses.replace(conf.matching, normalise=None, whiten=None)
     key = {
         "inputs": array_sha256(inputs),
-        "matching": dataclasses.asdict(plain),
+        "matching": {f: v for f, v in dataclasses.asdict(plain).items() if f != "whiten"},
         "shortlist": k,
         "code": code_version("matching"),
     }
+    if conf.matching.whiten is not None:
+        key["whiten"] = conf.matching.whiten
     folder = cache_dir("results", f"{dataset.name}-{images}")
 
     def compute() -> tuple[np.ndarray, float, float]:

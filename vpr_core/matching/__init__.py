@@ -2,8 +2,8 @@
 pair in :mod:`.pairwise` (the float64 reference that reads like the paper) and for blocks of pairs
 in the torch engine (:mod:`.core`, the same numbers); the public functions are in
 :mod:`.similarity`. The engine's inputs are parsed in the package-private :mod:`._sides`; the
-shortlist is :mod:`.shortlist`, the database weighting :mod:`.weighting` and the matrix
-normalisation :mod:`.normalise` (not in the paper)."""
+shortlist is :mod:`.shortlist`, the database weighting :mod:`.weighting`, the matrix
+normalisation :mod:`.normalise` and the descriptor whitening :mod:`.whiten` (not in the paper)."""
 
 from __future__ import annotations
 
@@ -32,6 +32,7 @@ from .weighting import (
     sample_matches,
     weighting_sample,
 )
+from .whiten import WHITEN_K, fit_whitening, whiten_landmarks
 
 __all__ = [
     "CONTRAST_SAMPLE",
@@ -39,6 +40,7 @@ __all__ = [
     "SPATIAL_OPTIONS",
     "WEIGHTING_OPTIONS",
     "WEIGHTING_SAMPLE",
+    "WHITEN_K",
     "Compute",
     "Matching",
     "Problem",
@@ -54,6 +56,7 @@ __all__ = [
     "rerank",
     "reference_stats",
     "clear_reference_cache",
+    "fit_whitening",
     "sample_matches",
     "shape_penalty",
     "shortlist_pairs",
@@ -63,5 +66,6 @@ __all__ = [
     "weighted_matches",
     "zscore",
     "weighting_sample",
+    "whiten_landmarks",
     "with_whole_image_boxes",
 ]

@@ -27,6 +27,7 @@ from .weighting import (
     weighted_block,
     weighting_sample,
 )
+from .whiten import refuse_whiten
 
 __all__ = [
     "check_pairs",
@@ -73,7 +74,8 @@ def similarity_matrix(
         soft_nms_iou, sigma: Algorithm 4 (the paper's shorthand for ``Matching(soft_nms_iou,
             sigma)``).
         matching: a :class:`~.spec.Matching` (Algorithm 4 and, not in the paper, ``spatial``,
-            ``weighting`` and ``normalise``; docs/DEFINITIONS.md) instead of
+            ``weighting`` and ``normalise``; docs/DEFINITIONS.md; not ``whiten``, a step
+            on the database's descriptors that ``run_method`` applies) instead of
             ``soft_nms_iou``/``sigma``. With a weighting each term's statistics cover every
             reference; ``normalise`` is applied to the whole matrix after Eq. (1)
             (``"database"`` also scores the references against each other).
@@ -83,6 +85,7 @@ def similarity_matrix(
         ``(Nq, Nr)`` float64 similarities; 0 for a pair where an image has no landmark.
     """
     matching = as_matching(soft_nms_iou, sigma, matching)
+    refuse_whiten(matching, "similarity_matrix")
     if matching.normalise is not None:  # (not in the paper) a step after the matrix
         plain = dataclasses.replace(matching, normalise=None)
         sim = similarity_matrix(
@@ -167,6 +170,7 @@ def similarity_pairs(
         ``(P,)`` float64 similarities, in the order of ``pairs``.
     """
     refuse_normalise(matching, "similarity_pairs")
+    refuse_whiten(matching, "similarity_pairs")
     prob = Problem.build(
         query_desc, query_boxes, reference_desc, reference_boxes, matching, compute
     )
@@ -313,6 +317,7 @@ def weighted_matches(
             f"{matching!r}"
         )
     refuse_normalise(matching, "weighted_matches")
+    refuse_whiten(matching, "weighted_matches")
     prob = Problem.build(
         query_desc, query_boxes, reference_desc, reference_boxes, matching, _DEFAULT
     )
@@ -362,6 +367,7 @@ def match_landmarks(
             :func:`weighted_matches`).
     """
     refuse_normalise(matching, "match_landmarks")
+    refuse_whiten(matching, "match_landmarks")
     if matching.weighting is not None:
         raise ValueError(
             f"weighting={matching.weighting!r} needs statistics over every reference, which one "
