@@ -13,7 +13,7 @@ from vpr_core import available_methods, paper, paths, settings
 from vpr_core.backbones import available_backbones, parse_backbone, weights_sha256
 from vpr_core.datasets import DATASETS
 from vpr_core.evaluation import PROTOCOLS
-from vpr_core.matching import NORMALISE_OPTIONS, SPATIAL_OPTIONS, WEIGHTING_OPTIONS
+from vpr_core.matching import NORMALISE_OPTIONS, SPATIAL_OPTIONS, WEIGHTING_OPTIONS, WHITEN_K
 from vpr_study.usage import COMMANDS, DESCRIPTION
 
 __all__ = [
@@ -90,6 +90,18 @@ def _int_at_least(low: int) -> Callable[[str], int]:
         return value
 
     return parse
+
+
+def _whiten(text: str) -> str | int:
+    """``--whiten``: ``none``, ``both`` or the components kept, an integer >= 1."""
+    if text in ("none", "both"):
+        return text
+    try:
+        return _int_at_least(1)(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"must be none, both or an integer >= 1 (the components kept), got {text!r}"
+        ) from None
 
 
 def _folder(text: str) -> str:
@@ -198,6 +210,8 @@ EVAL_EPILOG = """examples:
       with and without each database weighting, and the paired differences
   vpr-study eval --dataset synthetic --method dense --normalise both
       with and without each normalisation of the matrix (query_batch needs the query batch)
+  vpr-study eval --dataset synthetic --method dense --whiten both
+      with and without the descriptors whitened on the reference database (256 components)
   vpr-study eval --dataset folder --root ~/photos/route --method dense
       your own images: a folder holding query/ and reference/ image folders
   vpr-study eval --dataset synthetic --method dense --peer MyNet=sim.npy
@@ -357,6 +371,16 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
         "queries (needs the query batch; also applied to peers), database subtracts each "
         "reference's mean similarity to its 10 nearest references (a single live query); "
         "'both': every method without and with each, and the paired differences",
+    )
+    e.add_argument(
+        "--whiten",
+        default="none",
+        type=_whiten,
+        metavar="K|none|both",
+        help="(not in the paper) whiten every method's landmark descriptors on the reference "
+        "database before Eq. (1), keeping K components (docs/DEFINITIONS.md; the queries "
+        f"never enter the fit); 'both': every method without and with K={WHITEN_K}, and the "
+        "paired differences; default none: the descriptors as extracted",
     )
     e.add_argument(
         "--wide",
