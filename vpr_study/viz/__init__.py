@@ -25,6 +25,7 @@ from .recall import plot_recall_at_n
 from .statistics import plot_asl, plot_cls, plot_cmr, plot_scale_statistics
 from .steps import plot_paired_differences, plot_step_changes
 from .weighting import plot_weighted_matches
+from .whitening import plot_whitening
 from .widgets import label_widget, pair_label_widget
 
 __all__ = [
@@ -59,6 +60,7 @@ __all__ = [
     "plot_scale_statistics",
     "plot_step_changes",
     "plot_weighted_matches",
+    "plot_whitening",
     "save",
     "save_figure",
 ]

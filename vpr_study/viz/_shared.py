@@ -60,7 +60,7 @@ def weighting_of(run: Any) -> str:
 
 def run_matches(run: Any, pairs: list[tuple[int, int]], weighting: str) -> list:
     """Each pair's matches with the weights the weighted ``run`` (parsed: it kept its
-    descriptors) used."""
+    descriptors, whitened where it was: ``whiten`` is then already applied) used."""
     d, b = run.descriptors, run.boxes
     sample = None if run.shortlist else np.arange(len(d["reference"]))
     m = run.config.matching
@@ -70,6 +70,6 @@ def run_matches(run: Any, pairs: list[tuple[int, int]], weighting: str) -> list:
         d["reference"],
         b["reference"],
         pairs,
-        dataclasses.replace(m, weighting=weighting),
+        dataclasses.replace(m, weighting=weighting, whiten=None),
         sample,
     )
