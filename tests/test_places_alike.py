@@ -165,6 +165,7 @@ def test_notebook_07_runs_on_every_study_label():
         "places_alike_steps",
         "places_alike_vs_contrast",
         "places_alike_changes",
+        "places_alike_whitening",
     ]
     assert catalogue.TABLES["07_places_alike"] == (
         "places_alike",
@@ -172,6 +173,8 @@ def test_notebook_07_runs_on_every_study_label():
         "places_alike_steps",
         "places_alike_vs_contrast",
         "places_alike_changes",
+        "places_alike_vs_best",
+        "places_alike_whitening",
     )
 
 

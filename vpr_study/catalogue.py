@@ -64,6 +64,8 @@ TABLES: dict[str, tuple[str, ...]] = {
         "places_alike_steps",
         "places_alike_vs_contrast",
         "places_alike_changes",
+        "places_alike_vs_best",
+        "places_alike_whitening",
     ),
 }
 
