@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import shutil
+import warnings
 
 import numpy as np
 import pytest
@@ -318,3 +319,16 @@ def test_cli_eval_whiten_both_pairs_each_method_with_itself(tmp_path, capsys):
     with pytest.raises(SystemExit):
         cli.main([*args, "--whiten", "0"])
     assert "none, both or an integer >= 1" in capsys.readouterr().err
+
+
+def test_a_best_score_at_or_below_zero_is_said_under_the_ratio_protocol():
+    from vpr_core.matching.whiten import score_sign_notice
+
+    s = np.array([[0.3, -0.1, np.nan], [-0.2, -0.4, -0.3], [np.nan, np.nan, np.nan], [0.0, -1, -1]])
+    gt = np.array([[1, 0, 0], [0, 1, 0], [1, 0, 0], [0, 0, 0]], dtype=bool)
+    with pytest.warns(UserWarning, match=r"whitening: 1 of 2 queries have a best score <= 0"):
+        score_sign_notice(s, gt, "ratio")  # the query without ground truth is not counted
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        score_sign_notice(s, gt, "best_match")  # only the ratio protocol divides by S1
+        score_sign_notice(np.abs(s) + 0.1, gt, "ratio")

@@ -37,6 +37,7 @@ from .matching.shortlist import (
     split_whole_image,
     with_whole_image_boxes,
 )
+from .matching.whiten import score_sign_notice
 from .methods import Matching, Method, as_method, method_label
 from .notices import VPRWarning, notice
 from .result import MethodResult, constant_notice
@@ -66,7 +67,8 @@ class Executor(Protocol):
         reference_boxes: Sequence,
         matching: Matching,
     ) -> np.ndarray:
-        """``(Nq, Nr)`` Eq. (1), as :func:`~vpr_core.matching.similarity_matrix`."""
+        """``(Nq, Nr)`` Eq. (1), as :func:`~vpr_core.matching.similarity_matrix` (with
+        ``whiten``, the descriptors come whitened and ``matching`` has no ``whiten``)."""
         ...
 
     def similarity_pairs(
@@ -428,6 +430,8 @@ def run_method(
         )
     sim = _exclude_empty(np.asarray(sim, dtype=np.float64), boxes, dataset)
     sim = dataset.ignore_soft(sim)  # soft positives: neither right nor wrong, in every metric
+    if conf.matching.whiten is not None:  # (not in the paper) centred cosines: scores <= 0
+        score_sign_notice(sim, gt, protocol)
     constant_notice(sim)
     metrics = evaluate(sim, gt, evaluation)
     n_boot = evaluation.n_bootstrap

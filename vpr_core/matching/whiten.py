@@ -25,6 +25,7 @@ __all__ = [
     "clear_whitening_cache",
     "fit_whitening",
     "refuse_whiten",
+    "score_sign_notice",
     "whiten_descriptors",
     "whiten_landmarks",
     "whitening_cache_keys",
@@ -220,6 +221,30 @@ def whiten_landmarks(
     if short is not None:
         notice(short)
     return whiten_descriptors(query_desc, fit), whiten_descriptors(reference_desc, fit), fit
+
+
+def score_sign_notice(similarity: np.ndarray, ground_truth: np.ndarray, protocol: str) -> None:
+    """Say, under the ``ratio`` protocol, how many queries' best score is ``<= 0`` (whitened
+    cosines are centred on 0, so Eq. (1) can be negative; docs/DEFINITIONS.md, whitening).
+
+    Args:
+        similarity: ``(Nq, Nr)`` the run's matrix (NaN: not ranked); ground_truth: ``(Nq, Nr)``
+            bool; protocol: the run's PR protocol.
+    """
+    if protocol != "ratio":
+        return
+    s = np.asarray(similarity, dtype=np.float64)
+    rows = np.isfinite(s).any(1) & np.asarray(ground_truth, dtype=bool).any(1)
+    best = np.where(np.isfinite(s[rows]), s[rows], -np.inf).max(1, initial=-np.inf)
+    n = int(np.count_nonzero(best <= 0))
+    if n:
+        notice(
+            f"whitening: {n} of {int(rows.sum())} queries have a best score <= 0 (whitened "
+            "cosines are centred on 0, so a weak match's Eq. (1) term 1 - d*s is negative): the "
+            "ratio protocol gives them r = 1, rejected at every threshold but the last, which "
+            "lowers AUC and R@100P (R@K is unaffected); normalise='query_batch' (positive "
+            "scores) does not have it (docs/DEFINITIONS.md, whitening)"
+        )
 
 
 def clear_whitening_cache() -> int:
