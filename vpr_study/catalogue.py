@@ -118,6 +118,8 @@ RESULTS_FILES: tuple[str, ...] = (
     "benchmarks/nordland_full_contrast.csv",
     "benchmarks/two_sided_cost_716.csv",
     "benchmarks/two_sided_cost_3576.csv",
+    "benchmarks/whiten_cost_716.csv",
+    "benchmarks/whiten_cost_3576.csv",
 )
 
 #: Files directly under ``figures/``: the benchmark figures (``benchmarks/bench_*.py``).
