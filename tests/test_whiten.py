@@ -311,7 +311,7 @@ def test_cli_eval_whiten_both_pairs_each_method_with_itself(tmp_path, capsys):
     args = ["eval", "--dataset", "synthetic", "--n-places", "6", "--method", "dense"]
     rc = cli.main([*args, "--whiten", "both", "--n-bootstrap", "50", "--out", str(tmp_path)])
     assert rc == 0
-    out = capsys.readouterr().out
+    out = " ".join(capsys.readouterr().out.split())  # the lines wrap at the terminal's width
     assert "whitening on the reference database, each method with minus without" in out
     (table,) = (tmp_path / "results" / "synthetic").glob("eval_*_whiten.csv")
     got = pd.read_csv(table)

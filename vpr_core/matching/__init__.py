@@ -32,7 +32,7 @@ from .weighting import (
     sample_matches,
     weighting_sample,
 )
-from .whiten import WHITEN_K, fit_whitening, whiten_landmarks
+from .whiten import WHITEN_K, clear_whitening_cache, fit_whitening, whiten_landmarks
 
 __all__ = [
     "CONTRAST_SAMPLE",
@@ -56,6 +56,7 @@ __all__ = [
     "rerank",
     "reference_stats",
     "clear_reference_cache",
+    "clear_whitening_cache",
     "fit_whitening",
     "sample_matches",
     "shape_penalty",
