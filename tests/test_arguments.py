@@ -112,6 +112,7 @@ def test_the_parsers_names_are_the_pipelines():
     from vpr_core.backbones import available_backbones
     from vpr_core.datasets import DATASETS
     from vpr_core.evaluation import PROTOCOLS
+    from vpr_core.matching import WHITEN_K
 
     assert tuple(DATASETS) == choices.DATASETS
     assert tuple(available_methods()) == choices.METHODS
@@ -120,6 +121,7 @@ def test_the_parsers_names_are_the_pipelines():
     assert tuple(SPATIAL_OPTIONS) == choices.SPATIAL_OPTIONS
     assert tuple(WEIGHTINGS) == choices.WEIGHTING_OPTIONS  # read from the rooms' source
     assert tuple(NORMALISATIONS) == choices.NORMALISE_OPTIONS
+    assert WHITEN_K == choices.WHITEN_K
 
 
 @pytest.mark.parametrize("where", ["nowhere", "torch hub", "variable"])

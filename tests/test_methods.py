@@ -145,6 +145,7 @@ def test_options_derive_from_the_fields():
         "spatial",
         "weighting",
         "normalise",
+        "whiten",
     )
     assert _method_options(get_method("overlap_scheme2")) == (
         "n",
@@ -154,8 +155,9 @@ def test_options_derive_from_the_fields():
         "spatial",
         "weighting",
         "normalise",
+        "whiten",
     )
-    assert _method_options(get_method("global")) == ("spatial", "weighting", "normalise")
+    assert _method_options(get_method("global")) == ("spatial", "weighting", "normalise", "whiten")
 
 
 @pytest.mark.parametrize(
@@ -166,15 +168,15 @@ def test_options_derive_from_the_fields():
         (
             "dense",
             {"iou_threshold": 0.1},
-            "'iou_threshold'; valid: scales, per_scale, spatial, weighting, normalise$",
+            "'iou_threshold'; valid: scales, per_scale, spatial, weighting, normalise, whiten$",
         ),
         (
             "classical",
             {"min_index": 7},
-            "'min_index'; valid: n, n_candidates, spatial, weighting, normalise$",
+            "'min_index'; valid: n, n_candidates, spatial, weighting, normalise, whiten$",
         ),
         ("classical", {"soft_nms_iou": 0.3}, "method 'classical' option\\(s\\) 'soft_nms_iou'"),
-        ("global", {"n": 5}, "'n'; valid: spatial, weighting, normalise$"),
+        ("global", {"n": 5}, "'n'; valid: spatial, weighting, normalise, whiten$"),
         ("dense", {"scales": 0.25}, "method 'dense': Dense.scales must be .*, got 0.25"),
         ("overlap_scheme1", {"iou_threshold": 1.5}, "ReduceOverlap.iou_threshold .*, got 1.5"),
         ("dense", {"per_scale": "25"}, "Dense.per_scale must be .*, got '25'"),

@@ -162,6 +162,7 @@ def test_notebook_07_runs_on_every_study_label():
         "places_alike_steps",
         "places_alike_vs_contrast",
         "places_alike_changes",
+        "places_alike_whitening",
     ]
     assert catalogue.TABLES["07_places_alike"] == (
         "places_alike",
@@ -169,4 +170,38 @@ def test_notebook_07_runs_on_every_study_label():
         "places_alike_steps",
         "places_alike_vs_contrast",
         "places_alike_changes",
+        "places_alike_vs_best",
+        "places_alike_whitening",
     )
+
+
+def test_whitening_figure_reads_at_a_glance_and_refuses_what_it_cannot_explain(runs):
+    """(Not in the paper, issue 62) ``plot_whitening``: the shares of a match's cosine before and
+    after, each chosen query's references by rank, one table row per query and reference."""
+    from vpr_core import run_method
+    from vpr_core.evaluation.whitening import WHITENING_COLUMNS
+
+    ds, plain, weighted = runs
+    kw = {"dim": 64, "n_bootstrap": 0, "keep_descriptors": True, "per_scale": 4}
+    white = run_method("dense", ds, whiten=16, **kw)
+    fig, table = viz.plot_whitening(ds, plain, white, n_queries=2)
+    assert tuple(table.columns) == WHITENING_COLUMNS and len(table)
+    assert fig.get_figwidth() == FIG_WIDTH and viz.layout_problems(fig) == []
+    assert len(fig.axes) == 1 + table["query"].nunique()
+    assert (table["shared share"].dropna().between(-1, 2)).all() and table["why"].str.len().gt(
+        0
+    ).all()
+    for _q, rows in table.groupby("query"):  # the top-1 before and after are among the rows
+        assert 1 in set(rows["rank before"]) and 1 in set(rows["rank after"])
+    texts = [t for ax in fig.axes for t in ax.texts] + [fig._suptitle]
+    assert all(t.get_fontsize() >= 9 for t in texts)
+    assert "16 components" in fig._suptitle.get_text()
+    plt.close(fig)
+    with pytest.raises(ValueError, match="is not whitened"):
+        viz.plot_whitening(ds, plain, plain)
+    with pytest.raises(ValueError, match="without whitening"):
+        viz.plot_whitening(ds, white, white)
+    with pytest.raises(ValueError, match="differ in more than the whitening"):
+        viz.plot_whitening(ds, weighted, white)
+    with pytest.raises(ValueError, match="whitening_changes needs the landmark descriptors"):
+        viz.plot_whitening(ds, plain, dataclasses.replace(white, descriptors=None))

@@ -493,6 +493,16 @@ def test_step_tables_at_scale_are_notebook_07s():
     assert all(row in MEASUREMENTS for row in rows), _paste(rows)
 
 
+def test_whitening_cost_tables_are_the_benchmark_tables():
+    rows = []
+    for places in (716, 3576):
+        for _, r in _csv(f"benchmarks/whiten_cost_{places}.csv").iterrows():
+            mb = "" if pd.isna(r["peak MB"]) else f"{r['peak MB']:.0f} MB"
+            cells = [f"{places:,}", r["step"], f"{r['seconds']:.1f} s", f"{r['ratio']:.2f}x", mb]
+            rows.append("| " + " | ".join(cells) + " |")
+    assert len(rows) == 14 and all(row in MEASUREMENTS for row in rows), _paste(rows)
+
+
 def test_two_sided_cost_tables_are_the_benchmark_tables():
     rows = []
     for places in (716, 3576):

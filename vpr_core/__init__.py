@@ -58,7 +58,7 @@ _MODULES: dict[str, tuple[str, ...]] = {
     "matching.blocks": ("plan_blocks",),
     "matching.normalise": ("NORMALISATIONS", "Normalisation"),
     # evaluation: curves, intervals, the comparison table, the per-query view
-    "evaluation.curves": ("auc_pr", "pr_curve", "recall_at_100_precision", "recall_at_k"),
+    "evaluation.curves": ("auc_pr", "pr_curve", "recall_at_k"),
     "evaluation.bootstrap": (
         "ON_PAR_MARGIN",
         "VERDICT_WORDS",
@@ -70,6 +70,7 @@ _MODULES: dict[str, tuple[str, ...]] = {
     "evaluation.compare": ("compact", "compare", "compare_pairs", "identical_to"),
     "evaluation.queries": ("per_query",),
     "evaluation.steps": ("carried_landmarks", "step_changes"),
+    "evaluation.whitening": ("whitening_changes",),
     # Sec. 3.1: labelled matches and the scale statistics
     "labels": ("append_labels", "label_matches", "pair_matches"),
     "statistics": ("cmr_difference", "scale_statistics"),
@@ -137,7 +138,6 @@ __all__ = [
     "pr_curve",
     "PROTOCOLS",
     "read_npy",
-    "recall_at_100_precision",
     "recall_at_k",
     "reciprocal_matches",
     "reduce_overlap",
@@ -163,6 +163,7 @@ __all__ = [
     "VPRWarning",
     "Weighting",
     "WEIGHTINGS",
+    "whitening_changes",
     "WholeImage",
 ]
 
@@ -199,10 +200,11 @@ if TYPE_CHECKING:
     )
     from .evaluation.chance import chance
     from .evaluation.compare import compact, compare, compare_pairs, identical_to
-    from .evaluation.curves import auc_pr, pr_curve, recall_at_100_precision, recall_at_k
+    from .evaluation.curves import auc_pr, pr_curve, recall_at_k
     from .evaluation.queries import per_query
     from .evaluation.spec import PROTOCOLS, Evaluation
     from .evaluation.steps import carried_landmarks, step_changes
+    from .evaluation.whitening import whitening_changes
     from .features.encoder import Encoder, LandmarkEncoder
     from .labels import append_labels, label_matches, pair_matches
     from .landmarks.coverage import landmark_coverage

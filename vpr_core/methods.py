@@ -129,7 +129,7 @@ def as_method(method: Any, **overrides: Any) -> Method:
     """
     if isinstance(method, str):
         return get_method(method, **overrides)
-    if overrides and set(overrides) <= {"spatial", "weighting", "normalise"}:  # matching options
+    if overrides and set(overrides) <= {"spatial", "weighting", "normalise", "whiten"}:  # matching
         base = as_method(method)  # of every method, schemes included
         return dataclasses.replace(base, matching=dataclasses.replace(base.matching, **overrides))
     if overrides:
@@ -207,7 +207,7 @@ def method_label(method: Method) -> str:
 
 #: (Not in the paper.) The :class:`Matching` fields that are steps on Eq. (1): what
 #: :func:`step_between` credits a difference to (docs/DEFINITIONS.md).
-STEP_FIELDS = ("weighting", "normalise")
+STEP_FIELDS = ("whiten", "weighting", "normalise")
 
 
 def run_identity(run: Any) -> dict[str, Any]:
@@ -258,14 +258,14 @@ def step_between(a: Any, b: Any, caller: str, step: str = "the step") -> dict[st
         raise ValueError(
             f"{caller}: {la!r} and {lb!r} differ in more than {step} ({', '.join(other)}): "
             f"{shown}. A step is credited only between two runs that differ by it alone: pass "
-            "one method's run without and with one more step (weighting= or normalise=), the "
-            "same dataset, encoder, shortlist and options otherwise"
+            "one method's run without and with one more step (whiten=, weighting= or "
+            "normalise=), the same dataset, encoder, shortlist and options otherwise"
         )
     found = {k: ib.get(k) for k in STEP_FIELDS if ia.get(k) != ib.get(k)}
     if not found or any(v is None for v in found.values()):
         raise ValueError(
-            f"{caller}: {lb!r} must be {la!r} with one more step (weighting= or normalise=), "
-            f"the rest the same; it {'removes one' if found else 'adds none'}"
+            f"{caller}: {lb!r} must be {la!r} with one more step (whiten=, weighting= or "
+            f"normalise=), the rest the same; it {'removes one' if found else 'adds none'}"
         )
     return found
 

@@ -16,6 +16,7 @@ from .evaluation.chance import chance, chance_precision, saturation_notice
 from .evaluation.curves import pr_curve
 from .evaluation.spec import Evaluation
 from .matching.normalise import normalise_matrix
+from .matching.whiten import score_sign_notice
 from .methods import Method, run_key
 from .notices import notice
 
@@ -223,6 +224,13 @@ def _normalise_of(config: Method | dict) -> str | None:
     return config.get("normalise")
 
 
+def _whiten_of(config: Method | dict) -> int | None:
+    """The descriptor whitening a result's configuration names (None: none)."""
+    if isinstance(config, Method):
+        return config.matching.whiten
+    return config.get("whiten")
+
+
 def _unranked_empty(sim: np.ndarray, boxes: dict) -> np.ndarray:
     """NaN for every pair involving an image without landmarks (``boxes`` of both sides; a
     peer's are empty lists: nothing to exclude)."""
@@ -252,8 +260,9 @@ def result_from_matrix(
     In order: the whole-matrix step its configuration names (``normalise``, by
     :func:`~vpr_core.matching.normalise.normalise_matrix`; ``database``: the ``(Nr, Nr)``
     references against each other where the step needs them), images without landmarks
-    unranked (NaN), soft-only pairs neither right nor wrong, the constant-matrix and saturation
-    notices (added to ``warnings``), then metrics and intervals under ``evaluation``.
+    unranked (NaN), soft-only pairs neither right nor wrong, the constant-matrix, whitened
+    score-sign and saturation notices (added to ``warnings``), then metrics and intervals
+    under ``evaluation``.
 
     Args:
         similarity: ``(Nq, Nr)`` as the method produced it (NaN: not ranked).
@@ -269,6 +278,8 @@ def result_from_matrix(
         sim[result.soft_only] = np.nanmin(sim)
     gt = np.asarray(result.ground_truth, dtype=bool)
     notices = [constant_notice(sim)]
+    if _whiten_of(result.config) is not None:  # (not in the paper) centred cosines: scores <= 0
+        notices.append(score_sign_notice(sim, gt, evaluation.protocol))
     metrics, intervals = metrics_and_intervals(sim, gt, evaluation)
     notices.append(
         saturation_notice(

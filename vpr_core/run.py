@@ -31,6 +31,7 @@ from .matching.shortlist import (
 )
 from .matching.similarity import similarity_matrix, similarity_pairs
 from .matching.weighting import WEIGHTINGS
+from .matching.whiten import DESCRIPTOR_STEPS
 from .methods import Matching, Method, as_method, default_label
 from .notices import VPRWarning, notice
 from .result import MethodResult, result_from_matrix
@@ -60,7 +61,8 @@ class Executor(Protocol):
         reference_boxes: Sequence,
         matching: Matching,
     ) -> np.ndarray:
-        """``(Nq, Nr)`` Eq. (1), as :func:`~vpr_core.matching.similarity_matrix`."""
+        """``(Nq, Nr)`` Eq. (1), as :func:`~vpr_core.matching.similarity_matrix` (with
+        ``whiten``, the descriptors come whitened and ``matching`` has no ``whiten``)."""
         ...
 
     def similarity_pairs(
@@ -218,11 +220,11 @@ def _cached_matrix(
 
 
 def _database_matrix(
-    conf: Method, folder, key: dict, boxes: dict, feats: dict, k: int | None, glob, executor
+    conf: Method, plain: Matching, folder, key: dict, boxes: dict, feats: dict, k, glob, executor
 ) -> np.ndarray | None:
     """(Not in the paper.) The ``(Nr, Nr)`` references scored against each other by the same
-    matching and shortlist (cached like Eq. (1)), for a normalisation that needs the database;
-    None for any other."""
+    matching ``plain`` (the run's, without its whole-matrix and descriptor steps) and shortlist
+    (cached like Eq. (1)), for a normalisation that needs the database; None for any other."""
     how = conf.matching.normalise
     if how is None or not NORMALISATIONS[how].needs_database:
         return None
@@ -231,7 +233,6 @@ def _database_matrix(
     ref_glob = None if glob is None else {s: glob["reference"] for s in SIDES}
     nr = len(feats["reference"])
     kk = None if k is None or k >= nr else k
-    plain = dataclasses.replace(conf.matching, normalise=None)
 
     def compute() -> tuple[np.ndarray, float, float]:
         db, info = _match(ref, ref_feats, plain, kk, ref_glob, executor)
@@ -334,7 +335,8 @@ def run_method(
             (:mod:`vpr_core.executor`).
         label: display label; default from the config (:func:`~vpr_core.methods.default_label`:
             the method, its options, and a backbone module's class).
-        keep_descriptors: also return the descriptors (needed by the scale statistics).
+        keep_descriptors: also return the descriptors (needed by the scale statistics); with
+            ``whiten=k`` the whitened ones, those Eq. (1) saw.
         **overrides: the encoder and evaluation fields above, and the method's own options:
             its scheme's (e.g. ``iou_threshold=0.4``, ``scales=``, ``per_scale=``) and its
             :class:`~vpr_core.Matching`'s, on every method: ``soft_nms_iou=`` (Algorithm 4),
@@ -342,8 +344,10 @@ def run_method(
             "consistency"``, ``weighting=`` a name of :data:`~vpr_core.WEIGHTINGS`
             (``"contrast"``, ``"idf"``, ``"two_sided"``), ``normalise=`` a name of
             :data:`~vpr_core.NORMALISATIONS` (``"query_batch"``: needs the batch of queries;
-            ``"database"``). An option the method does not take is an error naming the valid
-            ones.
+            ``"database"``), ``whiten=k`` (the landmark descriptors of both sides whitened on
+            the reference database before Eq. (1), once, here; the shortlist's whole-image
+            descriptors are not; :data:`~vpr_core.WHITEN_K` is the recipe's). An option the
+            method does not take is an error naming the valid ones.
 
     Returns:
         A :class:`MethodResult`; ``.warnings`` lists every warning of the run that changes what
@@ -362,6 +366,10 @@ def run_method(
     wall_lm = time.perf_counter() - t_stage
     feats, glob = _features(boxes, dataset, landmark_encoder, k, executor)
     wall_ft = time.perf_counter() - t_stage - wall_lm
+    for field, step in DESCRIPTOR_STEPS.items():  # (not in the paper) e.g. whiten=k
+        if (value := getattr(conf.matching, field)) is not None:
+            q_d, r_d, _ = step(feats["query"], feats["reference"], value)
+            feats = {**feats, "query": q_d, "reference": r_d}
     # keyed by what goes in: the images (folder), the boxes and descriptors (content), the
     # Matching value; not the ground truth, so another tolerance reuses the matrix
     inputs = [
@@ -370,16 +378,26 @@ def run_method(
     if glob is not None:
         inputs += [glob[side] for side in SIDES]
     # the normalisation (not in the paper) is a step after the matrix: the Eq. (1) matrix is
-    # cached without it, so every normalisation of a method reuses it
-    plain = dataclasses.replace(conf.matching, normalise=None)
+    # cached without it, so every normalisation of a method reuses it; a descriptor step (not in
+    # the paper, e.g. the whitening) was applied above, so the matcher (and an executor) get a
+    # Matching without it and the key names it only when it is set (a key without it is as
+    # before it existed)
+    plain = dataclasses.replace(
+        conf.matching, normalise=None, **dict.fromkeys(DESCRIPTOR_STEPS, None)
+    )
     key = {
         "inputs": array_sha256(inputs),
-        "matching": dataclasses.asdict(plain),
+        "matching": {
+            f: v for f, v in dataclasses.asdict(plain).items() if f not in DESCRIPTOR_STEPS
+        },
         "shortlist": k,
         "code": code_version("matching"),
     }
     if plain.weighting is not None and (own := WEIGHTINGS[plain.weighting].identity()):
         key["weighting code"] = own  # a weighting defined outside the package, by its code
+    for field in DESCRIPTOR_STEPS:  # (not in the paper) a step on the descriptors, when set
+        if getattr(conf.matching, field) is not None:
+            key[field] = getattr(conf.matching, field)
     folder = cache_dir("results", f"{dataset.name}-{images}")
 
     def compute() -> tuple[np.ndarray, float, float]:
@@ -391,7 +409,7 @@ def run_method(
         )
 
     sim, match_s, n_pairs, cached = _cached_matrix(folder, conf.name, key, (nq, nr), compute)
-    database = _database_matrix(conf, folder, key, boxes, feats, k, glob, executor)
+    database = _database_matrix(conf, plain, folder, key, boxes, feats, k, glob, executor)
     n_img = nq + nr
     timings = {
         "landmarks_s_per_image": float(sum(map(sum, boxes["seconds"].values())) / n_img),

@@ -19,6 +19,7 @@ from vpr_study.choices import (
     PROTOCOLS,
     SPATIAL_OPTIONS,
     WEIGHTING_OPTIONS,
+    WHITEN_K,
     weights_found,
 )
 from vpr_study.usage import COMMANDS, DESCRIPTION, version_text
@@ -160,6 +161,18 @@ def _int_at_least(low: int) -> Callable[[str], int]:
     return parse
 
 
+def _whiten(text: str) -> str | int:
+    """``--whiten``: ``none``, ``both`` or the components kept, an integer >= 1."""
+    if text in ("none", "both"):
+        return text
+    try:
+        return _int_at_least(1)(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"must be none, both or an integer >= 1 (the components kept), got {text!r}"
+        ) from None
+
+
 def _folder(text: str) -> str:
     """``--root``: a non-empty folder name (``''`` would read the current folder)."""
     if not text.strip():
@@ -264,6 +277,8 @@ EVAL_EPILOG = """examples:
       without and with each of contrast, idf, two_sided)
   vpr-study eval --dataset synthetic --method dense --normalise all
       without and with each normalisation of the matrix (query_batch needs the query batch)
+  vpr-study eval --dataset synthetic --method dense --whiten both
+      without and with the descriptors whitened on the reference database (256 components)
   vpr-study eval --dataset folder --root ~/photos/route --method dense
       your own images: a folder holding query/ and reference/ image folders
   vpr-study eval --dataset synthetic --method dense --peer MyNet=sim.npy
@@ -426,6 +441,16 @@ def parser(handlers: dict[str, Callable[[argparse.Namespace], int]]) -> argparse
         "reference's mean similarity to its 10 nearest references (a single live query); "
         f"'all' (or 'both': both normalisations): every method without and with each "
         f"({1 + len(NORMALISE_OPTIONS)} runs each), and the paired differences",
+    )
+    e.add_argument(
+        "--whiten",
+        default="none",
+        type=_whiten,
+        metavar="K|none|both",
+        help="(not in the paper) whiten every method's landmark descriptors on the reference "
+        "database before Eq. (1), keeping K components (docs/DEFINITIONS.md; the queries "
+        f"never enter the fit); 'both': every method without and with K={WHITEN_K}, and the "
+        "paired differences; default none: the descriptors as extracted",
     )
     e.add_argument(
         "--wide",

@@ -64,6 +64,8 @@ TABLES: dict[str, tuple[str, ...]] = {
         "places_alike_steps",
         "places_alike_vs_contrast",
         "places_alike_changes",
+        "places_alike_vs_best",
+        "places_alike_whitening",
     ),
 }
 
@@ -116,6 +118,8 @@ RESULTS_FILES: tuple[str, ...] = (
     "benchmarks/nordland_full_contrast.csv",
     "benchmarks/two_sided_cost_716.csv",
     "benchmarks/two_sided_cost_3576.csv",
+    "benchmarks/whiten_cost_716.csv",
+    "benchmarks/whiten_cost_3576.csv",
 )
 
 #: Files directly under ``figures/``: the benchmark figures (``benchmarks/bench_*.py``).

@@ -20,6 +20,7 @@ __all__ = [
     "PROTOCOLS",
     "SPATIAL_OPTIONS",
     "WEIGHTING_OPTIONS",
+    "WHITEN_K",
     "weights_found",
 ]
 
@@ -57,6 +58,8 @@ BACKBONES = (
 PROTOCOLS = ("ratio", "best_match", "vpr_bench", "multi_match")
 #: ``vpr_core.SPATIAL_OPTIONS``.
 SPATIAL_OPTIONS = ("consistency",)
+#: ``vpr_core.matching.WHITEN_K``: the components of the whitening recipe (``--whiten both``).
+WHITEN_K = 256
 
 
 def _table_names(room: str, table: str) -> tuple[str, ...]:

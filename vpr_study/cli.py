@@ -39,6 +39,7 @@ from vpr_core import (
     utils,
 )
 from vpr_study.arguments import check_names, command_parser, dataset_options, given_once, parser
+from vpr_study.choices import WHITEN_K
 from vpr_study.cluster import DaskExecutor
 from vpr_study.findings import findings_document, result_labels
 from vpr_study.peers import (
@@ -426,12 +427,15 @@ def cmd_eval(args: argparse.Namespace) -> int:
     every = [None, *NORMALISATIONS]  # both normalisations, and without
     norms: dict[str, list[str | None]] = {"none": [None], "both": every, "all": every}
     normalise = norms.get(args.normalise, [args.normalise])
+    whitening: list[int | None] = [None, WHITEN_K] if args.whiten == "both" else [None]
+    if args.whiten not in ("none", "both"):
+        whitening = [int(args.whiten)]
     results, computed, wall, run_of = [], {}, {}, {}
-    todo = list(itertools.product(args.method, spatial, weighting, normalise))
+    todo = list(itertools.product(args.method, spatial, weighting, normalise, whitening))
     with ExitStack() as stack:  # a Dask executor is closed however the runs end
         executor = stack.enter_context(DaskExecutor(scheduler)) if scheduler else None
-        for n, (m, s, w, z) in enumerate(todo, 1):
-            named = (("spatial", s), ("weighting", w), ("normalise", z))
+        for n, (m, s, w, z, h) in enumerate(todo, 1):
+            named = (("whiten", h), ("spatial", s), ("weighting", w), ("normalise", z))
             options = ", ".join(f"{k} {v}" for k, v in named if v)
             before, t0 = _matrix_entries(), time.perf_counter()
             with lines.stage(
@@ -454,9 +458,10 @@ def cmd_eval(args: argparse.Namespace) -> int:
                     spatial=s,
                     weighting=w,
                     normalise=z,
+                    whiten=h,
                 )
             results.append(r)
-            run_of[m, s, w, z] = r
+            run_of[m, s, w, z, h] = r
             computed[r.label] = _matrix_entries() != before
             wall[r.label] = time.perf_counter() - t0
     if args.peers or args.peer_dataset or args.peer:
@@ -509,8 +514,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
     items: list = [(stem, table), (stem, fig)]
     if args.spatial == "both":
         pairs = [
-            (run_of[m, None, w, z], run_of[m, s, w, z])
-            for m, w, z in itertools.product(args.method, weighting, normalise)
+            (run_of[m, None, w, z, h], run_of[m, s, w, z, h])
+            for m, w, z, h in itertools.product(args.method, weighting, normalise, whitening)
             for s in SPATIAL_OPTIONS
         ]
         geometry = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
@@ -519,8 +524,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
         items.append((f"{stem}_geometry", geometry))
     if args.weighting in ("both", "all"):
         pairs = [
-            (run_of[m, s, None, z], run_of[m, s, w, z])
-            for m, s, z in itertools.product(args.method, spatial, normalise)
+            (run_of[m, s, None, z, h], run_of[m, s, w, z, h])
+            for m, s, z, h in itertools.product(args.method, spatial, normalise, whitening)
             for w in weighting[1:]
         ]
         weighted = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
@@ -529,8 +534,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
         items.append((f"{stem}_weighting", weighted))
     if args.normalise in ("both", "all"):
         pairs = [
-            (run_of[m, s, w, None], run_of[m, s, w, z])
-            for m, s, w in itertools.product(args.method, spatial, weighting)
+            (run_of[m, s, w, None, h], run_of[m, s, w, z, h])
+            for m, s, w, h in itertools.product(args.method, spatial, weighting, whitening)
             for z in NORMALISATIONS
         ]
         normalised = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
@@ -541,6 +546,19 @@ def cmd_eval(args: argparse.Namespace) -> int:
         )
         print(fit_text(compact(normalised), width, HEADLINE, wide=args.wide))
         items.append((f"{stem}_normalise", normalised))
+    if args.whiten == "both":
+        pairs = [
+            (run_of[m, s, w, z, None], run_of[m, s, w, z, WHITEN_K])
+            for m, s, w, z in itertools.product(args.method, spatial, weighting, normalise)
+        ]
+        whitened = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
+        say(
+            "\n(not in the paper) whitening on the reference database, each method with minus "
+            "without:",
+            width,
+        )
+        print(fit_text(compact(whitened), width, HEADLINE, wide=args.wide))
+        items.append((f"{stem}_whiten", whitened))
     with lines.stage("writing the figure and tables"):
         written = save_all(items, label, out=args.out)
     root = outputs.figures_root() if args.out is None else Path(args.out).expanduser().resolve()

@@ -68,6 +68,7 @@ FIGURES: tuple[FigureSpec, ...] = (
     FigureSpec("places_alike_steps", _NB7, "beyond the paper: each method with each step"),
     FigureSpec("places_alike_vs_contrast", _NB7, "beyond the paper: each step against contrast"),
     FigureSpec("places_alike_changes", _NB7, "beyond the paper: what each step changed"),
+    FigureSpec("places_alike_whitening", _NB7, "beyond the paper: what whitening does"),
 )
 
 

@@ -33,6 +33,7 @@ __all__ = [
     "STEPS",
     "STEPS_TABLE",
     "STEP_CLAIMS",
+    "VS_BEST",
     "LEGEND",
     "MATCHES_TABLE",
     "OBSERVATION_1",
@@ -91,7 +92,7 @@ _F13 = "fig13_comparison"
 #: (Not in the paper.) Notebook 07's table of each method without and with each step.
 STEPS_TABLE = "places_alike_steps"
 
-#: (Not in the paper.) The steps of issue 55 judged in notebook 07's :data:`STEPS_TABLE`.
+#: (Not in the paper.) The steps of issues 55 and 62 judged in notebook 07's :data:`STEPS_TABLE`.
 STEPS: dict[str, dict] = {
     "two-sided contrast": {"weighting": "two_sided"},
     "query-batch normalisation (needs the query batch)": {"normalise": "query_batch"},
@@ -100,6 +101,22 @@ STEPS: dict[str, dict] = {
         "weighting": "two_sided",
         "normalise": "query_batch",
     },
+    "whitening": {"whiten": 256},
+    "whitening + contrast + query-batch, the recipe (needs the query batch)": {
+        "whiten": 256,
+        "weighting": "contrast",
+        "normalise": "query_batch",
+    },
+}
+
+#: (Not in the paper; issue 62.) Today's best steps the whitening recipe is judged against: the
+#: notebook 07 table that pairs them, and the step's options.
+VS_BEST: dict[str, tuple[str, dict]] = {
+    "two-sided + query-batch": (
+        "places_alike_vs_best",
+        {"weighting": "two_sided", "normalise": "query_batch"},
+    ),
+    "contrast": ("places_alike_vs_contrast", {"weighting": "contrast"}),
 }
 
 #: The paper's claims, in paper order (observation 1 is handled by :func:`cmr_difference`).
@@ -145,9 +162,10 @@ CLAIMS: tuple[Claim, ...] = (
     ),
 )
 
-#: (Not in the paper; issue 55.) Each method without and with each step of notebook 07 (settings
-#: fixed in DEFINITIONS.md), AUC and R@1: a table of its own in ``results/findings.md``, beside
-#: the paper's claims (which the README shows).
+#: (Not in the paper; issues 55 and 62.) Each method without and with each step of notebook 07
+#: (settings fixed in DEFINITIONS.md), then the whitening recipe against :data:`VS_BEST`, AUC and
+#: R@1: a table of its own in ``results/findings.md``, beside the paper's claims (which the README
+#: shows).
 STEP_CLAIMS: tuple[Claim, ...] = tuple(
     Claim(
         f"{text}: {m} with vs without ({metric[1:]})",
@@ -159,6 +177,18 @@ STEP_CLAIMS: tuple[Claim, ...] = tuple(
     )
     for m in ("dense", "classical", "selection_scheme1")
     for text, opts in STEPS.items()
+    for metric in ("dAUC", "dR@1")
+) + tuple(
+    Claim(
+        f"whitening recipe (needs the query batch): {m} against {best} ({metric[1:]})",
+        figure,
+        (m, STEPS["whitening + contrast + query-batch, the recipe (needs the query batch)"]),
+        (m, opts),
+        "?",
+        metric,
+    )
+    for m in ("dense", "classical", "selection_scheme1")
+    for best, (figure, opts) in VS_BEST.items()
     for metric in ("dAUC", "dR@1")
 )
 # fmt: on
@@ -381,10 +411,12 @@ def findings_document(labels: Sequence[str], out: str | Path | None = None) -> s
     )
     return (
         findings_markdown(labels, out=out)
-        + "\n\n## Not in the paper: two-sided contrast and normalisation (notebook 07)\n\n"
-        + "Each method with minus without each step, AUC and R@1; `query_batch` needs the batch "
-        + "of queries (docs/DEFINITIONS.md). Cells read as above; a column for every result "
-        + "folder that holds notebook 07's table.\n\n"
+        + "\n\n## Not in the paper: two-sided contrast, normalisation and whitening (notebook "
+        + "07)\n\n"
+        + "Each method with minus without each step, AUC and R@1, then the whitening recipe "
+        + "against today's best steps; `query_batch` needs the batch of queries "
+        + "(docs/DEFINITIONS.md). Cells read as above; a column for every result folder that "
+        + "holds notebook 07's table.\n\n"
         + steps
     )
 

@@ -1,7 +1,7 @@
 """Evaluation of a query x reference similarity matrix: curves and metrics (``curves``),
 their chance level (``chance``), bootstrap intervals and paired differences (``bootstrap``),
 the comparison table (``compare``), the per-query view (``queries``) and what a step changed
-(``steps``)."""
+(``steps``, ``whitening``)."""
 
 from __future__ import annotations
 
@@ -42,6 +42,7 @@ from .queries import per_query
 from .ranks import best_two, query_scores, ranked, true_rank
 from .spec import Evaluation, refuse_tolerance
 from .steps import carried_landmarks, step_changes
+from .whitening import whitening_changes
 
 __all__ = [
     "IDENTICAL",
@@ -81,4 +82,5 @@ __all__ = [
     "refuse_tolerance",
     "step_changes",
     "true_rank",
+    "whitening_changes",
 ]

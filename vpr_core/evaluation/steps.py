@@ -98,6 +98,12 @@ def _step_of(plain: Any, stepped: Any) -> tuple[str | None, str | None]:
     """``(weighting, normalise)`` that ``stepped`` adds to ``plain``; refuses other pairs
     (:func:`vpr_core.methods.step_between`: the same dataset, encoder, shortlist, options)."""
     step = step_between(plain, stepped, "step_changes")
+    if "whiten" in step:
+        raise ValueError(
+            f"step_changes: {stepped.label!r} adds the whitening of the descriptors, which "
+            "step_changes does not explain: use vpr_core.whitening_changes(plain, whitened) "
+            "(or vpr_study.viz.plot_whitening)"
+        )
     w, z = step.get("weighting"), step.get("normalise")
     mp = plain.config.matching
     if w is not None and (mp.weighting is not None or mp.normalise is not None):
@@ -114,7 +120,7 @@ def _weight_why(stepped: Any, weighting: str, pairs: list[tuple[int, int]]) -> l
             f"{stepped.label!r} kept no descriptors: run it with keep_descriptors=True"
         )
     sample = None if stepped.shortlist else np.arange(len(d["reference"]))
-    m = dataclasses.replace(stepped.config.matching, normalise=None)
+    m = dataclasses.replace(stepped.config.matching, normalise=None, whiten=None)  # kept: whitened
     args = (d["query"], b["query"], d["reference"], b["reference"], pairs)
     full = weighted_matches(*args, m, sample)
     two = WEIGHTINGS[weighting].reference_side
@@ -262,12 +268,12 @@ def _also_matches(run: Any, q: int, landmarks: np.ndarray, shown: int) -> tuple:
 
 
 def _run_matches(run: Any, pairs: list[tuple[int, int]]) -> list:
-    """Each pair's matches with the weights the weighted ``run`` (it kept its descriptors)
-    used."""
+    """Each pair's matches with the weights the weighted ``run`` (it kept its descriptors,
+    whitened where it was: ``whiten`` is then already applied) used."""
     d, b = run.descriptors, run.boxes
     sample = None if run.shortlist else np.arange(len(d["reference"]))
     args = (d["query"], b["query"], d["reference"], b["reference"], pairs)
-    return weighted_matches(*args, run.config.matching, sample)
+    return weighted_matches(*args, dataclasses.replace(run.config.matching, whiten=None), sample)
 
 
 def _carried_rows(

@@ -3,7 +3,8 @@ pair in :mod:`.pairwise` (the float64 reference that reads like the paper) and f
 in the torch engine (:mod:`.core`, the same numbers); the public functions are in
 :mod:`.similarity`. The engine's inputs are parsed in the package-private :mod:`._sides`; the
 shortlist is :mod:`.shortlist`; the rooms of the steps not in the paper: :mod:`.weighting`
-(:data:`WEIGHTINGS`) and :mod:`.normalise` (:data:`NORMALISATIONS`)."""
+(:data:`WEIGHTINGS`), :mod:`.normalise` (:data:`NORMALISATIONS`) and :mod:`.whiten` (the
+descriptor steps, :data:`DESCRIPTOR_STEPS`)."""
 
 from __future__ import annotations
 
@@ -40,13 +41,22 @@ from .weighting import (
     sample_matches,
     weighting_sample,
 )
+from .whiten import (
+    DESCRIPTOR_STEPS,
+    WHITEN_K,
+    clear_whitening_cache,
+    fit_whitening,
+    whiten_landmarks,
+)
 
 __all__ = [
     "CONTRAST_SAMPLE",
+    "DESCRIPTOR_STEPS",
     "NORMALISATIONS",
     "SPATIAL_OPTIONS",
     "WEIGHTINGS",
     "WEIGHTING_SAMPLE",
+    "WHITEN_K",
     "Compute",
     "Matching",
     "Normalisation",
@@ -64,6 +74,8 @@ __all__ = [
     "rerank",
     "reference_stats",
     "clear_reference_cache",
+    "clear_whitening_cache",
+    "fit_whitening",
     "sample_matches",
     "shape_penalty",
     "shortlist_pairs",
@@ -73,5 +85,6 @@ __all__ = [
     "weighted_matches",
     "zscore",
     "weighting_sample",
+    "whiten_landmarks",
     "with_whole_image_boxes",
 ]

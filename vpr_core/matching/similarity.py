@@ -27,6 +27,7 @@ from .weighting import (
     weighted_block,
     weighting_sample,
 )
+from .whiten import refuse_whiten
 
 __all__ = [
     "check_pairs",
@@ -75,7 +76,8 @@ def similarity_matrix(
         matching: a :class:`~.spec.Matching` (Algorithm 4 and, not in the paper, ``spatial``
             and ``weighting``; docs/DEFINITIONS.md) instead of ``soft_nms_iou``/``sigma``. With
             a weighting each term's statistics cover every reference. ``normalise`` is refused:
-            it is a step on a result's whole matrix (``run_method(..., normalise=)``).
+            it is a step on a result's whole matrix (``run_method(..., normalise=)``), and so is
+            ``whiten``, a step on the database's descriptors that ``run_method`` applies.
         compute: device, block sizes, matmul precision and progress bar (:class:`~.spec.Compute`).
 
     Returns:
@@ -83,6 +85,7 @@ def similarity_matrix(
     """
     matching = as_matching(soft_nms_iou, sigma, matching)
     refuse_normalise(matching, "similarity_matrix")
+    refuse_whiten(matching, "similarity_matrix")
     prob = Problem.build(
         query_desc,
         query_boxes,
@@ -146,6 +149,7 @@ def similarity_pairs(
         ``(P,)`` float64 similarities, in the order of ``pairs``.
     """
     refuse_normalise(matching, "similarity_pairs")
+    refuse_whiten(matching, "similarity_pairs")
     prob = Problem.build(
         query_desc, query_boxes, reference_desc, reference_boxes, matching, compute
     )
@@ -292,6 +296,7 @@ def weighted_matches(
             f"{matching!r}"
         )
     refuse_normalise(matching, "weighted_matches")
+    refuse_whiten(matching, "weighted_matches")
     prob = Problem.build(
         query_desc, query_boxes, reference_desc, reference_boxes, matching, _DEFAULT
     )
@@ -341,6 +346,7 @@ def match_landmarks(
             :func:`weighted_matches`).
     """
     refuse_normalise(matching, "match_landmarks")
+    refuse_whiten(matching, "match_landmarks")
     if matching.weighting is not None:
         raise ValueError(
             f"weighting={matching.weighting!r} needs statistics over every reference, which one "

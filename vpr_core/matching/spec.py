@@ -39,15 +39,19 @@ class Matching:
     scores) at IoU ``soft_nms_iou`` and Gaussian ``sigma`` when ``soft_nms_iou`` is set, and
     (not in the paper) a geometry-aware re-scoring of the matches when ``spatial`` is set
     (:data:`SPATIAL_OPTIONS`) and a database weighting of the terms when ``weighting`` is set
-    (a name of :data:`~.weighting.WEIGHTINGS`), and a normalisation of the whole matrix after
+    (a name of :data:`~.weighting.WEIGHTINGS`), a normalisation of the whole matrix after
     Eq. (1) when ``normalise`` is set (a name of :data:`~.normalise.NORMALISATIONS`: a step on
-    the matrix, applied once to a result; docs/DEFINITIONS.md)."""
+    the matrix, applied once to a result; docs/DEFINITIONS.md), and the landmark descriptors
+    whitened on the reference database before Eq. (1) when ``whiten`` (the components kept, an
+    int >= 1) is set (a step on the descriptors, :data:`~.whiten.DESCRIPTOR_STEPS`, applied by
+    ``run_method``; docs/DEFINITIONS.md)."""
 
     soft_nms_iou: float | None = None
     sigma: float = SOFT_NMS_SIGMA
     spatial: str | None = None
     weighting: str | None = None
     normalise: str | None = None
+    whiten: int | None = None
 
     def __post_init__(self) -> None:
         iou, sigma = self.soft_nms_iou, self.sigma
@@ -79,16 +83,29 @@ class Matching:
                 f"None or one of {_names(tuple(NORMALISATIONS))} (matrix normalisation, not "
                 "in the paper)",
             )
+        if self.whiten is not None:
+            try:
+                object.__setattr__(self, "whiten", check_int(self.whiten, "whiten", 1))
+            except ValueError:
+                raise _bad(
+                    self,
+                    "whiten",
+                    "None or an integer >= 1 (the components kept by the whitening of the "
+                    "landmark descriptors, e.g. 256; not in the paper)",
+                ) from None
 
     def options(self) -> tuple[str, ...]:
-        """The options that change a result: ``spatial``, ``weighting`` and ``normalise``
-        always, the soft-NMS pair with it on."""
+        """The options that change a result: ``spatial``, ``weighting``, ``normalise`` and
+        ``whiten`` always, the soft-NMS pair with it on."""
         nms = ("soft_nms_iou", "sigma") if self.soft_nms_iou is not None else ()
-        return (*nms, "spatial", "weighting", "normalise")
+        return (*nms, "spatial", "weighting", "normalise", "whiten")
 
     def note(self) -> str:
-        """Its legend text: soft-NMS IoU, geometry and weighting; empty at the paper's Eq. (1)."""
+        """Its legend text: soft-NMS IoU, whitening, geometry, weighting and normalisation;
+        empty at the paper's Eq. (1)."""
         parts = [] if self.soft_nms_iou is None else [f"IoU {self.soft_nms_iou:g}"]
+        if self.whiten is not None:
+            parts.append(f"whitened: {self.whiten}")
         if self.spatial is not None:
             parts.append(f"geometry: {self.spatial}")
         if self.weighting is not None:

@@ -21,6 +21,7 @@ from .matches import (
 )
 from .statistics import plot_asl, plot_cls, plot_cmr, plot_scale_statistics
 from .steps import plot_paired_differences, plot_step_changes
+from .whitening import plot_whitening
 from .widgets import label_widget, pair_label_widget
 
 __all__ = [
@@ -50,6 +51,7 @@ __all__ = [
     "plot_scale_distribution",
     "plot_scale_statistics",
     "plot_step_changes",
+    "plot_whitening",
     "save",
     "save_figure",
 ]
