@@ -382,9 +382,8 @@ def run_method(
     # the paper, e.g. the whitening) was applied above, so the matcher (and an executor) get a
     # Matching without it and the key names it only when it is set (a key without it is as
     # before it existed)
-    plain = dataclasses.replace(
-        conf.matching, normalise=None, **dict.fromkeys(DESCRIPTOR_STEPS, None)
-    )
+    off: dict[str, Any] = {field: None for field in DESCRIPTOR_STEPS}
+    plain = dataclasses.replace(conf.matching, normalise=None, **off)
     key = {
         "inputs": array_sha256(inputs),
         "matching": {

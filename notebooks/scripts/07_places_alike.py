@@ -160,9 +160,7 @@ step_runs = {m: {"plain": run_method(m, ds, **run_options)}  # step_runs[method]
              | {step: run_method(m, ds, **opts, **run_options) for step, opts in steps.items()}
              for m in ("classical", "selection_scheme1", "dense")}
 step_table = pd.concat([compare(list(by_step.values()), baseline=m) for m, by_step in step_runs.items()])
-fig = plot_paired_differences(
-    step_table, title=f"(not in the paper) each method with minus without each step: {label}"
-)
+fig = plot_paired_differences(step_table, title=f"(not in the paper) each method with minus without each step: {label}")
 save(fig, "places_alike_steps", label), save(step_table, "places_alike_steps", label)
 compact(step_table)
 
@@ -177,11 +175,8 @@ against = ("contrast", "two_sided", "two_sided + query_batch", "two_sided + data
            "whiten + contrast + query_batch")
 vs_contrast = pd.concat([compare([by_step[step] for step in against], baseline=by_step["contrast"].label)
                          for by_step in step_runs.values()])
-fig = plot_paired_differences(
-    vs_contrast,
-    title=f"(not in the paper) each step minus today's contrast weighting: {label}",
-    baseline="the method with contrast",
-)
+fig = plot_paired_differences(vs_contrast, title=f"(not in the paper) each step minus today's contrast weighting: {label}",
+                              baseline="the method with contrast")
 save(fig, "places_alike_vs_contrast", label), save(vs_contrast, "places_alike_vs_contrast", label)
 compact(vs_contrast)
 
@@ -199,16 +194,10 @@ compact(vs_contrast)
 
 # %%
 two_sided = run_method("dense", ds, weighting="two_sided", keep_descriptors=True, **run_options)
-changes = pd.concat(
-    [
-        step_changes(plain, two_sided).assign(step="two_sided"),
-        step_changes(plain, step_runs["dense"]["query_batch"]).assign(step="query_batch (needs the batch)"),
-        step_changes(plain, step_runs["dense"]["database"]).assign(step="database"),
-    ]
-)
-fig = plot_step_changes(
-    changes, title=f"(not in the paper) what each step changed for dense sampling: {label}"
-)
+changes = pd.concat([step_changes(plain, two_sided).assign(step="two_sided"),
+                     step_changes(plain, step_runs["dense"]["query_batch"]).assign(step="query_batch (needs the batch)"),
+                     step_changes(plain, step_runs["dense"]["database"]).assign(step="database")])
+fig = plot_step_changes(changes, title=f"(not in the paper) what each step changed for dense sampling: {label}")
 save(fig, "places_alike_changes", label), save(changes, "places_alike_changes", label)
 changes  # the `why` column: what moved each reference
 
