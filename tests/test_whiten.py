@@ -262,6 +262,28 @@ def test_run_method_whitens_both_sides_once_and_composes(small):
     assert many.descriptors["query"][0].shape == (16, 32)
 
 
+def test_run_method_applies_what_the_rooms_table_names(small, tmp_path, monkeypatch):
+    """The whitening is one function and one entry of its room's table: run_method applies the
+    function ``DESCRIPTOR_STEPS["whiten"]`` names, once, with the run's value, and Eq. (1) sees
+    what it returns (here a step that changes nothing: the matrix is the plain one)."""
+    from vpr_core import run_method
+    from vpr_core.matching.whiten import DESCRIPTOR_STEPS
+
+    monkeypatch.setenv("VPR_CACHE_DIR", str(tmp_path / "cache"))
+    plain = run_method("dense", small, **KW)
+    calls = []
+
+    def unchanged(query, reference, value):
+        calls.append((len(query), len(reference), value))
+        return list(query), list(reference), None
+
+    monkeypatch.setitem(DESCRIPTOR_STEPS, "whiten", unchanged)
+    run = run_method("dense", small, whiten=8, **KW)
+    assert calls == [(len(small.query_paths), len(small.reference_paths), 8)]
+    np.testing.assert_array_equal(run.similarity, plain.similarity)
+    assert run.config.matching.whiten == 8 and "whitened: 8" in run.label
+
+
 class _Recording:
     """A fake :class:`vpr_core.run.Executor`: matches in-process and records what it got."""
 

@@ -219,12 +219,20 @@ def _cached_matrix(
     return sim, float(match_s), float(n_pairs), False
 
 
+def _plain_matching(matching: Matching) -> Matching:
+    """What the matcher (and an executor) gets: the run's :class:`Matching` without its
+    whole-matrix step (``normalise``, applied to the result) and its descriptor steps
+    (:data:`~vpr_core.matching.whiten.DESCRIPTOR_STEPS`, applied to the descriptors before)."""
+    off: dict[str, Any] = {field: None for field in DESCRIPTOR_STEPS}
+    return dataclasses.replace(matching, normalise=None, **off)
+
+
 def _database_matrix(
-    conf: Method, plain: Matching, folder, key: dict, boxes: dict, feats: dict, k, glob, executor
+    conf: Method, folder, key: dict, boxes: dict, feats: dict, k: int | None, glob, executor
 ) -> np.ndarray | None:
     """(Not in the paper.) The ``(Nr, Nr)`` references scored against each other by the same
-    matching ``plain`` (the run's, without its whole-matrix and descriptor steps) and shortlist
-    (cached like Eq. (1)), for a normalisation that needs the database; None for any other."""
+    matching and shortlist (cached like Eq. (1)), for a normalisation that needs the database;
+    None for any other."""
     how = conf.matching.normalise
     if how is None or not NORMALISATIONS[how].needs_database:
         return None
@@ -233,6 +241,7 @@ def _database_matrix(
     ref_glob = None if glob is None else {s: glob["reference"] for s in SIDES}
     nr = len(feats["reference"])
     kk = None if k is None or k >= nr else k
+    plain = _plain_matching(conf.matching)
 
     def compute() -> tuple[np.ndarray, float, float]:
         db, info = _match(ref, ref_feats, plain, kk, ref_glob, executor)
@@ -382,8 +391,7 @@ def run_method(
     # the paper, e.g. the whitening) was applied above, so the matcher (and an executor) get a
     # Matching without it and the key names it only when it is set (a key without it is as
     # before it existed)
-    off: dict[str, Any] = {field: None for field in DESCRIPTOR_STEPS}
-    plain = dataclasses.replace(conf.matching, normalise=None, **off)
+    plain = _plain_matching(conf.matching)
     key = {
         "inputs": array_sha256(inputs),
         "matching": {
@@ -408,7 +416,7 @@ def run_method(
         )
 
     sim, match_s, n_pairs, cached = _cached_matrix(folder, conf.name, key, (nq, nr), compute)
-    database = _database_matrix(conf, plain, folder, key, boxes, feats, k, glob, executor)
+    database = _database_matrix(conf, folder, key, boxes, feats, k, glob, executor)
     n_img = nq + nr
     timings = {
         "landmarks_s_per_image": float(sum(map(sum, boxes["seconds"].values())) / n_img),

@@ -9,7 +9,7 @@ import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
-from matplotlib.ticker import MaxNLocator
+from matplotlib.ticker import FormatStrFormatter, MaxNLocator, NullLocator
 
 from vpr_core import whitening_changes
 
@@ -50,7 +50,7 @@ def plot_whitening(
     panels = [(q, case, table[table["query"] == q].to_dict("records")) for q, case in at["queries"]]
     head = wrapped(
         f"(not in the paper) What whitening the landmark descriptors on the reference database "
-        f"({at['kept']} components, fitted on {at['landmarks']} reference landmarks) does: "
+        f"({at['kept']} components, fitted on {at['landmarks']:,} reference landmarks) does: "
         f"{plain.label} without and with it; top-1 changed for {at['changed']} of "
         f"{at['with_gt']} queries\n{dataset_line([plain])}\n(a) the plain cosine of the "
         "shown pairs' reciprocal matches (grey) and the same matches' whitened cosine (blue), "
@@ -110,8 +110,12 @@ def plot_whitening(
                 color=colour,
             )
         worst = max(max(p["rank before"], p["rank after"]) for p in points)
-        if worst > 10:
+        if worst > 10:  # ranks 1, 2, 5, 10, 20, ... written as integers
             ax.set_yscale("log")
+            ticks = [t * 10**e for e in range(len(str(worst)) + 1) for t in (1, 2, 5)]
+            ax.set_yticks([t for t in ticks if t <= worst * 1.6], minor=False)
+            ax.yaxis.set_major_formatter(FormatStrFormatter("%d"))
+            ax.yaxis.set_minor_locator(NullLocator())
         else:
             ax.yaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_ylim(worst * (1.6 if worst > 10 else 1) + 0.5, 0.6)
