@@ -83,10 +83,12 @@ def plot_whitening(
     ax.bar(pos - 0.2, at["before"], 0.4, color="0.55", label="plain cosine")
     ax.bar(pos + 0.2, at["after"], 0.4, color="tab:blue", label="whitened cosine")
     ax.axhline(0, color="k", lw=0.6)
+    top_bar = float(np.nanmax([*at["before"], *at["after"], 0.0]))
+    ax.set_ylim(top=1.3 * top_bar if top_bar > 0 else 1.0)  # room for the legend above the bars
     ax.set_xticks(pos, names, rotation=35, ha="right", fontsize=FONT - 1)
     ax.set_ylabel("share of the matches' cosine", fontsize=FONT)
     ax.set_title(wrapped("(a) what carries a match's cosine", 3.0), fontsize=FONT)
-    ax.legend(fontsize=FONT - 1, frameon=False)
+    ax.legend(fontsize=FONT - 1, frameon=False, loc="upper center", ncol=2)
     ax.tick_params(labelsize=FONT - 1)
     for c, (q, case, points) in enumerate(panels, start=1):
         ax = fig.add_subplot(grid[0, c])
