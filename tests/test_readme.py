@@ -475,7 +475,10 @@ def _step_rows(label: str) -> list[str]:
     steps = _csv(f"{label}/places_alike_steps.csv")
     versus = _csv(f"{label}/places_alike_vs_contrast.csv").set_index("run")
     rows = []
-    for _, r in steps[steps["method"].str.match(r"(dense|classical)\b")].iterrows():
+    issue_55 = steps["method"].str.match(r"(dense|classical)\b") & ~steps["method"].str.contains(
+        "whitened"
+    )  # issue 62's whitening rows have a table of their own
+    for _, r in steps[issue_55].iterrows():
         cells = [label, str(r["method"])]
         cells += [_iv(r[m], r[f"{m} lo"], r[f"{m} hi"], False) for m in ("AUC", "R@1")]
         plain = pd.isna(r["baseline"])
@@ -491,6 +494,53 @@ def test_step_tables_at_scale_are_notebook_07s():
     rows = _step_rows("nordland_step5") + _step_rows("nordland_step1")
     assert len(rows) == 28
     assert all(row in MEASUREMENTS for row in rows), _paste(rows)
+
+
+def test_whitening_tables_are_notebook_07s():
+    """(Not in the paper; issue 62) every row of MEASUREMENTS' two whitening tables (each method
+    without and with it; the recipe against two-sided + query batch and contrast) equals notebook
+    07's committed tables to the 3 decimals it shows."""
+    section = MEASUREMENTS[
+        MEASUREMENTS.index("## Whitening on the reference database") : MEASUREMENTS.index(
+            "**Cost** (`benchmarks/bench_whiten.py"
+        )
+    ]
+    labels = {
+        "synthetic": "synthetic",
+        "gardens_point_mini": "gardens_point_mini",
+        "Nordland 72": "nordland_step50",
+        "Nordland 716": "nordland_step5",
+        "Nordland 3,576": "nordland_step1",
+    }
+    recipe = (
+        "{} (whitened: 256, weighting: contrast, normalised: query_batch, needs the query batch)"
+    )
+    best = "{} (weighting: two_sided, normalised: query_batch, needs the query batch)"
+
+    def num(text: str) -> float:
+        return float(text.split()[0])
+
+    checked = 0
+    for line in section.splitlines():
+        c = [x.strip() for x in line.strip().strip("|").split("|")]
+        if c[0] not in labels or len(c) not in (6, 9):
+            continue
+        label, m = labels[c[0]], c[1]
+        steps = _csv(f"{label}/places_alike_steps.csv").set_index("method")
+        if len(c) == 6:  # without and with whitening
+            row, plain = steps.loc[f"{m} (whitened: 256)"], steps.loc[m]
+            got = [plain["AUC"], row["AUC"], row["dAUC"], plain["R@1"], row["R@1"], row["dR@1"]]
+            want = [*c[2].split(" -> "), c[3], *c[4].split(" -> "), c[5]]
+        else:  # the recipe against today's best
+            vb = _csv(f"{label}/places_alike_vs_best.csv").set_index("method")
+            vc = _csv(f"{label}/places_alike_vs_contrast.csv").set_index("method")
+            r, b = recipe.format(m), best.format(m)
+            got = [vb.loc[r, "AUC"], vb.loc[r, "R@1"], vb.loc[b, "AUC"], vb.loc[b, "R@1"]]
+            got += [vb.loc[r, "dAUC"], vb.loc[r, "dR@1"], vc.loc[r, "dAUC"], vc.loc[r, "dR@1"]]
+            want = [*c[2].split(" / "), *c[3].split(" / "), c[4], c[5], c[7], c[8]]
+        assert [f"{g:.3f}" for g in got] == [f"{num(w):.3f}" for w in want], line
+        checked += 1
+    assert checked == 28
 
 
 def test_whitening_cost_tables_are_the_benchmark_tables():
