@@ -512,53 +512,54 @@ def cmd_eval(args: argparse.Namespace) -> int:
     with lines.stage("plotting"):
         fig = plot_pr_curves(results, title=title)
     items: list = [(stem, table), (stem, fig)]
+
+    def paired(suffix: str, heading: str, pairs: list) -> None:
+        """Each pair's paired differences, shown under ``heading`` and saved as ``suffix``."""
+        table = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
+        say(f"\n(not in the paper) {heading}:", width)
+        print(fit_text(compact(table), width, HEADLINE, wide=args.wide))
+        items.append((f"{stem}_{suffix}", table))
+
+    product = itertools.product
     if args.spatial == "both":
-        pairs = [
-            (run_of[m, None, w, z, h], run_of[m, s, w, z, h])
-            for m, w, z, h in itertools.product(args.method, weighting, normalise, whitening)
-            for s in SPATIAL_OPTIONS
-        ]
-        geometry = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
-        say("\n(not in the paper) geometry-aware score, each method with minus without:", width)
-        print(fit_text(compact(geometry), width, HEADLINE, wide=args.wide))
-        items.append((f"{stem}_geometry", geometry))
+        paired(
+            "geometry",
+            "geometry-aware score, each method with minus without",
+            [
+                (run_of[m, None, w, z, h], run_of[m, s, w, z, h])
+                for m, w, z, h in product(args.method, weighting, normalise, whitening)
+                for s in SPATIAL_OPTIONS
+            ],
+        )
     if args.weighting in ("both", "all"):
-        pairs = [
-            (run_of[m, s, None, z, h], run_of[m, s, w, z, h])
-            for m, s, z, h in itertools.product(args.method, spatial, normalise, whitening)
-            for w in weighting[1:]
-        ]
-        weighted = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
-        say("\n(not in the paper) database weighting, each method with minus without:", width)
-        print(fit_text(compact(weighted), width, HEADLINE, wide=args.wide))
-        items.append((f"{stem}_weighting", weighted))
+        paired(
+            "weighting",
+            "database weighting, each method with minus without",
+            [
+                (run_of[m, s, None, z, h], run_of[m, s, w, z, h])
+                for m, s, z, h in product(args.method, spatial, normalise, whitening)
+                for w in weighting[1:]
+            ],
+        )
     if args.normalise in ("both", "all"):
-        pairs = [
-            (run_of[m, s, w, None, h], run_of[m, s, w, z, h])
-            for m, s, w, h in itertools.product(args.method, spatial, weighting, whitening)
-            for z in NORMALISATIONS
-        ]
-        normalised = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
-        say(
-            "\n(not in the paper) normalisation, each method with minus without "
-            "(query_batch needs the query batch):",
-            width,
+        paired(
+            "normalise",
+            "normalisation, each method with minus without (query_batch needs the query batch)",
+            [
+                (run_of[m, s, w, None, h], run_of[m, s, w, z, h])
+                for m, s, w, h in product(args.method, spatial, weighting, whitening)
+                for z in NORMALISATIONS
+            ],
         )
-        print(fit_text(compact(normalised), width, HEADLINE, wide=args.wide))
-        items.append((f"{stem}_normalise", normalised))
     if args.whiten == "both":
-        pairs = [
-            (run_of[m, s, w, z, None], run_of[m, s, w, z, WHITEN_K])
-            for m, s, w, z in itertools.product(args.method, spatial, weighting, normalise)
-        ]
-        whitened = compare_pairs(pairs, n_bootstrap=args.n_bootstrap)
-        say(
-            "\n(not in the paper) whitening on the reference database, each method with minus "
-            "without:",
-            width,
+        paired(
+            "whiten",
+            "whitening on the reference database, each method with minus without",
+            [
+                (run_of[m, s, w, z, None], run_of[m, s, w, z, WHITEN_K])
+                for m, s, w, z in product(args.method, spatial, weighting, normalise)
+            ],
         )
-        print(fit_text(compact(whitened), width, HEADLINE, wide=args.wide))
-        items.append((f"{stem}_whiten", whitened))
     with lines.stage("writing the figure and tables"):
         written = save_all(items, label, out=args.out)
     root = outputs.figures_root() if args.out is None else Path(args.out).expanduser().resolve()

@@ -13,9 +13,9 @@ import pandas as pd
 
 from .. import checks
 from ..matching.similarity import match_landmarks
-from ..matching.whiten import Whitening, fit_whitening
+from ..matching.whiten import Whitening, _unit, fit_whitening
 from ..methods import step_between
-from .steps import changed_queries
+from .steps import _ranks, _top1, changed_queries
 
 __all__ = ["WHITENING_COLUMNS", "whitening_changes"]
 
@@ -34,20 +34,6 @@ WHITENING_COLUMNS = (
     "shared share",
     "why",
 )
-
-
-def _unit(x: np.ndarray) -> np.ndarray:
-    x = np.asarray(x, dtype=np.float64)
-    n = np.linalg.norm(x, axis=1, keepdims=True)
-    return np.divide(x, n, out=np.zeros_like(x), where=n > 0)
-
-
-def _ranks(row: np.ndarray) -> np.ndarray:
-    """1-based rank of each reference (best first, ties by lowest index, NaN last)."""
-    order = np.argsort(-np.where(np.isnan(row), -np.inf, row), kind="stable")
-    out = np.empty(row.shape[0], dtype=np.int64)
-    out[order] = np.arange(1, row.shape[0] + 1)
-    return out
 
 
 def _check_whitening_runs(plain: Any, whitened: Any) -> int:
@@ -191,7 +177,7 @@ def whitening_changes(
                 }
             )
     table = pd.DataFrame(rows, columns=list(WHITENING_COLUMNS))
-    top1 = [np.argmax(np.where(np.isnan(s), -np.inf, s), 1) for s in (sp, sw)]
+    top1 = [_top1(s) for s in (sp, sw)]
     after_sum = total_a.sum() if total_a.sum() > 0 else np.nan
     table.attrs.update(
         parts=["database mean", *(f"comp. {g[0]}" for g in groups), f"beyond {fit.kept}"],
