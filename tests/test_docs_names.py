@@ -73,6 +73,8 @@ def test_a_named_thing_exists(where, name):
     if _DOTTED.match(name):
         assert _resolves(name), f"{where} names {name}, which does not resolve"
     elif name not in USER_FILES:
+        if name.startswith("../shared/") and not (ROOT.parent / "shared").is_dir():
+            pytest.skip("../shared is not beside this checkout (CI puts it there)")
         found = any((base / name).exists() for base in BASES) or (
             "/" not in name and _tracked(name)
         )
